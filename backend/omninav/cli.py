@@ -1,0 +1,275 @@
+"""The `omninav` command line: venues, modelling, locating, evaluation and the demo.
+
+Every user mistake ends as one line `omninav: error: ...` on stderr and a non-zero exit, never
+a traceback (OmninavError carries the message).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import click
+
+from .errors import OmninavError
+from .store import Store
+
+
+def _store(ctx: click.Context) -> Store:
+    return Store(ctx.obj["data"])
+
+
+class Progress:
+    """A one-line progress bar with frames/s and ETA, drawn only on a terminal."""
+
+    def __init__(self, label: str, stream: Any = None):
+        self.label = label
+        self.stream = stream or sys.stderr
+        self.tty = self.stream.isatty()
+        self.last = 0.0
+
+    def __call__(self, done: int, total: int, elapsed: float) -> None:
+        if not self.tty or (time.monotonic() - self.last < 0.1 and done < total):
+            return
+        self.last = time.monotonic()
+        rate = done / elapsed if elapsed > 0 else 0.0
+        eta = (total - done) / rate if rate > 0 else 0.0
+        frac = min(1.0, done / max(total, 1))
+        bar = "#" * int(frac * 30)
+        self.stream.write(f"\r{self.label} [{bar:<30}] {done}/{total} frames  {rate:6.1f} frames/s"
+                          f"  ETA {int(eta) // 60}:{int(eta) % 60:02d} ")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.tty:
+            self.stream.write("\n")
+
+
+@click.group()
+@click.option("--data", type=click.Path(file_okay=False), envvar="OMNINAV_DATA", default="data",
+              show_default=True, help="Data directory (env OMNINAV_DATA).")
+@click.pass_context
+def cli(ctx: click.Context, data: str) -> None:
+    """omninav: indoor localisation from panoramic vision."""
+    ctx.ensure_object(dict)
+    ctx.obj["data"] = Path(data)
+
+
+@cli.group()
+def venue() -> None:
+    """Create and inspect venues."""
+
+
+@venue.command("create")
+@click.argument("venue_id", metavar="VENUE")
+@click.option("--name", help="Human name of the venue.")
+@click.option("--floor", default="1", show_default=True, help="Floor label given in answers.")
+@click.option("--floorplan", type=click.Path(path_type=Path), help="Floor plan image (PNG/JPEG).")
+@click.option("--px-per-m", type=float, help="Floor plan scale, pixels per metre.")
+@click.option("--preset", default="default", show_default=True, help="Feature preset (paper, six, default).")
+@click.option("--places", type=click.Path(path_type=Path), help="JSON list of {name, x, y} in metres.")
+@click.pass_context
+def venue_create(ctx: click.Context, venue_id: str, name: str | None, floor: str,
+                 floorplan: Path | None, px_per_m: float | None, preset: str, places: Path | None) -> None:
+    """Create VENUE (an id of letters, digits, '-' and '_')."""
+    pl = _load_places(places) if places else None
+    meta = _store(ctx).create(venue_id, name, floor, floorplan, px_per_m, preset, pl)
+    click.echo(json.dumps(meta))
+
+
+def _load_places(path: Path) -> list[dict[str, Any]]:
+    try:
+        pl = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as e:
+        raise OmninavError(f"{path}: places must be a readable JSON list ({e})") from None
+    ok = isinstance(pl, list) and all(
+        isinstance(p, dict) and isinstance(p.get("name"), str)
+        and all(isinstance(p.get(k), int | float) for k in ("x", "y")) for p in pl)
+    if not ok:
+        raise OmninavError(f"{path}: places must be a list of {{\"name\", \"x\", \"y\"}} objects")
+    return pl
+
+
+@venue.command("list")
+@click.pass_context
+def venue_list(ctx: click.Context) -> None:
+    """List venues, one JSON object per line."""
+    st = _store(ctx)
+    for v in st.list():
+        meta = st.meta(v)
+        try:
+            n = int(st.load(v).frames.shape[0])
+        except OmninavError:
+            n = 0
+        click.echo(json.dumps({"id": v, "name": meta["name"], "frames": n}))
+
+
+@cli.command()
+@click.argument("venue_id", metavar="VENUE")
+@click.argument("video", type=click.Path(path_type=Path))
+@click.option("--track", "track_path", required=True, type=click.Path(path_type=Path), help="track.json")
+@click.option("--lens", "lens_path", required=True, type=click.Path(path_type=Path), help="lens.json")
+@click.pass_context
+def model(ctx: click.Context, venue_id: str, video: Path, track_path: Path, lens_path: Path) -> None:
+    """Model VENUE from a panoramic VIDEO walked along TRACK."""
+    from .lens import load_lens
+    from .model_venue import model_video
+    from .track import load_track
+
+    st = _store(ctx)
+    st.require(venue_id)
+    track, lens = load_track(track_path), load_lens(lens_path)
+    bar = Progress(f"modelling {video.name}")
+    try:
+        r = model_video(st, venue_id, video, track, lens, progress=bar)
+    finally:
+        bar.close()
+    click.echo(json.dumps({"venue": r.venue, "video": r.video, "frames_added": r.frames,
+                           "venue_frames": r.total_frames, "seconds": round(r.seconds, 2),
+                           "x_realtime": round(r.speed_x_realtime, 1)}))
+
+
+@cli.command()
+@click.argument("venue_id", metavar="VENUE")
+@click.argument("clips", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("--lens", "lens_path", type=click.Path(path_type=Path),
+              help="Lens of the clips (default: the venue's modelling lens).")
+@click.option("--aggregate", type=click.Choice(["median", "sequence"]), help="Clip aggregation.")
+@click.option("--device", type=click.Choice(["auto", "cpu", "gpu"]), help="Search device.")
+@click.pass_context
+def locate(ctx: click.Context, venue_id: str, clips: tuple[Path, ...], lens_path: Path | None,
+           aggregate: str | None, device: str | None) -> None:
+    """Locate each CLIP (a video or a directory of frames): one JSON answer per line."""
+    from .lens import load_lens
+    from .locate import Locator, clip_frames
+
+    lens = load_lens(lens_path) if lens_path else None
+    loc = Locator(_store(ctx), venue_id, device)
+    for c in clips:  # check every path first: fail before printing half the answers
+        if not c.exists():
+            raise OmninavError(f"{c}: clip not found")
+    for c in clips:
+        frames, fps = clip_frames(c, loc.conf["model_fps"])
+        click.echo(json.dumps(loc.locate_frames(frames, c.name, lens, fps, aggregate)))
+
+
+@cli.command()
+@click.argument("venue_id", metavar="VENUE")
+@click.argument("video", type=click.Path(path_type=Path))
+@click.option("--track", "track_path", required=True, type=click.Path(path_type=Path))
+@click.option("--lens", "lens_path", required=True, type=click.Path(path_type=Path))
+@click.option("--aggregate", type=click.Choice(["median", "sequence"]))
+@click.option("--plot", "plot_path", type=click.Path(path_type=Path), help="PNG (default: VIDEO.eval.png).")
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+@click.pass_context
+def evaluate(ctx: click.Context, venue_id: str, video: Path, track_path: Path, lens_path: Path,
+             aggregate: str | None, plot_path: Path | None, as_json: bool) -> None:
+    """Cut a second walk into 1 s clips, locate each, report accuracy against its TRACK."""
+    from .evaluate import evaluate as run, plot
+    from .lens import load_lens
+    from .locate import Locator
+    from .track import load_track
+
+    track, lens = load_track(track_path), load_lens(lens_path)
+    loc = Locator(_store(ctx), venue_id)
+    ev = run(loc, video, track, lens, aggregate)
+    s = ev.summary()
+    out = plot_path or video.with_suffix(".eval.png")
+    plot(ev, loc, out)
+    s["plot"] = str(out)
+    if as_json:
+        click.echo(json.dumps(s))
+    else:
+        click.echo(_table([(aggregate or loc.conf["aggregate"], s)]))
+
+
+def _table(rows: list[tuple[str, dict[str, Any]]]) -> str:
+    head = f"{'method':<28}{'clips':>6}{'<=1 m':>8}{'<=2 m':>8}{'median m':>10}{'heading med':>13}"
+    lines = [head, "-" * len(head)]
+    for name, s in rows:
+        lines.append(f"{name:<28}{s['clips']:>6}{s['within_1m']:>8.1%}{s['within_2m']:>8.1%}"
+                     f"{s['median_err_m']:>10.2f}{s['median_heading_err_deg']:>12.2f}°")
+    return "\n".join(lines)
+
+
+@cli.command()
+@click.argument("out", type=click.Path(path_type=Path))
+@click.option("--seed", default=0, show_default=True)
+@click.option("--layout", type=click.Choice(["default", "small"]), default="default", show_default=True)
+@click.option("--scale", default=1.0, show_default=True, help="Donut image scale (1 = 960x720).")
+@click.option("--fps", default=10.0, show_default=True)
+@click.option("--model-lens", type=click.Choice(["donut", "equirect"]), default="donut", show_default=True)
+def synth(out: Path, seed: int, layout: str, scale: float, fps: float, model_lens: str) -> None:
+    """Render a synthetic venue into OUT: modelling and query videos, tracks, lens, floor plan."""
+    from .synth import equirect_lens, make_dataset
+
+    ml = equirect_lens() if model_lens == "equirect" else None
+    ds = make_dataset(out, seed=seed, layout=layout, fps=fps, scale=scale, model_lens=ml)
+    (out / "places.json").write_text(json.dumps(ds.scene.places))
+    click.echo(json.dumps({"dir": str(out), "px_per_m": ds.px_per_m}))
+
+
+@cli.command()
+@click.option("--quick", is_flag=True, help="A small venue at half resolution (about a minute).")
+@click.option("--venue", "venue_id", default="demo", show_default=True)
+@click.pass_context
+def demo(ctx: click.Context, quick: bool, venue_id: str) -> None:
+    """Render the built-in synthetic venue, model it, evaluate it, print the table."""
+    from .evaluate import evaluate as run, plot
+    from .lens import load_lens
+    from .locate import Locator
+    from .model_venue import model_video
+    from .synth import make_dataset
+    from .track import load_track
+
+    st = _store(ctx)
+    src = st.root / ("demo-src-quick" if quick else "demo-src")
+    if not (src / "query.mp4").exists():
+        click.echo(f"rendering the synthetic venue into {src} ...", err=True)
+        ds = make_dataset(src, seed=0, layout="small" if quick else "default", scale=0.5 if quick else 1.0)
+        (src / "places.json").write_text(json.dumps(ds.scene.places))
+    places = json.loads((src / "places.json").read_text())
+    rows = []
+    for vid, preset, agg in ((venue_id, "default", "sequence"), (f"{venue_id}-paper", "paper", "median")):
+        if not st.exists(vid):
+            st.create(vid, name="Synthetic demo venue", floorplan=src / "floorplan.png", px_per_m=20.0,
+                      preset=preset, places=places)
+        try:
+            st.load(vid)
+        except OmninavError:
+            bar = Progress(f"modelling {vid}")
+            try:
+                model_video(st, vid, src / "model.mp4", load_track(src / "model_track.json"),
+                            load_lens(src / "model_lens.json"), progress=bar)
+            finally:
+                bar.close()
+        loc = Locator(st, vid)
+        ev = run(loc, src / "query.mp4", load_track(src / "query_track.json"), load_lens(src / "lens.json"), agg)
+        plot(ev, loc, src / f"{vid}.eval.png")
+        label = "omninav (sequence)" if preset == "default" else "paper (I curve, median)"
+        rows.append((label, ev.summary()))
+    click.echo(_table(rows))
+    click.echo(f"plots: {src}/*.eval.png")
+
+
+def main() -> None:
+    try:
+        cli.main(standalone_mode=False, prog_name="omninav")
+    except OmninavError as e:
+        click.echo(f"omninav: error: {e}", err=True)
+        sys.exit(2)
+    except click.exceptions.Abort:
+        click.echo("omninav: interrupted; nothing was changed", err=True)
+        sys.exit(130)
+    except click.ClickException as e:
+        e.show()
+        sys.exit(e.exit_code)
+    except KeyboardInterrupt:
+        click.echo("omninav: interrupted; nothing was changed", err=True)
+        sys.exit(130)
+    except BrokenPipeError:
+        os._exit(0)

@@ -1,0 +1,111 @@
+"""Omni-projection curves (the paper's Eq. 3): column sums of colour channels over elevation bands.
+
+A panorama's columns are azimuths, so summing each column over a band around the horizon gives a
+1-D curve per channel whose circular shift is the camera's rotation. The paper's six curves are
+the column sums of H, S, I and of their horizontal gradients; we can add opponent colours and more
+bands (see presets.py). Each curve is normalised to zero mean and unit variance, which removes
+brightness gain and offset.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+CHANNELS = ("H", "S", "I", "dH", "dS", "dI", "O1", "O2", "dO1", "dO2")
+_EPS = 1e-6
+
+
+def hsi(rgb: np.ndarray) -> dict[str, np.ndarray]:
+    """(rows, cols, 3) float32 RGB in [0, 1] -> hue (turns, [0, 1)), saturation and intensity.
+
+    The HSI model of Gonzalez & Woods, which the paper uses; hue is an angle, kept in turns.
+    """
+    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
+    s3 = r + g + b
+    i = s3 / 3.0
+    s = 1.0 - 3.0 * np.minimum(np.minimum(r, g), b) / np.maximum(s3, _EPS)
+    num = 0.5 * ((r - g) + (r - b))
+    den = np.sqrt((r - g) ** 2 + (r - b) * (g - b)) + _EPS
+    theta = np.arccos(np.clip(num / den, -1.0, 1.0))
+    h = np.where(b > g, 2.0 * np.pi - theta, theta) / (2.0 * np.pi)
+    return {"H": h.astype(np.float32), "S": s.astype(np.float32), "I": i.astype(np.float32)}
+
+
+def gray_world(rgb: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
+    """Divide each channel by its mean (over valid pixels): undoes a global cast and gain."""
+    px = rgb[valid] if valid is not None else rgb.reshape(-1, 3)
+    mean = px.mean(axis=0) if px.size else np.ones(3, np.float32)
+    return (rgb * (0.5 / np.maximum(mean, _EPS))).astype(np.float32)
+
+
+def _hgrad(x: np.ndarray, circular_unit: bool = False) -> np.ndarray:
+    """|d/dx| along the columns (azimuth), circular because the panorama wraps around."""
+    d = np.roll(x, -1, axis=-1) - np.roll(x, 1, axis=-1)
+    if circular_unit:  # hue is an angle in turns: 0.99 and 0.01 are close
+        d = (d + 0.5) % 1.0 - 0.5
+    return np.abs(d) * 0.5
+
+
+def channel_images(rgb: np.ndarray, channels: list[str] | tuple[str, ...]) -> dict[str, np.ndarray]:
+    """The per-pixel channel images that the curves sum: (rows, cols) float32 each."""
+    out: dict[str, np.ndarray] = {}
+    base = hsi(rgb)
+    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
+    o1 = (r - g) * 0.5
+    o2 = (r + g - 2.0 * b) * 0.25
+    for ch in channels:
+        if ch in base:
+            out[ch] = base[ch]
+        elif ch == "dH":
+            out[ch] = _hgrad(base["H"], circular_unit=True)
+        elif ch in ("dS", "dI"):
+            out[ch] = _hgrad(base[ch[1]])
+        elif ch == "O1":
+            out[ch] = o1
+        elif ch == "O2":
+            out[ch] = o2
+        elif ch == "dO1":
+            out[ch] = _hgrad(o1)
+        elif ch == "dO2":
+            out[ch] = _hgrad(o2)
+        else:
+            raise ValueError(f"unknown channel {ch!r}; known: {CHANNELS}")
+    return out
+
+
+def normalise(curves: np.ndarray) -> np.ndarray:
+    """Zero mean, unit standard deviation per curve (last axis); a flat curve stays zero."""
+    c = curves - curves.mean(axis=-1, keepdims=True)
+    sd = c.std(axis=-1, keepdims=True)
+    return (c / np.maximum(sd, 1e-4)).astype(np.float32)
+
+
+def extract_curves(
+    pano: np.ndarray, elevations: np.ndarray, conf: dict[str, Any], valid: np.ndarray | None = None
+) -> np.ndarray:
+    """(rows, cols*oversample, 3) panorama (uint8 or float in [0, 1]) -> (n_curves, cols) float32.
+
+    Curves are ordered band-major: for each band, its channels in `conf["channels"]` order.
+    Column sums are means over the band's rows so that the band height does not scale them.
+    """
+    if pano.ndim != 3 or pano.shape[2] != 3 or pano.shape[0] != len(elevations):
+        raise ValueError(f"panorama shape {pano.shape} does not match {len(elevations)} rows x 3")
+    rgb = pano.astype(np.float32)
+    if pano.dtype == np.uint8:
+        rgb *= 1.0 / 255.0
+    if conf.get("gray_world"):
+        rgb = gray_world(rgb, valid)
+    imgs = channel_images(rgb, conf["channels"])
+    width = conf["pano_width"]
+    os_ = pano.shape[1] // width
+    out = np.empty((len(conf["bands"]) * len(conf["channels"]), width), np.float32)
+    k = 0
+    for lo, hi in conf["bands"]:
+        rows = (elevations >= lo - 1e-6) & (elevations <= hi + 1e-6)
+        for ch in conf["channels"]:
+            col = imgs[ch][rows].mean(axis=0)
+            out[k] = col.reshape(width, os_).mean(axis=1)
+            k += 1
+    return normalise(out)

@@ -1,0 +1,46 @@
+"""Frame -> features: unwarp (Eq. 1), curves (Eq. 3), spectrum; the per-frame pipeline composed."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import cv2
+import numpy as np
+
+from .curves import extract_curves
+from .lens import Lens
+from .spectrum import quantise, spectrum
+from .unwarp import band_map, unwarp
+
+
+class Extractor:
+    """Holds the remap for one (lens, preset) pair; `spectra` is then pure per frame."""
+
+    def __init__(self, lens: Lens, conf: dict[str, Any]):
+        self.lens = lens
+        self.conf = conf
+        self.map = band_map(lens, conf)
+
+    def check_frame(self, frame: np.ndarray, where: str = "frame") -> None:
+        w, h = self.lens.image_size
+        if frame.shape[:2] != (h, w):
+            from .errors import OmninavError
+
+            raise OmninavError(
+                f"{where}: frame is {frame.shape[1]}x{frame.shape[0]} but the lens profile is for "
+                f"{w}x{h} images (wrong lens profile?)"
+            )
+
+    def curves(self, frame_bgr: np.ndarray) -> np.ndarray:
+        """(H, W, 3) uint8 BGR frame -> (C, W) float32 normalised curves."""
+        pano = cv2.cvtColor(unwarp(frame_bgr, self.map), cv2.COLOR_BGR2RGB)
+        return extract_curves(pano, self.map.elevations, self.conf, self.map.valid)
+
+    def spectrum(self, frame_bgr: np.ndarray) -> np.ndarray:
+        """(H, W, 3) uint8 BGR frame -> (C, K) complex64, quantised as the record carries it."""
+        return quantise(spectrum(self.curves(frame_bgr), self.conf["n_harmonics"]))
+
+    def spectra(self, frames: list[np.ndarray]) -> np.ndarray:
+        return np.stack([self.spectrum(f) for f in frames]) if frames else np.zeros(
+            (0, 1, self.conf["n_harmonics"]), np.complex64
+        )

@@ -1,0 +1,205 @@
+"""Lens profiles (CONVENTIONS.md `lens.json`): which camera pixel looks in which direction.
+
+Two models: a catadioptric "donut" lens (the paper's Eq. 1 geometry) and an equirectangular
+360-camera frame. Every direction is expressed as (azimuth, elevation) in degrees relative to the
+lens's forward direction: azimuth grows *clockwise seen from above* (the plan heading convention),
+elevation is 0 at the horizon and positive upwards.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import OmninavError
+
+
+@dataclass(frozen=True)
+class Catadioptric:
+    image_size: tuple[int, int]
+    center: tuple[float, float]
+    r_inner: float
+    r_outer: float
+    elevation_poly: tuple[float, ...]
+    forward_deg: float = 0.0
+    ccw: bool = True
+    model: str = field(default="catadioptric", init=False)
+
+    def elevation(self, r: np.ndarray) -> np.ndarray:
+        """Elevation (deg) seen at radius r (px): the profile's polynomial, ascending powers."""
+        return np.polynomial.polynomial.polyval(r, np.asarray(self.elevation_poly, np.float64))
+
+    def elevation_range(self) -> tuple[float, float]:
+        e = self.elevation(np.array([self.r_inner, self.r_outer]))
+        return float(e.min()), float(e.max())
+
+    def radius(self, elev_deg: np.ndarray) -> np.ndarray:
+        """Inverse of `elevation` over [r_inner, r_outer] (monotonic): dense table + interpolation.
+
+        Elevations outside the ring map to NaN so that callers can tell "not seen" from "seen".
+        """
+        r = np.linspace(self.r_inner, self.r_outer, 4097)
+        e = self.elevation(r)
+        if e[0] > e[-1]:
+            r, e = r[::-1], e[::-1]
+        out = np.interp(np.asarray(elev_deg, np.float64), e, r, left=np.nan, right=np.nan)
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "model": "catadioptric",
+            "image_size": list(self.image_size),
+            "center": list(self.center),
+            "r_inner": self.r_inner,
+            "r_outer": self.r_outer,
+            "elevation_poly": list(self.elevation_poly),
+            "forward_deg": self.forward_deg,
+            "ccw": self.ccw,
+        }
+
+
+@dataclass(frozen=True)
+class Equirectangular:
+    image_size: tuple[int, int]
+    forward_x: float
+    ccw: bool = False
+    model: str = field(default="equirectangular", init=False)
+
+    def elevation_range(self) -> tuple[float, float]:
+        return -90.0, 90.0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "model": "equirectangular",
+            "image_size": list(self.image_size),
+            "forward_x": self.forward_x,
+            "ccw": self.ccw,
+        }
+
+
+Lens = Catadioptric | Equirectangular
+
+
+def _need(d: dict[str, Any], key: str, where: str) -> Any:
+    if key not in d:
+        raise OmninavError(f"{where}: lens profile is missing the field '{key}'")
+    return d[key]
+
+
+def _num(v: Any, key: str, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise OmninavError(f"{where}: lens field '{key}' must be a finite number, got {v!r}")
+    return float(v)
+
+
+def _size(v: Any, where: str) -> tuple[int, int]:
+    if (
+        not isinstance(v, list | tuple)
+        or len(v) != 2
+        or not all(isinstance(x, int) and not isinstance(x, bool) and x > 0 for x in v)
+    ):
+        raise OmninavError(f"{where}: lens field 'image_size' must be [width, height] in pixels")
+    return int(v[0]), int(v[1])
+
+
+def lens_from_dict(d: Any, where: str = "lens") -> Lens:
+    """Validate a parsed `lens.json` and build the profile; every problem names its field."""
+    if not isinstance(d, dict):
+        raise OmninavError(f"{where}: a lens profile must be a JSON object")
+    model = _need(d, "model", where)
+    if model == "catadioptric":
+        size = _size(_need(d, "image_size", where), where)
+        c = _need(d, "center", where)
+        if not isinstance(c, list | tuple) or len(c) != 2:
+            raise OmninavError(f"{where}: lens field 'center' must be [x, y] in pixels")
+        center = (_num(c[0], "center", where), _num(c[1], "center", where))
+        r_in = _num(_need(d, "r_inner", where), "r_inner", where)
+        r_out = _num(_need(d, "r_outer", where), "r_outer", where)
+        if not 0 <= r_in < r_out:
+            raise OmninavError(f"{where}: lens needs 0 <= r_inner < r_outer, got {r_in}, {r_out}")
+        poly = _need(d, "elevation_poly", where)
+        if not isinstance(poly, list | tuple) or not 1 <= len(poly) <= 8:
+            raise OmninavError(f"{where}: lens field 'elevation_poly' must be a list of 1-8 numbers")
+        coeffs = tuple(_num(p, "elevation_poly", where) for p in poly)
+        lens = Catadioptric(
+            image_size=size,
+            center=center,
+            r_inner=r_in,
+            r_outer=r_out,
+            elevation_poly=coeffs,
+            forward_deg=_num(d.get("forward_deg", 0.0), "forward_deg", where),
+            ccw=bool(d.get("ccw", True)),
+        )
+        e = lens.elevation(np.linspace(r_in, r_out, 512))
+        de = np.diff(e)
+        if not (np.all(de > 0) or np.all(de < 0)):
+            raise OmninavError(
+                f"{where}: 'elevation_poly' is not monotonic over [r_inner, r_outer]"
+            )
+        return lens
+    if model == "equirectangular":
+        size = _size(_need(d, "image_size", where), where)
+        return Equirectangular(
+            image_size=size,
+            forward_x=_num(_need(d, "forward_x", where), "forward_x", where),
+            ccw=bool(d.get("ccw", False)),
+        )
+    raise OmninavError(
+        f"{where}: unknown lens model {model!r} (expected 'catadioptric' or 'equirectangular')"
+    )
+
+
+def load_lens(path: str | Path) -> Lens:
+    p = Path(path)
+    try:
+        d = json.loads(p.read_text())
+    except FileNotFoundError:
+        raise OmninavError(f"{p}: lens profile not found") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise OmninavError(f"{p}: lens profile is not readable JSON ({e})") from None
+    return lens_from_dict(d, where=str(p))
+
+
+def direction_to_pixel(lens: Lens, az_deg: np.ndarray, el_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel (x, y) that sees direction (azimuth clockwise from forward, elevation), float64.
+
+    For the donut this is the paper's Eq. 1 (polar to Cartesian), generalised by the calibrated
+    radius-elevation polynomial instead of a linear radius.
+    """
+    az = np.asarray(az_deg, np.float64)
+    el = np.asarray(el_deg, np.float64)
+    if isinstance(lens, Catadioptric):
+        r = lens.radius(el)
+        sign = -1.0 if lens.ccw else 1.0
+        phi = np.deg2rad(lens.forward_deg + sign * az)
+        return lens.center[0] + r * np.cos(phi), lens.center[1] + r * np.sin(phi)
+    w, h = lens.image_size
+    sign = -1.0 if lens.ccw else 1.0
+    x = np.mod(lens.forward_x + sign * az * w / 360.0, w)
+    y = (90.0 - el) * h / 180.0 - 0.5
+    return x, y
+
+
+def pixel_to_direction(lens: Lens, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Direction (azimuth, elevation) in degrees seen by pixel (x, y); inverse of the above."""
+    x = np.asarray(x, np.float64)
+    y = np.asarray(y, np.float64)
+    if isinstance(lens, Catadioptric):
+        dx, dy = x - lens.center[0], y - lens.center[1]
+        r = np.hypot(dx, dy)
+        phi = np.rad2deg(np.arctan2(dy, dx))
+        sign = -1.0 if lens.ccw else 1.0
+        az = np.mod(sign * (phi - lens.forward_deg), 360.0)
+        el = lens.elevation(r)
+        el = np.where((r >= lens.r_inner) & (r <= lens.r_outer), el, np.nan)
+        return az, el
+    w, h = lens.image_size
+    sign = -1.0 if lens.ccw else 1.0
+    az = np.mod(sign * (x - lens.forward_x) * 360.0 / w, 360.0)
+    el = 90.0 - (y + 0.5) * 180.0 / h
+    return az, el

@@ -1,0 +1,91 @@
+"""Locate a clip in a venue: features -> index search -> aggregation -> the CONVENTIONS.md answer."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .aggregate import AGGREGATORS, Estimate, confidence
+from .errors import OmninavError
+from .extract import Extractor
+from .index import Index
+from .lens import Lens
+from .store import Store
+
+DEFAULT_CLIP_FPS = 10.0  # timing assumed for a directory of frames, which carries none
+
+
+class Locator:
+    """One venue's live generation loaded for answering; reuse it across queries."""
+
+    def __init__(self, store: Store, venue_id: str, device: str | None = None):
+        self.venue_id = venue_id
+        self.meta = store.meta(venue_id)
+        self.gen = store.load(venue_id)
+        self.conf = self.gen.settings
+        self.xy = np.stack([self.gen.frames["x"], self.gen.frames["y"]], -1).astype(np.float64)
+        self.index = Index(self.gen.spectra, self.gen.frames["heading"], device=device)
+        self._extractors: dict[str, Extractor] = {}
+
+    def extractor(self, lens: Lens | None) -> Extractor:
+        lens = lens or self.gen.lens
+        key = repr(lens)
+        if key not in self._extractors:
+            self._extractors[key] = Extractor(lens, self.conf)
+        return self._extractors[key]
+
+    def estimate(self, q_spec: np.ndarray, times: np.ndarray | None = None,
+                 aggregate: str | None = None) -> Estimate:
+        agg = aggregate or self.conf["aggregate"]
+        if agg not in AGGREGATORS:
+            raise OmninavError(f"unknown aggregation {agg!r} (use median or sequence)")
+        if q_spec.ndim != 3 or q_spec.shape[0] == 0:
+            raise OmninavError("a clip needs at least one frame")
+        if times is None:
+            times = np.arange(q_spec.shape[0]) / DEFAULT_CLIP_FPS
+        m = self.index.search(q_spec, self.conf["candidates"])
+        return AGGREGATORS[agg](m, self.xy, np.asarray(times, np.float64), self.conf)
+
+    def answer(self, e: Estimate, clip: str) -> dict[str, Any]:
+        return {
+            "clip": clip,
+            "x": round(e.x, 3),
+            "y": round(e.y, 3),
+            "heading_deg": round(e.heading % 360.0, 2),
+            "confidence": round(confidence(e, self.conf), 3),
+            "floor": self.meta.get("floor"),
+            "place": self.nearest_place(e.x, e.y),
+            "frame": int(self.gen.frames["frame"][e.venue_row]),
+        }
+
+    def nearest_place(self, x: float, y: float) -> str | None:
+        places = self.meta.get("places") or []
+        if not places:
+            return None
+        d = [np.hypot(p["x"] - x, p["y"] - y) for p in places]
+        return str(places[int(np.argmin(d))]["name"])
+
+    def locate_frames(self, frames: list[np.ndarray], clip: str, lens: Lens | None = None,
+                      fps: float | None = None, aggregate: str | None = None) -> dict[str, Any]:
+        ext = self.extractor(lens)
+        for f in frames[:1]:
+            ext.check_frame(f, clip)
+        spec = ext.spectra(frames)
+        times = np.arange(len(frames)) / (fps or DEFAULT_CLIP_FPS)
+        return self.answer(self.estimate(spec, times, aggregate), clip)
+
+
+def clip_frames(path: Path, sample_fps: float) -> tuple[list[np.ndarray], float]:
+    """A query clip's frames, resampled to about `sample_fps` if it is a faster video."""
+    from .video import VideoInfo, read_clip
+
+    frames = read_clip(path)
+    if path.is_dir():
+        return frames, DEFAULT_CLIP_FPS
+    fps = VideoInfo(path).fps or DEFAULT_CLIP_FPS
+    stride = max(1, int(round(fps / sample_fps)))
+    # keep the last frame: the answer is the pose there
+    keep = frames[::-1][::stride][::-1]
+    return keep, fps / stride

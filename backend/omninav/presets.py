@@ -1,0 +1,65 @@
+"""Named feature presets: the parameters that travel together, stored with every venue.
+
+A venue always answers with the settings it was modelled with (its `settings.json`), so a preset
+may change in a later release without breaking venues modelled today. `resolve` merges a preset
+over the defaults, as hloc's `confs` do.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+from .errors import OmninavError
+
+DEFAULTS: dict[str, Any] = {
+    # Panorama: columns are azimuth clockwise from the lens's forward; rows are elevations.
+    "pano_width": 360,  # output columns (1 deg each): the curves' length
+    "oversample": 4,  # remap at 4x the columns, then average: anti-aliasing at the donut's rim
+    "row_step_deg": 1.0,
+    # Elevation bands (deg) over which each channel is summed column-wise (the paper's Eq. 3).
+    "bands": [[-20.0, 20.0]],
+    # Channels per band. H, S, I and their horizontal gradients are the paper's six curves;
+    # O1/O2 are opponent colours, added because hue is unstable at low saturation.
+    "channels": ["H", "S", "I", "dH", "dS", "dI"],
+    "gray_world": False,  # divide each colour channel by its frame mean: removes casts and gain
+    "n_harmonics": 32,  # leading FFT harmonics kept (1..K; the DC term carries no shape)
+    # Search
+    "key_dims": 0,  # 0: match on all magnitudes; >0: PCA to this many dims for stage 1
+    "candidates": 64,  # venue frames kept per clip by the magnitude stage, verified by phase
+    "aggregate": "sequence",
+    "clip_radius_m": 1.5,  # frames of a 1 s clip come from places this close to each other
+    "heading_gate_deg": 35.0,  # and face within this of each other
+    # logistic(w0 + w1*support + w2*margin + w3*agreement) -> P(within 2 m); bench/calibrate.py
+    "confidence_coef": [-6.0, 6.0, 25.0, 2.0],
+    # Modelling
+    "model_fps": 10.0,  # modelling frames sampled at this rate from the video
+}
+
+PRESETS: dict[str, dict[str, Any]] = {
+    # The paper's method as published: the intensity curve of one band, median of best indices.
+    "paper": {
+        "channels": ["I"],
+        "bands": [[-20.0, 20.0]],
+        "n_harmonics": 32,
+        "aggregate": "median",
+    },
+    # The paper's six curves.
+    "six": {},
+    # Our default, see docs/benchmarks.md for what each addition buys.
+    "default": {},
+}
+
+
+def resolve(name: str = "default", overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    if name not in PRESETS:
+        raise OmninavError(f"unknown preset {name!r} (known: {', '.join(sorted(PRESETS))})")
+    conf = copy.deepcopy(DEFAULTS)
+    conf.update(copy.deepcopy(PRESETS[name]))
+    conf.update(copy.deepcopy(overrides or {}))
+    conf["preset"] = name
+    return conf
+
+
+def n_curves(conf: dict[str, Any]) -> int:
+    return len(conf["bands"]) * len(conf["channels"])

@@ -1,0 +1,157 @@
+"""Fourier spectra of the curves and the compact per-frame record the phone sends.
+
+FFT magnitudes are invariant to the circular shift that a rotation of the camera causes, so they
+key the search; the phases carry the rotation, which heading.py recovers (the paper's Eq. 6-7).
+
+The record (version 1) holds the leading K harmonics of each of the C curves:
+magnitudes as float16 and phases as int16 (2*pi / 65536 rad steps, far finer than the heading
+needs), so 4*C*K bytes plus a 16-byte header: 6 curves x 32 harmonics = 784 bytes.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+from typing import Any
+
+import numpy as np
+
+from .errors import OmninavError
+
+RECORD_VERSION = 1
+MAGIC = b"ONV"
+# magic, version, n_curves, n_harmonics, pano_width, n_frames
+_HEADER = struct.Struct("<3sBHHHI2x")
+MAX_RECORD_BYTES = 1024
+
+
+def spectrum(curves: np.ndarray, n_harmonics: int) -> np.ndarray:
+    """(..., C, W) float32 curves -> (..., C, K) complex64 harmonics 1..K, unit total energy.
+
+    Scaling each frame to unit energy makes the phase correlation of two frames a cosine in
+    [-1, 1] (Parseval), comparable across frames and venues.
+    """
+    w = curves.shape[-1]
+    if not 1 <= n_harmonics <= w // 2:
+        raise ValueError(f"n_harmonics must be in [1, {w // 2}], got {n_harmonics}")
+    f = np.fft.rfft(curves.astype(np.float32), axis=-1)[..., 1 : n_harmonics + 1]
+    e = np.sqrt((np.abs(f) ** 2).sum(axis=(-2, -1), keepdims=True))
+    return (f / np.maximum(e, 1e-12)).astype(np.complex64)
+
+
+def quantise(spec: np.ndarray) -> np.ndarray:
+    """The spectrum as the record carries it: float16 magnitudes, int16 phases, back to complex64.
+
+    The server quantises modelled frames the same way, so phone and venue compare like with like.
+    """
+    mag, ph = _split(spec)
+    return _join(mag, ph)
+
+
+def _split(spec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    mag = np.abs(spec).astype(np.float16)
+    ph = np.round(np.angle(spec) * (32768.0 / math.pi))
+    ph = np.where(ph >= 32768, ph - 65536, ph).astype(np.int16)
+    return mag, ph
+
+
+def _join(mag: np.ndarray, ph: np.ndarray) -> np.ndarray:
+    a = ph.astype(np.float32) * np.float32(math.pi / 32768.0)
+    return (mag.astype(np.float32) * np.exp(1j * a)).astype(np.complex64)
+
+
+def encode_binary(spec: np.ndarray, pano_width: int) -> bytes:
+    """(F, C, K) or (C, K) complex spectra -> the version-1 binary record (little endian)."""
+    s = spec[None] if spec.ndim == 2 else spec
+    f, c, k = s.shape
+    mag, ph = _split(s)
+    head = _HEADER.pack(MAGIC, RECORD_VERSION, c, k, pano_width, f)
+    return head + mag.astype("<f2").tobytes() + ph.astype("<i2").tobytes()
+
+
+def decode_binary(buf: bytes, expect: dict[str, Any] | None = None) -> np.ndarray:
+    """Binary record -> (F, C, K) complex64; every malformation raises OmninavError naming it."""
+    if len(buf) < _HEADER.size:
+        raise OmninavError(f"feature record too short: {len(buf)} bytes, header is {_HEADER.size}")
+    magic, ver, c, k, w, f = _HEADER.unpack_from(buf)
+    if magic != MAGIC:
+        raise OmninavError("not an omninav feature record (bad magic)")
+    if ver != RECORD_VERSION:
+        raise OmninavError(f"feature record version {ver} is not supported (expected 1)")
+    n = f * c * k
+    if c == 0 or k == 0 or f == 0:
+        raise OmninavError("feature record holds no frames, curves or harmonics")
+    want = _HEADER.size + n * 4
+    if len(buf) != want:
+        raise OmninavError(f"feature record is {len(buf)} bytes, its header says {want}")
+    mag = np.frombuffer(buf, "<f2", n, _HEADER.size).reshape(f, c, k)
+    ph = np.frombuffer(buf, "<i2", n, _HEADER.size + 2 * n).reshape(f, c, k)
+    _check(mag, c, k, w, expect)
+    return _join(mag, ph)
+
+
+def encode_json(spec: np.ndarray, conf: dict[str, Any]) -> dict[str, Any]:
+    s = spec[None] if spec.ndim == 2 else spec
+    mag, ph = _split(s)
+    return {
+        "version": RECORD_VERSION,
+        "preset": conf.get("preset", "default"),
+        "pano_width": conf["pano_width"],
+        "n_curves": int(s.shape[1]),
+        "n_harmonics": int(s.shape[2]),
+        "mag": mag.astype(np.float64).tolist(),  # float16 values print exactly
+        "phase": ph.astype(int).tolist(),
+    }
+
+
+def decode_json(obj: Any, expect: dict[str, Any] | None = None) -> np.ndarray:
+    if not isinstance(obj, dict):
+        raise OmninavError("feature record must be a JSON object")
+    if obj.get("version") != RECORD_VERSION:
+        raise OmninavError(f"feature record version {obj.get('version')!r} is not supported")
+    try:
+        mag = np.asarray(obj["mag"], dtype=np.float64)
+        ph = np.asarray(obj["phase"], dtype=np.float64)
+    except KeyError as e:
+        raise OmninavError(f"feature record is missing {e.args[0]!r}") from None
+    except (TypeError, ValueError):
+        raise OmninavError("feature record 'mag' and 'phase' must be arrays of numbers") from None
+    if mag.ndim != 3 or mag.shape != ph.shape:
+        raise OmninavError(
+            f"'mag' and 'phase' must both be [frames][curves][harmonics]; got {mag.shape} and {ph.shape}"
+        )
+    if not (np.isfinite(mag).all() and np.isfinite(ph).all()):
+        raise OmninavError("feature record contains NaN or Inf")
+    if (ph < -32768).any() or (ph > 32767).any() or (ph != np.round(ph)).any():
+        raise OmninavError("feature record phases must be integers in [-32768, 32767]")
+    _, c, k = mag.shape
+    _check(mag, c, k, int(obj.get("pano_width", -1)), expect)
+    return _join(mag.astype(np.float16), ph.astype(np.int16))
+
+
+def _check(mag: np.ndarray, c: int, k: int, w: int, expect: dict[str, Any] | None) -> None:
+    m = np.asarray(mag, np.float32)
+    if not np.isfinite(m).all():
+        raise OmninavError("feature record contains NaN or Inf")
+    if (m < 0).any() or (m > 1.0001).any():
+        raise OmninavError("feature record magnitudes must lie in [0, 1]")
+    if expect is not None:
+        from .presets import n_curves
+
+        want = (n_curves(expect), expect["n_harmonics"], expect["pano_width"])
+        if (c, k, w) != want:
+            raise OmninavError(
+                f"features have {c} curves x {k} harmonics (width {w}); this venue needs "
+                f"{want[0]} x {want[1]} (width {want[2]})"
+            )
+
+
+def record_bytes_per_frame(conf: dict[str, Any]) -> int:
+    from .presets import n_curves
+
+    return 4 * n_curves(conf) * conf["n_harmonics"]
+
+
+def record_json_dumps(spec: np.ndarray, conf: dict[str, Any]) -> str:
+    return json.dumps(encode_json(spec, conf), separators=(",", ":"))

@@ -1,0 +1,174 @@
+"""Venue storage: one directory per venue, modelled frames in atomically swapped generations.
+
+    <data>/venues/<id>/venue.json       name, floor, floor plan scale, places
+    <data>/venues/<id>/floorplan.png
+    <data>/venues/<id>/CURRENT          name of the live generation (replaced with os.replace)
+    <data>/venues/<id>/gen-000003/      settings.json, lens.json, frames.npy, spectra.npy
+
+A modelling run writes a complete new generation beside the live one and only then swaps CURRENT,
+so a run that is interrupted (Ctrl-C, crash, power) leaves the venue answering as before.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import OmninavError
+from .lens import Lens, lens_from_dict
+
+VENUE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
+
+# One row per modelled frame; `video` names the modelling video it came from.
+FRAME_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("heading", "<f4"), ("t", "<f4"),
+                        ("frame", "<i4"), ("video", "<i4")])
+
+
+def check_id(venue_id: str) -> str:
+    if not isinstance(venue_id, str) or not VENUE_ID.match(venue_id):
+        raise OmninavError(
+            f"invalid venue id {venue_id!r}: use 1-64 letters, digits, '-' or '_', starting with a "
+            "letter or digit"
+        )
+    return venue_id
+
+
+def _write_json_atomic(path: Path, obj: Any) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    with os.fdopen(fd, "w") as f:
+        json.dump(obj, f, indent=1)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+@dataclass
+class Generation:
+    """The frames a venue answers with: poses, spectra, and the settings they were made with."""
+
+    settings: dict[str, Any]
+    lens: Lens
+    frames: np.ndarray  # (N,) FRAME_DTYPE
+    spectra: np.ndarray  # (N, C, K) complex64
+    videos: list[str]
+
+
+class Store:
+    def __init__(self, root: str | Path):
+        self.root = Path(root)
+        self.venues = self.root / "venues"
+
+    def venue_dir(self, venue_id: str) -> Path:
+        return self.venues / check_id(venue_id)
+
+    def exists(self, venue_id: str) -> bool:
+        return (self.venue_dir(venue_id) / "venue.json").is_file()
+
+    def require(self, venue_id: str) -> Path:
+        d = self.venue_dir(venue_id)
+        if not (d / "venue.json").is_file():
+            raise OmninavError(f"unknown venue {venue_id!r} (create it with 'omninav venue create')")
+        return d
+
+    def create(self, venue_id: str, name: str | None = None, floor: str = "1",
+               floorplan: Path | None = None, px_per_m: float | None = None,
+               preset: str = "default", places: list[dict[str, Any]] | None = None) -> dict[str, Any]:
+        from .presets import resolve
+
+        d = self.venue_dir(venue_id)
+        if (d / "venue.json").exists():
+            raise OmninavError(f"venue {venue_id!r} already exists")
+        conf = resolve(preset)
+        if floorplan is not None:
+            import cv2
+
+            if not floorplan.is_file():
+                raise OmninavError(f"{floorplan}: floor plan not found")
+            img = cv2.imread(str(floorplan), cv2.IMREAD_COLOR)
+            if img is None:
+                raise OmninavError(f"{floorplan}: floor plan is not a readable PNG/JPEG image")
+            if px_per_m is None or not px_per_m > 0:
+                raise OmninavError("a floor plan needs its scale: --px-per-m, a positive number")
+        d.mkdir(parents=True, exist_ok=True)
+        meta: dict[str, Any] = {"id": venue_id, "name": name or venue_id, "floor": str(floor),
+                                "px_per_m": px_per_m, "floorplan": None, "preset": preset,
+                                "places": places or []}
+        if floorplan is not None:
+            shutil.copyfile(floorplan, d / "floorplan.png")
+            meta["floorplan"] = "floorplan.png"
+            meta["plan_size_px"] = [int(img.shape[1]), int(img.shape[0])]
+        _write_json_atomic(d / "settings.json", conf)
+        _write_json_atomic(d / "venue.json", meta)
+        return meta
+
+    def meta(self, venue_id: str) -> dict[str, Any]:
+        return json.loads((self.require(venue_id) / "venue.json").read_text())
+
+    def settings(self, venue_id: str) -> dict[str, Any]:
+        """Feature settings: those of the live generation, else those chosen at creation."""
+        d = self.require(venue_id)
+        g = self._current(d)
+        src = (g / "settings.json") if g else (d / "settings.json")
+        return json.loads(src.read_text())
+
+    def _current(self, d: Path) -> Path | None:
+        cur = d / "CURRENT"
+        if not cur.is_file():
+            return None
+        g = d / cur.read_text().strip()
+        return g if g.is_dir() else None
+
+    def load(self, venue_id: str, mmap: bool = True) -> Generation:
+        d = self.require(venue_id)
+        g = self._current(d)
+        if g is None:
+            raise OmninavError(f"venue {venue_id!r} has no modelled frames yet (run 'omninav model')")
+        mode = "r" if mmap else None
+        settings = json.loads((g / "settings.json").read_text())
+        lens = lens_from_dict(json.loads((g / "lens.json").read_text()), where=f"{venue_id} lens")
+        frames = np.load(g / "frames.npy", mmap_mode=mode)
+        spectra = np.load(g / "spectra.npy", mmap_mode=mode)
+        videos = json.loads((g / "videos.json").read_text())
+        return Generation(settings, lens, frames, spectra, videos)
+
+    def commit(self, venue_id: str, gen: Generation) -> Path:
+        """Write a new generation completely, then make it live in one atomic rename."""
+        d = self.require(venue_id)
+        for stale in d.glob(".tmp-gen-*"):  # left by an interrupted run: never live, safe to drop
+            shutil.rmtree(stale, ignore_errors=True)
+        cur = self._current(d)
+        n = int(cur.name.split("-")[1]) + 1 if cur else 1
+        name = f"gen-{n:06d}"
+        tmp = Path(tempfile.mkdtemp(dir=d, prefix=".tmp-gen-"))
+        np.save(tmp / "frames.npy", np.ascontiguousarray(gen.frames))
+        np.save(tmp / "spectra.npy", np.ascontiguousarray(gen.spectra))
+        (tmp / "settings.json").write_text(json.dumps(gen.settings, indent=1))
+        (tmp / "lens.json").write_text(json.dumps(gen.lens.to_dict(), indent=1))
+        (tmp / "videos.json").write_text(json.dumps(gen.videos))
+        for f in tmp.iterdir():
+            with open(f, "rb") as fh:
+                os.fsync(fh.fileno())
+        os.replace(tmp, d / name)
+        fd, t = tempfile.mkstemp(dir=d, prefix=".CURRENT.")
+        with os.fdopen(fd, "w") as f:
+            f.write(name)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(t, d / "CURRENT")
+        # Older generations are kept one step back (a server may still have them mapped).
+        for old in sorted(d.glob("gen-*"))[:-2]:
+            shutil.rmtree(old, ignore_errors=True)
+        return d / name
+
+    def list(self) -> list[str]:
+        if not self.venues.is_dir():
+            return []
+        return sorted(p.name for p in self.venues.iterdir() if (p / "venue.json").is_file())

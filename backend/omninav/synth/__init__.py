@@ -1,0 +1,92 @@
+"""The synthetic venue renderer: deterministic venues, walks and videos for tests and the demo."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..lens import Catadioptric, Equirectangular, Lens
+from .scene import Scene, build_scene, floorplan_image
+from .walks import (
+    MODELLING,
+    QUERY,
+    Perturb,
+    default_routes,
+    offset_route,
+    poses_from_track,
+    render_frames,
+    track_for,
+    write_json,
+    write_video,
+)
+
+__all__ = ["Scene", "build_scene", "donut_lens", "equirect_lens", "make_dataset", "Dataset",
+           "MODELLING", "QUERY", "Perturb"]
+
+
+def donut_lens(scale: float = 1.0) -> Catadioptric:
+    """The synthetic clip-on donut lens: 960x720 (at scale 1), ring 105-340 px, -45..+35 deg."""
+    r_in, r_out = 105.0 * scale, 340.0 * scale
+    # el(r) quadratic through (r_in, -45), (mid, -8), (r_out, 35): mildly non-linear like real mirrors
+    rm = 0.5 * (r_in + r_out)
+    c2, c1, c0 = np.polyfit([r_in, rm, r_out], [-45.0, -8.0, 35.0], 2)
+    return Catadioptric(
+        image_size=(int(round(960 * scale)), int(round(720 * scale))),
+        center=(487.0 * scale, 352.0 * scale), r_inner=r_in, r_outer=r_out,
+        elevation_poly=(float(c0), float(c1), float(c2)), forward_deg=90.0, ccw=True)
+
+
+def equirect_lens(width: int = 1440) -> Equirectangular:
+    return Equirectangular(image_size=(width, width // 2), forward_x=width / 2, ccw=False)
+
+
+@dataclass
+class Dataset:
+    root: Path
+    model_video: Path
+    model_track: Path
+    query_video: Path
+    query_track: Path
+    lens: Path
+    floorplan: Path
+    px_per_m: float
+    scene: Scene
+
+
+def make_dataset(root: Path, seed: int = 0, layout: str = "default", fps: float = 10.0,
+                 scale: float = 1.0, model_lens: Lens | None = None, query_perturb: Perturb = QUERY,
+                 query_route: list | None = None, model_speed: float = 1.2,
+                 query_speeds: tuple[float, ...] = (1.0, 1.3, 1.1, 0.9)) -> Dataset:
+    """Render a venue's modelling walk and an independent query walk, with tracks and lens files.
+
+    The modelling video is taken with `model_lens` (default: the donut), the query with the donut.
+    """
+    root.mkdir(parents=True, exist_ok=True)
+    scene = build_scene(seed, layout)
+    rng = np.random.default_rng(seed + 1000)
+    lens = donut_lens(scale)
+    mlens = model_lens or lens
+    m_route, q_route = default_routes(scene)
+    if query_route is not None:
+        q_route = query_route
+    q_route = offset_route(scene, q_route, query_perturb.lateral_m, rng)
+    m_track = track_for(m_route, [model_speed], fps)
+    q_track = track_for(q_route, list(query_speeds), fps)
+    px_per_m = 20.0
+    ds = Dataset(root, root / "model.mp4", root / "model_track.json", root / "query.mp4",
+                 root / "query_track.json", root / "lens.json", root / "floorplan.png", px_per_m, scene)
+    write_json(ds.model_track, m_track)
+    write_json(ds.query_track, q_track)
+    write_json(ds.lens, lens.to_dict())
+    write_json(root / "model_lens.json", mlens.to_dict())
+    cv2.imwrite(str(ds.floorplan), cv2.cvtColor(floorplan_image(scene, px_per_m), cv2.COLOR_RGB2BGR))
+    mposes = poses_from_track(m_track, MODELLING, np.random.default_rng(seed + 1))
+    write_video(ds.model_video, (f for _, f in render_frames(scene, mlens, mposes, MODELLING, seed + 2)),
+                fps, mlens.image_size)
+    qposes = poses_from_track(q_track, query_perturb, np.random.default_rng(seed + 3))
+    write_video(ds.query_video, (f for _, f in render_frames(scene, lens, qposes, query_perturb, seed + 4)),
+                fps, lens.image_size)
+    return ds

@@ -1,0 +1,187 @@
+"""Walks through a synthetic venue: poses, perturbations, tracks and rendered videos.
+
+A modelling walk follows the corridor centre lines at a steady pace with the lens forward along
+the direction of travel, as a person recording a venue does. A query walk is recorded as a user
+would: off the centre line by up to 0.5 m, the phone at 1.15-1.55 m and tilted up to 5 degrees,
+light x0.6-1.3 with a colour cast, up to three passers-by, the lens re-clipped 2 px off centre,
+sensor noise and video compression. Its track (CONVENTIONS.md) is the ground truth.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..lens import Lens
+from .render import CameraModel, PanoGrid, camera_frame, tilt_rotation, world_panorama
+from .scene import GRID, Person, Scene, random_people
+
+
+@dataclass(frozen=True)
+class Perturb:
+    lateral_m: float = 0.0
+    height_m: tuple[float, float] = (1.35, 1.35)
+    tilt_deg: float = 0.0
+    light: tuple[float, float] = (1.0, 1.0)
+    cast: float = 0.0  # per-channel gain spread
+    people: int = 0
+    lens_shift_px: float = 0.0
+    noise: float = 1.0  # sensor noise sigma, grey levels
+
+
+MODELLING = Perturb(noise=1.5)
+QUERY = Perturb(lateral_m=0.5, height_m=(1.15, 1.55), tilt_deg=5.0, light=(0.6, 1.3), cast=0.12,
+                people=3, lens_shift_px=2.0, noise=3.0)
+
+
+@dataclass
+class Pose:
+    t: float
+    x: float
+    y: float
+    heading: float
+    cam_h: float = 1.35
+    tilt: float = 0.0
+    tilt_dir: float = 0.0
+
+
+def route_through(scene: Scene, order: list[int], reverse: list[bool] | None = None) -> list[tuple[float, float]]:
+    """A route that walks the given centre lines in order (each possibly reversed)."""
+    pts: list[tuple[float, float]] = []
+    for i, li in enumerate(order):
+        line = list(scene.centerlines[li])
+        if reverse and reverse[i]:
+            line = line[::-1]
+        for p in line:
+            if not pts or np.hypot(p[0] - pts[-1][0], p[1] - pts[-1][1]) > 1e-6:
+                pts.append(p)
+    return pts
+
+
+def default_routes(scene: Scene) -> tuple[list, list]:
+    """(modelling route, query route) for a built-in layout; the query walks the other way round."""
+    n = len(scene.centerlines)
+    if n == 5:  # the default ring + middle corridor
+        a, b, c, d, m = (3.0, 3.0), (51.0, 3.0), (51.0, 23.0), (3.0, 23.0), (27.0, 3.0)
+        model = [a, m, b, c, (27.0, 23.0), d, a, m, (27.0, 23.0)]
+        query = [(27.0, 23.0), c, b, m, (27.0, 23.0), d, a, m]
+        return model, query
+    line = route_through(scene, list(range(n)))
+    return line, line[::-1]
+
+
+def _is_free(scene: Scene, x: float, y: float) -> bool:
+    r, c = int(y / GRID), int(x / GRID)
+    return 0 <= r < scene.free.shape[0] and 0 <= c < scene.free.shape[1] and bool(scene.free[r, c])
+
+
+def offset_route(scene: Scene, route: list, lateral_m: float, rng: np.random.Generator,
+                 step_m: float = 6.0) -> list[tuple[float, float]]:
+    """Resample a route every ~step_m and push each point sideways by up to lateral_m."""
+    out: list[tuple[float, float]] = []
+    for (ax, ay), (bx, by) in zip(route[:-1], route[1:], strict=True):
+        seg = np.hypot(bx - ax, by - ay)
+        n = max(1, int(round(seg / step_m)))
+        nx, ny = -(by - ay) / seg, (bx - ax) / seg
+        for k in range(n):
+            f = k / n
+            o = rng.uniform(-lateral_m, lateral_m) if k > 0 else 0.0
+            px, py = ax + f * (bx - ax) + o * nx, ay + f * (by - ay) + o * ny
+            if _is_free(scene, px, py):
+                out.append((px, py))
+    out.append(route[-1])
+    return out
+
+
+def track_for(route: list, speeds: list[float], fps: float, heading_offset: float = 0.0) -> dict:
+    """CONVENTIONS.md track: a waypoint (t in seconds) at every route vertex."""
+    t = 0.0
+    wps = [{"t": 0.0, "x": round(route[0][0], 4), "y": round(route[0][1], 4)}]
+    for i, ((ax, ay), (bx, by)) in enumerate(zip(route[:-1], route[1:], strict=True)):
+        t += np.hypot(bx - ax, by - ay) / speeds[i % len(speeds)]
+        wps.append({"t": round(t, 4), "x": round(bx, 4), "y": round(by, 4)})
+    return {"fps": fps, "waypoints": wps, "heading_offset_deg": heading_offset}
+
+
+def poses_from_track(track: dict, perturb: Perturb, rng: np.random.Generator) -> list[Pose]:
+    """One pose per video frame, exactly where the track says (its ground truth)."""
+    from ..track import parse_track
+
+    tr = parse_track(track)
+    n = int(np.floor(tr.times[-1] * tr.fps)) + 1
+    ts = np.arange(n) / tr.fps
+    xy, hd, ok = tr.pose_at(ts)
+    h0 = rng.uniform(*perturb.height_m)
+    # slowly varying tilt: a smoothed random walk within +-tilt_deg
+    tilt = np.zeros(n)
+    tdir = np.zeros(n)
+    if perturb.tilt_deg > 0:
+        k = max(1, int(tr.fps))
+        raw = rng.uniform(0, perturb.tilt_deg, n // k + 2)
+        dirs = rng.uniform(0, 360, n // k + 2)
+        tilt = np.interp(np.arange(n) / k, np.arange(len(raw)), raw)
+        tdir = np.interp(np.arange(n) / k, np.arange(len(dirs)), np.unwrap(dirs, period=360))
+    return [Pose(float(ts[i]), float(xy[i, 0]), float(xy[i, 1]), float(hd[i]),
+                 h0 + 0.01 * np.sin(ts[i] * 2 * np.pi * 1.8), float(tilt[i]), float(tdir[i]))
+            for i in range(n) if ok[i]]
+
+
+def grid_for(lens: Lens, width: int = 1440) -> PanoGrid:
+    lo, hi = lens.elevation_range()
+    top, bottom = min(89.0, hi + 8.0), max(-89.0, lo - 8.0)
+    step = 360.0 / width
+    return PanoGrid(width, top, bottom, int(round((top - bottom) / step)) + 1)
+
+
+def render_frames(scene: Scene, lens: Lens, poses: list[Pose], perturb: Perturb, seed: int,
+                  pano_width: int = 1440):
+    """Yield (pose, BGR uint8 frame) for each pose, with the perturbations applied."""
+    rng = np.random.default_rng(seed)
+    grid = grid_for(lens, pano_width)
+    ang = rng.uniform(0, 2 * np.pi)
+    cam = CameraModel.create(lens, (perturb.lens_shift_px * np.cos(ang), perturb.lens_shift_px * np.sin(ang)))
+    gain = rng.uniform(*perturb.light)
+    cast = 1.0 + rng.uniform(-perturb.cast, perturb.cast, 3)
+    people: list[Person] = []
+    vel: list[tuple[float, float]] = []
+    for i, p in enumerate(poses):
+        if perturb.people and i % 20 == 0:
+            people = random_people(scene, rng, (p.x, p.y), int(rng.integers(0, perturb.people + 1)))
+            vel = [(rng.uniform(-1, 1), rng.uniform(-1, 1)) for _ in people]
+        elif people:
+            dt = poses[i].t - poses[i - 1].t
+            for j, q in enumerate(people):
+                q.x += vel[j][0] * dt
+                q.y += vel[j][1] * dt
+        pano = world_panorama(scene, p.x, p.y, p.cam_h, grid, people)
+        rot = tilt_rotation(p.tilt, p.tilt_dir) if p.tilt else None
+        rgb = camera_frame(cam, pano, grid, p.heading, rot).astype(np.float32)
+        rgb *= (gain * cast)[None, None, :]
+        if perturb.noise:
+            rgb += rng.normal(0.0, perturb.noise, rgb.shape).astype(np.float32)
+        frame = np.clip(rgb, 0, 255).astype(np.uint8)
+        yield p, cv2.cvtColor(frame, cv2.COLOR_RGB2BGR)
+
+
+def write_video(path: Path, frames, fps: float, size: tuple[int, int]) -> int:
+    """Encode frames (BGR) to an MP4 (MPEG-4 part 2) or, for .avi, Motion-JPEG; returns count."""
+    fourcc = cv2.VideoWriter_fourcc(*("MJPG" if path.suffix.lower() == ".avi" else "mp4v"))
+    vw = cv2.VideoWriter(str(path), fourcc, fps, size)
+    if not vw.isOpened():
+        raise RuntimeError(f"cannot open a video writer for {path}")
+    n = 0
+    try:
+        for f in frames:
+            vw.write(f)
+            n += 1
+    finally:
+        vw.release()
+    return n
+
+
+def write_json(path: Path, obj: dict) -> None:
+    path.write_text(json.dumps(obj, indent=1))

@@ -1,0 +1,94 @@
+"""Modelling tracks (CONVENTIONS.md `track.json`): where the recorder was at each video frame.
+
+Positions between waypoints are linear in time; the heading is the direction of travel plus
+`heading_offset_deg`. Frames outside the first and last waypoint have no pose and are not used.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import OmninavError
+
+
+@dataclass(frozen=True)
+class Track:
+    fps: float
+    times: np.ndarray  # (N,) seconds, strictly increasing
+    xy: np.ndarray  # (N, 2) plan metres
+    heading_offset: float
+
+    def pose_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Times (s) -> positions (T, 2), headings (T,) in [0, 360), and a mask of covered times.
+
+        The heading of a time is the direction of the leg it lies on; at a waypoint, of the leg that
+        starts there (the recorder has turned), and at the last one, of the last leg.
+        """
+        t = np.asarray(t, np.float64)
+        ok = (t >= self.times[0] - 1e-9) & (t <= self.times[-1] + 1e-9)
+        x = np.interp(t, self.times, self.xy[:, 0])
+        y = np.interp(t, self.times, self.xy[:, 1])
+        leg = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 2)
+        d = self.xy[leg + 1] - self.xy[leg]
+        h = np.degrees(np.arctan2(d[:, 0], -d[:, 1]))  # heading h points along (sin h, -cos h)
+        return np.stack([x, y], -1), np.mod(h + self.heading_offset, 360.0), ok
+
+
+def _num(v: Any, what: str, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise OmninavError(f"{where}: {what} must be a finite number, got {v!r}")
+    return float(v)
+
+
+def parse_track(d: Any, where: str = "track") -> Track:
+    if not isinstance(d, dict):
+        raise OmninavError(f"{where}: a track must be a JSON object")
+    fps = _num(d.get("fps", 30), "'fps'", where)
+    if fps <= 0:
+        raise OmninavError(f"{where}: 'fps' must be positive")
+    wps = d.get("waypoints")
+    if not isinstance(wps, list) or len(wps) < 2:
+        raise OmninavError(f"{where}: 'waypoints' must be a list of at least two waypoints")
+    times, xy = [], []
+    for i, w in enumerate(wps):
+        if not isinstance(w, dict):
+            raise OmninavError(f"{where}: waypoint {i} is not an object")
+        if "t" in w:
+            t = _num(w["t"], f"waypoint {i} 't'", where)
+        elif "frame" in w:
+            t = _num(w["frame"], f"waypoint {i} 'frame'", where) / fps
+        else:
+            raise OmninavError(f"{where}: waypoint {i} needs 'frame' or 't'")
+        for k in ("x", "y"):
+            if k not in w:
+                raise OmninavError(f"{where}: waypoint {i} is missing '{k}'")
+        times.append(t)
+        xy.append((_num(w["x"], f"waypoint {i} 'x'", where), _num(w["y"], f"waypoint {i} 'y'", where)))
+    tt = np.array(times)
+    bad = np.flatnonzero(np.diff(tt) <= 0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise OmninavError(
+            f"{where}: waypoints must be in increasing time; waypoint {i} is not after waypoint {i - 1}"
+        )
+    if tt[0] < 0:
+        raise OmninavError(f"{where}: waypoint times must not be negative")
+    off = _num(d.get("heading_offset_deg", 0.0), "'heading_offset_deg'", where)
+    return Track(fps, tt, np.array(xy, np.float64), off)
+
+
+def load_track(path: str | Path) -> Track:
+    p = Path(path)
+    try:
+        d = json.loads(p.read_text())
+    except FileNotFoundError:
+        raise OmninavError(f"{p}: track file not found") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise OmninavError(f"{p}: track is not readable JSON ({e})") from None
+    return parse_track(d, where=str(p))

@@ -1,0 +1,99 @@
+"""Search speed, the paper's Fig. 8 experiment: one 10-frame clip against N venue frames.
+
+For N = 1,000 ... 8,000, then 100,000 and 1,000,000, it times
+  - `batched`: omninav's index (stage-1 magnitude GEMM + top-k, stage-2 phase verification),
+  - `locate`: the same plus clip aggregation (what `omninav locate` does after extraction),
+  - `loop`: the paper's sequential CPU search, a per-frame Python loop (N <= 8,000 only),
+in the same run on the same data, and prints the machine it ran on. Venue spectra are synthetic
+(a smooth random walk in the Fourier domain), which costs the same to search as real ones.
+
+    python bench/search_speed.py [--sizes 1000,8000] [--device cpu|gpu] [--repeat 30]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import time
+
+import numpy as np
+
+from omninav.aggregate import sequence
+from omninav.index import Index, sequential_search
+from omninav.presets import resolve
+
+
+def machine() -> str:
+    cpu = platform.processor() or ""
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, numpy {np.__version__}, python {platform.python_version()}"
+
+
+def venue(n: int, c: int = 6, k: int = 32, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    out = np.empty((n, c, k), np.complex64)
+    block = 50_000
+    state = (rng.normal(size=(c, k)) + 1j * rng.normal(size=(c, k))).astype(np.complex64)
+    for s in range(0, n, block):
+        m = min(block, n - s)
+        steps = (rng.normal(size=(m, c, k)) + 1j * rng.normal(size=(m, c, k))).astype(np.complex64) * 0.2
+        walk = state + np.cumsum(steps, axis=0)
+        state = walk[-1]
+        walk /= (1.0 + np.arange(1, k + 1, dtype=np.float32))  # energy falls with frequency, as in curves
+        walk /= np.sqrt((np.abs(walk) ** 2).sum(axis=(1, 2), keepdims=True))
+        out[s:s + m] = walk
+    return out
+
+
+def timeit(fn, repeat: int, sync=lambda: None) -> tuple[float, float]:
+    fn()
+    sync()
+    ts = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        sync()
+        ts.append(time.perf_counter() - t0)
+    ts.sort()
+    return statistics.median(ts) * 1e3, ts[int(0.9 * (len(ts) - 1))] * 1e3
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--sizes", default="1000,2000,4000,8000,100000,1000000")
+    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--repeat", type=int, default=30)
+    a = ap.parse_args()
+    conf = resolve("default")
+    print(f"machine: {machine()}; device {a.device}")
+    print(f"{'frames':>9} {'batched ms':>11} {'p90':>7} {'locate ms':>10} {'p90':>7} {'loop ms':>9} {'speed-up':>9}")
+    rng = np.random.default_rng(1)
+    for n in [int(s) for s in a.sizes.split(",")]:
+        spec = venue(n)
+        heads = rng.uniform(0, 360, n).astype(np.float32)
+        xy = np.cumsum(rng.normal(size=(n, 2)) * 0.1, axis=0)
+        ix = Index(spec, heads, device=a.device)
+        sync = (lambda: ix.xp.cuda.Device().synchronize()) if ix.xp is not np else (lambda: None)
+        rows = rng.integers(0, n - 10)
+        q = (spec[rows:rows + 10] * np.exp(1j * 0.7)).astype(np.complex64)
+        times = np.arange(10) / 10.0
+        rep = a.repeat if n <= 100_000 else max(5, a.repeat // 6)
+        b50, b90 = timeit(lambda: ix.search(q, conf["candidates"]), rep, sync)
+        l50, l90 = timeit(lambda: sequence(ix.search(q, conf["candidates"]), xy, times, conf), rep, sync)
+        if n <= 8000:
+            lp, _ = timeit(lambda: sequential_search(q, spec), 1)
+            loop = f"{lp:9.1f} {lp / b50:8.0f}x"
+        else:
+            loop = f"{'-':>9} {'-':>9}"
+        print(f"{n:>9} {b50:11.3f} {b90:7.3f} {l50:10.3f} {l90:7.3f} {loop}")
+        del ix, spec
+
+
+if __name__ == "__main__":
+    main()

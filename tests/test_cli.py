@@ -1,0 +1,151 @@
+"""The `omninav` console script as a user runs it: real files, real video decoding, subprocesses."""
+
+import json
+import shutil
+
+import cv2
+import numpy as np
+import pytest
+
+from conftest import run_cli
+from omninav.track import load_track
+
+
+@pytest.fixture(scope="module")
+def cli_venue(small_ds, tmp_path_factory):
+    """A venue created and modelled through the CLI itself."""
+    data = tmp_path_factory.mktemp("cli-data")
+    places = small_ds.root / "places.json"
+    places.write_text(json.dumps(small_ds.scene.places))
+    p = run_cli("venue", "create", "lab", "--name", "Lab", "--floor", "2", "--floorplan", str(small_ds.floorplan),
+                "--px-per-m", "20", "--places", str(places), data=data, check=True)
+    assert json.loads(p.stdout)["floorplan"] == "floorplan.png"
+    p = run_cli("model", "lab", str(small_ds.model_video), "--track", str(small_ds.model_track),
+                "--lens", str(small_ds.root / "model_lens.json"), data=data, check=True)
+    out = json.loads(p.stdout)
+    assert out["frames_added"] > 100 and out["x_realtime"] > 1
+    return data
+
+
+@pytest.fixture(scope="module")
+def clips(small_ds, tmp_path_factory):
+    """Two 1 s query clips cut from the query walk: one as a video, one as a directory of frames."""
+    d = tmp_path_factory.mktemp("clips")
+    cap = cv2.VideoCapture(str(small_ds.query_video))
+    frames = []
+    while True:
+        ok, f = cap.read()
+        if not ok:
+            break
+        frames.append(f)
+    tr = load_track(small_ds.query_track)
+    truth = {}
+    a, b = 40, 120  # clips end at frames a+9 and b+9
+    vw = cv2.VideoWriter(str(d / "q1.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 10, (480, 360))
+    for f in frames[a:a + 10]:
+        vw.write(f)
+    vw.release()
+    (d / "q2").mkdir()
+    for i, f in enumerate(frames[b:b + 10]):
+        cv2.imwrite(str(d / "q2" / f"{i:03d}.png"), f)
+    for name, last in (("q1.avi", a + 9), ("q2", b + 9)):
+        xy, hd, _ = tr.pose_at(np.array([last / tr.fps]))
+        truth[name] = (xy[0], hd[0])
+    return d, truth
+
+
+def test_locate_prints_one_conventions_answer_per_clip(cli_venue, clips, small_ds):
+    d, truth = clips
+    p = run_cli("locate", "lab", str(d / "q1.avi"), str(d / "q2"), "--lens", str(small_ds.lens),
+                data=cli_venue, check=True)
+    lines = p.stdout.strip().splitlines()
+    assert len(lines) == 2
+    for line in lines:
+        a = json.loads(line)
+        assert set(a) == {"clip", "x", "y", "heading_deg", "confidence", "floor", "place", "frame"}
+        (tx, ty), th = truth[a["clip"]]
+        assert np.hypot(a["x"] - tx, a["y"] - ty) < 2.0
+        assert abs((a["heading_deg"] - th + 180) % 360 - 180) < 10
+        assert 0 <= a["confidence"] <= 1 and 0 <= a["heading_deg"] < 360
+        assert a["floor"] == "2" and a["place"].startswith("Corridor")
+
+
+def test_locate_median_baseline_runs(cli_venue, clips, small_ds):
+    d, _ = clips
+    p = run_cli("locate", "lab", str(d / "q2"), "--aggregate", "median", data=cli_venue, check=True)
+    assert json.loads(p.stdout)["clip"] == "q2"
+
+
+def test_evaluate_reports_and_plots(cli_venue, small_ds, tmp_path):
+    png = tmp_path / "fig.png"
+    p = run_cli("evaluate", "lab", str(small_ds.query_video), "--track", str(small_ds.query_track),
+                "--lens", str(small_ds.lens), "--plot", str(png), "--json", data=cli_venue, check=True)
+    s = json.loads(p.stdout)
+    assert s["clips"] > 20 and s["within_2m"] >= 0.85
+    img = cv2.imread(str(png))
+    assert img is not None and img.shape[1] > 500
+
+
+def test_venue_list(cli_venue):
+    p = run_cli("venue", "list", data=cli_venue, check=True)
+    assert json.loads(p.stdout.splitlines()[0])["id"] == "lab"
+
+
+def _bad_inputs(small_ds, tmp):
+    bad_track = tmp / "bad_track.json"
+    bad_track.write_text(json.dumps({"fps": 10, "waypoints": [{"frame": 9, "x": 0, "y": 0}, {"frame": 3, "x": 1, "y": 0}]}))
+    bad_lens = tmp / "bad_lens.json"
+    d = json.loads(small_ds.lens.read_text())
+    del d["r_outer"]
+    bad_lens.write_text(json.dumps(d))
+    junk = tmp / "junk.mp4"
+    junk.write_bytes(b"\x00" * 5000)
+    empty = tmp / "empty"
+    empty.mkdir(exist_ok=True)
+    m = ["model", "lab", str(small_ds.model_video)]
+    t, l = ["--track", str(small_ds.model_track)], ["--lens", str(small_ds.root / "model_lens.json")]
+    return [
+        (["model", "lab", str(tmp / "nope.mp4"), *t, *l], "video not found"),
+        (["model", "lab", str(junk), *t, *l], "not a readable video"),
+        ([*m, "--track", str(bad_track), *l], "increasing time"),
+        ([*m, *t, "--lens", str(bad_lens)], "r_outer"),
+        ([*m, "--track", str(tmp / "none.json"), *l], "track file not found"),
+        (["model", "nowhere", str(small_ds.model_video), *t, *l], "unknown venue"),
+        (["locate", "nowhere", str(junk)], "unknown venue"),
+        (["locate", "lab", str(tmp / "nope.mp4")], "clip not found"),
+        (["locate", "lab", str(junk)], "not a readable video"),
+        (["locate", "lab", str(empty)], "no frame images"),
+        (["locate", "lab", str(small_ds.query_video), "--lens", str(small_ds.root / "model_lens.json").replace("model_lens", "nolens")], "not found"),
+        (["venue", "create", "../etc"], "invalid venue id"),
+        (["venue", "create", "lab"], "already exists"),
+    ]
+
+
+def test_bad_input_exits_nonzero_with_one_clear_line(cli_venue, small_ds, tmp_path):
+    for args, msg in _bad_inputs(small_ds, tmp_path):
+        p = run_cli(*args, data=cli_venue)
+        assert p.returncode != 0, args
+        err = p.stderr.strip()
+        assert "Traceback" not in err, (args, err)
+        assert len(err.splitlines()) == 1, (args, err)
+        assert msg in err, (args, err)
+
+
+def test_bad_input_loses_nothing(cli_venue, small_ds, tmp_path):
+    """After every failed command the venue still answers with the same frames."""
+    data = tmp_path / "d"
+    shutil.copytree(cli_venue, data)
+    before = run_cli("venue", "list", data=data, check=True).stdout
+    for args, _ in _bad_inputs(small_ds, tmp_path):
+        run_cli(*args, data=data)
+    assert run_cli("venue", "list", data=data, check=True).stdout == before
+
+
+def test_wrong_lens_size_is_explained(cli_venue, clips, small_ds, tmp_path):
+    d, _ = clips
+    big = json.loads(small_ds.lens.read_text())
+    big["image_size"] = [960, 720]
+    p = tmp_path / "big.json"
+    p.write_text(json.dumps(big))
+    r = run_cli("locate", "lab", str(d / "q2"), "--lens", str(p), data=cli_venue)
+    assert r.returncode != 0 and "wrong lens profile" in r.stderr

@@ -1,0 +1,86 @@
+"""Modelling and venue storage: frames placed by the track, atomic generations, interruptions."""
+
+import numpy as np
+import pytest
+
+from omninav.errors import OmninavError
+from omninav.lens import load_lens
+from omninav.model_venue import model_video
+from omninav.store import Store, check_id
+from omninav.track import load_track
+
+
+def test_modelled_frames_follow_the_track(modelled, small_ds):
+    st, vid = modelled
+    g = st.load(vid)
+    tr = load_track(small_ds.model_track)
+    assert g.spectra.shape[1:] == (6, 32) and len(g.frames) == len(g.spectra) > 100
+    xy, hd, _ = tr.pose_at(g.frames["t"].astype(np.float64))
+    assert np.allclose(g.frames["x"], xy[:, 0], atol=1e-3)
+    assert np.allclose(g.frames["heading"], hd, atol=1e-3)
+    # sampled at the preset's 10 fps from a 10 fps video: every frame, in order
+    assert np.all(np.diff(g.frames["frame"]) == 1)
+    assert g.videos == ["model.mp4"]
+
+
+def test_remodelling_a_video_replaces_its_frames(copy_store, small_ds):
+    st, vid = copy_store
+    n = len(st.load(vid).frames)
+    model_video(st, vid, small_ds.model_video, load_track(small_ds.model_track),
+                load_lens(small_ds.root / "model_lens.json"))
+    assert len(st.load(vid).frames) == n
+
+
+def test_interrupted_modelling_leaves_the_venue_as_it_was(copy_store, small_ds):
+    st, vid = copy_store
+    before = st.load(vid, mmap=False)
+
+    def boom(done, total, elapsed):
+        if done == 40:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        model_video(st, vid, small_ds.query_video, load_track(small_ds.query_track),
+                    load_lens(small_ds.lens), progress=boom)
+    after = st.load(vid, mmap=False)
+    assert np.array_equal(before.frames, after.frames)
+    assert np.array_equal(before.spectra, after.spectra)
+    assert after.videos == before.videos
+
+
+def test_a_second_video_adds_frames(copy_store, small_ds):
+    st, vid = copy_store
+    n = len(st.load(vid).frames)
+    model_video(st, vid, small_ds.query_video, load_track(small_ds.query_track), load_lens(small_ds.lens))
+    g = st.load(vid)
+    assert g.videos == ["model.mp4", "query.mp4"] and len(g.frames) > n
+    assert set(np.unique(g.frames["video"])) == {0, 1}
+    assert len(list((st.venue_dir(vid)).glob("gen-*"))) <= 2  # old generations are pruned
+
+
+@pytest.mark.parametrize("bad", ["../x", "a/b", "", "x" * 65, "-lead", "a b", "é"])
+def test_venue_ids_with_path_characters_are_refused(bad):
+    with pytest.raises(OmninavError, match="invalid venue id"):
+        check_id(bad)
+
+
+def test_store_errors(store: Store, small_ds, tmp_path):
+    with pytest.raises(OmninavError, match="unknown venue"):
+        store.load("nowhere")
+    store.create("v1")
+    with pytest.raises(OmninavError, match="already exists"):
+        store.create("v1")
+    with pytest.raises(OmninavError, match="no modelled frames"):
+        store.load("v1")
+    with pytest.raises(OmninavError, match="scale"):
+        store.create("v2", floorplan=small_ds.floorplan)
+    junk = tmp_path / "junk.png"
+    junk.write_bytes(b"not a png")
+    with pytest.raises(OmninavError, match="not a readable"):
+        store.create("v3", floorplan=junk, px_per_m=20)
+    with pytest.raises(OmninavError, match="unknown preset"):
+        store.create("v4", preset="nope")
+    with pytest.raises(OmninavError, match="lens profile is for"):
+        from omninav.synth import donut_lens
+
+        model_video(store, "v1", small_ds.model_video, load_track(small_ds.model_track), donut_lens(1.0))

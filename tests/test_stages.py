@@ -1,0 +1,173 @@
+"""Each pipeline stage against known answers: unwarp, curves, spectrum record, heading."""
+
+import numpy as np
+import pytest
+
+from omninav.curves import extract_curves, gray_world, normalise
+from omninav.errors import OmninavError
+from omninav.extract import Extractor
+from omninav.heading import correlation, peak, relative_heading, wrap_deg
+from omninav.presets import n_curves, resolve
+from omninav.spectrum import (
+    MAX_RECORD_BYTES,
+    decode_binary,
+    decode_json,
+    encode_binary,
+    encode_json,
+    quantise,
+    record_bytes_per_frame,
+    spectrum,
+)
+from omninav.synth import build_scene, donut_lens, equirect_lens
+from omninav.synth.render import CameraModel, PanoGrid, camera_frame, world_panorama
+from omninav.unwarp import build_map, unwarp
+
+
+def smooth_pano(rows: int, width: int, seed: int = 0) -> np.ndarray:
+    """A random but smooth colour panorama (low harmonics in azimuth and elevation), uint8."""
+    rng = np.random.default_rng(seed)
+    a = np.linspace(0, 2 * np.pi, width, endpoint=False)
+    e = np.linspace(0, 1, rows)[:, None]
+    img = np.zeros((rows, width, 3))
+    for c in range(3):
+        for k in range(1, 9):
+            img[..., c] += rng.normal() * np.cos(k * a + rng.uniform(0, 6.3))[None, :] * (1 + e * rng.normal())
+    img = (img - img.min()) / (img.max() - img.min())
+    return (40 + 180 * img).astype(np.uint8)
+
+
+@pytest.mark.parametrize("lens", [donut_lens(), equirect_lens(1440)], ids=["donut", "equirect"])
+def test_unwarp_recovers_the_panorama(lens):
+    """A frame rendered from a known panorama unwarps back to that panorama."""
+    grid = PanoGrid(1440, 50.0, -60.0, 1101)
+    pano = smooth_pano(grid.rows, grid.width)
+    frame = camera_frame(CameraModel.create(lens), pano, grid, heading_deg=0.0)
+    el = np.linspace(30, -40, 71)
+    m = build_map(lens, el, 720)
+    out = unwarp(frame, m).astype(np.float32)
+    # expected: the panorama at the same elevations, columns at the same azimuths
+    rows = np.round((grid.el_top - el) / grid.step).astype(int)
+    cols = (np.arange(720) * 2 + 1) % grid.width  # column j of 720 = azimuth (j+.5)/2 deg
+    exp = pano[rows][:, cols].astype(np.float32)
+    err = np.abs(out - exp)
+    assert np.median(err) < 3.0 and np.percentile(err, 99) < 12.0
+
+
+def test_unwarp_rejects_grey_frames():
+    m = build_map(donut_lens(0.5), np.array([0.0]), 360)
+    with pytest.raises(ValueError, match="colour frame"):
+        unwarp(np.zeros((360, 480), np.uint8), m)
+
+
+def test_curves_shift_with_rotation_and_ignore_gain():
+    conf = resolve("six")
+    pano = smooth_pano(41, 1440)
+    el = np.linspace(20, -20, 41)
+    c0 = extract_curves(pano, el, conf)
+    c1 = extract_curves(np.roll(pano, -40, axis=1), el, conf)  # 40 of 1440 cols = 10 of 360
+    assert c0.shape == (6, 360)
+    assert np.allclose(np.roll(c0, -10, axis=1), c1, atol=1e-4)
+    dim = (pano.astype(np.float32) * 0.6).astype(np.uint8)
+    c2 = extract_curves(dim, el, conf)
+    i = conf["channels"].index("I")
+    assert np.corrcoef(c0[i], c2[i])[0, 1] > 0.999
+
+
+def test_gray_world_removes_a_colour_cast():
+    rng = np.random.default_rng(1)
+    rgb = rng.uniform(0.2, 0.8, (20, 50, 3)).astype(np.float32)
+    cast = rgb * np.array([1.2, 0.9, 0.7], np.float32)
+    assert np.allclose(gray_world(rgb), gray_world(cast), atol=1e-5)
+
+
+def test_normalise_flat_curve_stays_zero():
+    out = normalise(np.ones((2, 360), np.float32))
+    assert np.all(out == 0)
+
+
+def test_spectrum_is_unit_energy_and_shift_invariant_in_magnitude():
+    rng = np.random.default_rng(2)
+    c = normalise(rng.normal(size=(6, 360)).astype(np.float32))
+    f = spectrum(c, 32)
+    assert f.shape == (6, 32) and f.dtype == np.complex64
+    assert np.sum(np.abs(f) ** 2) == pytest.approx(1.0, rel=1e-5)
+    g = spectrum(np.roll(c, 77, axis=1), 32)
+    assert np.allclose(np.abs(f), np.abs(g), atol=1e-6)
+
+
+@pytest.mark.parametrize("shift_deg", [0.0, 12.5, 91.3, 180.0, 271.75, 359.4])
+def test_heading_of_a_rotated_panorama(shift_deg):
+    """Rotating the curves by a known (sub-degree) angle gives that heading back."""
+    rng = np.random.default_rng(3)
+    base = normalise(rng.normal(size=(6, 360)).astype(np.float32))
+    # sub-column rotation by Fourier shift: q(j) = v(j + s)
+    f = np.fft.rfft(base, axis=1)
+    k = np.arange(f.shape[1])
+    rot = np.fft.irfft(f * np.exp(2j * np.pi * k * shift_deg / 360.0), n=360, axis=1)
+    fv, fq = quantise(spectrum(base, 32)), quantise(spectrum(rot.astype(np.float32), 32))
+    rel, score = relative_heading(fq, fv)
+    assert abs(wrap_deg(rel - shift_deg)) < 0.15
+    assert score > 0.99
+
+
+def test_heading_of_rendered_frames():
+    """Two donut frames at one place, headings 10 and 47.3 degrees: rotation 37.3 recovered."""
+    scene = build_scene(5, "small")
+    lens = donut_lens(0.5)
+    grid = PanoGrid(1440, 43.0, -53.0, 385)
+    pano = world_panorama(scene, 8.0, 2.2, 1.35, grid)
+    cam = CameraModel.create(lens)
+    ext = Extractor(lens, resolve("default"))
+    a = ext.spectrum(camera_frame(cam, pano, grid, 10.0)[..., ::-1].copy())
+    b = ext.spectrum(camera_frame(cam, pano, grid, 47.3)[..., ::-1].copy())
+    rel, score = relative_heading(b, a)
+    assert abs(wrap_deg(rel - 37.3)) < 0.5
+    assert score > 0.9
+
+
+def test_correlation_peak_values():
+    r = np.cos(np.deg2rad(np.arange(256) * 360 / 256 - 100.0))
+    s, v = peak(r)
+    assert abs(s - 100.0) < 0.2 and v == pytest.approx(1.0, abs=1e-3)
+    with pytest.raises(ValueError):
+        correlation(np.ones((6, 32), complex), np.ones((6, 32), complex), n_shifts=32)
+
+
+def test_record_round_trip_and_size():
+    conf = resolve("default")
+    assert record_bytes_per_frame(conf) + 16 <= MAX_RECORD_BYTES
+    rng = np.random.default_rng(4)
+    spec = quantise(spectrum(normalise(rng.normal(size=(3, n_curves(conf), 360)).astype(np.float32)),
+                             conf["n_harmonics"]))
+    buf = encode_binary(spec, conf["pano_width"])
+    assert len(buf) == 16 + 3 * record_bytes_per_frame(conf)
+    assert np.array_equal(decode_binary(buf, conf), spec)
+    assert np.array_equal(decode_json(encode_json(spec, conf), conf), spec)
+
+
+@pytest.mark.parametrize("mutate,msg", [
+    (lambda b: b[:10], "too short"),
+    (lambda b: b[:-2], "header says"),
+    (lambda b: b"XXX" + b[3:], "bad magic"),
+    (lambda b: b[:3] + bytes([9]) + b[4:], "version 9"),
+    (lambda b: b[:16] + b"\x00\x7e" + b[18:], "NaN or Inf"),  # float16 +inf/nan bits
+])
+def test_malformed_binary_records(mutate, msg):
+    conf = resolve("default")
+    spec = np.full((1, n_curves(conf), conf["n_harmonics"]), 0.05 + 0j, np.complex64)
+    with pytest.raises(OmninavError, match=msg):
+        decode_binary(mutate(encode_binary(spec, 360)), conf)
+
+
+def test_malformed_json_records():
+    conf = resolve("default")
+    spec = np.full((2, n_curves(conf), conf["n_harmonics"]), 0.05 + 0j, np.complex64)
+    good = encode_json(spec, conf)
+    with pytest.raises(OmninavError, match="NaN"):
+        decode_json({**good, "mag": [[[float("nan")] * conf["n_harmonics"]] * n_curves(conf)] * 2}, conf)
+    with pytest.raises(OmninavError, match="this venue needs"):
+        decode_json({**good, "mag": [m[:-1] for m in good["mag"]], "phase": [p[:-1] for p in good["phase"]]}, conf)
+    with pytest.raises(OmninavError, match="missing"):
+        decode_json({"version": 1}, conf)
+    with pytest.raises(OmninavError, match="version"):
+        decode_json({**good, "version": 2}, conf)
