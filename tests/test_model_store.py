@@ -6,6 +6,7 @@ import pytest
 from omninav.errors import OmninavError
 from omninav.lens import load_lens
 from omninav.model_venue import model_video
+from omninav.presets import n_curves, resolve
 from omninav.store import Store, check_id
 from omninav.track import load_track
 
@@ -14,7 +15,9 @@ def test_modelled_frames_follow_the_track(modelled, small_ds):
     st, vid = modelled
     g = st.load(vid)
     tr = load_track(small_ds.model_track)
-    assert g.spectra.shape[1:] == (6, 32) and len(g.frames) == len(g.spectra) > 100
+    conf = resolve("default")
+    assert g.spectra.shape[1:] == (n_curves(conf), conf["n_harmonics"]) == (12, 16)
+    assert len(g.frames) == len(g.spectra) > 100
     xy, hd, _ = tr.pose_at(g.frames["t"].astype(np.float64))
     assert np.allclose(g.frames["x"], xy[:, 0], atol=1e-3)
     assert np.allclose(g.frames["heading"], hd, atol=1e-3)

@@ -104,10 +104,13 @@ def median(m: Matches, xy: np.ndarray, times: np.ndarray, conf: dict[str, Any]) 
 def confidence(e: Estimate, conf: dict[str, Any]) -> float:
     """Calibrated probability that the answer is within 2 m (logistic on support and margin).
 
+    Support: how well the clip's frames agree with the place; margin: how much better it is than
+    the best other place >= 3 m away (repetitive corridors make that rival close).
+
     Coefficients are fit on synthetic venues (bench/calibrate.py) and stored in the preset.
     """
-    w0, w_sup, w_margin, w_agree = conf["confidence_coef"]
-    z = w0 + w_sup * e.support + w_margin * (e.support - e.rival) + w_agree * e.agree
+    w0, w_sup, w_margin = conf["confidence_coef"]
+    z = w0 + w_sup * e.support + w_margin * (e.support - e.rival)
     return float(1.0 / (1.0 + np.exp(-z)))
 
 

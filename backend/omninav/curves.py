@@ -34,10 +34,16 @@ def hsi(rgb: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def gray_world(rgb: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
-    """Divide each channel by its mean (over valid pixels): undoes a global cast and gain."""
-    px = rgb[valid] if valid is not None else rgb.reshape(-1, 3)
-    mean = px.mean(axis=0) if px.size else np.ones(3, np.float32)
-    return (rgb * (0.5 / np.maximum(mean, _EPS))).astype(np.float32)
+    """Divide each channel by its mean (over valid pixels): undoes a global cast and gain.
+
+    Under a colour cast hue shifts non-linearly and saturation with it; the paper's H and S curves
+    then stop matching the venue's. Gray-world constancy fixes the cast before they are computed.
+    """
+    if valid is None or valid.all():
+        mean = rgb.reshape(-1, 3).mean(axis=0)
+    else:
+        mean = rgb[valid].mean(axis=0) if valid.any() else np.ones(3, np.float32)
+    return rgb * (0.5 / np.maximum(mean, _EPS)).astype(np.float32)
 
 
 def _hgrad(x: np.ndarray, circular_unit: bool = False) -> np.ndarray:
@@ -51,7 +57,11 @@ def _hgrad(x: np.ndarray, circular_unit: bool = False) -> np.ndarray:
 def channel_images(rgb: np.ndarray, channels: list[str] | tuple[str, ...]) -> dict[str, np.ndarray]:
     """The per-pixel channel images that the curves sum: (rows, cols) float32 each."""
     out: dict[str, np.ndarray] = {}
-    base = hsi(rgb)
+    need_hsi = any(c in ("H", "S", "I", "dH", "dS", "dI") for c in channels)
+    if need_hsi and not any(c in ("H", "S", "dH", "dS") for c in channels):
+        base = {"I": rgb.mean(axis=-1)}  # intensity alone needs no hue
+    else:
+        base = hsi(rgb) if need_hsi else {}
     r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
     o1 = (r - g) * 0.5
     o2 = (r + g - 2.0 * b) * 0.25

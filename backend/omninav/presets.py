@@ -25,29 +25,33 @@ DEFAULTS: dict[str, Any] = {
     "gray_world": False,  # divide each colour channel by its frame mean: removes casts and gain
     "n_harmonics": 32,  # leading FFT harmonics kept (1..K; the DC term carries no shape)
     # Search
-    "key_dims": 0,  # 0: match on all magnitudes; >0: PCA to this many dims for stage 1
-    "candidates": 64,  # venue frames kept per clip by the magnitude stage, verified by phase
+    "candidates": 16,  # venue frames kept per query frame by the magnitude stage, then verified
     "aggregate": "sequence",
     "clip_radius_m": 1.5,  # frames of a 1 s clip come from places this close to each other
     "heading_gate_deg": 35.0,  # and face within this of each other
-    # logistic(w0 + w1*support + w2*margin + w3*agreement) -> P(within 2 m); bench/calibrate.py
-    "confidence_coef": [-6.0, 6.0, 25.0, 2.0],
+    # logistic(w0 + w1*support + w2*margin) -> P(within 2 m); fit by bench/calibrate.py
+    "confidence_coef": [-6.68, 10.731, 10.215],
     # Modelling
     "model_fps": 10.0,  # modelling frames sampled at this rate from the video
 }
 
 PRESETS: dict[str, dict[str, Any]] = {
     # The paper's method as published: the intensity curve of one band, median of best indices.
-    "paper": {
-        "channels": ["I"],
-        "bands": [[-20.0, 20.0]],
-        "n_harmonics": 32,
-        "aggregate": "median",
+    "paper": {"channels": ["I"], "bands": [[-20.0, 20.0]], "n_harmonics": 32, "aggregate": "median"},
+    # The paper's six curves (H, S, I and their gradients), one band, with our aggregation.
+    "six": {"n_harmonics": 32},
+    # Our default. Each change over "six" is measured in docs/benchmarks.md:
+    # - gray-world colour constancy: a colour cast no longer moves hue and saturation;
+    # - opponent colours (R-G, R+G-2B) instead of hue and saturation: stable at low saturation;
+    # - two bands, below and above the horizon: doors and floor vs. boards, windows and lights;
+    # - 16 harmonics x 12 curves: the same 784-byte record, the fine detail traded for bands.
+    "default": {
+        "gray_world": True,
+        "channels": ["I", "O1", "O2", "dI", "dO1", "dO2"],
+        "bands": [[-25.0, 0.0], [0.0, 25.0]],
+        "n_harmonics": 16,
+        "candidates": 16,
     },
-    # The paper's six curves.
-    "six": {},
-    # Our default, see docs/benchmarks.md for what each addition buys.
-    "default": {},
 }
 
 
