@@ -50,8 +50,7 @@ def dataset(root: Path, seed: int, equirect: bool = False) -> Path:
     return root
 
 
-def run(root: Path, label: str, preset: str, over: dict, agg: str, tag: str,
-        clip_s: float = 1.0) -> Evaluation:
+def run(root: Path, label: str, preset: str, over: dict, agg: str, tag: str, clip_s: float = 1.0) -> Evaluation:
     st = Store(root / "bench-data")
     key = json.dumps([preset, over], sort_keys=True).encode()
     vid = f"{tag}-{hashlib.sha1(key).hexdigest()[:10]}"
@@ -60,11 +59,13 @@ def run(root: Path, label: str, preset: str, over: dict, agg: str, tag: str,
         if over:  # the venue keeps the settings it was modelled with
             p = st.venue_dir(vid) / "settings.json"
             p.write_text(json.dumps({**json.loads(p.read_text()), **over}))
-        model_video(st, vid, root / "model.mp4", load_track(root / "model_track.json"),
-                    load_lens(root / "model_lens.json"))
+        model_video(
+            st, vid, root / "model.mp4", load_track(root / "model_track.json"), load_lens(root / "model_lens.json")
+        )
     loc = Locator(st, vid, device="cpu")
-    ev = evaluate(loc, root / "query.mp4", load_track(root / "query_track.json"),
-                  load_lens(root / "lens.json"), agg, clip_s)
+    ev = evaluate(
+        loc, root / "query.mp4", load_track(root / "query_track.json"), load_lens(root / "lens.json"), agg, clip_s
+    )
     plot(ev, loc, root / f"{vid}-{agg}.png", title=label)
     return ev
 
@@ -79,7 +80,9 @@ def main() -> None:
     root = dataset(a.root or Path("data") / f"bench-venue-{a.seed}", a.seed)
     print(f"machine: {machine()}")
     print(f"venue: {root} (seed {a.seed})")
-    head = f"{'configuration':<30}{'clips':>6}{'<=1 m':>8}{'<=2 m':>8}{'med m':>7}{'hdg med':>9}{'conf>=.8':>9}{'ok':>6}"
+    head = (
+        f"{'configuration':<30}{'clips':>6}{'<=1 m':>8}{'<=2 m':>8}{'med m':>7}{'hdg med':>9}{'conf>=.8':>9}{'ok':>6}"
+    )
     print(head)
     print("-" * len(head))
     rows = [c for c in CONFIGS if not a.only or a.only in c[0]]
@@ -90,9 +93,12 @@ def main() -> None:
     for label, preset, over, agg, *r in [(*c, root) for c in rows] + cross:
         s = run(r[0], label, preset, over, agg, "v").summary()
         ok = s["confident_within_2m"]
-        print(f"{label:<30}{s['clips']:>6}{s['within_1m']:>8.1%}{s['within_2m']:>8.1%}"
-              f"{s['median_err_m']:>7.2f}{s['median_heading_err_deg']:>8.2f}°"
-              f"{s['confident_share']:>9.0%}{'' if ok is None else f'{ok:.0%}':>6}", flush=True)
+        print(
+            f"{label:<30}{s['clips']:>6}{s['within_1m']:>8.1%}{s['within_2m']:>8.1%}"
+            f"{s['median_err_m']:>7.2f}{s['median_heading_err_deg']:>8.2f}°"
+            f"{s['confident_share']:>9.0%}{'' if ok is None else f'{ok:.0%}':>6}",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -33,16 +33,18 @@ def modelled(small_ds: Dataset, tmp_path_factory: pytest.TempPathFactory) -> tup
     """A store with venue 'lab' modelled from the small venue's walk (default preset)."""
     st = Store(tmp_path_factory.mktemp("store"))
     st.create("lab", name="Lab", places=small_ds.scene.places)
-    model_video(st, "lab", small_ds.model_video, load_track(small_ds.model_track),
-                load_lens(small_ds.root / "model_lens.json"))
+    model_video(
+        st, "lab", small_ds.model_video, load_track(small_ds.model_track), load_lens(small_ds.root / "model_lens.json")
+    )
     return st, "lab"
 
 
 @pytest.fixture(scope="session")
 def equirect_ds(tmp_path_factory: pytest.TempPathFactory) -> Dataset:
     """The small venue modelled with a 360-camera (equirectangular) instead of the donut."""
-    return make_dataset(tmp_path_factory.mktemp("equi"), seed=3, layout="small", scale=0.5,
-                        model_lens=equirect_lens(720))
+    return make_dataset(
+        tmp_path_factory.mktemp("equi"), seed=3, layout="small", scale=0.5, model_lens=equirect_lens(720)
+    )
 
 
 @pytest.fixture

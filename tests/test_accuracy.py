@@ -25,8 +25,9 @@ def test_default_beats_the_papers_method(modelled, small_ds, tmp_path):
     ours = _eval(st, vid, small_ds).summary()
     st2 = Store(tmp_path / "paper")
     st2.create("lab", preset="paper")
-    model_video(st2, "lab", small_ds.model_video, load_track(small_ds.model_track),
-                load_lens(small_ds.root / "model_lens.json"))
+    model_video(
+        st2, "lab", small_ds.model_video, load_track(small_ds.model_track), load_lens(small_ds.root / "model_lens.json")
+    )
     paper = _eval(st2, "lab", small_ds, "median").summary()
     assert ours["clips"] == paper["clips"] > 20
     assert ours["within_2m"] >= 0.9
@@ -50,8 +51,13 @@ def test_cross_device_equirect_venue_answers_donut_clips(equirect_ds, tmp_path):
     """A venue modelled from a 360-camera video answers clips from the donut lens."""
     st = Store(tmp_path / "d")
     st.create("eq")
-    model_video(st, "eq", equirect_ds.model_video, load_track(equirect_ds.model_track),
-                load_lens(equirect_ds.root / "model_lens.json"))
+    model_video(
+        st,
+        "eq",
+        equirect_ds.model_video,
+        load_track(equirect_ds.model_track),
+        load_lens(equirect_ds.root / "model_lens.json"),
+    )
     s = _eval(st, "eq", equirect_ds).summary()
     assert s["within_2m"] >= 0.9
     assert s["median_heading_err_deg"] <= 3.0

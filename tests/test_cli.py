@@ -17,11 +17,35 @@ def cli_venue(small_ds, tmp_path_factory):
     data = tmp_path_factory.mktemp("cli-data")
     places = small_ds.root / "places.json"
     places.write_text(json.dumps(small_ds.scene.places))
-    p = run_cli("venue", "create", "lab", "--name", "Lab", "--floor", "2", "--floorplan", str(small_ds.floorplan),
-                "--px-per-m", "20", "--places", str(places), data=data, check=True)
+    p = run_cli(
+        "venue",
+        "create",
+        "lab",
+        "--name",
+        "Lab",
+        "--floor",
+        "2",
+        "--floorplan",
+        str(small_ds.floorplan),
+        "--px-per-m",
+        "20",
+        "--places",
+        str(places),
+        data=data,
+        check=True,
+    )
     assert json.loads(p.stdout)["floorplan"] == "floorplan.png"
-    p = run_cli("model", "lab", str(small_ds.model_video), "--track", str(small_ds.model_track),
-                "--lens", str(small_ds.root / "model_lens.json"), data=data, check=True)
+    p = run_cli(
+        "model",
+        "lab",
+        str(small_ds.model_video),
+        "--track",
+        str(small_ds.model_track),
+        "--lens",
+        str(small_ds.root / "model_lens.json"),
+        data=data,
+        check=True,
+    )
     out = json.loads(p.stdout)
     assert out["frames_added"] > 100 and out["x_realtime"] > 1
     return data
@@ -42,11 +66,11 @@ def clips(small_ds, tmp_path_factory):
     truth = {}
     a, b = 40, 120  # clips end at frames a+9 and b+9
     vw = cv2.VideoWriter(str(d / "q1.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 10, (480, 360))
-    for f in frames[a:a + 10]:
+    for f in frames[a : a + 10]:
         vw.write(f)
     vw.release()
     (d / "q2").mkdir()
-    for i, f in enumerate(frames[b:b + 10]):
+    for i, f in enumerate(frames[b : b + 10]):
         cv2.imwrite(str(d / "q2" / f"{i:03d}.png"), f)
     for name, last in (("q1.avi", a + 9), ("q2", b + 9)):
         xy, hd, _ = tr.pose_at(np.array([last / tr.fps]))
@@ -56,8 +80,9 @@ def clips(small_ds, tmp_path_factory):
 
 def test_locate_prints_one_conventions_answer_per_clip(cli_venue, clips, small_ds):
     d, truth = clips
-    p = run_cli("locate", "lab", str(d / "q1.avi"), str(d / "q2"), "--lens", str(small_ds.lens),
-                data=cli_venue, check=True)
+    p = run_cli(
+        "locate", "lab", str(d / "q1.avi"), str(d / "q2"), "--lens", str(small_ds.lens), data=cli_venue, check=True
+    )
     lines = p.stdout.strip().splitlines()
     assert len(lines) == 2
     for line in lines:
@@ -78,8 +103,20 @@ def test_locate_median_baseline_runs(cli_venue, clips, small_ds):
 
 def test_evaluate_reports_and_plots(cli_venue, small_ds, tmp_path):
     png = tmp_path / "fig.png"
-    p = run_cli("evaluate", "lab", str(small_ds.query_video), "--track", str(small_ds.query_track),
-                "--lens", str(small_ds.lens), "--plot", str(png), "--json", data=cli_venue, check=True)
+    p = run_cli(
+        "evaluate",
+        "lab",
+        str(small_ds.query_video),
+        "--track",
+        str(small_ds.query_track),
+        "--lens",
+        str(small_ds.lens),
+        "--plot",
+        str(png),
+        "--json",
+        data=cli_venue,
+        check=True,
+    )
     s = json.loads(p.stdout)
     assert s["clips"] > 20 and s["within_2m"] >= 0.85
     img = cv2.imread(str(png))
@@ -93,7 +130,9 @@ def test_venue_list(cli_venue):
 
 def _bad_inputs(small_ds, tmp):
     bad_track = tmp / "bad_track.json"
-    bad_track.write_text(json.dumps({"fps": 10, "waypoints": [{"frame": 9, "x": 0, "y": 0}, {"frame": 3, "x": 1, "y": 0}]}))
+    bad_track.write_text(
+        json.dumps({"fps": 10, "waypoints": [{"frame": 9, "x": 0, "y": 0}, {"frame": 3, "x": 1, "y": 0}]})
+    )
     bad_lens = tmp / "bad_lens.json"
     d = json.loads(small_ds.lens.read_text())
     del d["r_outer"]
@@ -115,7 +154,7 @@ def _bad_inputs(small_ds, tmp):
         (["locate", "lab", str(tmp / "nope.mp4")], "clip not found"),
         (["locate", "lab", str(junk)], "not a readable video"),
         (["locate", "lab", str(empty)], "no frame images"),
-        (["locate", "lab", str(small_ds.query_video), "--lens", str(small_ds.root / "model_lens.json").replace("model_lens", "nolens")], "not found"),
+        (["locate", "lab", str(small_ds.query_video), "--lens", str(tmp / "nolens.json")], "not found"),
         (["venue", "create", "../etc"], "invalid venue id"),
         (["venue", "create", "lab"], "already exists"),
     ]

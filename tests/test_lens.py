@@ -14,8 +14,15 @@ from omninav.lens import (
 from omninav.synth import donut_lens, equirect_lens
 
 
-@pytest.mark.parametrize("lens", [donut_lens(), donut_lens(0.5), equirect_lens(),
-                                  Catadioptric((640, 480), (320, 240), 50, 200, (-60.0, 0.4), 0.0, False)])
+@pytest.mark.parametrize(
+    "lens",
+    [
+        donut_lens(),
+        donut_lens(0.5),
+        equirect_lens(),
+        Catadioptric((640, 480), (320, 240), 50, 200, (-60.0, 0.4), 0.0, False),
+    ],
+)
 def test_direction_pixel_round_trip(lens):
     rng = np.random.default_rng(0)
     lo, hi = lens.elevation_range()
@@ -48,13 +55,16 @@ def test_missing_field_names_it(field):
         lens_from_dict(d)
 
 
-@pytest.mark.parametrize("patch,msg", [
-    ({"r_inner": 400.0}, "r_inner < r_outer"),
-    ({"elevation_poly": [-40.0, 0.4, -0.001]}, "monotonic"),
-    ({"center": [1, "a"]}, "finite number"),
-    ({"image_size": [960]}, "image_size"),
-    ({"model": "fisheye"}, "unknown lens model"),
-])
+@pytest.mark.parametrize(
+    "patch,msg",
+    [
+        ({"r_inner": 400.0}, "r_inner < r_outer"),
+        ({"elevation_poly": [-40.0, 0.4, -0.001]}, "monotonic"),
+        ({"center": [1, "a"]}, "finite number"),
+        ({"image_size": [960]}, "image_size"),
+        ({"model": "fisheye"}, "unknown lens model"),
+    ],
+)
 def test_bad_profiles(patch, msg):
     d = {**donut_lens().to_dict(), **patch}
     with pytest.raises(OmninavError, match=msg):

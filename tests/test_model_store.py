@@ -29,8 +29,9 @@ def test_modelled_frames_follow_the_track(modelled, small_ds):
 def test_remodelling_a_video_replaces_its_frames(copy_store, small_ds):
     st, vid = copy_store
     n = len(st.load(vid).frames)
-    model_video(st, vid, small_ds.model_video, load_track(small_ds.model_track),
-                load_lens(small_ds.root / "model_lens.json"))
+    model_video(
+        st, vid, small_ds.model_video, load_track(small_ds.model_track), load_lens(small_ds.root / "model_lens.json")
+    )
     assert len(st.load(vid).frames) == n
 
 
@@ -43,8 +44,9 @@ def test_interrupted_modelling_leaves_the_venue_as_it_was(copy_store, small_ds):
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        model_video(st, vid, small_ds.query_video, load_track(small_ds.query_track),
-                    load_lens(small_ds.lens), progress=boom)
+        model_video(
+            st, vid, small_ds.query_video, load_track(small_ds.query_track), load_lens(small_ds.lens), progress=boom
+        )
     after = st.load(vid, mmap=False)
     assert np.array_equal(before.frames, after.frames)
     assert np.array_equal(before.spectra, after.spectra)

@@ -137,21 +137,25 @@ def test_record_round_trip_and_size():
     conf = resolve("default")
     assert record_bytes_per_frame(conf) + 16 <= MAX_RECORD_BYTES
     rng = np.random.default_rng(4)
-    spec = quantise(spectrum(normalise(rng.normal(size=(3, n_curves(conf), 360)).astype(np.float32)),
-                             conf["n_harmonics"]))
+    spec = quantise(
+        spectrum(normalise(rng.normal(size=(3, n_curves(conf), 360)).astype(np.float32)), conf["n_harmonics"])
+    )
     buf = encode_binary(spec, conf["pano_width"])
     assert len(buf) == 16 + 3 * record_bytes_per_frame(conf)
     assert np.array_equal(decode_binary(buf, conf), spec)
     assert np.array_equal(decode_json(encode_json(spec, conf), conf), spec)
 
 
-@pytest.mark.parametrize("mutate,msg", [
-    (lambda b: b[:10], "too short"),
-    (lambda b: b[:-2], "header says"),
-    (lambda b: b"XXX" + b[3:], "bad magic"),
-    (lambda b: b[:3] + bytes([9]) + b[4:], "version 9"),
-    (lambda b: b[:16] + b"\x00\x7e" + b[18:], "NaN or Inf"),  # float16 +inf/nan bits
-])
+@pytest.mark.parametrize(
+    "mutate,msg",
+    [
+        (lambda b: b[:10], "too short"),
+        (lambda b: b[:-2], "header says"),
+        (lambda b: b"XXX" + b[3:], "bad magic"),
+        (lambda b: b[:3] + bytes([9]) + b[4:], "version 9"),
+        (lambda b: b[:16] + b"\x00\x7e" + b[18:], "NaN or Inf"),  # float16 +inf/nan bits
+    ],
+)
 def test_malformed_binary_records(mutate, msg):
     conf = resolve("default")
     spec = np.full((1, n_curves(conf), conf["n_harmonics"]), 0.05 + 0j, np.complex64)

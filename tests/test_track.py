@@ -8,8 +8,12 @@ from omninav.track import load_track, parse_track
 
 
 def test_interpolation_and_headings():
-    tr = parse_track({"fps": 10, "waypoints": [{"frame": 0, "x": 0, "y": 10}, {"frame": 50, "x": 10, "y": 10},
-                                               {"t": 10.0, "x": 10, "y": 0}]})
+    tr = parse_track(
+        {
+            "fps": 10,
+            "waypoints": [{"frame": 0, "x": 0, "y": 10}, {"frame": 50, "x": 10, "y": 10}, {"t": 10.0, "x": 10, "y": 0}],
+        }
+    )
     xy, hd, ok = tr.pose_at(np.array([0.0, 2.5, 5.0, 7.5, 10.0, 10.5]))
     assert ok.tolist() == [True] * 5 + [False]
     assert np.allclose(xy[:5], [[0, 10], [5, 10], [10, 10], [10, 5], [10, 0]])
@@ -18,21 +22,29 @@ def test_interpolation_and_headings():
 
 
 def test_heading_offset():
-    tr = parse_track({"fps": 30, "waypoints": [{"frame": 0, "x": 0, "y": 0}, {"frame": 30, "x": 0, "y": 5}],
-                      "heading_offset_deg": 90})
+    tr = parse_track(
+        {
+            "fps": 30,
+            "waypoints": [{"frame": 0, "x": 0, "y": 0}, {"frame": 30, "x": 0, "y": 5}],
+            "heading_offset_deg": 90,
+        }
+    )
     _, hd, _ = tr.pose_at(np.array([0.5]))
     assert hd[0] == pytest.approx(270.0)  # walking south (180) + 90
 
 
-@pytest.mark.parametrize("d,msg", [
-    ({"fps": 30, "waypoints": [{"frame": 10, "x": 0, "y": 0}, {"frame": 5, "x": 1, "y": 0}]}, "increasing"),
-    ({"fps": 30, "waypoints": [{"frame": 0, "x": 0, "y": 0}]}, "at least two"),
-    ({"fps": 30, "waypoints": [{"frame": 0, "x": 0}, {"frame": 5, "x": 1, "y": 0}]}, "missing 'y'"),
-    ({"fps": 30, "waypoints": [{"x": 0, "y": 0}, {"frame": 5, "x": 1, "y": 0}]}, "'frame' or 't'"),
-    ({"fps": 0, "waypoints": []}, "positive"),
-    ({"fps": 30, "waypoints": [{"frame": 0, "x": float("nan"), "y": 0}, {"frame": 5, "x": 1, "y": 0}]}, "finite"),
-    ([1, 2], "JSON object"),
-])
+@pytest.mark.parametrize(
+    "d,msg",
+    [
+        ({"fps": 30, "waypoints": [{"frame": 10, "x": 0, "y": 0}, {"frame": 5, "x": 1, "y": 0}]}, "increasing"),
+        ({"fps": 30, "waypoints": [{"frame": 0, "x": 0, "y": 0}]}, "at least two"),
+        ({"fps": 30, "waypoints": [{"frame": 0, "x": 0}, {"frame": 5, "x": 1, "y": 0}]}, "missing 'y'"),
+        ({"fps": 30, "waypoints": [{"x": 0, "y": 0}, {"frame": 5, "x": 1, "y": 0}]}, "'frame' or 't'"),
+        ({"fps": 0, "waypoints": []}, "positive"),
+        ({"fps": 30, "waypoints": [{"frame": 0, "x": float("nan"), "y": 0}, {"frame": 5, "x": 1, "y": 0}]}, "finite"),
+        ([1, 2], "JSON object"),
+    ],
+)
 def test_bad_tracks(d, msg):
     with pytest.raises(OmninavError, match=msg):
         parse_track(d)

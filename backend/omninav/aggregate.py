@@ -74,8 +74,9 @@ def sequence(m: Matches, xy: np.ndarray, times: np.ndarray, conf: dict[str, Any]
     else:
         x, y = p[-1]
         h = hd[picks[-1]]
-    return Estimate(float(x), float(y), float(h % 360.0), int(m.index.ravel()[picks[-1]]),
-                    float(total[a]), rival, len(rows) / q)
+    return Estimate(
+        float(x), float(y), float(h % 360.0), int(m.index.ravel()[picks[-1]]), float(total[a]), rival, len(rows) / q
+    )
 
 
 def _fit_at(t: np.ndarray, v: np.ndarray, w: np.ndarray, at: float) -> float:
@@ -89,16 +90,23 @@ def _fit_at(t: np.ndarray, v: np.ndarray, w: np.ndarray, at: float) -> float:
 
 
 def median(m: Matches, xy: np.ndarray, times: np.ndarray, conf: dict[str, Any]) -> Estimate:
-    """The paper's aggregation: the median of each frame's best venue index (stage-1 ranking)."""
+    """The paper's aggregation: the median of each frame's best venue index (stage-1 ranking).
+
+    Its support and rival are measured like `sequence`'s (verified scores near the answer, and
+    at least ALT_M away from it) so that the one calibrated confidence model applies to both.
+    """
     best = m.index[:, 0]
     med = int(np.sort(best)[(len(best) - 1) // 2])
     # the heading of the last frame against the median frame, if it was a candidate of that frame
     last = m.index[-1]
     j = np.flatnonzero(last == med)
     h = float(m.heading[-1, j[0]]) if j.size else float(m.heading[-1, 0])
-    near = np.hypot(*(xy[best] - xy[med]).T) <= 2.0
-    s = float(np.mean(m.coarse[:, 0]))
-    return Estimate(float(xy[med, 0]), float(xy[med, 1]), h % 360.0, med, s, 0.0, float(near.mean()))
+    d = np.hypot(*(xy[m.index] - xy[med]).transpose(2, 0, 1))  # (Q, k) distance to the answer
+    sc = np.maximum(m.score, 0.0)
+    support = float(np.where(d <= 2.0, sc, 0.0).max(axis=1).mean())
+    rival = float(np.where(d >= ALT_M, sc, 0.0).max(axis=1).mean())
+    agree = float(np.mean(np.hypot(*(xy[best] - xy[med]).T) <= 2.0))
+    return Estimate(float(xy[med, 0]), float(xy[med, 1]), h % 360.0, med, support, rival, agree)
 
 
 def confidence(e: Estimate, conf: dict[str, Any]) -> float:

@@ -40,8 +40,10 @@ class Progress:
         eta = (total - done) / rate if rate > 0 else 0.0
         frac = min(1.0, done / max(total, 1))
         bar = "#" * int(frac * 30)
-        self.stream.write(f"\r{self.label} [{bar:<30}] {done}/{total} frames  {rate:6.1f} frames/s"
-                          f"  ETA {int(eta) // 60}:{int(eta) % 60:02d} ")
+        self.stream.write(
+            f"\r{self.label} [{bar:<30}] {done}/{total} frames  {rate:6.1f} frames/s"
+            f"  ETA {int(eta) // 60}:{int(eta) % 60:02d} "
+        )
         self.stream.flush()
 
     def close(self) -> None:
@@ -50,8 +52,14 @@ class Progress:
 
 
 @click.group()
-@click.option("--data", type=click.Path(file_okay=False), envvar="OMNINAV_DATA", default="data",
-              show_default=True, help="Data directory (env OMNINAV_DATA).")
+@click.option(
+    "--data",
+    type=click.Path(file_okay=False),
+    envvar="OMNINAV_DATA",
+    default="data",
+    show_default=True,
+    help="Data directory (env OMNINAV_DATA).",
+)
 @click.pass_context
 def cli(ctx: click.Context, data: str) -> None:
     """omninav: indoor localisation from panoramic vision."""
@@ -73,8 +81,16 @@ def venue() -> None:
 @click.option("--preset", default="default", show_default=True, help="Feature preset (paper, six, default).")
 @click.option("--places", type=click.Path(path_type=Path), help="JSON list of {name, x, y} in metres.")
 @click.pass_context
-def venue_create(ctx: click.Context, venue_id: str, name: str | None, floor: str,
-                 floorplan: Path | None, px_per_m: float | None, preset: str, places: Path | None) -> None:
+def venue_create(
+    ctx: click.Context,
+    venue_id: str,
+    name: str | None,
+    floor: str,
+    floorplan: Path | None,
+    px_per_m: float | None,
+    preset: str,
+    places: Path | None,
+) -> None:
     """Create VENUE (an id of letters, digits, '-' and '_')."""
     pl = _load_places(places) if places else None
     meta = _store(ctx).create(venue_id, name, floor, floorplan, px_per_m, preset, pl)
@@ -87,10 +103,13 @@ def _load_places(path: Path) -> list[dict[str, Any]]:
     except (OSError, json.JSONDecodeError) as e:
         raise OmninavError(f"{path}: places must be a readable JSON list ({e})") from None
     ok = isinstance(pl, list) and all(
-        isinstance(p, dict) and isinstance(p.get("name"), str)
-        and all(isinstance(p.get(k), int | float) for k in ("x", "y")) for p in pl)
+        isinstance(p, dict)
+        and isinstance(p.get("name"), str)
+        and all(isinstance(p.get(k), int | float) for k in ("x", "y"))
+        for p in pl
+    )
     if not ok:
-        raise OmninavError(f"{path}: places must be a list of {{\"name\", \"x\", \"y\"}} objects")
+        raise OmninavError(f'{path}: places must be a list of {{"name", "x", "y"}} objects')
     return pl
 
 
@@ -128,21 +147,40 @@ def model(ctx: click.Context, venue_id: str, video: Path, track_path: Path, lens
         r = model_video(st, venue_id, video, track, lens, progress=bar)
     finally:
         bar.close()
-    click.echo(json.dumps({"venue": r.venue, "video": r.video, "frames_added": r.frames,
-                           "venue_frames": r.total_frames, "seconds": round(r.seconds, 2),
-                           "x_realtime": round(r.speed_x_realtime, 1)}))
+    click.echo(
+        json.dumps(
+            {
+                "venue": r.venue,
+                "video": r.video,
+                "frames_added": r.frames,
+                "venue_frames": r.total_frames,
+                "seconds": round(r.seconds, 2),
+                "x_realtime": round(r.speed_x_realtime, 1),
+            }
+        )
+    )
 
 
 @cli.command()
 @click.argument("venue_id", metavar="VENUE")
 @click.argument("clips", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option("--lens", "lens_path", type=click.Path(path_type=Path),
-              help="Lens of the clips (default: the venue's modelling lens).")
+@click.option(
+    "--lens",
+    "lens_path",
+    type=click.Path(path_type=Path),
+    help="Lens of the clips (default: the venue's modelling lens).",
+)
 @click.option("--aggregate", type=click.Choice(["median", "sequence"]), help="Clip aggregation.")
 @click.option("--device", type=click.Choice(["auto", "cpu", "gpu"]), help="Search device.")
 @click.pass_context
-def locate(ctx: click.Context, venue_id: str, clips: tuple[Path, ...], lens_path: Path | None,
-           aggregate: str | None, device: str | None) -> None:
+def locate(
+    ctx: click.Context,
+    venue_id: str,
+    clips: tuple[Path, ...],
+    lens_path: Path | None,
+    aggregate: str | None,
+    device: str | None,
+) -> None:
     """Locate each CLIP (a video or a directory of frames): one JSON answer per line."""
     from .lens import load_lens
     from .locate import Locator, clip_frames
@@ -166,10 +204,19 @@ def locate(ctx: click.Context, venue_id: str, clips: tuple[Path, ...], lens_path
 @click.option("--plot", "plot_path", type=click.Path(path_type=Path), help="PNG (default: VIDEO.eval.png).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @click.pass_context
-def evaluate(ctx: click.Context, venue_id: str, video: Path, track_path: Path, lens_path: Path,
-             aggregate: str | None, plot_path: Path | None, as_json: bool) -> None:
+def evaluate(
+    ctx: click.Context,
+    venue_id: str,
+    video: Path,
+    track_path: Path,
+    lens_path: Path,
+    aggregate: str | None,
+    plot_path: Path | None,
+    as_json: bool,
+) -> None:
     """Cut a second walk into 1 s clips, locate each, report accuracy against its TRACK."""
-    from .evaluate import evaluate as run, plot
+    from .evaluate import evaluate as run
+    from .evaluate import plot
     from .lens import load_lens
     from .locate import Locator
     from .track import load_track
@@ -191,8 +238,10 @@ def _table(rows: list[tuple[str, dict[str, Any]]]) -> str:
     head = f"{'method':<28}{'clips':>6}{'<=1 m':>8}{'<=2 m':>8}{'median m':>10}{'heading med':>13}"
     lines = [head, "-" * len(head)]
     for name, s in rows:
-        lines.append(f"{name:<28}{s['clips']:>6}{s['within_1m']:>8.1%}{s['within_2m']:>8.1%}"
-                     f"{s['median_err_m']:>10.2f}{s['median_heading_err_deg']:>12.2f}°")
+        lines.append(
+            f"{name:<28}{s['clips']:>6}{s['within_1m']:>8.1%}{s['within_2m']:>8.1%}"
+            f"{s['median_err_m']:>10.2f}{s['median_heading_err_deg']:>12.2f}°"
+        )
     return "\n".join(lines)
 
 
@@ -219,7 +268,8 @@ def synth(out: Path, seed: int, layout: str, scale: float, fps: float, model_len
 @click.pass_context
 def demo(ctx: click.Context, quick: bool, venue_id: str) -> None:
     """Render the built-in synthetic venue, model it, evaluate it, print the table."""
-    from .evaluate import evaluate as run, plot
+    from .evaluate import evaluate as run
+    from .evaluate import plot
     from .lens import load_lens
     from .locate import Locator
     from .model_venue import model_video
@@ -236,15 +286,27 @@ def demo(ctx: click.Context, quick: bool, venue_id: str) -> None:
     rows = []
     for vid, preset, agg in ((venue_id, "default", "sequence"), (f"{venue_id}-paper", "paper", "median")):
         if not st.exists(vid):
-            st.create(vid, name="Synthetic demo venue", floorplan=src / "floorplan.png", px_per_m=20.0,
-                      preset=preset, places=places)
+            st.create(
+                vid,
+                name="Synthetic demo venue",
+                floorplan=src / "floorplan.png",
+                px_per_m=20.0,
+                preset=preset,
+                places=places,
+            )
         try:
             st.load(vid)
         except OmninavError:
             bar = Progress(f"modelling {vid}")
             try:
-                model_video(st, vid, src / "model.mp4", load_track(src / "model_track.json"),
-                            load_lens(src / "model_lens.json"), progress=bar)
+                model_video(
+                    st,
+                    vid,
+                    src / "model.mp4",
+                    load_track(src / "model_track.json"),
+                    load_lens(src / "model_lens.json"),
+                    progress=bar,
+                )
             finally:
                 bar.close()
         loc = Locator(st, vid)

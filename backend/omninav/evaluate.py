@@ -45,14 +45,16 @@ class Evaluation:
         }
 
 
-def query_spectra(loc: Locator, video: Path, track: Track, lens: Lens | None
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def query_spectra(
+    loc: Locator, video: Path, track: Track, lens: Lens | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Sampled frames of a walk -> spectra (F, C, K), times, true xy, true heading, frame index."""
     info = VideoInfo(video)
     vfps = info.fps if info.fps > 0 else track.fps
     stride = max(1, int(round(vfps / loc.conf["model_fps"])))
     ext = loc.extractor(lens)
-    specs, idx = [], []
+    specs: list[np.ndarray] = []
+    idx: list[int] = []
     for i, frame in iter_video(video, stride=stride):
         if not specs:
             ext.check_frame(frame, str(video))
@@ -65,8 +67,9 @@ def query_spectra(loc: Locator, video: Path, track: Track, lens: Lens | None
     return np.stack(specs)[ok], t[ok], xy[ok], hd[ok], np.array(idx)[ok]
 
 
-def evaluate(loc: Locator, video: Path, track: Track, lens: Lens | None = None,
-             aggregate: str | None = None, clip_s: float = 1.0) -> Evaluation:
+def evaluate(
+    loc: Locator, video: Path, track: Track, lens: Lens | None = None, aggregate: str | None = None, clip_s: float = 1.0
+) -> Evaluation:
     spec, t, xy, hd, idx = query_spectra(loc, video, track, lens)
     n = max(1, int(round(clip_s * loc.conf["model_fps"])))
     ev = Evaluation()
@@ -74,16 +77,24 @@ def evaluate(loc: Locator, video: Path, track: Track, lens: Lens | None = None,
         w = slice(s, s + n)
         e = loc.estimate(spec[w], t[w], aggregate)
         tx, ty = xy[s + n - 1]
-        ev.rows.append({
-            "frame": int(idx[s + n - 1]),
-            "x": e.x, "y": e.y, "heading": e.heading,
-            "true_x": float(tx), "true_y": float(ty), "true_heading": float(hd[s + n - 1]),
-            "err_m": float(np.hypot(e.x - tx, e.y - ty)),
-            "heading_err_deg": float(wrap_deg(e.heading - hd[s + n - 1])),
-            "venue_row": e.venue_row,
-            "confidence": confidence(e, loc.conf),
-            "support": e.support, "rival": e.rival, "agree": e.agree,
-        })
+        ev.rows.append(
+            {
+                "frame": int(idx[s + n - 1]),
+                "x": e.x,
+                "y": e.y,
+                "heading": e.heading,
+                "true_x": float(tx),
+                "true_y": float(ty),
+                "true_heading": float(hd[s + n - 1]),
+                "err_m": float(np.hypot(e.x - tx, e.y - ty)),
+                "heading_err_deg": float(wrap_deg(e.heading - hd[s + n - 1])),
+                "venue_row": e.venue_row,
+                "confidence": confidence(e, loc.conf),
+                "support": e.support,
+                "rival": e.rival,
+                "agree": e.agree,
+            }
+        )
     return ev
 
 
@@ -111,8 +122,7 @@ def plot(ev: Evaluation, loc: Locator, path: Path, title: str = "") -> None:
     ax.set_xlabel("query clip (1 s, in walk order)")
     ax.set_ylabel("venue frame")
     s = ev.summary()
-    ax.set_title(title or f"{s['clips']} clips: {s['within_2m']:.1%} within 2 m, "
-                 f"{s['within_1m']:.1%} within 1 m")
+    ax.set_title(title or f"{s['clips']} clips: {s['within_2m']:.1%} within 2 m, {s['within_1m']:.1%} within 1 m")
     ax.legend(loc="upper left", fontsize=8, markerscale=2)
     fig.tight_layout()
     fig.savefig(path)

@@ -138,9 +138,7 @@ def lens_from_dict(d: Any, where: str = "lens") -> Lens:
         e = lens.elevation(np.linspace(r_in, r_out, 512))
         de = np.diff(e)
         if not (np.all(de > 0) or np.all(de < 0)):
-            raise OmninavError(
-                f"{where}: 'elevation_poly' is not monotonic over [r_inner, r_outer]"
-            )
+            raise OmninavError(f"{where}: 'elevation_poly' is not monotonic over [r_inner, r_outer]")
         return lens
     if model == "equirectangular":
         size = _size(_need(d, "image_size", where), where)
@@ -149,9 +147,7 @@ def lens_from_dict(d: Any, where: str = "lens") -> Lens:
             forward_x=_num(_need(d, "forward_x", where), "forward_x", where),
             ccw=bool(d.get("ccw", False)),
         )
-    raise OmninavError(
-        f"{where}: unknown lens model {model!r} (expected 'catadioptric' or 'equirectangular')"
-    )
+    raise OmninavError(f"{where}: unknown lens model {model!r} (expected 'catadioptric' or 'equirectangular')")
 
 
 def load_lens(path: str | Path) -> Lens:

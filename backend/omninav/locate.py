@@ -26,7 +26,9 @@ class Locator:
         self.gen = store.load(venue_id)
         self.conf = self.gen.settings
         self.xy = np.stack([self.gen.frames["x"], self.gen.frames["y"]], -1).astype(np.float64)
-        self.index = Index(self.gen.spectra, self.gen.frames["heading"], device=device)
+        n = len(self.gen.frames)
+        dims = self.conf.get("key_dims", 0) if n > self.conf.get("key_project_above", 0) else 0
+        self.index = Index(self.gen.spectra, self.gen.frames["heading"], device=device, key_dims=dims)
         self._extractors: dict[str, Extractor] = {}
 
     def extractor(self, lens: Lens | None) -> Extractor:
@@ -36,8 +38,7 @@ class Locator:
             self._extractors[key] = Extractor(lens, self.conf)
         return self._extractors[key]
 
-    def estimate(self, q_spec: np.ndarray, times: np.ndarray | None = None,
-                 aggregate: str | None = None) -> Estimate:
+    def estimate(self, q_spec: np.ndarray, times: np.ndarray | None = None, aggregate: str | None = None) -> Estimate:
         agg = aggregate or self.conf["aggregate"]
         if agg not in AGGREGATORS:
             raise OmninavError(f"unknown aggregation {agg!r} (use median or sequence)")
@@ -67,8 +68,14 @@ class Locator:
         d = [np.hypot(p["x"] - x, p["y"] - y) for p in places]
         return str(places[int(np.argmin(d))]["name"])
 
-    def locate_frames(self, frames: list[np.ndarray], clip: str, lens: Lens | None = None,
-                      fps: float | None = None, aggregate: str | None = None) -> dict[str, Any]:
+    def locate_frames(
+        self,
+        frames: list[np.ndarray],
+        clip: str,
+        lens: Lens | None = None,
+        fps: float | None = None,
+        aggregate: str | None = None,
+    ) -> dict[str, Any]:
         ext = self.extractor(lens)
         for f in frames[:1]:
             ext.check_frame(f, clip)

@@ -38,16 +38,15 @@ class ModelResult:
         return self.video_seconds / max(self.seconds, 1e-9)
 
 
-def model_video(store: Store, venue_id: str, video: Path, track: Track, lens: Lens,
-                progress: Progress | None = None) -> ModelResult:
+def model_video(
+    store: Store, venue_id: str, video: Path, track: Track, lens: Lens, progress: Progress | None = None
+) -> ModelResult:
     store.require(venue_id)
     settings = store.settings(venue_id)
     info = VideoInfo(video)
     w, h = lens.image_size
     if (info.width, info.height) != (w, h):
-        raise OmninavError(
-            f"{video}: frames are {info.width}x{info.height} but the lens profile is for {w}x{h}"
-        )
+        raise OmninavError(f"{video}: frames are {info.width}x{info.height} but the lens profile is for {w}x{h}")
     vfps = info.fps if info.fps > 0 else track.fps
     stride = max(1, int(round(vfps / settings["model_fps"])))
     first = max(0, int(np.ceil(track.times[0] * track.fps - 1e-6)))

@@ -18,7 +18,7 @@ import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -28,15 +28,15 @@ from .lens import Lens, lens_from_dict
 VENUE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
 
 # One row per modelled frame; `video` names the modelling video it came from.
-FRAME_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("heading", "<f4"), ("t", "<f4"),
-                        ("frame", "<i4"), ("video", "<i4")])
+FRAME_DTYPE = np.dtype(
+    [("x", "<f4"), ("y", "<f4"), ("heading", "<f4"), ("t", "<f4"), ("frame", "<i4"), ("video", "<i4")]
+)
 
 
 def check_id(venue_id: str) -> str:
     if not isinstance(venue_id, str) or not VENUE_ID.match(venue_id):
         raise OmninavError(
-            f"invalid venue id {venue_id!r}: use 1-64 letters, digits, '-' or '_', starting with a "
-            "letter or digit"
+            f"invalid venue id {venue_id!r}: use 1-64 letters, digits, '-' or '_', starting with a letter or digit"
         )
     return venue_id
 
@@ -78,15 +78,23 @@ class Store:
             raise OmninavError(f"unknown venue {venue_id!r} (create it with 'omninav venue create')")
         return d
 
-    def create(self, venue_id: str, name: str | None = None, floor: str = "1",
-               floorplan: Path | None = None, px_per_m: float | None = None,
-               preset: str = "default", places: list[dict[str, Any]] | None = None) -> dict[str, Any]:
+    def create(
+        self,
+        venue_id: str,
+        name: str | None = None,
+        floor: str = "1",
+        floorplan: Path | None = None,
+        px_per_m: float | None = None,
+        preset: str = "default",
+        places: list[dict[str, Any]] | None = None,
+    ) -> dict[str, Any]:
         from .presets import resolve
 
         d = self.venue_dir(venue_id)
         if (d / "venue.json").exists():
             raise OmninavError(f"venue {venue_id!r} already exists")
         conf = resolve(preset)
+        img = None
         if floorplan is not None:
             import cv2
 
@@ -98,10 +106,16 @@ class Store:
             if px_per_m is None or not px_per_m > 0:
                 raise OmninavError("a floor plan needs its scale: --px-per-m, a positive number")
         d.mkdir(parents=True, exist_ok=True)
-        meta: dict[str, Any] = {"id": venue_id, "name": name or venue_id, "floor": str(floor),
-                                "px_per_m": px_per_m, "floorplan": None, "preset": preset,
-                                "places": places or []}
-        if floorplan is not None:
+        meta: dict[str, Any] = {
+            "id": venue_id,
+            "name": name or venue_id,
+            "floor": str(floor),
+            "px_per_m": px_per_m,
+            "floorplan": None,
+            "preset": preset,
+            "places": places or [],
+        }
+        if floorplan is not None and img is not None:
             shutil.copyfile(floorplan, d / "floorplan.png")
             meta["floorplan"] = "floorplan.png"
             meta["plan_size_px"] = [int(img.shape[1]), int(img.shape[0])]
@@ -131,7 +145,7 @@ class Store:
         g = self._current(d)
         if g is None:
             raise OmninavError(f"venue {venue_id!r} has no modelled frames yet (run 'omninav model')")
-        mode = "r" if mmap else None
+        mode: Literal["r"] | None = "r" if mmap else None
         settings = json.loads((g / "settings.json").read_text())
         lens = lens_from_dict(json.loads((g / "lens.json").read_text()), where=f"{venue_id} lens")
         frames = np.load(g / "frames.npy", mmap_mode=mode)
@@ -153,8 +167,8 @@ class Store:
         (tmp / "settings.json").write_text(json.dumps(gen.settings, indent=1))
         (tmp / "lens.json").write_text(json.dumps(gen.lens.to_dict(), indent=1))
         (tmp / "videos.json").write_text(json.dumps(gen.videos))
-        for f in tmp.iterdir():
-            with open(f, "rb") as fh:
+        for written in tmp.iterdir():
+            with open(written, "rb") as fh:
                 os.fsync(fh.fileno())
         os.replace(tmp, d / name)
         fd, t = tempfile.mkstemp(dir=d, prefix=".CURRENT.")

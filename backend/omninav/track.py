@@ -74,9 +74,7 @@ def parse_track(d: Any, where: str = "track") -> Track:
     bad = np.flatnonzero(np.diff(tt) <= 0)
     if bad.size:
         i = int(bad[0]) + 1
-        raise OmninavError(
-            f"{where}: waypoints must be in increasing time; waypoint {i} is not after waypoint {i - 1}"
-        )
+        raise OmninavError(f"{where}: waypoints must be in increasing time; waypoint {i} is not after waypoint {i - 1}")
     if tt[0] < 0:
         raise OmninavError(f"{where}: waypoint times must not be negative")
     off = _num(d.get("heading_offset_deg", 0.0), "'heading_offset_deg'", where)

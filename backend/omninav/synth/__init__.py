@@ -23,8 +23,17 @@ from .walks import (
     write_video,
 )
 
-__all__ = ["Scene", "build_scene", "donut_lens", "equirect_lens", "make_dataset", "Dataset",
-           "MODELLING", "QUERY", "Perturb"]
+__all__ = [
+    "Scene",
+    "build_scene",
+    "donut_lens",
+    "equirect_lens",
+    "make_dataset",
+    "Dataset",
+    "MODELLING",
+    "QUERY",
+    "Perturb",
+]
 
 
 def donut_lens(scale: float = 1.0) -> Catadioptric:
@@ -35,8 +44,13 @@ def donut_lens(scale: float = 1.0) -> Catadioptric:
     c2, c1, c0 = np.polyfit([r_in, rm, r_out], [-45.0, -8.0, 35.0], 2)
     return Catadioptric(
         image_size=(int(round(960 * scale)), int(round(720 * scale))),
-        center=(487.0 * scale, 352.0 * scale), r_inner=r_in, r_outer=r_out,
-        elevation_poly=(float(c0), float(c1), float(c2)), forward_deg=90.0, ccw=True)
+        center=(487.0 * scale, 352.0 * scale),
+        r_inner=r_in,
+        r_outer=r_out,
+        elevation_poly=(float(c0), float(c1), float(c2)),
+        forward_deg=90.0,
+        ccw=True,
+    )
 
 
 def equirect_lens(width: int = 1440) -> Equirectangular:
@@ -56,10 +70,18 @@ class Dataset:
     scene: Scene
 
 
-def make_dataset(root: Path, seed: int = 0, layout: str = "default", fps: float = 10.0,
-                 scale: float = 1.0, model_lens: Lens | None = None, query_perturb: Perturb = QUERY,
-                 query_route: list | None = None, model_speed: float = 1.2,
-                 query_speeds: tuple[float, ...] = (1.0, 1.3, 1.1, 0.9)) -> Dataset:
+def make_dataset(
+    root: Path,
+    seed: int = 0,
+    layout: str = "default",
+    fps: float = 10.0,
+    scale: float = 1.0,
+    model_lens: Lens | None = None,
+    query_perturb: Perturb = QUERY,
+    query_route: list | None = None,
+    model_speed: float = 1.2,
+    query_speeds: tuple[float, ...] = (1.0, 1.3, 1.1, 0.9),
+) -> Dataset:
     """Render a venue's modelling walk and an independent query walk, with tracks and lens files.
 
     The modelling video is taken with `model_lens` (default: the donut), the query with the donut.
@@ -76,17 +98,31 @@ def make_dataset(root: Path, seed: int = 0, layout: str = "default", fps: float 
     m_track = track_for(m_route, [model_speed], fps)
     q_track = track_for(q_route, list(query_speeds), fps)
     px_per_m = 20.0
-    ds = Dataset(root, root / "model.mp4", root / "model_track.json", root / "query.mp4",
-                 root / "query_track.json", root / "lens.json", root / "floorplan.png", px_per_m, scene)
+    ds = Dataset(
+        root,
+        root / "model.mp4",
+        root / "model_track.json",
+        root / "query.mp4",
+        root / "query_track.json",
+        root / "lens.json",
+        root / "floorplan.png",
+        px_per_m,
+        scene,
+    )
     write_json(ds.model_track, m_track)
     write_json(ds.query_track, q_track)
     write_json(ds.lens, lens.to_dict())
     write_json(root / "model_lens.json", mlens.to_dict())
     cv2.imwrite(str(ds.floorplan), cv2.cvtColor(floorplan_image(scene, px_per_m), cv2.COLOR_RGB2BGR))
     mposes = poses_from_track(m_track, MODELLING, np.random.default_rng(seed + 1))
-    write_video(ds.model_video, (f for _, f in render_frames(scene, mlens, mposes, MODELLING, seed + 2)),
-                fps, mlens.image_size)
+    write_video(
+        ds.model_video, (f for _, f in render_frames(scene, mlens, mposes, MODELLING, seed + 2)), fps, mlens.image_size
+    )
     qposes = poses_from_track(q_track, query_perturb, np.random.default_rng(seed + 3))
-    write_video(ds.query_video, (f for _, f in render_frames(scene, lens, qposes, query_perturb, seed + 4)),
-                fps, lens.image_size)
+    write_video(
+        ds.query_video,
+        (f for _, f in render_frames(scene, lens, qposes, query_perturb, seed + 4)),
+        fps,
+        lens.image_size,
+    )
     return ds

@@ -69,8 +69,9 @@ def _flat_textures(scene: Scene) -> tuple[np.ndarray, int, int]:
     return cached
 
 
-def world_panorama(scene: Scene, x: float, y: float, cam_h: float, grid: PanoGrid,
-                   people: list[Person] | None = None) -> np.ndarray:
+def world_panorama(
+    scene: Scene, x: float, y: float, cam_h: float, grid: PanoGrid, people: list[Person] | None = None
+) -> np.ndarray:
     """(rows, width, 3) uint8 RGB: what a camera at plan (x, y), height cam_h sees all around.
 
     Column j looks at world azimuth (j + 0.5) * 360 / width (clockwise from plan-up).
@@ -106,8 +107,17 @@ def world_panorama(scene: Scene, x: float, y: float, cam_h: float, grid: PanoGri
     return np.clip(img, 0, 255).astype(np.uint8)
 
 
-def _draw_people(img: np.ndarray, people: list[Person], x: float, y: float, cam_h: float,
-                 dx: np.ndarray, dy: np.ndarray, tan_el: np.ndarray, dist: np.ndarray) -> np.ndarray:
+def _draw_people(
+    img: np.ndarray,
+    people: list[Person],
+    x: float,
+    y: float,
+    cam_h: float,
+    dx: np.ndarray,
+    dy: np.ndarray,
+    tan_el: np.ndarray,
+    dist: np.ndarray,
+) -> np.ndarray:
     """Passers-by: vertical cylinders (head, shirt, trousers) in front of whatever else is there."""
     for p in people:
         ox, oy = x - p.x, y - p.y
@@ -121,9 +131,15 @@ def _draw_people(img: np.ndarray, people: list[Person], x: float, y: float, cam_
         tc = tpn[cols][None, :]
         zp = cam_h + tc * tan_el
         m = (tc < dist[:, cols]) & (zp >= 0) & (zp <= p.height)
-        colour = np.where((zp > 0.85 * p.height)[..., None], np.float32((200, 160, 130)),
-                          np.where((zp > 0.5 * p.height)[..., None], np.float32(p.shirt),
-                                   np.float32(p.trousers)))
+        colour = np.where(
+            (zp > 0.85 * p.height)[..., None],
+            np.array((200, 160, 130), np.float32),
+            np.where(
+                (zp > 0.5 * p.height)[..., None],
+                np.array(p.shirt, np.float32),
+                np.array(p.trousers, np.float32),
+            ),
+        )
         sub = img[:, cols]
         img[:, cols] = np.where(m[..., None], colour, sub)
         dist[:, cols] = np.where(m, tc, dist[:, cols])
@@ -152,8 +168,7 @@ class CameraModel:
         """`shift_px` moves the true optical centre away from the profile's: a re-clipped lens."""
         true = lens
         if isinstance(lens, Catadioptric):
-            true = dataclasses.replace(lens, center=(lens.center[0] + shift_px[0],
-                                                     lens.center[1] + shift_px[1]))
+            true = dataclasses.replace(lens, center=(lens.center[0] + shift_px[0], lens.center[1] + shift_px[1]))
         w, h = lens.image_size
         ys, xs = np.mgrid[0:h, 0:w]
         az, el = pixel_to_direction(true, xs.ravel().astype(np.float64), ys.ravel().astype(np.float64))
@@ -163,8 +178,9 @@ class CameraModel:
         return cls(lens, vec, np.flatnonzero(ok), (w, h))
 
 
-def camera_frame(cam: CameraModel, pano: np.ndarray, grid: PanoGrid, heading_deg: float,
-                 rot: np.ndarray | None = None) -> np.ndarray:
+def camera_frame(
+    cam: CameraModel, pano: np.ndarray, grid: PanoGrid, heading_deg: float, rot: np.ndarray | None = None
+) -> np.ndarray:
     """Photograph a world panorama: (h, w, 3) uint8 frame for a camera facing heading_deg."""
     v = cam.vec if rot is None else cam.vec @ rot.T
     az = np.rad2deg(np.arctan2(v[:, 1], v[:, 0])) + heading_deg

@@ -71,8 +71,10 @@ def default_layout() -> tuple[tuple[float, float], list[tuple[float, float, floa
 def small_layout() -> tuple[tuple[float, float], list[tuple[float, float, float, float]], list]:
     """An L of two corridors (18 m and 10 m): small enough for fast unit tests."""
     w = 2.4
-    rects = [(2.0 - w / 2, 2.0 - w / 2, 20.0 + w / 2, 2.0 + w / 2),
-             (20.0 - w / 2, 2.0 - w / 2, 20.0 + w / 2, 12.0 + w / 2)]
+    rects = [
+        (2.0 - w / 2, 2.0 - w / 2, 20.0 + w / 2, 2.0 + w / 2),
+        (20.0 - w / 2, 2.0 - w / 2, 20.0 + w / 2, 12.0 + w / 2),
+    ]
     lines = [[(2.0, 2.0), (20.0, 2.0)], [(20.0, 2.0), (20.0, 12.0)]]
     return (23.0, 15.0), rects, lines
 
@@ -93,7 +95,7 @@ def _pillars(free: np.ndarray, rng: np.random.Generator, every_m: float = 9.0) -
     for r in range(1, rows - 1):
         run = free[r] & ~free[r - 1]  # free cell with a wall above: a wall runs along row r-1
         pos = 0.0
-        for c in np.flatnonzero(run):
+        for c in map(int, np.flatnonzero(run)):
             if c * GRID < pos:
                 continue
             if rng.random() < 0.12 and run[c : c + 5].all():
@@ -102,7 +104,7 @@ def _pillars(free: np.ndarray, rng: np.random.Generator, every_m: float = 9.0) -
     for c in range(1, cols - 1):
         run = free[:, c] & ~free[:, c - 1]
         pos = 0.0
-        for r in np.flatnonzero(run):
+        for r in map(int, np.flatnonzero(run)):
             if r * GRID < pos:
                 continue
             if rng.random() < 0.12 and run[r : r + 5].all():
@@ -166,8 +168,15 @@ def _z(zm: float) -> int:
     return int(round((WALL_H - zm) * TEX_PPM))
 
 
-def _paint_wall(length: float, rng: np.random.Generator, base: tuple[int, int, int],
-                door_phase: float, door_pattern: list[int], outer: bool, label: int) -> np.ndarray:
+def _paint_wall(
+    length: float,
+    rng: np.random.Generator,
+    base: tuple[int, int, int],
+    door_phase: float,
+    door_pattern: list[int],
+    outer: bool,
+    label: int,
+) -> np.ndarray:
     w = max(1, int(round(length * TEX_PPM)))
     tex = np.empty((int(WALL_H * TEX_PPM), w, 3), np.uint8)
     tex[:] = base
@@ -203,8 +212,9 @@ def _paint_wall(length: float, rng: np.random.Generator, base: tuple[int, int, i
                 cv2.rectangle(tex, (hx - 4, _z(1.05)), (hx, _z(0.98)), (210, 210, 210), -1)
                 # room plate with a number, beside the door
                 cv2.rectangle(tex, (x1 + 6, _z(1.65)), (x1 + 26, _z(1.45)), (245, 245, 245), -1)
-                cv2.putText(tex, str(label + k), (x1 + 7, _z(1.5)), cv2.FONT_HERSHEY_PLAIN, 0.6,
-                            (20, 20, 20), 1, cv2.LINE_AA)
+                cv2.putText(
+                    tex, str(label + k), (x1 + 7, _z(1.5)), cv2.FONT_HERSHEY_PLAIN, 0.6, (20, 20, 20), 1, cv2.LINE_AA
+                )
         k += 1
         u += spacing
     # boards and posters at irregular places: what makes a spot unique
@@ -251,8 +261,13 @@ def _floor_and_ceiling(free: np.ndarray, rng: np.random.Generator, lines: list) 
             cx, cy = ax + t * (bx - ax), ay + t * (by - ay)
             horiz = abs(bx - ax) > abs(by - ay)
             hw, hh = (0.6, 0.3) if horiz else (0.3, 0.6)
-            cv2.rectangle(ceiling, (int((cx - hw) * PLAN_PPM), int((cy - hh) * PLAN_PPM)),
-                          (int((cx + hw) * PLAN_PPM), int((cy + hh) * PLAN_PPM)), (255, 255, 250), -1)
+            cv2.rectangle(
+                ceiling,
+                (int((cx - hw) * PLAN_PPM), int((cy - hh) * PLAN_PPM)),
+                (int((cx + hw) * PLAN_PPM), int((cy + hh) * PLAN_PPM)),
+                (255, 255, 250),
+                -1,
+            )
     return floor, ceiling
 
 
@@ -281,10 +296,11 @@ def build_scene(seed: int = 0, layout: str = "default") -> Scene:
             tex[:] = (150, 150, 148)
             tex[:, :2] = (120, 120, 118)
         else:
-            outer = (my < 2.0 or my > size[1] - 2.0 or mx < 1.5 or mx > size[0] - 1.5)
+            outer = my < 2.0 or my > size[1] - 2.0 or mx < 1.5 or mx > size[0] - 1.5
             pattern = [0, 1] if rng.random() < 0.6 else [0, 0, 1]
-            tex = _paint_wall(length, rng, WALL_COLOURS[wing % len(WALL_COLOURS)],
-                              rng.uniform(0.4, 3.5), pattern, outer, label)
+            tex = _paint_wall(
+                length, rng, WALL_COLOURS[wing % len(WALL_COLOURS)], rng.uniform(0.4, 3.5), pattern, outer, label
+            )
             label += 20
         segs.append((x0, y0, x1, y1))
         offs.append(off)
@@ -296,10 +312,12 @@ def build_scene(seed: int = 0, layout: str = "default") -> Scene:
     for i, line in enumerate(lines):
         (ax, ay), (bx, by) = line
         names = ["North corridor", "South corridor", "West corridor", "East corridor", "Middle corridor"]
-        places.append({"name": names[i] if layout == "default" else f"Corridor {i + 1}",
-                       "x": (ax + bx) / 2, "y": (ay + by) / 2})
-    return Scene(size, free_final, np.array(segs, np.float64), np.array(offs, np.int64), atlas,
-                 floor, ceiling, lines, places)
+        places.append(
+            {"name": names[i] if layout == "default" else f"Corridor {i + 1}", "x": (ax + bx) / 2, "y": (ay + by) / 2}
+        )
+    return Scene(
+        size, free_final, np.array(segs, np.float64), np.array(offs, np.int64), atlas, floor, ceiling, lines, places
+    )
 
 
 def floorplan_image(scene: Scene, px_per_m: float = 20.0) -> np.ndarray:
@@ -311,8 +329,14 @@ def floorplan_image(scene: Scene, px_per_m: float = 20.0) -> np.ndarray:
     return img
 
 
-def random_people(scene: Scene, rng: np.random.Generator, near: tuple[float, float], n: int,
-                  radius_m: float = 5.0) -> list[Person]:
+def _rgb(rng: np.random.Generator, lo: int, hi: int) -> tuple[int, int, int]:
+    r, g, b = (int(v) for v in rng.integers(lo, hi, 3))
+    return r, g, b
+
+
+def random_people(
+    scene: Scene, rng: np.random.Generator, near: tuple[float, float], n: int, radius_m: float = 5.0
+) -> list[Person]:
     """Up to n passers-by in free space within radius_m of `near`."""
     out: list[Person] = []
     tries = 0
@@ -325,7 +349,14 @@ def random_people(scene: Scene, rng: np.random.Generator, near: tuple[float, flo
         r, c = int(y / GRID), int(x / GRID)
         if not (0 <= r < scene.free.shape[0] and 0 <= c < scene.free.shape[1]) or not scene.free[r, c]:
             continue
-        out.append(Person(x, y, 0.22, float(rng.uniform(1.6, 1.9)),
-                          tuple(int(v) for v in rng.integers(0, 256, 3)),
-                          tuple(int(v) for v in rng.integers(20, 120, 3))))
+        out.append(
+            Person(
+                x,
+                y,
+                0.22,
+                float(rng.uniform(1.6, 1.9)),
+                _rgb(rng, 0, 256),
+                _rgb(rng, 20, 120),
+            )
+        )
     return out

@@ -34,8 +34,16 @@ class Perturb:
 
 
 MODELLING = Perturb(noise=1.5)
-QUERY = Perturb(lateral_m=0.5, height_m=(1.15, 1.55), tilt_deg=5.0, light=(0.6, 1.3), cast=0.12,
-                people=3, lens_shift_px=2.0, noise=3.0)
+QUERY = Perturb(
+    lateral_m=0.5,
+    height_m=(1.15, 1.55),
+    tilt_deg=5.0,
+    light=(0.6, 1.3),
+    cast=0.12,
+    people=3,
+    lens_shift_px=2.0,
+    noise=3.0,
+)
 
 
 @dataclass
@@ -79,8 +87,9 @@ def _is_free(scene: Scene, x: float, y: float) -> bool:
     return 0 <= r < scene.free.shape[0] and 0 <= c < scene.free.shape[1] and bool(scene.free[r, c])
 
 
-def offset_route(scene: Scene, route: list, lateral_m: float, rng: np.random.Generator,
-                 step_m: float = 6.0) -> list[tuple[float, float]]:
+def offset_route(
+    scene: Scene, route: list, lateral_m: float, rng: np.random.Generator, step_m: float = 6.0
+) -> list[tuple[float, float]]:
     """Resample a route every ~step_m and push each point sideways by up to lateral_m."""
     out: list[tuple[float, float]] = []
     for (ax, ay), (bx, by) in zip(route[:-1], route[1:], strict=True):
@@ -125,9 +134,19 @@ def poses_from_track(track: dict, perturb: Perturb, rng: np.random.Generator) ->
         dirs = rng.uniform(0, 360, n // k + 2)
         tilt = np.interp(np.arange(n) / k, np.arange(len(raw)), raw)
         tdir = np.interp(np.arange(n) / k, np.arange(len(dirs)), np.unwrap(dirs, period=360))
-    return [Pose(float(ts[i]), float(xy[i, 0]), float(xy[i, 1]), float(hd[i]),
-                 h0 + 0.01 * np.sin(ts[i] * 2 * np.pi * 1.8), float(tilt[i]), float(tdir[i]))
-            for i in range(n) if ok[i]]
+    return [
+        Pose(
+            float(ts[i]),
+            float(xy[i, 0]),
+            float(xy[i, 1]),
+            float(hd[i]),
+            h0 + 0.01 * np.sin(ts[i] * 2 * np.pi * 1.8),
+            float(tilt[i]),
+            float(tdir[i]),
+        )
+        for i in range(n)
+        if ok[i]
+    ]
 
 
 def grid_for(lens: Lens, width: int = 1440) -> PanoGrid:
@@ -137,8 +156,7 @@ def grid_for(lens: Lens, width: int = 1440) -> PanoGrid:
     return PanoGrid(width, top, bottom, int(round((top - bottom) / step)) + 1)
 
 
-def render_frames(scene: Scene, lens: Lens, poses: list[Pose], perturb: Perturb, seed: int,
-                  pano_width: int = 1440):
+def render_frames(scene: Scene, lens: Lens, poses: list[Pose], perturb: Perturb, seed: int, pano_width: int = 1440):
     """Yield (pose, BGR uint8 frame) for each pose, with the perturbations applied."""
     rng = np.random.default_rng(seed)
     grid = grid_for(lens, pano_width)
@@ -169,7 +187,7 @@ def render_frames(scene: Scene, lens: Lens, poses: list[Pose], perturb: Perturb,
 
 def write_video(path: Path, frames, fps: float, size: tuple[int, int]) -> int:
     """Encode frames (BGR) to an MP4 (MPEG-4 part 2) or, for .avi, Motion-JPEG; returns count."""
-    fourcc = cv2.VideoWriter_fourcc(*("MJPG" if path.suffix.lower() == ".avi" else "mp4v"))
+    fourcc = cv2.VideoWriter.fourcc(*("MJPG" if path.suffix.lower() == ".avi" else "mp4v"))
     vw = cv2.VideoWriter(str(path), fourcc, fps, size)
     if not vw.isOpened():
         raise RuntimeError(f"cannot open a video writer for {path}")
