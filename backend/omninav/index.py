@@ -39,7 +39,7 @@ class Matches:
 def magnitude_keys(spec: Any) -> Any:
     """(N, C, K) complex -> (N, C*K) float32 magnitudes: the rotation-invariant search keys."""
     xp = namespace_of(spec)
-    return xp.abs(spec).reshape(spec.shape[0], -1).astype(xp.float32)
+    return xp.ascontiguousarray(xp.abs(spec).reshape(spec.shape[0], -1).astype(xp.float32))
 
 
 def key_basis(keys: Any, dims: int, sample: int = 65536) -> Any:
@@ -126,7 +126,9 @@ class Index:
     def verify(self, q_spec: Any, idx: Any) -> tuple[Any, Any]:
         """Stage 2: phase correlation of each query frame with its candidates -> score, heading."""
         q = self.xp.asarray(q_spec)
-        rel, score = relative_heading(q[:, None], self.spec[idx])
+        # 8 shift samples per harmonic: the parabola then lands well under a tenth of a degree
+        n = max(64, 8 * int(q.shape[-1]))
+        rel, score = relative_heading(q[:, None], self.spec[idx], n_shifts=n)
         return score, (self.heading[idx] + rel) % 360.0
 
     def search(self, q_spec: np.ndarray, k: int) -> Matches:

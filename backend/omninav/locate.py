@@ -28,7 +28,12 @@ class Locator:
         self.xy = np.stack([self.gen.frames["x"], self.gen.frames["y"]], -1).astype(np.float64)
         n = len(self.gen.frames)
         dims = self.conf.get("key_dims", 0) if n > self.conf.get("key_project_above", 0) else 0
-        self.index = Index(self.gen.spectra, self.gen.frames["heading"], device=device, key_dims=dims)
+        self.index = Index(
+            self.gen.spectra,
+            self.gen.frames["heading"],
+            device=device,
+            key_dims=dims,
+        )
         self._extractors: dict[str, Extractor] = {}
 
     def extractor(self, lens: Lens | None) -> Extractor:
