@@ -42,12 +42,18 @@ def sequence(m: Matches, xy: np.ndarray, times: np.ndarray, conf: dict[str, Any]
     sc = np.maximum(m.score.ravel().astype(np.float64), 0.0)
     row = np.repeat(np.arange(q), k)
     t = np.asarray(times, np.float64)[row]
-    # hypotheses a x pairs p
-    dist = np.hypot(pos[:, None, 0] - pos[None, :, 0], pos[:, None, 1] - pos[None, :, 1])
-    reach = NEAR_M + WALK_MPS * np.abs(t[:, None] - t[None, :])
-    reach = np.minimum(reach, conf.get("clip_radius_m", 1.5) + NEAR_M)
-    ok = (dist <= reach) & (np.abs(wrap_deg(hd[:, None] - hd[None, :])) <= conf["heading_gate_deg"])
-    sup = np.where(ok, sc[None, :], 0.0).reshape(len(sc), q, k)
+    # hypotheses a x pairs p, float32: 25k-100k entries, so memory traffic is the cost
+    p32 = pos.astype(np.float32)
+    d2 = (p32[:, None, 0] - p32[None, :, 0]) ** 2 + (p32[:, None, 1] - p32[None, :, 1]) ** 2
+    t32 = t.astype(np.float32)
+    reach = np.minimum(NEAR_M + WALK_MPS * np.abs(t32[:, None] - t32[None, :]), conf.get("clip_radius_m", 1.5) + NEAR_M)
+    # heading gate as a dot product of unit vectors: cos(ha - hp) >= cos(gate), no modulo
+    hr = np.deg2rad(hd).astype(np.float32)
+    u, v = np.cos(hr), np.sin(hr)
+    ok = (d2 <= reach * reach) & (
+        u[:, None] * u[None, :] + v[:, None] * v[None, :] >= np.cos(np.deg2rad(conf["heading_gate_deg"]))
+    )
+    sup = np.where(ok, sc.astype(np.float32)[None, :], np.float32(0)).reshape(len(sc), q, k)
     best_k = sup.argmax(axis=2)  # (A, Q): each frame's best supporter of each hypothesis
     best_v = np.take_along_axis(sup, best_k[..., None], axis=2)[..., 0]
     total = best_v.sum(axis=1) / q
@@ -82,10 +88,12 @@ def sequence(m: Matches, xy: np.ndarray, times: np.ndarray, conf: dict[str, Any]
 def _fit_at(t: np.ndarray, v: np.ndarray, w: np.ndarray, at: float) -> float:
     """Weighted least-squares line v(t), evaluated at `at`."""
     w = np.maximum(w, 1e-6)
-    tm = np.average(t, weights=w)
-    vm = np.average(v, weights=w)
-    var = np.average((t - tm) ** 2, weights=w)
-    slope = np.average((t - tm) * (v - vm), weights=w) / var if var > 1e-12 else 0.0
+    sw = w.sum()
+    tm = (w * t).sum() / sw
+    vm = (w * v).sum() / sw
+    dt = t - tm
+    var = (w * dt * dt).sum()
+    slope = (w * dt * (v - vm)).sum() / var if var > 1e-12 * sw else 0.0
     return float(vm + slope * (at - tm))
 
 
