@@ -17,7 +17,12 @@ stamp=.venv/.omninav-stamp
 want=$(cat backend/pyproject.toml | sha256sum | cut -d' ' -f1)
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "setup: installing the engine and its dependencies into .venv" >&2
-  .venv/bin/python -m pip install -q --upgrade pip
-  .venv/bin/python -m pip install -q -e "backend[dev]"
+  log=.venv/setup.log
+  # pip and setuptools talk a lot; keep it in a log and show it only if something failed
+  if ! { .venv/bin/python -m pip install --upgrade pip && .venv/bin/python -m pip install -e "backend[dev]"; } >"$log" 2>&1; then
+    tail -n 40 "$log" >&2
+    echo "setup: installing Python packages failed (full log: $log)" >&2
+    exit 1
+  fi
   echo "$want" > "$stamp"
 fi
