@@ -188,3 +188,12 @@ def test_wrong_lens_size_is_explained(cli_venue, clips, small_ds, tmp_path):
     p.write_text(json.dumps(big))
     r = run_cli("locate", "lab", str(d / "q2"), "--lens", str(p), data=cli_venue)
     assert r.returncode != 0 and "wrong lens profile" in r.stderr
+
+
+def test_a_long_clip_is_located_by_its_last_frames(cli_venue, small_ds, tmp_path):
+    """A whole walk given as one clip (far more frames than a clip needs) still answers, quickly,
+    with the pose at its last frame."""
+    p = run_cli("locate", "lab", str(small_ds.query_video), "--lens", str(small_ds.lens), data=cli_venue, check=True)
+    a = json.loads(p.stdout)
+    tr = load_track(small_ds.query_track)
+    assert np.hypot(a["x"] - tr.xy[-1, 0], a["y"] - tr.xy[-1, 1]) < 2.0

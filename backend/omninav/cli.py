@@ -15,7 +15,7 @@ from typing import Any
 
 import click
 
-from .errors import OmninavError
+from .errors import OmninavError, read_json
 from .store import Store
 
 
@@ -98,10 +98,7 @@ def venue_create(
 
 
 def _load_places(path: Path) -> list[dict[str, Any]]:
-    try:
-        pl = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as e:
-        raise OmninavError(f"{path}: places must be a readable JSON list ({e})") from None
+    pl = read_json(path, "places file")
     ok = isinstance(pl, list) and all(
         isinstance(p, dict)
         and isinstance(p.get("name"), str)

@@ -1,5 +1,34 @@
-"""One exception type for everything a user can get wrong; the CLI prints its message, no traceback."""
+"""User-facing errors, and the two checks every input file needs.
+
+OmninavError is for everything a user can get wrong; the CLI (and later the server) prints its
+message as one line, never a traceback.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
 
 
 class OmninavError(Exception):
     """Bad input or state that the user can fix: the message says what was wrong."""
+
+
+def read_json(path: str | Path, what: str) -> Any:
+    """Parse a JSON input file; a missing or unreadable file becomes one clear OmninavError."""
+    p = Path(path)
+    try:
+        return json.loads(p.read_text())
+    except FileNotFoundError:
+        raise OmninavError(f"{p}: {what} not found") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise OmninavError(f"{p}: {what} is not readable JSON ({e})") from None
+
+
+def finite(v: Any, what: str, where: str) -> float:
+    """A finite JSON number (not a bool, NaN or Inf) as float, else an error naming the field."""
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise OmninavError(f"{where}: {what} must be a finite number, got {v!r}")
+    return float(v)

@@ -41,8 +41,5 @@ class Extractor:
         return quantise(spectrum(self.curves(frame_bgr), self.conf["n_harmonics"]))
 
     def spectra(self, frames: list[np.ndarray]) -> np.ndarray:
-        return (
-            np.stack([self.spectrum(f) for f in frames])
-            if frames
-            else np.zeros((0, 1, self.conf["n_harmonics"]), np.complex64)
-        )
+        """(F, C, K) for F >= 1 frames (a clip always has frames: readers refuse empty ones)."""
+        return np.stack([self.spectrum(f) for f in frames])

@@ -8,15 +8,13 @@ elevation is 0 at the horizon and positive upwards.
 
 from __future__ import annotations
 
-import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .errors import OmninavError
+from .errors import OmninavError, finite, read_json
 
 
 @dataclass(frozen=True)
@@ -92,9 +90,7 @@ def _need(d: dict[str, Any], key: str, where: str) -> Any:
 
 
 def _num(v: Any, key: str, where: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-        raise OmninavError(f"{where}: lens field '{key}' must be a finite number, got {v!r}")
-    return float(v)
+    return finite(v, f"lens field '{key}'", where)
 
 
 def _size(v: Any, where: str) -> tuple[int, int]:
@@ -151,14 +147,7 @@ def lens_from_dict(d: Any, where: str = "lens") -> Lens:
 
 
 def load_lens(path: str | Path) -> Lens:
-    p = Path(path)
-    try:
-        d = json.loads(p.read_text())
-    except FileNotFoundError:
-        raise OmninavError(f"{p}: lens profile not found") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise OmninavError(f"{p}: lens profile is not readable JSON ({e})") from None
-    return lens_from_dict(d, where=str(p))
+    return lens_from_dict(read_json(path, "lens profile"), where=str(path))
 
 
 def direction_to_pixel(lens: Lens, az_deg: np.ndarray, el_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

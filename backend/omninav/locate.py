@@ -51,6 +51,10 @@ class Locator:
             raise OmninavError("a clip needs at least one frame")
         if times is None:
             times = np.arange(q_spec.shape[0]) / DEFAULT_CLIP_FPS
+        # The answer is the pose at the last frame, and sequence aggregation costs (frames*k)^2:
+        # a long clip is located by its last frames only.
+        keep = self.conf.get("max_clip_frames", 30)
+        q_spec, times = q_spec[-keep:], np.asarray(times)[-keep:]
         m = self.index.search(q_spec, self.conf["candidates"])
         return AGGREGATORS[agg](m, self.xy, np.asarray(times, np.float64), self.conf)
 

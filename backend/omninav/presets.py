@@ -33,6 +33,7 @@ DEFAULTS: dict[str, Any] = {
     "aggregate": "sequence",
     "clip_radius_m": 1.5,  # frames of a 1 s clip come from places this close to each other
     "heading_gate_deg": 35.0,  # and face within this of each other
+    "max_clip_frames": 30,  # a longer clip is located by its last 30 frames (3 s at 10 fps)
     # logistic(w0 + w1*support + w2*margin) -> P(within 2 m); fit by bench/calibrate.py
     "confidence_coef": [-6.68, 10.731, 10.215],
     # Modelling

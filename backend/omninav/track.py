@@ -6,15 +6,13 @@ Positions between waypoints are linear in time; the heading is the direction of 
 
 from __future__ import annotations
 
-import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .errors import OmninavError
+from .errors import OmninavError, finite, read_json
 
 
 @dataclass(frozen=True)
@@ -40,16 +38,10 @@ class Track:
         return np.stack([x, y], -1), np.mod(h + self.heading_offset, 360.0), ok
 
 
-def _num(v: Any, what: str, where: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-        raise OmninavError(f"{where}: {what} must be a finite number, got {v!r}")
-    return float(v)
-
-
 def parse_track(d: Any, where: str = "track") -> Track:
     if not isinstance(d, dict):
         raise OmninavError(f"{where}: a track must be a JSON object")
-    fps = _num(d.get("fps", 30), "'fps'", where)
+    fps = finite(d.get("fps", 30), "'fps'", where)
     if fps <= 0:
         raise OmninavError(f"{where}: 'fps' must be positive")
     wps = d.get("waypoints")
@@ -60,16 +52,16 @@ def parse_track(d: Any, where: str = "track") -> Track:
         if not isinstance(w, dict):
             raise OmninavError(f"{where}: waypoint {i} is not an object")
         if "t" in w:
-            t = _num(w["t"], f"waypoint {i} 't'", where)
+            t = finite(w["t"], f"waypoint {i} 't'", where)
         elif "frame" in w:
-            t = _num(w["frame"], f"waypoint {i} 'frame'", where) / fps
+            t = finite(w["frame"], f"waypoint {i} 'frame'", where) / fps
         else:
             raise OmninavError(f"{where}: waypoint {i} needs 'frame' or 't'")
         for k in ("x", "y"):
             if k not in w:
                 raise OmninavError(f"{where}: waypoint {i} is missing '{k}'")
         times.append(t)
-        xy.append((_num(w["x"], f"waypoint {i} 'x'", where), _num(w["y"], f"waypoint {i} 'y'", where)))
+        xy.append((finite(w["x"], f"waypoint {i} 'x'", where), finite(w["y"], f"waypoint {i} 'y'", where)))
     tt = np.array(times)
     bad = np.flatnonzero(np.diff(tt) <= 0)
     if bad.size:
@@ -77,16 +69,9 @@ def parse_track(d: Any, where: str = "track") -> Track:
         raise OmninavError(f"{where}: waypoints must be in increasing time; waypoint {i} is not after waypoint {i - 1}")
     if tt[0] < 0:
         raise OmninavError(f"{where}: waypoint times must not be negative")
-    off = _num(d.get("heading_offset_deg", 0.0), "'heading_offset_deg'", where)
+    off = finite(d.get("heading_offset_deg", 0.0), "'heading_offset_deg'", where)
     return Track(fps, tt, np.array(xy, np.float64), off)
 
 
 def load_track(path: str | Path) -> Track:
-    p = Path(path)
-    try:
-        d = json.loads(p.read_text())
-    except FileNotFoundError:
-        raise OmninavError(f"{p}: track file not found") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise OmninavError(f"{p}: track is not readable JSON ({e})") from None
-    return parse_track(d, where=str(p))
+    return parse_track(read_json(path, "track file"), where=str(path))
