@@ -197,3 +197,30 @@ def test_a_long_clip_is_located_by_its_last_frames(cli_venue, small_ds, tmp_path
     a = json.loads(p.stdout)
     tr = load_track(small_ds.query_track)
     assert np.hypot(a["x"] - tr.xy[-1, 0], a["y"] - tr.xy[-1, 1]) < 2.0
+
+
+@pytest.mark.parametrize("suffix", [".onv", ".json"])
+def test_features_then_locate_gives_the_same_answer_as_the_clip(cli_venue, clips, small_ds, tmp_path, suffix):
+    """What a phone does (extract features, send them) answers exactly as sending the frames."""
+    d, _ = clips
+    rec = tmp_path / f"q2{suffix}"
+    run_cli("features", "lab", str(d / "q2"), "--lens", str(small_ds.lens), "-o", str(rec), data=cli_venue, check=True)
+    if suffix == ".onv":
+        assert rec.stat().st_size == 20 + 10 * 768  # 788 bytes for the first frame, 768 for each next
+    by_rec = json.loads(run_cli("locate", "lab", str(rec), data=cli_venue, check=True).stdout)
+    by_clip = json.loads(
+        run_cli("locate", "lab", str(d / "q2"), "--lens", str(small_ds.lens), data=cli_venue, check=True).stdout
+    )
+    by_rec.pop("clip"), by_clip.pop("clip")
+    assert by_rec == by_clip
+
+
+def test_broken_feature_records_are_refused_clearly(cli_venue, tmp_path):
+    bad = tmp_path / "bad.onv"
+    bad.write_bytes(b"ONV\x01" + b"\x00" * 40)
+    p = run_cli("locate", "lab", str(bad), data=cli_venue)
+    assert p.returncode != 0 and "Traceback" not in p.stderr and "feature record" in p.stderr
+    js = tmp_path / "bad.json"
+    js.write_text('{"version": 1, "mag": [[[NaN]]], "phase": [[[0]]]}')
+    p = run_cli("locate", "lab", str(js), data=cli_venue)
+    assert p.returncode != 0 and len(p.stderr.strip().splitlines()) == 1

@@ -20,6 +20,9 @@ def test_demo_quick_prints_both_methods(tmp_path):
     # a second run reuses the rendered venue and the modelled frames
     again = run_cli("demo", "--quick", data=tmp_path, check=True)
     assert "rendering" not in again.stderr and again.stdout == p.stdout
+    # the quick demo has venues of its own, so a later full demo never answers with them
+    ids = {json.loads(line)["id"] for line in run_cli("venue", "list", data=tmp_path, check=True).stdout.splitlines()}
+    assert ids == {"demo-quick", "demo-quick-paper"}
 
 
 def test_synth_writes_a_complete_dataset(tmp_path):

@@ -9,6 +9,7 @@ from omninav.extract import Extractor
 from omninav.heading import correlation, peak, relative_heading, wrap_deg
 from omninav.presets import n_curves, resolve
 from omninav.spectrum import (
+    HEADER_BYTES,
     MAX_RECORD_BYTES,
     decode_binary,
     decode_json,
@@ -135,13 +136,13 @@ def test_correlation_peak_values():
 
 def test_record_round_trip_and_size():
     conf = resolve("default")
-    assert record_bytes_per_frame(conf) + 16 <= MAX_RECORD_BYTES
+    assert record_bytes_per_frame(conf) + HEADER_BYTES <= MAX_RECORD_BYTES
     rng = np.random.default_rng(4)
     spec = quantise(
         spectrum(normalise(rng.normal(size=(3, n_curves(conf), 360)).astype(np.float32)), conf["n_harmonics"])
     )
-    buf = encode_binary(spec, conf["pano_width"])
-    assert len(buf) == 16 + 3 * record_bytes_per_frame(conf)
+    buf = encode_binary(spec, conf)
+    assert len(buf) == HEADER_BYTES + 3 * record_bytes_per_frame(conf)
     assert np.array_equal(decode_binary(buf, conf), spec)
     assert np.array_equal(decode_json(encode_json(spec, conf), conf), spec)
 
@@ -153,14 +154,14 @@ def test_record_round_trip_and_size():
         (lambda b: b[:-2], "header says"),
         (lambda b: b"XXX" + b[3:], "bad magic"),
         (lambda b: b[:3] + bytes([9]) + b[4:], "version 9"),
-        (lambda b: b[:16] + b"\x00\x7e" + b[18:], "NaN or Inf"),  # float16 +inf/nan bits
+        (lambda b: b[:20] + b"\x00\x7e" + b[22:], "NaN or Inf"),  # float16 NaN bits
     ],
 )
 def test_malformed_binary_records(mutate, msg):
     conf = resolve("default")
     spec = np.full((1, n_curves(conf), conf["n_harmonics"]), 0.05 + 0j, np.complex64)
     with pytest.raises(OmninavError, match=msg):
-        decode_binary(mutate(encode_binary(spec, 360)), conf)
+        decode_binary(mutate(encode_binary(spec, conf)), conf)
 
 
 def test_malformed_json_records():
@@ -175,3 +176,13 @@ def test_malformed_json_records():
         decode_json({"version": 1}, conf)
     with pytest.raises(OmninavError, match="version"):
         decode_json({**good, "version": 2}, conf)
+
+
+def test_records_made_with_other_settings_are_refused():
+    conf = resolve("default")
+    spec = np.full((1, n_curves(conf), conf["n_harmonics"]), 0.05 + 0j, np.complex64)
+    other = {**conf, "gray_world": False}  # same shape, different features
+    with pytest.raises(OmninavError, match="other settings"):
+        decode_binary(encode_binary(spec, other), conf)
+    with pytest.raises(OmninavError, match="other settings"):
+        decode_json(encode_json(spec, other), conf)

@@ -16,6 +16,7 @@ from typing import Any
 import click
 
 from .errors import OmninavError, read_json
+from .extract import Extractor
 from .store import Store
 
 
@@ -178,9 +179,9 @@ def locate(
     aggregate: str | None,
     device: str | None,
 ) -> None:
-    """Locate each CLIP (a video or a directory of frames): one JSON answer per line."""
+    """Locate each CLIP (a video, a directory of frames, or a feature record .onv/.json)."""
     from .lens import load_lens
-    from .locate import Locator, clip_frames
+    from .locate import RECORD_SUFFIXES, Locator, clip_frames, read_record
 
     lens = load_lens(lens_path) if lens_path else None
     loc = Locator(_store(ctx), venue_id, device)
@@ -188,8 +189,44 @@ def locate(
         if not c.exists():
             raise OmninavError(f"{c}: clip not found")
     for c in clips:
-        frames, fps = clip_frames(c, loc.conf["model_fps"])
-        click.echo(json.dumps(loc.locate_frames(frames, c.name, lens, fps, aggregate)))
+        if c.suffix.lower() in RECORD_SUFFIXES:  # features extracted elsewhere (a phone)
+            answer = loc.locate_spectra(read_record(c, loc.conf), c.name, None, aggregate)
+        else:
+            frames, fps = clip_frames(c, loc.conf["model_fps"])
+            answer = loc.locate_frames(frames, c.name, lens, fps, aggregate)
+        click.echo(json.dumps(answer))
+
+
+@cli.command()
+@click.argument("venue_id", metavar="VENUE")
+@click.argument("clip", type=click.Path(path_type=Path))
+@click.option("--lens", "lens_path", type=click.Path(path_type=Path), help="Lens of the clip (default: the venue's).")
+@click.option("-o", "--out", type=click.Path(path_type=Path), help="Write here; .onv is binary, else JSON.")
+def features(venue_id: str, clip: Path, lens_path: Path | None, out: Path | None) -> None:
+    """Extract CLIP's feature record with VENUE's settings: what a phone sends instead of images."""
+    from .lens import load_lens
+    from .locate import clip_frames
+    from .spectrum import encode_binary, encode_json
+
+    ctx = click.get_current_context()
+    st = _store(ctx)
+    conf = st.settings(venue_id)
+    try:
+        lens = load_lens(lens_path) if lens_path else st.load(venue_id).lens
+    except OmninavError:
+        raise OmninavError("give --lens: the venue has no modelled frames, so no lens of its own") from None
+    ext = Extractor(lens, conf)
+    frames, _ = clip_frames(clip, conf["model_fps"])
+    ext.check_frame(frames[0], str(clip))
+    spec = ext.spectra(frames)
+    if out is not None and out.suffix.lower() == ".onv":
+        out.write_bytes(encode_binary(spec, conf))
+    else:
+        text = json.dumps(encode_json(spec, conf), separators=(",", ":"))
+        if out is None:
+            click.echo(text)
+        else:
+            out.write_text(text)
 
 
 @cli.command()
@@ -261,9 +298,9 @@ def synth(out: Path, seed: int, layout: str, scale: float, fps: float, model_len
 
 @cli.command()
 @click.option("--quick", is_flag=True, help="A small venue at half resolution (about a minute).")
-@click.option("--venue", "venue_id", default="demo", show_default=True)
+@click.option("--venue", "venue_id", help="Venue id (default: demo, or demo-quick with --quick).")
 @click.pass_context
-def demo(ctx: click.Context, quick: bool, venue_id: str) -> None:
+def demo(ctx: click.Context, quick: bool, venue_id: str | None) -> None:
     """Render the built-in synthetic venue, model it, evaluate it, print the table."""
     from .evaluate import evaluate as run
     from .evaluate import plot
@@ -274,6 +311,8 @@ def demo(ctx: click.Context, quick: bool, venue_id: str) -> None:
     from .track import load_track
 
     st = _store(ctx)
+    # the quick and the full demo are different venues: never let one answer for the other
+    venue_id = venue_id or ("demo-quick" if quick else "demo")
     src = st.root / ("demo-src-quick" if quick else "demo-src")
     if not (src / "query.mp4").exists():
         click.echo(f"rendering the synthetic venue into {src} ...", err=True)

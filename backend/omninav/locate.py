@@ -77,6 +77,13 @@ class Locator:
         d = [np.hypot(p["x"] - x, p["y"] - y) for p in places]
         return str(places[int(np.argmin(d))]["name"])
 
+    def locate_spectra(
+        self, spec: np.ndarray, clip: str, fps: float | None = None, aggregate: str | None = None
+    ) -> dict[str, Any]:
+        """A clip's decoded feature record -> the answer (what the phone's request becomes)."""
+        times = np.arange(len(spec)) / (fps or DEFAULT_CLIP_FPS)
+        return self.answer(self.estimate(spec, times, aggregate), clip)
+
     def locate_frames(
         self,
         frames: list[np.ndarray],
@@ -91,6 +98,26 @@ class Locator:
         spec = ext.spectra(frames)
         times = np.arange(len(frames)) / (fps or DEFAULT_CLIP_FPS)
         return self.answer(self.estimate(spec, times, aggregate), clip)
+
+
+def read_record(path: Path, conf: dict[str, Any]) -> np.ndarray:
+    """A feature record file (.onv binary or .json) -> (F, C, K) spectra, checked against conf."""
+    import json
+
+    from .spectrum import decode_binary, decode_json
+
+    if not path.is_file():
+        raise OmninavError(f"{path}: feature record not found")
+    if path.suffix.lower() == ".onv":
+        return decode_binary(path.read_bytes(), conf)
+    try:
+        obj = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise OmninavError(f"{path}: feature record is not readable JSON ({e})") from None
+    return decode_json(obj, conf)
+
+
+RECORD_SUFFIXES = (".onv", ".json")
 
 
 def clip_frames(path: Path, sample_fps: float) -> tuple[list[np.ndarray], float]:

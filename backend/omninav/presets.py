@@ -70,5 +70,19 @@ def resolve(name: str = "default", overrides: dict[str, Any] | None = None) -> d
     return conf
 
 
+# The settings that change what a feature record contains: a record made with other values of
+# these cannot be compared with a venue's frames.
+FEATURE_KEYS = ("pano_width", "oversample", "row_step_deg", "bands", "channels", "gray_world", "n_harmonics")
+
+
+def settings_id(conf: dict[str, Any]) -> int:
+    """CRC-32 of the feature settings: carried in every record, checked against the venue's."""
+    import json
+    import zlib
+
+    canon = json.dumps({k: conf[k] for k in FEATURE_KEYS}, sort_keys=True, separators=(",", ":"))
+    return zlib.crc32(canon.encode())
+
+
 def n_curves(conf: dict[str, Any]) -> int:
     return len(conf["bands"]) * len(conf["channels"])

@@ -5,7 +5,8 @@ key the search; the phases carry the rotation, which heading.py recovers (the pa
 
 The record (version 1) holds the leading K harmonics of each of the C curves:
 magnitudes as float16 and phases as int16 (2*pi / 65536 rad steps, far finer than the heading
-needs), so 4*C*K bytes plus a 16-byte header: 6 curves x 32 harmonics = 784 bytes.
+needs), so 4*C*K bytes plus a 20-byte header that names the settings the record was made with
+(`presets.settings_id`): 12 curves x 16 harmonics = 788 bytes for one frame.
 """
 
 from __future__ import annotations
@@ -21,8 +22,9 @@ from .errors import OmninavError
 
 RECORD_VERSION = 1
 MAGIC = b"ONV"
-# magic, version, n_curves, n_harmonics, pano_width, n_frames
-_HEADER = struct.Struct("<3sBHHHI2x")
+# magic, version, n_curves, n_harmonics, pano_width, n_frames, settings id
+_HEADER = struct.Struct("<3sBHHHII2x")
+HEADER_BYTES = _HEADER.size
 MAX_RECORD_BYTES = 1024
 
 
@@ -61,12 +63,14 @@ def _join(mag: np.ndarray, ph: np.ndarray) -> np.ndarray:
     return (mag.astype(np.float32) * np.exp(1j * a)).astype(np.complex64)
 
 
-def encode_binary(spec: np.ndarray, pano_width: int) -> bytes:
+def encode_binary(spec: np.ndarray, conf: dict[str, Any]) -> bytes:
     """(F, C, K) or (C, K) complex spectra -> the version-1 binary record (little endian)."""
+    from .presets import settings_id
+
     s = spec[None] if spec.ndim == 2 else spec
     f, c, k = s.shape
     mag, ph = _split(s)
-    head = _HEADER.pack(MAGIC, RECORD_VERSION, c, k, pano_width, f)
+    head = _HEADER.pack(MAGIC, RECORD_VERSION, c, k, conf["pano_width"], f, settings_id(conf))
     return head + mag.astype("<f2").tobytes() + ph.astype("<i2").tobytes()
 
 
@@ -74,7 +78,7 @@ def decode_binary(buf: bytes, expect: dict[str, Any] | None = None) -> np.ndarra
     """Binary record -> (F, C, K) complex64; every malformation raises OmninavError naming it."""
     if len(buf) < _HEADER.size:
         raise OmninavError(f"feature record too short: {len(buf)} bytes, header is {_HEADER.size}")
-    magic, ver, c, k, w, f = _HEADER.unpack_from(buf)
+    magic, ver, c, k, w, f, sid = _HEADER.unpack_from(buf)
     if magic != MAGIC:
         raise OmninavError("not an omninav feature record (bad magic)")
     if ver != RECORD_VERSION:
@@ -87,16 +91,19 @@ def decode_binary(buf: bytes, expect: dict[str, Any] | None = None) -> np.ndarra
         raise OmninavError(f"feature record is {len(buf)} bytes, its header says {want}")
     mag = np.frombuffer(buf, "<f2", n, _HEADER.size).reshape(f, c, k)
     ph = np.frombuffer(buf, "<i2", n, _HEADER.size + 2 * n).reshape(f, c, k)
-    _check(mag, c, k, w, expect)
+    _check(mag, c, k, w, sid, expect)
     return _join(mag, ph)
 
 
 def encode_json(spec: np.ndarray, conf: dict[str, Any]) -> dict[str, Any]:
+    from .presets import settings_id
+
     s = spec[None] if spec.ndim == 2 else spec
     mag, ph = _split(s)
     return {
         "version": RECORD_VERSION,
         "preset": conf.get("preset", "default"),
+        "settings_id": settings_id(conf),
         "pano_width": conf["pano_width"],
         "n_curves": int(s.shape[1]),
         "n_harmonics": int(s.shape[2]),
@@ -126,11 +133,14 @@ def decode_json(obj: Any, expect: dict[str, Any] | None = None) -> np.ndarray:
     if (ph < -32768).any() or (ph > 32767).any() or (ph != np.round(ph)).any():
         raise OmninavError("feature record phases must be integers in [-32768, 32767]")
     _, c, k = mag.shape
-    _check(mag, c, k, int(obj.get("pano_width", -1)), expect)
+    sid = obj.get("settings_id")
+    if not isinstance(sid, int) or isinstance(sid, bool):
+        raise OmninavError("feature record 'settings_id' must be an integer")
+    _check(mag, c, k, int(obj.get("pano_width", -1)), sid, expect)
     return _join(mag.astype(np.float16), ph.astype(np.int16))
 
 
-def _check(mag: np.ndarray, c: int, k: int, w: int, expect: dict[str, Any] | None) -> None:
+def _check(mag: np.ndarray, c: int, k: int, w: int, sid: int, expect: dict[str, Any] | None) -> None:
     m = np.asarray(mag, np.float32)
     if not np.isfinite(m).all():
         raise OmninavError("feature record contains NaN or Inf")
@@ -144,6 +154,13 @@ def _check(mag: np.ndarray, c: int, k: int, w: int, expect: dict[str, Any] | Non
             raise OmninavError(
                 f"features have {c} curves x {k} harmonics (width {w}); this venue needs "
                 f"{want[0]} x {want[1]} (width {want[2]})"
+            )
+        from .presets import settings_id
+
+        if sid != settings_id(expect):
+            raise OmninavError(
+                f"features were made with other settings (id {sid}) than this venue's "
+                f"({settings_id(expect)}); extract them with the venue's feature settings"
             )
 
 

@@ -77,6 +77,7 @@ def make_dataset(
     fps: float = 10.0,
     scale: float = 1.0,
     model_lens: Lens | None = None,
+    query_lens: Lens | None = None,
     query_perturb: Perturb = QUERY,
     query_route: list | None = None,
     model_speed: float = 1.2,
@@ -84,12 +85,13 @@ def make_dataset(
 ) -> Dataset:
     """Render a venue's modelling walk and an independent query walk, with tracks and lens files.
 
-    The modelling video is taken with `model_lens` (default: the donut), the query with the donut.
+    The modelling video is taken with `model_lens`, the query with `query_lens` (both default to
+    the synthetic donut at `scale`).
     """
     root.mkdir(parents=True, exist_ok=True)
     scene = build_scene(seed, layout)
     rng = np.random.default_rng(seed + 1000)
-    lens = donut_lens(scale)
+    lens = query_lens or donut_lens(scale)
     mlens = model_lens or lens
     m_route, q_route = default_routes(scene)
     if query_route is not None:
