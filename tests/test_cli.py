@@ -224,3 +224,21 @@ def test_broken_feature_records_are_refused_clearly(cli_venue, tmp_path):
     js.write_text('{"version": 1, "mag": [[[NaN]]], "phase": [[[0]]]}')
     p = run_cli("locate", "lab", str(js), data=cli_venue)
     assert p.returncode != 0 and len(p.stderr.strip().splitlines()) == 1
+
+
+def test_a_plot_path_in_a_missing_folder_is_one_clear_line(cli_venue, small_ds, tmp_path):
+    target = tmp_path / "missing-dir" / "fig.png"
+    p = run_cli(
+        "evaluate",
+        "lab",
+        str(small_ds.query_video),
+        "--track",
+        str(small_ds.query_track),
+        "--lens",
+        str(small_ds.lens),
+        "--plot",
+        str(target),
+        data=cli_venue,
+    )
+    assert p.returncode != 0 and "Traceback" not in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1 and "omninav: error" in p.stderr

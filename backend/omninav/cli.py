@@ -256,10 +256,12 @@ def evaluate(
     from .track import load_track
 
     track, lens = load_track(track_path), load_lens(lens_path)
+    out = plot_path or video.with_suffix(".eval.png")
+    if not out.parent.is_dir():  # fail before the work, not after
+        raise OmninavError(f"{out.parent}: folder for the plot does not exist")
     loc = Locator(_store(ctx), venue_id)
     ev = run(loc, video, track, lens, aggregate)
     s = ev.summary()
-    out = plot_path or video.with_suffix(".eval.png")
     plot(ev, loc, out)
     s["plot"] = str(out)
     if as_json:
@@ -371,3 +373,11 @@ def main() -> None:
         sys.exit(130)
     except BrokenPipeError:
         os._exit(0)
+    except OSError as e:  # the file system said no: permissions, a full disk, a path that is a dir
+        click.echo(f"omninav: error: {e.filename or ''}: {e.strerror or e}".replace(": :", ":"), err=True)
+        sys.exit(2)
+    except Exception as e:  # a bug: still one line for the user, the traceback on request
+        if os.environ.get("OMNINAV_DEBUG"):
+            raise
+        click.echo(f"omninav: internal error: {type(e).__name__}: {e} (OMNINAV_DEBUG=1 shows the traceback)", err=True)
+        sys.exit(70)
