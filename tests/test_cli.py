@@ -101,18 +101,25 @@ def test_locate_median_baseline_runs(cli_venue, clips, small_ds):
     assert json.loads(p.stdout)["clip"] == "q2"
 
 
+def evaluate_args(ds, plot):
+    """`omninav evaluate` on the venue's query walk, with its track and lens, plot to `plot`."""
+    return [
+        "evaluate",
+        "lab",
+        str(ds.query_video),
+        "--track",
+        str(ds.query_track),
+        "--lens",
+        str(ds.lens),
+        "--plot",
+        str(plot),
+    ]
+
+
 def test_evaluate_reports_and_plots(cli_venue, small_ds, tmp_path):
     png = tmp_path / "fig.png"
     p = run_cli(
-        "evaluate",
-        "lab",
-        str(small_ds.query_video),
-        "--track",
-        str(small_ds.query_track),
-        "--lens",
-        str(small_ds.lens),
-        "--plot",
-        str(png),
+        *evaluate_args(small_ds, png),
         "--json",
         data=cli_venue,
         check=True,
@@ -229,15 +236,7 @@ def test_broken_feature_records_are_refused_clearly(cli_venue, tmp_path):
 def test_a_plot_path_in_a_missing_folder_is_one_clear_line(cli_venue, small_ds, tmp_path):
     target = tmp_path / "missing-dir" / "fig.png"
     p = run_cli(
-        "evaluate",
-        "lab",
-        str(small_ds.query_video),
-        "--track",
-        str(small_ds.query_track),
-        "--lens",
-        str(small_ds.lens),
-        "--plot",
-        str(target),
+        *evaluate_args(small_ds, target),
         data=cli_venue,
     )
     assert p.returncode != 0 and "Traceback" not in p.stderr
