@@ -86,7 +86,7 @@ def test_projected_keys_still_find_the_frame(modelled):
     spec = np.asarray(st.load(vid).spectra)
     n = len(spec)
     ix = Index(spec, np.zeros(n), device="cpu", key_dims=32)
-    assert ix.keys.shape == (n, 32)
+    assert ix.keys_t.shape == (32, n) and ix.keys.shape == (n, spec.shape[1] * spec.shape[2])
     rows = np.array([3, n // 2, n - 1])
     k = np.arange(1, spec.shape[-1] + 1)
     q = spec[rows] * np.exp(2j * np.pi * k * 123.0 / 360.0)

@@ -55,8 +55,9 @@ def key_basis(keys: Any, dims: int, sample: int = 65536) -> Any:
     return xp.ascontiguousarray(vec[:, ::-1][:, :dims].astype(xp.float32))
 
 
-def top_k(scores: Any, k: int) -> tuple[Any, Any]:
-    """(Q, N) -> indices and values of the k largest per row, best first (ties in any order).
+def top_k(scores: Any, k: int, ordered: bool = True) -> tuple[Any, Any]:
+    """(Q, N) -> indices and values of the k largest per row, best first (ties in any order);
+    `ordered=False` skips the final sort, for shortlists.
 
     For long rows a threshold from a strided sample first discards almost everything in one
     comparison pass (much cheaper than a partition of the whole row); rows where the threshold
@@ -90,8 +91,13 @@ def top_k(scores: Any, k: int) -> tuple[Any, Any]:
     else:
         part = xp.broadcast_to(xp.arange(n), scores.shape).copy()
     vals = xp.take_along_axis(scores, part, axis=1)
+    if not ordered:  # a shortlist: any order will do
+        return part, vals
     order = xp.argsort(-vals, axis=1)
     return xp.take_along_axis(part, order, axis=1), xp.take_along_axis(vals, order, axis=1)
+
+
+PREFILTER = 8  # shortlist factor of the projected first pass
 
 
 class Index:
@@ -107,21 +113,31 @@ class Index:
     ):
         self.xp = xp or device_namespace(device)
         self.spec = self.xp.asarray(np.ascontiguousarray(spectra))
-        self.keys = magnitude_keys(self.spec)
+        self.keys = magnitude_keys(self.spec)  # (N, D) full keys: the exact stage-1 score
         self.basis = None
         if 0 < key_dims < self.keys.shape[1]:
+            # (d, N) projected keys: a cheap first pass over every frame, re-ranked exactly below
             self.basis = key_basis(self.keys, key_dims)
-            self.keys = self.keys @ self.basis
-        self.keys_t = self.xp.ascontiguousarray(self.keys.T)  # (D, N): the GEMM reads it linearly
+            self.keys_t = self.xp.ascontiguousarray((self.keys @ self.basis).T)
+        else:
+            self.keys_t = self.xp.ascontiguousarray(self.keys.T)  # (D, N): the GEMM reads it linearly
         self.heading = self.xp.asarray(np.asarray(headings, np.float32))
         self.n = int(spectra.shape[0])
 
     def coarse(self, q_spec: Any, k: int) -> tuple[Any, Any]:
-        """Stage 1: (Q, C, K) -> (Q, k) candidate rows and magnitude scores, on the device."""
+        """Stage 1: (Q, C, K) -> (Q, k) candidate rows and magnitude scores, on the device.
+
+        With projected keys, the projection shortlists PREFILTER*k frames per query frame and
+        the full magnitude inner product re-ranks them: the memory traffic of d dims, the ranking
+        of all C*K.
+        """
         kq = magnitude_keys(self.xp.asarray(q_spec))
-        if self.basis is not None:
-            kq = kq @ self.basis
-        return top_k(kq @ self.keys_t, k)
+        if self.basis is None:
+            return top_k(kq @ self.keys_t, k)
+        short, _ = top_k((kq @ self.basis) @ self.keys_t, PREFILTER * k, ordered=False)
+        exact = (self.keys[short] @ kq[:, :, None])[..., 0]  # (Q, s, D) @ (Q, D, 1): batched GEMV
+        best, val = top_k(exact, k)
+        return self.xp.take_along_axis(short, best, axis=1), val
 
     def verify(self, q_spec: Any, idx: Any) -> tuple[Any, Any]:
         """Stage 2: phase correlation of each query frame with its candidates -> score, heading."""

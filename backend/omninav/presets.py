@@ -26,10 +26,10 @@ DEFAULTS: dict[str, Any] = {
     "n_harmonics": 32,  # leading FFT harmonics kept (1..K; the DC term carries no shape)
     # Search
     "candidates": 16,  # venue frames kept per query frame by the magnitude stage, then verified
-    # Stage-1 keys projected to this many dims (0: all C*K magnitudes) once a venue has more
-    # than `key_project_above` frames: less memory traffic on large venues
+    # Above `key_project_above` frames, stage 1 first shortlists with keys projected to
+    # `key_dims` dims (less memory traffic), then re-ranks the shortlist with all C*K magnitudes
     "key_dims": 32,
-    "key_project_above": 50000,
+    "key_project_above": 2000,
     "aggregate": "sequence",
     "clip_radius_m": 1.5,  # frames of a 1 s clip come from places this close to each other
     "heading_gate_deg": 35.0,  # and face within this of each other
