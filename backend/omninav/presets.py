@@ -49,7 +49,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # - gray-world colour constancy: a colour cast no longer moves hue and saturation;
     # - opponent colours (R-G, R+G-2B) instead of hue and saturation: stable at low saturation;
     # - two bands, below and above the horizon: doors and floor vs. boards, windows and lights;
-    # - 16 harmonics x 12 curves: the same 784-byte record, the fine detail traded for bands.
+    # - 16 harmonics x 12 curves: the same 768 bytes a frame, the fine detail traded for bands.
     "default": {
         "gray_world": True,
         "channels": ["I", "O1", "O2", "dI", "dO1", "dO2"],
