@@ -63,8 +63,10 @@ def channel_images(rgb: np.ndarray, channels: list[str] | tuple[str, ...]) -> di
     else:
         base = hsi(rgb) if need_hsi else {}
     r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
-    o1 = (r - g) * 0.5
-    o2 = (r + g - 2.0 * b) * 0.25
+    o1 = o2 = r  # opponent colours cost two full-frame passes: only made when a channel needs them
+    if any(c.endswith(("O1", "O2")) for c in channels):
+        o1 = (r - g) * 0.5
+        o2 = (r + g - 2.0 * b) * 0.25
     for ch in channels:
         if ch in base:
             out[ch] = base[ch]

@@ -55,7 +55,7 @@ def query_spectra(
     ext = loc.extractor(lens)
     specs: list[np.ndarray] = []
     idx: list[int] = []
-    for i, frame in iter_video(video, stride=stride):
+    for i, frame in iter_video(info, stride=stride):
         if not specs:
             ext.check_frame(frame, str(video))
         specs.append(ext.spectrum(frame))

@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 
 from .curves import extract_curves
+from .errors import OmninavError
 from .lens import Lens
 from .spectrum import quantise, spectrum
 from .unwarp import band_map, unwarp
@@ -24,8 +25,6 @@ class Extractor:
     def check_frame(self, frame: np.ndarray, where: str = "frame") -> None:
         w, h = self.lens.image_size
         if frame.shape[:2] != (h, w):
-            from .errors import OmninavError
-
             raise OmninavError(
                 f"{where}: frame is {frame.shape[1]}x{frame.shape[0]} but the lens profile is for "
                 f"{w}x{h} images (wrong lens profile?)"

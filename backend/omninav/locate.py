@@ -122,12 +122,11 @@ RECORD_SUFFIXES = (".onv", ".json")
 
 def clip_frames(path: Path, sample_fps: float) -> tuple[list[np.ndarray], float]:
     """A query clip's frames, resampled to about `sample_fps` if it is a faster video."""
-    from .video import VideoInfo, read_clip
+    from .video import read_clip
 
-    frames = read_clip(path)
-    if path.is_dir():
+    frames, fps = read_clip(path)
+    if fps is None:
         return frames, DEFAULT_CLIP_FPS
-    fps = VideoInfo(path).fps or DEFAULT_CLIP_FPS
     stride = max(1, int(round(fps / sample_fps)))
     # keep the last frame: the answer is the pose there
     keep = frames[::-1][::stride][::-1]

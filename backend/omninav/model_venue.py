@@ -57,7 +57,7 @@ def model_video(
     ext = Extractor(lens, settings)
     rows, specs = [], []
     t0 = time.perf_counter()
-    for i, frame in iter_video(video, stride=stride, start=first):
+    for i, frame in iter_video(info, stride=stride, start=first):
         if i > last:
             break
         t = i / track.fps

@@ -11,7 +11,6 @@ needs), so 4*C*K bytes plus a 20-byte header that names the settings the record 
 
 from __future__ import annotations
 
-import json
 import math
 import struct
 from typing import Any
@@ -19,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .errors import OmninavError
+from .presets import n_curves, settings_id
 
 RECORD_VERSION = 1
 MAGIC = b"ONV"
@@ -65,8 +65,6 @@ def _join(mag: np.ndarray, ph: np.ndarray) -> np.ndarray:
 
 def encode_binary(spec: np.ndarray, conf: dict[str, Any]) -> bytes:
     """(F, C, K) or (C, K) complex spectra -> the version-1 binary record (little endian)."""
-    from .presets import settings_id
-
     s = spec[None] if spec.ndim == 2 else spec
     f, c, k = s.shape
     mag, ph = _split(s)
@@ -96,8 +94,6 @@ def decode_binary(buf: bytes, expect: dict[str, Any] | None = None) -> np.ndarra
 
 
 def encode_json(spec: np.ndarray, conf: dict[str, Any]) -> dict[str, Any]:
-    from .presets import settings_id
-
     s = spec[None] if spec.ndim == 2 else spec
     mag, ph = _split(s)
     return {
@@ -147,16 +143,12 @@ def _check(mag: np.ndarray, c: int, k: int, w: int, sid: int, expect: dict[str, 
     if (m < 0).any() or (m > 1.0001).any():
         raise OmninavError("feature record magnitudes must lie in [0, 1]")
     if expect is not None:
-        from .presets import n_curves
-
         want = (n_curves(expect), expect["n_harmonics"], expect["pano_width"])
         if (c, k, w) != want:
             raise OmninavError(
                 f"features have {c} curves x {k} harmonics (width {w}); this venue needs "
                 f"{want[0]} x {want[1]} (width {want[2]})"
             )
-        from .presets import settings_id
-
         if sid != settings_id(expect):
             raise OmninavError(
                 f"features were made with other settings (id {sid}) than this venue's "
@@ -165,10 +157,4 @@ def _check(mag: np.ndarray, c: int, k: int, w: int, sid: int, expect: dict[str, 
 
 
 def record_bytes_per_frame(conf: dict[str, Any]) -> int:
-    from .presets import n_curves
-
     return 4 * n_curves(conf) * conf["n_harmonics"]
-
-
-def record_json_dumps(spec: np.ndarray, conf: dict[str, Any]) -> str:
-    return json.dumps(encode_json(spec, conf), separators=(",", ":"))

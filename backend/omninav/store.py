@@ -41,13 +41,18 @@ def check_id(venue_id: str) -> str:
     return venue_id
 
 
-def _write_json_atomic(path: Path, obj: Any) -> None:
+def _write_atomic(path: Path, text: str) -> None:
+    """Write beside, fsync, rename over: readers see the old file or the new one, never half."""
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
     with os.fdopen(fd, "w") as f:
-        json.dump(obj, f, indent=1)
+        f.write(text)
         f.flush()
         os.fsync(f.fileno())
     os.replace(tmp, path)
+
+
+def _write_json_atomic(path: Path, obj: Any) -> None:
+    _write_atomic(path, json.dumps(obj, indent=1))
 
 
 @dataclass
@@ -171,12 +176,7 @@ class Store:
             with open(written, "rb") as fh:
                 os.fsync(fh.fileno())
         os.replace(tmp, d / name)
-        fd, t = tempfile.mkstemp(dir=d, prefix=".CURRENT.")
-        with os.fdopen(fd, "w") as f:
-            f.write(name)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(t, d / "CURRENT")
+        _write_atomic(d / "CURRENT", name)
         # Older generations are kept one step back (a server may still have them mapped).
         for old in sorted(d.glob("gen-*"))[:-2]:
             shutil.rmtree(old, ignore_errors=True)

@@ -25,6 +25,7 @@ class VideoInfo:
             raise OmninavError(f"{path}: video not found")
         if path.is_dir():
             raise OmninavError(f"{path}: is a directory, expected a video file")
+        self.path = path
         cap = cv2.VideoCapture(str(path))
         ok = cap.isOpened()
         first = cap.read()[0] if ok else False
@@ -37,13 +38,14 @@ class VideoInfo:
             raise OmninavError(f"{path}: not a readable video (no decodable frames)")
 
 
-def iter_video(path: Path, stride: int = 1, start: int = 0) -> Iterator[tuple[int, np.ndarray]]:
+def iter_video(info: VideoInfo, stride: int = 1, start: int = 0) -> Iterator[tuple[int, np.ndarray]]:
     """Yield (frame index, BGR frame) for every `stride`-th frame, decoding on a second thread.
 
-    The reader thread overlaps decoding with the caller's feature extraction (OpenCV releases the
-    GIL), so the two cores both work.
+    Takes a VideoInfo, so the video has been checked (once) before the thread starts. The reader
+    thread overlaps decoding with the caller's feature extraction (OpenCV releases the GIL), so
+    the two cores both work.
     """
-    VideoInfo(path)
+    path = info.path
     q: Queue = Queue(maxsize=32)
     stop = threading.Event()
 
@@ -78,8 +80,9 @@ def iter_video(path: Path, stride: int = 1, start: int = 0) -> Iterator[tuple[in
                 pass
 
 
-def read_clip(path: Path, max_frames: int = 600) -> list[np.ndarray]:
-    """All frames of a query clip: a video file or a directory of images (sorted by name)."""
+def read_clip(path: Path, max_frames: int = 600) -> tuple[list[np.ndarray], float | None]:
+    """All frames of a query clip and its frame rate: a video file, or a directory of images
+    (sorted by name; no frame rate)."""
     if not path.exists():
         raise OmninavError(f"{path}: clip not found")
     if path.is_dir():
@@ -96,8 +99,9 @@ def read_clip(path: Path, max_frames: int = 600) -> list[np.ndarray]:
             frames.append(img)
         if len({fr.shape for fr in frames}) != 1:
             raise OmninavError(f"{path}: frames have different sizes")
-        return frames
-    frames = [f for _, f in iter_video(path)]
+        return frames, None
+    info = VideoInfo(path)
+    frames = [f for _, f in iter_video(info)]
     if len(frames) > max_frames:
         raise OmninavError(f"{path}: {len(frames)} frames; a clip may hold at most {max_frames}")
-    return frames
+    return frames, info.fps or None
