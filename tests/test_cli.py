@@ -241,3 +241,12 @@ def test_a_plot_path_in_a_missing_folder_is_one_clear_line(cli_venue, small_ds, 
     )
     assert p.returncode != 0 and "Traceback" not in p.stderr
     assert len(p.stderr.strip().splitlines()) == 1 and "omninav: error" in p.stderr
+
+
+def test_record_and_lens_errors_name_the_file_and_the_problem(cli_venue, clips, small_ds):
+    """Found by hand: a JSON file that is no record, and a --lens that is no lens profile."""
+    d, _ = clips
+    p = run_cli("locate", "lab", str(small_ds.model_track), data=cli_venue)
+    assert p.returncode != 0 and str(small_ds.model_track) in p.stderr and "not an omninav feature record" in p.stderr
+    p = run_cli("features", "lab", str(d / "q2"), "--lens", str(small_ds.floorplan), data=cli_venue)
+    assert p.returncode != 0 and "lens profile is not readable JSON" in p.stderr and "give --lens" not in p.stderr

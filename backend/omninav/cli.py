@@ -211,10 +211,13 @@ def features(venue_id: str, clip: Path, lens_path: Path | None, out: Path | None
     ctx = click.get_current_context()
     st = _store(ctx)
     conf = st.settings(venue_id)
-    try:
-        lens = load_lens(lens_path) if lens_path else st.load(venue_id).lens
-    except OmninavError:
-        raise OmninavError("give --lens: the venue has no modelled frames, so no lens of its own") from None
+    if lens_path:
+        lens = load_lens(lens_path)  # its own errors name the file and the field
+    else:
+        try:
+            lens = st.load(venue_id).lens
+        except OmninavError:
+            raise OmninavError("give --lens: the venue has no modelled frames, so no lens of its own") from None
     ext = Extractor(lens, conf)
     frames, _ = clip_frames(clip, conf["model_fps"])
     ext.check_frame(frames[0], str(clip))

@@ -108,13 +108,16 @@ def read_record(path: Path, conf: dict[str, Any]) -> np.ndarray:
 
     if not path.is_file():
         raise OmninavError(f"{path}: feature record not found")
-    if path.suffix.lower() == ".onv":
-        return decode_binary(path.read_bytes(), conf)
     try:
-        obj = json.loads(path.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise OmninavError(f"{path}: feature record is not readable JSON ({e})") from None
-    return decode_json(obj, conf)
+        if path.suffix.lower() == ".onv":
+            return decode_binary(path.read_bytes(), conf)
+        try:
+            obj = json.loads(path.read_text())
+        except (UnicodeDecodeError, json.JSONDecodeError) as e:
+            raise OmninavError(f"feature record is not readable JSON ({e})") from None
+        return decode_json(obj, conf)
+    except OmninavError as e:  # say which of several files on the command line was wrong
+        raise OmninavError(f"{path}: {e}") from None
 
 
 RECORD_SUFFIXES = (".onv", ".json")

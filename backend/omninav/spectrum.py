@@ -111,6 +111,8 @@ def encode_json(spec: np.ndarray, conf: dict[str, Any]) -> dict[str, Any]:
 def decode_json(obj: Any, expect: dict[str, Any] | None = None) -> np.ndarray:
     if not isinstance(obj, dict):
         raise OmninavError("feature record must be a JSON object")
+    if "version" not in obj:
+        raise OmninavError("not an omninav feature record (it has no 'version')")
     if obj.get("version") != RECORD_VERSION:
         raise OmninavError(f"feature record version {obj.get('version')!r} is not supported")
     try:
