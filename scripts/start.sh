@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# `npm start`: until the server exists (issue 3), run the engine's demo on the embedded default:
-# render the synthetic venue, model it, evaluate it against the paper's method, print the table.
+# `npm start`: the server on the embedded default (SQLite and files under ./data, the synthetic demo
+# venue set up on first start), at http://localhost:8000/. `npm start -- --https` serves HTTPS on
+# the LAN for phones; every `omninav serve` option can follow `--`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export OMNINAV_DATA=${OMNINAV_DATA:-$PWD/data}
-exec .venv/bin/omninav demo "$@"
+exec .venv/bin/omninav serve "$@"

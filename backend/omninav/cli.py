@@ -359,6 +359,59 @@ def demo(ctx: click.Context, quick: bool, venue_id: str | None) -> None:
     click.echo(f"plots: {src}/*.eval.png")
 
 
+def _server_conf(ctx: click.Context) -> dict[str, Any]:
+    from .server import load_config
+
+    return load_config({"DATA": str(ctx.obj["data"].resolve())})
+
+
+@cli.command()
+@click.option("--host", envvar="OMNINAV_HOST", help="Address to listen on (default 127.0.0.1; 0.0.0.0 with --https).")
+@click.option("--port", envvar="OMNINAV_PORT", type=int, default=8000, show_default=True)
+@click.option(
+    "--https", is_flag=True, envvar="OMNINAV_HTTPS", help="Serve HTTPS on the LAN with a self-signed certificate."
+)
+@click.option(
+    "--workers", envvar="OMNINAV_WORKERS", type=click.IntRange(1, 64), help="Worker processes (default: cores, 2-8)."
+)
+@click.option("--threads", envvar="OMNINAV_THREADS", type=click.IntRange(1, 256), default=8, show_default=True)
+@click.option(
+    "--demo",
+    envvar="OMNINAV_DEMO",
+    type=click.Choice(["full", "quick", "none"]),
+    default="full",
+    show_default=True,
+    help="Set up the synthetic demo venue on first start.",
+)
+@click.pass_context
+def serve(
+    ctx: click.Context, host: str | None, port: int, https: bool, workers: int | None, threads: int, demo: str
+) -> None:
+    """Run the server: the API and the web app (gunicorn, several workers)."""
+    from .server.serve import default_workers
+    from .server.serve import serve as run
+
+    host = host or ("0.0.0.0" if https else "127.0.0.1")
+    run(_server_conf(ctx), host, port, https, workers or default_workers(), threads, demo, echo=click.echo)
+
+
+@cli.command("admin-token")
+@click.option("--reset", is_flag=True, help="Make a new admin token (the old one stops working).")
+@click.pass_context
+def admin_token(ctx: click.Context, reset: bool) -> None:
+    """Make the server's admin token (only its hash is kept, so a lost one is replaced, not shown)."""
+    from .server.auth import ensure_token, set_token
+    from .server.config import database_url
+    from .server.db import Db
+
+    db = Db(database_url(_server_conf(ctx)))
+    db.migrate()
+    token = set_token(db) if reset else ensure_token(db)
+    if token is None:
+        raise OmninavError("an admin token exists already; 'omninav admin-token --reset' replaces it")
+    click.echo(token)
+
+
 def main() -> None:
     try:
         cli.main(standalone_mode=False, prog_name="omninav")

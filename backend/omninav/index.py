@@ -100,6 +100,25 @@ def top_k(scores: Any, k: int, ordered: bool = True) -> tuple[Any, Any]:
 PREFILTER = 8  # shortlist factor of the projected first pass
 
 
+def index_arrays(spectra: Any, key_dims: int = 0) -> dict[str, Any]:
+    """The search arrays derived from a generation's spectra: written once at modelling time so
+    that every server worker memory-maps one copy instead of computing its own.
+
+    keys (N, D): the full magnitude keys, the exact stage-1 score; keys_t: what the first pass
+    multiplies by, (D, N) so the GEMM reads it linearly, or with projected keys (d, N) and their
+    `basis` (D, d): a cheap first pass over every frame, re-ranked exactly below.
+    """
+    xp = namespace_of(spectra)
+    keys = magnitude_keys(spectra)
+    out = {"keys": keys}
+    if 0 < key_dims < keys.shape[1]:
+        out["basis"] = key_basis(keys, key_dims)
+        out["keys_t"] = xp.ascontiguousarray((keys @ out["basis"]).T)
+    else:
+        out["keys_t"] = xp.ascontiguousarray(keys.T)
+    return out
+
+
 class Index:
     """Search structure of one venue generation, resident on the chosen device."""
 
@@ -110,17 +129,16 @@ class Index:
         device: str | None = None,
         xp: ModuleType | None = None,
         key_dims: int = 0,
+        arrays: dict[str, np.ndarray] | None = None,
     ):
+        """`arrays`: precomputed index_arrays(spectra, key_dims) (e.g. memory-mapped); else computed."""
         self.xp = xp or device_namespace(device)
         self.spec = self.xp.asarray(np.ascontiguousarray(spectra))
-        self.keys = magnitude_keys(self.spec)  # (N, D) full keys: the exact stage-1 score
-        self.basis = None
-        if 0 < key_dims < self.keys.shape[1]:
-            # (d, N) projected keys: a cheap first pass over every frame, re-ranked exactly below
-            self.basis = key_basis(self.keys, key_dims)
-            self.keys_t = self.xp.ascontiguousarray((self.keys @ self.basis).T)
-        else:
-            self.keys_t = self.xp.ascontiguousarray(self.keys.T)  # (D, N): the GEMM reads it linearly
+        if arrays is None or ("basis" in arrays) != (0 < key_dims < self.spec.shape[1] * self.spec.shape[2]):
+            arrays = index_arrays(self.spec, key_dims)
+        self.keys = self.xp.asarray(arrays["keys"])
+        self.basis = self.xp.asarray(arrays["basis"]) if "basis" in arrays else None
+        self.keys_t = self.xp.asarray(arrays["keys_t"])
         self.heading = self.xp.asarray(np.asarray(headings, np.float32))
         self.n = int(spectra.shape[0])
 

@@ -12,7 +12,7 @@ from .errors import OmninavError
 from .extract import Extractor
 from .index import Index
 from .lens import Lens
-from .store import Store
+from .store import Store, key_dims_for
 
 DEFAULT_CLIP_FPS = 10.0  # timing assumed for a directory of frames, which carries none
 
@@ -23,16 +23,16 @@ class Locator:
     def __init__(self, store: Store, venue_id: str, device: str | None = None):
         self.venue_id = venue_id
         self.meta = store.meta(venue_id)
+        self.generation = store.generation(venue_id)  # read first: a newer load is only ever refreshed again
         self.gen = store.load(venue_id)
         self.conf = self.gen.settings
         self.xy = np.stack([self.gen.frames["x"], self.gen.frames["y"]], -1).astype(np.float64)
-        n = len(self.gen.frames)
-        dims = self.conf.get("key_dims", 0) if n > self.conf.get("key_project_above", 0) else 0
         self.index = Index(
             self.gen.spectra,
             self.gen.frames["heading"],
             device=device,
-            key_dims=dims,
+            key_dims=key_dims_for(self.conf, len(self.gen.frames)),
+            arrays=self.gen.arrays,
         )
         self._extractors: dict[str, Extractor] = {}
 

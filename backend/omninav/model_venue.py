@@ -1,8 +1,10 @@
-"""Modelling (`omninav model`): a panoramic video + its track -> the venue's frames and spectra.
+"""Modelling (`omninav model`): panoramic videos + their tracks -> the venue's frames and spectra.
 
 Frames are sampled at the preset's `model_fps` (from a 30 fps video, every third), placed by
 linear interpolation of the track's waypoints and headed along the direction of travel. The result
-joins the frames of the venue's other modelling videos in a new generation (store.py), atomically.
+joins the frames of the venue's other modelling videos in a new generation (store.py), atomically:
+one generation for all videos of a run, so a run that stops half way (error, cancel, kill) leaves
+the venue exactly as it was.
 """
 
 from __future__ import annotations
@@ -21,7 +23,15 @@ from .store import FRAME_DTYPE, Generation, Store
 from .track import Track
 from .video import VideoInfo, iter_video
 
-Progress = Callable[[int, int, float], None]  # frames done, frames expected, seconds elapsed
+# frames done, frames expected, seconds elapsed; it may raise to stop the run (nothing is written)
+Progress = Callable[[int, int, float], None]
+
+
+@dataclass
+class VideoSource:
+    video: Path  # its file name is the video's name in the venue
+    track: Track
+    lens: Lens
 
 
 @dataclass
@@ -38,27 +48,43 @@ class ModelResult:
         return self.video_seconds / max(self.seconds, 1e-9)
 
 
-def model_video(
-    store: Store, venue_id: str, video: Path, track: Track, lens: Lens, progress: Progress | None = None
-) -> ModelResult:
-    store.require(venue_id)
-    settings = store.settings(venue_id)
-    info = VideoInfo(video)
-    w, h = lens.image_size
+@dataclass
+class _Plan:
+    src: VideoSource
+    info: VideoInfo
+    vfps: float
+    stride: int
+    first: int
+    last: int
+    expected: int
+
+
+def _plan(src: VideoSource, settings: dict) -> _Plan:
+    """Check a video against its lens and track before any work: errors come first, not last."""
+    info = VideoInfo(src.video)
+    w, h = src.lens.image_size
     if (info.width, info.height) != (w, h):
-        raise OmninavError(f"{video}: frames are {info.width}x{info.height} but the lens profile is for {w}x{h}")
+        raise OmninavError(
+            f"{src.video.name}: frames are {info.width}x{info.height} but the lens profile is for {w}x{h}"
+        )
+    track = src.track
     vfps = info.fps if info.fps > 0 else track.fps
     stride = max(1, int(round(vfps / settings["model_fps"])))
     first = max(0, int(np.ceil(track.times[0] * track.fps - 1e-6)))
     last = int(np.floor(track.times[-1] * track.fps + 1e-6))
     if info.frames and first >= info.frames:
-        raise OmninavError(f"{video}: the track starts after the video ends ({info.frames} frames)")
+        raise OmninavError(f"{src.video.name}: the track starts after the video ends ({info.frames} frames)")
     expected = (min(last, info.frames - 1 if info.frames else last) - first) // stride + 1
-    ext = Extractor(lens, settings)
+    return _Plan(src, info, vfps, stride, first, last, expected)
+
+
+def _extract(p: _Plan, settings: dict, tick: Callable[[], None]) -> tuple[np.ndarray, np.ndarray]:
+    """One video's sampled frames -> (rows FRAME_DTYPE without `video`, spectra)."""
+    ext = Extractor(p.src.lens, settings)
     rows, specs = [], []
-    t0 = time.perf_counter()
-    for i, frame in iter_video(info, stride=stride, start=first):
-        if i > last:
+    track = p.src.track
+    for i, frame in iter_video(p.info, stride=p.stride, start=p.first):
+        if i > p.last:
             break
         t = i / track.fps
         xy, hd, ok = track.pose_at(np.array([t]))
@@ -66,33 +92,91 @@ def model_video(
             continue
         specs.append(ext.spectrum(frame))
         rows.append((xy[0, 0], xy[0, 1], hd[0], t, i))
-        if progress:
-            progress(len(rows), expected, time.perf_counter() - t0)
+        tick()
     if not rows:
-        raise OmninavError(f"{video}: no frame of the video lies between the track's first and last waypoint")
-    name = video.name
-    try:
-        old = store.load(venue_id, mmap=False)
-    except OmninavError:
-        old = None
-    videos = list(old.videos) if old else []
-    keep_f = old.frames if old is not None else np.zeros(0, FRAME_DTYPE)
-    keep_s = old.spectra if old is not None else np.zeros((0,) + specs[0].shape, np.complex64)
-    if name in videos:  # re-modelling a video replaces its frames
-        vid = videos.index(name)
-        m = keep_f["video"] != vid
-        keep_f, keep_s = keep_f[m], keep_s[m]
-    else:
-        videos.append(name)
-        vid = len(videos) - 1
+        raise OmninavError(
+            f"{p.src.video.name}: no frame of the video lies between the track's first and last waypoint"
+        )
     new = np.zeros(len(rows), FRAME_DTYPE)
     arr = np.array(rows, np.float64)
     new["x"], new["y"], new["heading"], new["t"] = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3]
     new["frame"] = arr[:, 4].astype(np.int32)
-    new["video"] = vid
-    frames = np.concatenate([keep_f, new])
-    spectra = np.concatenate([keep_s, np.stack(specs)])
-    store.commit(venue_id, Generation(settings, lens, frames, spectra, videos))
-    secs = time.perf_counter() - t0
-    vid_secs = ((rows[-1][4] - first) + 1) / vfps
-    return ModelResult(venue_id, name, len(rows), len(frames), secs, vid_secs)
+    return new, np.stack(specs)
+
+
+def _current(store: Store, venue_id: str) -> Generation | None:
+    try:
+        return store.load(venue_id, mmap=False)
+    except OmninavError:
+        return None
+
+
+def model_videos(
+    store: Store, venue_id: str, sources: list[VideoSource], progress: Progress | None = None
+) -> list[ModelResult]:
+    """Model several videos into one new generation; a video already in the venue is replaced."""
+    store.require(venue_id)
+    settings = store.settings(venue_id)
+    plans = [_plan(s, settings) for s in sources]
+    expected = sum(p.expected for p in plans)
+    t0 = time.perf_counter()
+    done = 0
+
+    def tick() -> None:
+        nonlocal done
+        done += 1
+        if progress:
+            progress(done, expected, time.perf_counter() - t0)
+
+    extracted = []
+    for p in plans:
+        ts = time.perf_counter()
+        rows, specs = _extract(p, settings, tick)
+        extracted.append((p, rows, specs, time.perf_counter() - ts))
+    old = _current(store, venue_id)
+    videos = list(old.videos) if old else []
+    frames = old.frames if old is not None else np.zeros(0, FRAME_DTYPE)
+    spectra = old.spectra if old is not None else np.zeros((0,) + extracted[0][2].shape[1:], np.complex64)
+    results = []
+    for p, rows, specs, secs in extracted:
+        name = p.src.video.name
+        if name in videos:  # re-modelling a video replaces its frames
+            vid = videos.index(name)
+            keep = frames["video"] != vid
+            frames, spectra = frames[keep], spectra[keep]
+        else:
+            videos.append(name)
+            vid = len(videos) - 1
+        rows["video"] = vid
+        frames = np.concatenate([frames, rows])
+        spectra = np.concatenate([spectra, specs])
+        vid_secs = (int(rows["frame"][-1]) - p.first + 1) / p.vfps
+        results.append(ModelResult(venue_id, name, len(rows), 0, secs, vid_secs))
+    # the lens of the last video is the venue's default query lens (for clients that send frames)
+    store.commit(venue_id, Generation(settings, sources[-1].lens, frames, spectra, videos))
+    for r in results:
+        r.total_frames = len(frames)
+    return results
+
+
+def model_video(
+    store: Store, venue_id: str, video: Path, track: Track, lens: Lens, progress: Progress | None = None
+) -> ModelResult:
+    return model_videos(store, venue_id, [VideoSource(video, track, lens)], progress)[0]
+
+
+def remove_video(store: Store, venue_id: str, name: str) -> int:
+    """Drop one modelling video's frames in a new generation; returns how many frames went.
+
+    Removing the last video leaves a venue with no frames (it answers 'not modelled yet').
+    """
+    old = _current(store, venue_id)
+    if old is None or name not in old.videos:
+        return 0
+    vid = old.videos.index(name)
+    keep = old.frames["video"] != vid
+    frames = old.frames[keep].copy()
+    frames["video"] -= (frames["video"] > vid).astype(np.int32)  # renumber: videos.json loses one entry
+    videos = [v for v in old.videos if v != name]
+    store.commit(venue_id, Generation(old.settings, old.lens, frames, old.spectra[keep], videos))
+    return int((~keep).sum())

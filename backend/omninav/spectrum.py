@@ -134,7 +134,10 @@ def decode_json(obj: Any, expect: dict[str, Any] | None = None) -> np.ndarray:
     sid = obj.get("settings_id")
     if not isinstance(sid, int) or isinstance(sid, bool):
         raise OmninavError("feature record 'settings_id' must be an integer")
-    _check(mag, c, k, int(obj.get("pano_width", -1)), sid, expect)
+    w = obj.get("pano_width")
+    if not isinstance(w, int) or isinstance(w, bool):
+        raise OmninavError("feature record 'pano_width' must be an integer")
+    _check(mag, c, k, w, sid, expect)
     return _join(mag.astype(np.float16), ph.astype(np.int16))
 
 

@@ -3,7 +3,8 @@
     <data>/venues/<id>/venue.json       name, floor, floor plan scale, places
     <data>/venues/<id>/floorplan.png
     <data>/venues/<id>/CURRENT          name of the live generation (replaced with os.replace)
-    <data>/venues/<id>/gen-000003/      settings.json, lens.json, frames.npy, spectra.npy
+    <data>/venues/<id>/gen-000003/      settings.json, lens.json, frames.npy, spectra.npy, videos.json,
+                                        keys.npy, keys_t.npy[, basis.npy] (the index's arrays, index.py)
 
 A modelling run writes a complete new generation beside the live one and only then swaps CURRENT,
 so a run that is interrupted (Ctrl-C, crash, power) leaves the venue answering as before.
@@ -23,8 +24,10 @@ from typing import Any, Literal
 import numpy as np
 
 from .errors import OmninavError
+from .index import index_arrays
 from .lens import Lens, lens_from_dict
 
+INDEX_ARRAYS = ("keys", "keys_t", "basis")
 VENUE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
 
 # One row per modelled frame; `video` names the modelling video it came from.
@@ -64,6 +67,12 @@ class Generation:
     frames: np.ndarray  # (N,) FRAME_DTYPE
     spectra: np.ndarray  # (N, C, K) complex64
     videos: list[str]
+    arrays: dict[str, np.ndarray] | None = None  # index_arrays(): memory-mapped by every reader
+
+
+def key_dims_for(settings: dict[str, Any], n_frames: int) -> int:
+    """Projected stage-1 keys only pay off on large venues (presets.py: key_project_above)."""
+    return int(settings.get("key_dims", 0)) if n_frames > settings.get("key_project_above", 0) else 0
 
 
 class Store:
@@ -154,9 +163,17 @@ class Store:
         settings = json.loads((g / "settings.json").read_text())
         lens = lens_from_dict(json.loads((g / "lens.json").read_text()), where=f"{venue_id} lens")
         frames = np.load(g / "frames.npy", mmap_mode=mode)
+        if len(frames) == 0:  # every video was removed
+            raise OmninavError(f"venue {venue_id!r} has no modelled frames (its videos were removed)")
         spectra = np.load(g / "spectra.npy", mmap_mode=mode)
         videos = json.loads((g / "videos.json").read_text())
-        return Generation(settings, lens, frames, spectra, videos)
+        arrays = {k: np.load(g / f"{k}.npy", mmap_mode=mode) for k in INDEX_ARRAYS if (g / f"{k}.npy").is_file()}
+        return Generation(settings, lens, frames, spectra, videos, arrays if "keys" in arrays else None)
+
+    def generation(self, venue_id: str) -> str | None:
+        """Name of the live generation (cheap: one small file), to notice a new one."""
+        g = self._current(self.require(venue_id))
+        return g.name if g else None
 
     def commit(self, venue_id: str, gen: Generation) -> Path:
         """Write a new generation completely, then make it live in one atomic rename."""
@@ -169,6 +186,9 @@ class Store:
         tmp = Path(tempfile.mkdtemp(dir=d, prefix=".tmp-gen-"))
         np.save(tmp / "frames.npy", np.ascontiguousarray(gen.frames))
         np.save(tmp / "spectra.npy", np.ascontiguousarray(gen.spectra))
+        if len(gen.frames):
+            for k, a in index_arrays(np.asarray(gen.spectra), key_dims_for(gen.settings, len(gen.frames))).items():
+                np.save(tmp / f"{k}.npy", a)
         (tmp / "settings.json").write_text(json.dumps(gen.settings, indent=1))
         (tmp / "lens.json").write_text(json.dumps(gen.lens.to_dict(), indent=1))
         (tmp / "videos.json").write_text(json.dumps(gen.videos))

@@ -30,7 +30,7 @@ class Scene:
     floor: np.ndarray  # (H, W, 3) uint8 RGB, PLAN_PPM
     ceiling: np.ndarray  # (H, W, 3) uint8 RGB, PLAN_PPM
     centerlines: list[list[tuple[float, float]]]  # corridor centre polylines
-    places: list[dict] = field(default_factory=list)  # named places {name, x, y}
+    places: list[dict] = field(default_factory=list)  # named places {name, x, y, area}
     corridor_width: float = 2.4
 
 
@@ -313,7 +313,12 @@ def build_scene(seed: int = 0, layout: str = "default") -> Scene:
         (ax, ay), (bx, by) = line
         names = ["North corridor", "South corridor", "West corridor", "East corridor", "Middle corridor"]
         places.append(
-            {"name": names[i] if layout == "default" else f"Corridor {i + 1}", "x": (ax + bx) / 2, "y": (ay + by) / 2}
+            {
+                "name": names[i] if layout == "default" else f"Corridor {i + 1}",
+                "x": (ax + bx) / 2,
+                "y": (ay + by) / 2,
+                "area": [round(float(v), 3) for v in rects[i]],  # the corridor's floor: x0, y0, x1, y1
+            }
         )
     return Scene(
         size, free_final, np.array(segs, np.float64), np.array(offs, np.int64), atlas, floor, ceiling, lines, places

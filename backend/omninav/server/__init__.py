@@ -1,0 +1,81 @@
+"""The omninav HTTP server: a Flask app factory with a blueprint per resource.
+
+    create_app()          settings from config.DEFAULTS, then <data>/omninav.cfg, then OMNINAV_*
+    create_app({...})     and then these (tests)
+
+Each process gets its own database engine, venue cache, rate limiter and job runner thread; they
+share the database and the memory-mapped feature files (serve.py runs several such processes).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from flask import Flask
+
+from .auth import set_token
+from .catalog import Catalog
+from .config import DEFAULTS, database_url, from_env
+from .db import Db
+from .http import install_error_handlers
+from .jobs import Jobs
+from .locate_api import Runtimes
+from .ratelimit import RateLimiter
+
+
+@dataclass
+class Services:
+    db: Db
+    catalog: Catalog
+    jobs: Jobs
+    runtimes: Runtimes
+    limiter: RateLimiter
+
+
+def load_config(overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    conf = dict(DEFAULTS)
+    env = from_env()
+    data = Path((overrides or {}).get("DATA") or env.get("DATA") or conf["DATA"])
+    cfg = data / "omninav.cfg"
+    if cfg.is_file():  # the instance file: KEY = value lines in Python syntax
+        scope: dict[str, Any] = {}
+        exec(compile(cfg.read_text(), str(cfg), "exec"), scope)
+        conf.update({k: v for k, v in scope.items() if k in DEFAULTS})
+    conf.update(env)
+    conf.update(overrides or {})
+    return conf
+
+
+def create_app(overrides: dict[str, Any] | None = None) -> Flask:
+    conf = load_config(overrides)
+    app = Flask(__name__)
+    app.config.update(conf)
+    app.json.sort_keys = False  # type: ignore[attr-defined]
+    data = Path(conf["DATA"])
+    data.mkdir(parents=True, exist_ok=True)
+    db = Db(database_url(conf))
+    db.migrate()
+    if conf["ADMIN_TOKEN"]:
+        set_token(db, conf["ADMIN_TOKEN"])
+    catalog = Catalog(db, data)
+    device = conf["DEVICE"] or None
+    jobs = Jobs(catalog, stale_s=conf["JOB_STALE_S"], device=device)
+    app.extensions["omninav"] = Services(
+        db,
+        catalog,
+        jobs,
+        Runtimes(catalog, conf["VENUE_CACHE_S"], device),
+        RateLimiter(conf["LOCATE_RATE"], conf["LOCATE_BURST"]),
+    )
+    install_error_handlers(app)
+    from . import admin_api, locate_api, venues_api, web
+
+    for mod in (venues_api, locate_api, admin_api, web):
+        app.register_blueprint(mod.bp)
+    if conf["JOB_RUNNER"]:
+        jobs.start()
+    else:
+        jobs.reap()
+    return app

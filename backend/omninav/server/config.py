@@ -1,0 +1,60 @@
+"""Server settings: defaults, then the instance file `<data>/omninav.cfg`, then `OMNINAV_*` variables.
+
+Every key below can be set from the environment as OMNINAV_<KEY> (e.g. OMNINAV_LOCATE_RATE=20);
+the value is parsed as the type of its default.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+REPO = Path(__file__).resolve().parents[3]
+
+DEFAULTS: dict[str, Any] = {
+    "DATA": str(REPO / "data"),  # feature files, uploads, floor plans, the SQLite database
+    "DATABASE_URL": "",  # empty: sqlite:///<DATA>/omninav.sqlite; postgresql+psycopg://... works too
+    "ADMIN_TOKEN": "",  # set: this is the admin token (else one is made at first start)
+    "MAX_CONTENT_LENGTH": 32 * 1024 * 1024,  # any request body but a video upload
+    "MAX_UPLOAD_BYTES": 16 * 1024**3,  # one modelling video
+    "MAX_LOCATE_FRAMES": 60,  # frames in one locate request (records or images)
+    "LOCATE_RATE": 10.0,  # sustained locate requests per second per client, per worker process
+    "LOCATE_BURST": 30,  # and the burst it allows
+    "TRUST_PROXY": False,  # take the client address from X-Forwarded-For (behind a reverse proxy)
+    "LOW_CONFIDENCE": 0.5,  # below it, the spoken answer says 'not sure' instead of a place
+    "JOB_RUNNER": True,  # run modelling jobs in this process's background thread
+    "JOB_STALE_S": 30.0,  # a running job with no heartbeat for this long died with its server
+    "DEVICE": "cpu",  # array device for the index: cpu, gpu or auto
+    "VENUE_CACHE_S": 1.0,  # how long a worker trusts its cached venue before checking for edits
+    "WEB_DIST": str(REPO / "web" / "dist"),  # the built web app served at /
+}
+
+
+def _parse(default: Any, raw: str, key: str) -> Any:
+    if isinstance(default, bool):
+        if raw.lower() in ("1", "true", "yes", "on"):
+            return True
+        if raw.lower() in ("0", "false", "no", "off", ""):
+            return False
+        raise ValueError(f"OMNINAV_{key}={raw!r}: expected true or false")
+    try:
+        return type(default)(raw)
+    except ValueError:
+        raise ValueError(
+            f"OMNINAV_{key}={raw!r}: expected a{'n' if isinstance(default, int) else ''} {type(default).__name__}"
+        ) from None
+
+
+def from_env(environ: dict[str, str] | None = None) -> dict[str, Any]:
+    env = os.environ if environ is None else environ
+    out: dict[str, Any] = {}
+    for key, default in DEFAULTS.items():
+        raw = env.get(f"OMNINAV_{key}")
+        if raw is not None:
+            out[key] = _parse(default, raw, key)
+    return out
+
+
+def database_url(conf: dict[str, Any]) -> str:
+    return conf["DATABASE_URL"] or f"sqlite:///{Path(conf['DATA']) / 'omninav.sqlite'}"

@@ -1,0 +1,136 @@
+"""The catalogue database: venues, floors, places, lenses, videos, jobs (SQLite by default).
+
+Feature arrays are not here: they are files (store.py), memory-mapped by every worker. The SQL is
+plain and portable (SQLite and PostgreSQL) and goes through SQLAlchemy Core, so a deployment
+switches databases with DATABASE_URL alone.
+
+Migrations are numbered lists of statements, applied in order inside one transaction each; the
+database records the last one applied. A database newer than this code is refused rather than
+guessed at.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from sqlalchemy import Connection, create_engine, event, inspect, text
+from sqlalchemy.engine import Engine, make_url
+
+from ..errors import OmninavError
+
+MIGRATIONS: list[list[str]] = [
+    # 1: the first schema
+    [
+        "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL)",
+        """CREATE TABLE venues (
+            id TEXT PRIMARY KEY, name TEXT NOT NULL, preset TEXT NOT NULL,
+            created DOUBLE PRECISION NOT NULL, revision INTEGER NOT NULL DEFAULT 0)""",
+        """CREATE TABLE floors (
+            venue TEXT NOT NULL REFERENCES venues(id) ON DELETE CASCADE, id TEXT NOT NULL,
+            name TEXT NOT NULL, plan_file TEXT, plan_w INTEGER, plan_h INTEGER, px_per_m DOUBLE PRECISION,
+            PRIMARY KEY (venue, id))""",
+        """CREATE TABLE places (
+            id TEXT PRIMARY KEY, venue TEXT NOT NULL REFERENCES venues(id) ON DELETE CASCADE,
+            floor TEXT NOT NULL, name TEXT NOT NULL, x DOUBLE PRECISION NOT NULL, y DOUBLE PRECISION NOT NULL,
+            area TEXT)""",
+        """CREATE TABLE lenses (
+            venue TEXT NOT NULL REFERENCES venues(id) ON DELETE CASCADE, name TEXT NOT NULL,
+            profile TEXT NOT NULL, PRIMARY KEY (venue, name))""",
+        """CREATE TABLE videos (
+            venue TEXT NOT NULL REFERENCES venues(id) ON DELETE CASCADE, name TEXT NOT NULL,
+            floor TEXT NOT NULL, lens TEXT NOT NULL, track TEXT NOT NULL, size BIGINT NOT NULL,
+            received BIGINT NOT NULL DEFAULT 0, status TEXT NOT NULL, frames INTEGER NOT NULL DEFAULT 0,
+            created DOUBLE PRECISION NOT NULL, PRIMARY KEY (venue, name))""",
+        """CREATE TABLE jobs (
+            id TEXT PRIMARY KEY, venue TEXT NOT NULL REFERENCES venues(id) ON DELETE CASCADE,
+            videos TEXT NOT NULL, state TEXT NOT NULL, frames_done INTEGER NOT NULL DEFAULT 0,
+            frames_total INTEGER NOT NULL DEFAULT 0, fps DOUBLE PRECISION NOT NULL DEFAULT 0,
+            created DOUBLE PRECISION NOT NULL, started DOUBLE PRECISION, finished DOUBLE PRECISION,
+            heartbeat DOUBLE PRECISION, owner TEXT, cancel INTEGER NOT NULL DEFAULT 0, error TEXT)""",
+        "CREATE INDEX jobs_venue_state ON jobs (venue, state)",
+        "CREATE INDEX places_venue ON places (venue)",
+    ],
+]
+SCHEMA_VERSION = len(MIGRATIONS)
+
+
+def _sqlite_pragmas(dbapi_conn: Any, _record: Any) -> None:
+    # WAL: readers (every worker's locate) never wait for the job runner's writes
+    cur = dbapi_conn.cursor()
+    cur.execute("PRAGMA journal_mode=WAL")
+    cur.execute("PRAGMA foreign_keys=ON")
+    cur.execute("PRAGMA busy_timeout=30000")
+    cur.execute("PRAGMA synchronous=NORMAL")
+    cur.close()
+
+
+class Db:
+    def __init__(self, url: str):
+        self.url = url
+        if url.startswith("sqlite"):
+            path = make_url(url).database
+            if path and path != ":memory:":
+                Path(path).parent.mkdir(parents=True, exist_ok=True)
+            self.engine: Engine = create_engine(url, connect_args={"timeout": 30, "check_same_thread": False})
+            event.listen(self.engine, "connect", _sqlite_pragmas)
+        else:
+            self.engine = create_engine(url, pool_pre_ping=True)
+
+    @contextmanager
+    def tx(self) -> Iterator[Connection]:
+        with self.engine.begin() as c:
+            yield c
+
+    def all(self, sql: str, **params: Any) -> list[dict[str, Any]]:
+        with self.engine.connect() as c:
+            return [dict(r._mapping) for r in c.execute(text(sql), params)]
+
+    def one(self, sql: str, **params: Any) -> dict[str, Any] | None:
+        rows = self.all(sql, **params)
+        return rows[0] if rows else None
+
+    def run(self, sql: str, **params: Any) -> int:
+        """Execute one statement in its own transaction; returns the rows it touched."""
+        with self.tx() as c:
+            return int(c.execute(text(sql), params).rowcount or 0)
+
+    def version(self) -> int:
+        if not inspect(self.engine).has_table("meta"):  # a new database
+            return 0
+        row = self.one("SELECT value FROM meta WHERE key = 'schema_version'")
+        return int(row["value"]) if row else 0
+
+    def migrate(self) -> int:
+        """Bring the schema up to SCHEMA_VERSION; returns how many migrations ran."""
+        have = self.version()
+        if have > SCHEMA_VERSION:
+            raise OmninavError(
+                f"the database {self.url} has schema version {have}, newer than this omninav ({SCHEMA_VERSION}); "
+                "upgrade omninav"
+            )
+        for n in range(have, SCHEMA_VERSION):
+            with self.tx() as c:
+                for stmt in MIGRATIONS[n]:
+                    c.execute(text(stmt))
+                c.execute(
+                    text(
+                        "INSERT INTO meta (key, value) VALUES ('schema_version', :v) "
+                        "ON CONFLICT (key) DO UPDATE SET value = excluded.value"
+                    ),
+                    {"v": str(n + 1)},
+                )
+        return SCHEMA_VERSION - have
+
+    def get_meta(self, key: str) -> str | None:
+        row = self.one("SELECT value FROM meta WHERE key = :k", k=key)
+        return row["value"] if row else None
+
+    def set_meta(self, key: str, value: str) -> None:
+        self.run(
+            "INSERT INTO meta (key, value) VALUES (:k, :v) ON CONFLICT (key) DO UPDATE SET value = excluded.value",
+            k=key,
+            v=value,
+        )
