@@ -13,13 +13,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from flask import Flask
+from flask import Flask, request
 
 from .auth import set_token
 from .catalog import Catalog
 from .config import DEFAULTS, database_url, from_env
 from .db import Db
-from .http import install_error_handlers
+from .http import ApiError, install_error_handlers
 from .jobs import Jobs
 from .locate_api import Runtimes
 from .ratelimit import RateLimiter
@@ -70,6 +70,13 @@ def create_app(overrides: dict[str, Any] | None = None) -> Flask:
         RateLimiter(conf["LOCATE_RATE"], conf["LOCATE_BURST"]),
     )
     install_error_handlers(app)
+
+    @app.before_request
+    def _refuse_large_bodies() -> None:  # before any work, and before any of it is read
+        limit = conf["MAX_CONTENT_LENGTH"]
+        n = request.content_length
+        if n is not None and n > limit and request.endpoint != "admin.upload_content":
+            raise ApiError(413, f"request body too large: {n} bytes (the limit here is {limit})")
     from . import admin_api, locate_api, venues_api, web
 
     for mod in (venues_api, locate_api, admin_api, web):
