@@ -39,10 +39,12 @@ class Cancelled(Exception):
 def _start_time(pid: int) -> str | None:
     """The kernel's start time of a process: with the pid, it names one process for ever."""
     try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-        return stat.rsplit(")", 1)[1].split()[19]
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
     except (OSError, IndexError):
         return None
+    if fields[0] in ("Z", "X"):  # a killed process nobody has reaped yet is dead all the same
+        return None
+    return fields[19]
 
 
 def this_process() -> str:
