@@ -52,7 +52,7 @@ class Server:
                 if self.proc.poll() is not None or time.time() - t0 > 60:
                     raise AssertionError(
                         f"server did not start: {(data.parent / f'server-{self.port}.log').read_text()}"
-                    )
+                    ) from None
                 time.sleep(0.2)
 
     @property
