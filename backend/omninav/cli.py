@@ -372,9 +372,9 @@ def _server_conf(ctx: click.Context) -> dict[str, Any]:
     "--https", is_flag=True, envvar="OMNINAV_HTTPS", help="Serve HTTPS on the LAN with a self-signed certificate."
 )
 @click.option(
-    "--workers", envvar="OMNINAV_WORKERS", type=click.IntRange(1, 64), help="Worker processes (default: cores, 2-8)."
+    "--workers", envvar="OMNINAV_WORKERS", type=click.IntRange(1, 64), help="Worker processes (default: cores + 1)."
 )
-@click.option("--threads", envvar="OMNINAV_THREADS", type=click.IntRange(1, 256), default=8, show_default=True)
+@click.option("--threads", envvar="OMNINAV_THREADS", type=click.IntRange(1, 256), default=4, show_default=True)
 @click.option(
     "--demo",
     envvar="OMNINAV_DEMO",

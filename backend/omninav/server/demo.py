@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from ..synth import make_dataset
+from ..synth.scene import build_scene
 from .catalog import Catalog
 from .jobs import Jobs
 
@@ -45,14 +46,13 @@ def ensure_demo(cat: Catalog, jobs: Jobs, quick: bool = False, log: Any = print)
         return None
     layout = "small" if quick else "default"
     src = source_dir(cat.data, quick)
-    if not (src / "model.mp4").exists() or not (src / "places.json").exists():
+    if not (src / "model.mp4").exists():
         log(f"rendering the synthetic demo venue into {src} (first start only) ...")
-        ds = make_dataset(src, seed=0, layout=layout, scale=0.5 if quick else 1.0)
-        (src / "places.json").write_text(json.dumps(ds.scene.places))
+        make_dataset(src, seed=0, layout=layout, scale=0.5 if quick else 1.0)
     cat.create_venue(VENUE, "Synthetic demo venue", "default")
     cat.put_floor(VENUE, "1", {"name": "Ground floor", "px_per_m": 20.0})
     cat.set_plan(VENUE, "1", (src / "floorplan.png").read_bytes())
-    cat.add_places(VENUE, demo_places(json.loads((src / "places.json").read_text()), layout), replace=True)
+    cat.add_places(VENUE, demo_places(build_scene(0, layout).places, layout), replace=True)
     cat.put_lens(VENUE, "donut", json.loads((src / "model_lens.json").read_text()))
     track = json.loads((src / "model_track.json").read_text())
     size = (src / "model.mp4").stat().st_size

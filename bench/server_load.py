@@ -1,0 +1,206 @@
+"""`locate` over HTTP under load: the server as `npm start` runs it, an open-loop load generator.
+
+Builds (once) a data directory with an 8,000-frame venue: the synthetic demo venue's 1,501 real
+modelled frames plus 6,499 synthetic ones (search costs the same), starts `omninav serve` on it
+(gunicorn, the default workers and threads), and sends requests at fixed rates from a Python
+client: each request has a scheduled send time and its latency counts from then, so a server
+that falls behind is charged for the queue it causes (no coordinated omission).
+
+  1. `GET /api/health` and `POST /api/venues/bench8k/locate` (a real 10-frame clip's binary
+     record, 7.7 kB) at 200 requests/s: p50, p90, p99, max.
+  2. The highest rate each sustains with p99 under 50 ms (rates stepped up until it breaks).
+
+The per-client rate limit is switched off (OMNINAV_LOCATE_RATE=0): the load comes from one
+address. The client runs on the same machine and takes some of its cores.
+
+    python bench/server_load.py [--seconds 20] [--rate 200] [--workers N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import http.client
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from search_speed import machine, venue  # noqa: E402
+
+from omninav.extract import Extractor  # noqa: E402
+from omninav.lens import load_lens  # noqa: E402
+from omninav.presets import resolve, settings_id  # noqa: E402
+from omninav.spectrum import encode_binary  # noqa: E402
+from omninav.store import FRAME_DTYPE, Generation, Store  # noqa: E402
+from omninav.video import VideoInfo, iter_video  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+N_FRAMES = 8000
+
+
+def build(data: Path) -> bytes:
+    """-> the query record; makes the bench venue on first use."""
+    from omninav.server.catalog import Catalog
+    from omninav.server.config import DEFAULTS, database_url
+    from omninav.server.db import Db
+    from omninav.synth import make_dataset
+
+    src = REPO / "data" / "demo-src"
+    if not (src / "model.mp4").exists():
+        make_dataset(src, seed=0, layout="default")
+    demo = Store(REPO / "data")
+    if not demo.exists("demo") or demo.generation("demo") is None:
+        raise SystemExit("model the demo venue first: npm start (or omninav demo)")
+    g = demo.load("demo", mmap=False)
+    # today's search settings (a demo venue modelled by an older omninav may predate some)
+    conf = resolve("default")
+    if settings_id(conf) != settings_id(g.settings):
+        raise SystemExit("the demo venue was modelled with other feature settings; model it again")
+    db = Db(database_url({**DEFAULTS, "DATA": str(data)}))
+    db.migrate()
+    cat = Catalog(db, data)
+    if not db.one("SELECT id FROM venues WHERE id = 'bench8k'"):
+        cat.create_venue("bench8k", "8,000-frame bench venue")
+        extra = N_FRAMES - len(g.frames)
+        fr = np.zeros(extra, FRAME_DTYPE)
+        fr["x"], fr["y"] = 200.0 + np.arange(extra) * 0.1, 500.0  # far from the real frames
+        fr["video"] = 1
+        spec = venue(extra, g.spectra.shape[1], g.spectra.shape[2], seed=5)
+        cat.store.commit(
+            "bench8k",
+            Generation(
+                conf, g.lens, np.concatenate([g.frames, fr]), np.concatenate([g.spectra, spec]), [*g.videos, "synthetic"]
+            ),
+        )
+    info = VideoInfo(src / "query.mp4")
+    frames = [f for i, f in iter_video(info, start=300) if i < 310]
+    return encode_binary(Extractor(load_lens(src / "lens.json"), conf).spectra(frames[:10]), conf)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def load(port: int, method: str, path: str, body: bytes | None, rate: float, seconds: float, conns: int = 16):
+    """Open-loop: request i is due at t0 + i/rate; latency = completion - due time."""
+    n = int(rate * seconds)
+    lat = np.full(n, np.nan)
+    nxt = [0]
+    lock = threading.Lock()
+    t0 = time.perf_counter() + 0.2
+    headers = {"Content-Type": "application/octet-stream"} if body else {}
+
+    def worker() -> None:
+        c = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+        while True:
+            with lock:
+                i = nxt[0]
+                nxt[0] += 1
+            if i >= n:
+                break
+            due = t0 + i / rate
+            wait = due - time.perf_counter()
+            if wait > 0:
+                time.sleep(wait)
+            c.request(method, path, body=body, headers=headers)
+            r = c.getresponse()
+            r.read()
+            if r.status != 200:
+                raise SystemExit(f"{method} {path}: {r.status}")
+            lat[i] = time.perf_counter() - due
+        c.close()
+
+    ts = [threading.Thread(target=worker) for _ in range(conns)]
+    for t in ts:
+        t.start()
+    for t in ts:
+        t.join()
+    took = time.perf_counter() - t0
+    ms = lat * 1e3
+    return {
+        "rate": rate,
+        "achieved": round(n / took, 1),
+        "p50": round(float(np.percentile(ms, 50)), 2),
+        "p90": round(float(np.percentile(ms, 90)), 2),
+        "p99": round(float(np.percentile(ms, 99)), 2),
+        "max": round(float(ms.max()), 2),
+    }
+
+
+def max_rate(port: int, method: str, path: str, body: bytes | None, seconds: float) -> dict:
+    best = None
+    for rate in (200, 300, 400, 500, 600, 800, 1000, 1200, 1500, 2000, 2500, 3000):
+        r = load(port, method, path, body, rate, seconds)
+        ok = r["p99"] < 50 and r["achieved"] >= 0.95 * rate
+        print(f"    {method} {path} at {rate}/s: p50 {r['p50']} ms, p99 {r['p99']} ms {'ok' if ok else 'breaks'}")
+        if not ok:
+            break
+        best = r
+    return best or {"rate": 0}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seconds", type=float, default=20.0)
+    ap.add_argument("--rate", type=float, default=200.0)
+    ap.add_argument("--workers", type=int, default=None, help="server worker processes (default: as npm start)")
+    ap.add_argument("--threads", type=int, default=None, help="threads per worker (default: as npm start)")
+    ap.add_argument("--no-max", action="store_true", help="skip the search for the highest rate")
+    a = ap.parse_args()
+    data = REPO / "data" / "bench-server"
+    record = build(data)
+    port = free_port()
+    env = {**os.environ, "OMNINAV_DATA": str(data), "OMNINAV_LOCATE_RATE": "0", "OMNINAV_ADMIN_TOKEN": "bench"}
+    cmd = [str(REPO / ".venv" / "bin" / "omninav"), "serve", "--demo", "none", "--port", str(port)]
+    if a.workers:
+        cmd += ["--workers", str(a.workers)]
+    if a.threads:
+        cmd += ["--threads", str(a.threads)]
+    srv = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        for _ in range(100):
+            try:
+                c = http.client.HTTPConnection("127.0.0.1", port, timeout=2)
+                c.request("GET", "/api/health")
+                if c.getresponse().status == 200:
+                    break
+            except OSError:
+                time.sleep(0.2)
+        loc = f"/api/venues/bench8k/locate"
+        c = http.client.HTTPConnection("127.0.0.1", port)
+        c.request("POST", loc, body=record, headers={"Content-Type": "application/octet-stream"})
+        ans = json.loads(c.getresponse().read())
+        print(f"machine: {machine()}")
+        print(f"venue: 8,000 frames; query: 10 frames, {len(record)} bytes; answer: x {ans['x']} y {ans['y']} "
+              f"confidence {ans['confidence']}")
+        load(port, "POST", loc, record, 100, 3)  # warm every worker
+        h = load(port, "GET", "/api/health", None, a.rate, a.seconds)
+        lo = load(port, "POST", loc, record, a.rate, a.seconds)
+        print(f"at {a.rate:g} requests/s for {a.seconds:g} s (ms):")
+        for name, r in (("GET /api/health", h), ("POST locate", lo)):
+            print(f"  {name:16s} p50 {r['p50']:6.2f}  p90 {r['p90']:6.2f}  p99 {r['p99']:6.2f}  max {r['max']:7.2f}"
+                  f"  achieved {r['achieved']}/s")
+        print(f"  locate / health: p50 x{lo['p50'] / h['p50']:.2f}, p99 x{lo['p99'] / h['p99']:.2f}")
+        if a.no_max:
+            return
+        print("highest rate with p99 < 50 ms (10 s per step):")
+        mh = max_rate(port, "GET", "/api/health", None, 10)
+        ml = max_rate(port, "POST", loc, record, 10)
+        print(f"  health {mh['rate']}/s, locate {ml['rate']}/s: locate sustains {ml['rate'] / max(mh['rate'], 1):.2f} of health's rate")
+    finally:
+        os.killpg(srv.pid, signal.SIGTERM)
+        srv.wait(20)
+
+
+if __name__ == "__main__":
+    main()
