@@ -1,10 +1,12 @@
-"""Modelling speed: `omninav model` on a 30 fps 960x720 video, as a multiple of real time.
+"""Modelling speed: `omninav model` on a 30 fps 960x720 video, as a multiple of real time, and the
+same video modelled through the server's upload API as a background job.
 
 Renders (once, cached) 40 s of a modelling walk through the default synthetic venue at 30 fps,
-then runs the real CLI on it (decoding every frame, extracting features at the preset's 10 fps)
-and, in the same run, a decode-only pass as the floor any modelling run sits on.
+then runs the real CLI on it (decoding every frame, extracting features at the preset's 10 fps),
+a decode-only pass as the floor any modelling run sits on, and, in the same run, `omninav serve`
+(as `npm start` runs it) with the video uploaded in 8 MiB pieces and modelled by a job.
 
-    python bench/model_speed.py [--seconds 40]
+    python bench/model_speed.py [--seconds 40] [--no-api]
 """
 
 from __future__ import annotations
@@ -54,6 +56,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=40.0)
     ap.add_argument("--root", type=Path, default=Path("data") / "bench-model-speed")
+    ap.add_argument("--no-api", action="store_true", help="only the CLI")
     a = ap.parse_args()
     render(a.root, a.seconds)
     video = a.root / "model30.mp4"
@@ -94,8 +97,81 @@ def main() -> None:
     print(f"decode only (grab every frame): {decode:.2f} s = {dur / decode:.1f}x real time")
     print(
         f"omninav model (CLI, wall clock incl. start-up): {wall:.2f} s = {dur / wall:.1f}x real time, "
-        f"{out['frames_added']} frames modelled"
+        f"{out['frames_added']} frames modelled, {out['frames_added'] / wall:.1f} frames/s"
     )
+    if not a.no_api:
+        api = through_api(a.root, video, omninav)
+        print(
+            f"upload API: {api['upload_s']:.2f} s to upload {video.stat().st_size / 1e6:.1f} MB in 8 MiB pieces; "
+            f"job {api['job_s']:.2f} s = {dur / api['job_s']:.1f}x real time, {api['frames']} frames, "
+            f"{api['frames'] / api['job_s']:.1f} frames/s"
+        )
+        print(f"API job / CLI frames per second: {(api['frames'] / api['job_s']) / (out['frames_added'] / wall):.2f}")
+
+
+def through_api(root: Path, video: Path, omninav: str) -> dict:
+    """Upload and model the video through a running server; time the job as the API reports it."""
+    import os
+    import signal
+    import socket
+    import urllib.request
+
+    from omninav.synth.scene import floorplan_image
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    base = f"http://127.0.0.1:{port}"
+    auth = {"Authorization": "Bearer bench"}
+
+    def call(method: str, path: str, body=None, headers=None) -> dict:
+        h = {**auth, **(headers or {})}
+        if isinstance(body, dict):
+            body, h["Content-Type"] = json.dumps(body).encode(), "application/json"
+        with urllib.request.urlopen(urllib.request.Request(base + path, body, h, method=method), timeout=120) as r:
+            return json.loads(r.read())
+
+    with tempfile.TemporaryDirectory() as d:
+        env = {**os.environ, "OMNINAV_DATA": d, "OMNINAV_ADMIN_TOKEN": "bench"}
+        srv = subprocess.Popen(
+            [omninav, "serve", "--demo", "none", "--port", str(port)],
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+        )
+        try:
+            for _ in range(150):
+                try:
+                    urllib.request.urlopen(base + "/api/health", timeout=1)
+                    break
+                except OSError:
+                    time.sleep(0.2)
+            call("POST", "/api/admin/venues", {"id": "speed"})
+            plan = cv2.imencode(".png", floorplan_image(build_scene(0, "default"), 20.0))[1].tobytes()
+            call("PUT", "/api/admin/venues/speed/floors/1/plan", plan, {"Content-Type": "image/png"})
+            call("PUT", "/api/admin/venues/speed/floors/1", {"px_per_m": 20.0})
+            call("PUT", "/api/admin/venues/speed/lenses/default", json.loads((root / "lens.json").read_text()))
+            data = video.read_bytes()
+            track = json.loads((root / "track30.json").read_text())
+            v = call("POST", "/api/admin/venues/speed/videos", {"name": video.name, "size": len(data), "track": track})
+            t = time.perf_counter()
+            piece = 8 << 20
+            for a in range(0, len(data), piece):
+                b = min(len(data), a + piece) - 1
+                rng = {"Content-Range": f"bytes {a}-{b}/{len(data)}", "Content-Type": "application/octet-stream"}
+                call("PUT", v["upload_url"], data[a : b + 1], rng)
+            upload_s = time.perf_counter() - t
+            job = call("POST", "/api/admin/venues/speed/jobs")
+            while job["state"] in ("queued", "running"):
+                time.sleep(0.2)
+                job = call("GET", f"/api/admin/jobs/{job['id']}")
+            if job["state"] != "done":
+                raise SystemExit(f"job {job['state']}: {job['error']}")
+            return {"upload_s": upload_s, "job_s": job["finished"] - job["started"], "frames": job["frames_done"]}
+        finally:
+            os.killpg(srv.pid, signal.SIGTERM)
+            srv.wait(20)
 
 
 if __name__ == "__main__":
