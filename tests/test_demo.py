@@ -1,4 +1,4 @@
-"""`omninav demo` (what npm start runs) and `omninav synth`, end to end through the console script."""
+"""`omninav demo` (the accuracy table) and `omninav synth`, end to end through the console script."""
 
 import json
 import re
