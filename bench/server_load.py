@@ -33,14 +33,13 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from search_speed import machine, venue  # noqa: E402
-
 from omninav.extract import Extractor  # noqa: E402
 from omninav.lens import load_lens  # noqa: E402
 from omninav.presets import resolve, settings_id  # noqa: E402
 from omninav.spectrum import encode_binary  # noqa: E402
 from omninav.store import FRAME_DTYPE, Generation, Store  # noqa: E402
 from omninav.video import VideoInfo, iter_video  # noqa: E402
+from search_speed import machine, venue  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 N_FRAMES = 8000
@@ -77,7 +76,11 @@ def build(data: Path) -> bytes:
         cat.store.commit(
             "bench8k",
             Generation(
-                conf, g.lens, np.concatenate([g.frames, fr]), np.concatenate([g.spectra, spec]), [*g.videos, "synthetic"]
+                conf,
+                g.lens,
+                np.concatenate([g.frames, fr]),
+                np.concatenate([g.spectra, spec]),
+                [*g.videos, "synthetic"],
             ),
         )
     info = VideoInfo(src / "query.mp4")
@@ -176,27 +179,32 @@ def main() -> None:
                     break
             except OSError:
                 time.sleep(0.2)
-        loc = f"/api/venues/bench8k/locate"
+        loc = "/api/venues/bench8k/locate"
         c = http.client.HTTPConnection("127.0.0.1", port)
         c.request("POST", loc, body=record, headers={"Content-Type": "application/octet-stream"})
         ans = json.loads(c.getresponse().read())
         print(f"machine: {machine()}")
-        print(f"venue: 8,000 frames; query: 10 frames, {len(record)} bytes; answer: x {ans['x']} y {ans['y']} "
-              f"confidence {ans['confidence']}")
+        print(
+            f"venue: 8,000 frames; query: 10 frames, {len(record)} bytes; answer: x {ans['x']} y {ans['y']} "
+            f"confidence {ans['confidence']}"
+        )
         load(port, "POST", loc, record, 100, 3)  # warm every worker
         h = load(port, "GET", "/api/health", None, a.rate, a.seconds)
         lo = load(port, "POST", loc, record, a.rate, a.seconds)
         print(f"at {a.rate:g} requests/s for {a.seconds:g} s (ms):")
         for name, r in (("GET /api/health", h), ("POST locate", lo)):
-            print(f"  {name:16s} p50 {r['p50']:6.2f}  p90 {r['p90']:6.2f}  p99 {r['p99']:6.2f}  max {r['max']:7.2f}"
-                  f"  achieved {r['achieved']}/s")
+            print(
+                f"  {name:16s} p50 {r['p50']:6.2f}  p90 {r['p90']:6.2f}  p99 {r['p99']:6.2f}  max {r['max']:7.2f}"
+                f"  achieved {r['achieved']}/s"
+            )
         print(f"  locate / health: p50 x{lo['p50'] / h['p50']:.2f}, p99 x{lo['p99'] / h['p99']:.2f}")
         if a.no_max:
             return
         print("highest rate with p99 < 50 ms (10 s per step):")
         mh = max_rate(port, "GET", "/api/health", None, 10)
         ml = max_rate(port, "POST", loc, record, 10)
-        print(f"  health {mh['rate']}/s, locate {ml['rate']}/s: locate sustains {ml['rate'] / max(mh['rate'], 1):.2f} of health's rate")
+        share = ml["rate"] / max(mh["rate"], 1)
+        print(f"  health {mh['rate']}/s, locate {ml['rate']}/s: locate sustains {share:.2f} of health's rate")
     finally:
         os.killpg(srv.pid, signal.SIGTERM)
         srv.wait(20)

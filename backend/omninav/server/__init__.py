@@ -61,7 +61,7 @@ def create_app(overrides: dict[str, Any] | None = None) -> Flask:
         set_token(db, conf["ADMIN_TOKEN"])
     catalog = Catalog(db, data)
     device = conf["DEVICE"] or None
-    jobs = Jobs(catalog, stale_s=conf["JOB_STALE_S"], device=device)
+    jobs = Jobs(catalog, stale_s=conf["JOB_STALE_S"])
     app.extensions["omninav"] = Services(
         db,
         catalog,

@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import math
 import re
-import shutil
 import time
 from pathlib import Path
 from typing import Any
@@ -423,6 +422,3 @@ class Catalog:
         d = self.video_dir(venue_id)
         for p in (d / name, d / f"{name}.part"):
             p.unlink(missing_ok=True)
-
-    def remove_venue_dir(self, venue_id: str) -> None:
-        shutil.rmtree(self.video_dir(venue_id), ignore_errors=True)

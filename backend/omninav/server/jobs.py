@@ -93,11 +93,10 @@ def job_doc(r: dict[str, Any]) -> dict[str, Any]:
 
 
 class Jobs:
-    def __init__(self, catalog: Catalog, stale_s: float = 30.0, device: str | None = None):
+    def __init__(self, catalog: Catalog, stale_s: float = 30.0):
         self.cat = catalog
         self.db = catalog.db
         self.stale_s = stale_s
-        self.device = device
         self.me = this_process()
         self.wake = threading.Event()
         self._stop = threading.Event()

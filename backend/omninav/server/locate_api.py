@@ -114,7 +114,7 @@ def _decode_image(data: bytes, what: str) -> np.ndarray:
     return img
 
 
-def _query_lens(cat: Catalog, venue_id: str, rt: Runtime) -> Lens | None:
+def _query_lens(cat: Catalog, venue_id: str) -> Lens | None:
     name = request.form.get("lens") or request.args.get("lens")
     return cat.lens(venue_id, name) if name else None
 
@@ -162,7 +162,7 @@ def _read_clip(cat: Catalog, venue_id: str, rt: Runtime, max_frames: int) -> tup
             f"unsupported Content-Type {ct or 'none'}: send a feature record (application/json or "
             "application/octet-stream), frames (multipart/form-data, image/jpeg, image/png) or a video (video/*)",
         )
-    ext = loc.extractor(_query_lens(cat, venue_id, rt))
+    ext = loc.extractor(_query_lens(cat, venue_id))
     for i, f in enumerate(frames):
         try:
             ext.check_frame(f, f"frame {i}")

@@ -32,7 +32,7 @@ class _Gunicorn(BaseApplication):  # type: ignore[misc]
             self.cfg.set(k, v)
 
     def load(self) -> Any:
-        from threadpoolctl import threadpool_limits
+        from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
 
         from . import create_app
 
