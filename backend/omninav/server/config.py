@@ -10,6 +10,8 @@ import os
 from pathlib import Path
 from typing import Any
 
+from ..errors import OmninavError
+
 REPO = Path(__file__).resolve().parents[3]
 
 DEFAULTS: dict[str, Any] = {
@@ -37,11 +39,11 @@ def _parse(default: Any, raw: str, key: str) -> Any:
             return True
         if raw.lower() in ("0", "false", "no", "off", ""):
             return False
-        raise ValueError(f"OMNINAV_{key}={raw!r}: expected true or false")
+        raise OmninavError(f"OMNINAV_{key}={raw!r}: expected true or false")
     try:
         return type(default)(raw)
     except ValueError:
-        raise ValueError(
+        raise OmninavError(
             f"OMNINAV_{key}={raw!r}: expected a{'n' if isinstance(default, int) else ''} {type(default).__name__}"
         ) from None
 
