@@ -14,7 +14,6 @@ from typing import Any
 from flask import Blueprint, Response, current_app, jsonify, request
 
 from ..errors import OmninavError
-from ..model_venue import remove_video
 from ..video import VideoInfo
 from .auth import require_admin
 from .http import ApiError, json_body, str_field
@@ -114,21 +113,8 @@ def get_video(venue_id: str, name: str) -> Any:
 
 @bp.delete("/venues/<venue_id>/videos/<name>")
 def delete_video(venue_id: str, name: str) -> Any:
-    """Delete a video and its frames: the venue answers from its other videos' frames."""
-    cat = _svc().catalog
-    v = cat.video(venue_id, name)
-    busy = cat.db.one(
-        "SELECT id FROM jobs WHERE venue = :v AND state IN ('queued', 'running') AND videos LIKE :n",
-        v=venue_id,
-        n=f'%"{name}"%',
-    )
-    if busy:
-        raise ApiError(409, f"video {name!r} is being modelled by job {busy['id']}; cancel it first")
-    removed = remove_video(cat.store, venue_id, v["name"])
-    cat.delete_video_files(venue_id, v["name"])
-    cat.db.run("DELETE FROM videos WHERE venue = :v AND name = :n", v=venue_id, n=v["name"])
-    cat.bump(venue_id)
-    return jsonify({"deleted": v["name"], "frames_removed": removed})
+    removed = _svc().catalog.delete_video(venue_id, name)
+    return jsonify({"deleted": name, "frames_removed": removed})
 
 
 def _content_range(size: int) -> tuple[int, int | None]:

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import OmninavError
 from ..lens import Lens, lens_from_dict
+from ..model_venue import remove_video
 from ..presets import PRESETS, n_curves, settings_id
 from ..spectrum import HEADER_BYTES, record_bytes_per_frame
 from ..store import Store, check_id
@@ -387,18 +388,12 @@ class Catalog:
         self.check_track(venue_id, floor, track)
         lens = body.get("lens", DEFAULT_LENS)
         if isinstance(lens, dict):  # an inline profile becomes the video's own named lens
-            self.put_lens(venue_id, f"video-{name.replace('.', '-')}"[:64], lens)
-            lens = f"video-{name.replace('.', '-')}"[:64]
+            profile, lens = lens, f"video-{name.replace('.', '-')}"[:64]
+            self.put_lens(venue_id, lens, profile)
         if not isinstance(lens, str):
             raise ApiError(400, "'lens' must be a lens profile name or a lens profile object")
         self.lens(venue_id, lens)
-        busy = self.db.one(
-            "SELECT id FROM jobs WHERE venue = :v AND state IN ('queued', 'running') AND videos LIKE :n",
-            v=venue_id,
-            n=f'%"{name}"%',
-        )
-        if busy:
-            raise ApiError(409, f"video {name!r} is being modelled by job {busy['id']}; cancel it first")
+        self.check_not_modelling(venue_id, name)
         old = self.db.one("SELECT * FROM videos WHERE venue = :v AND name = :n", v=venue_id, n=name)
         if old is not None:  # a new upload under the same name replaces the file when it completes
             self.db.run("DELETE FROM videos WHERE venue = :v AND name = :n", v=venue_id, n=name)
@@ -418,7 +413,24 @@ class Catalog:
         )
         return self.video(venue_id, name)
 
-    def delete_video_files(self, venue_id: str, name: str) -> None:
+    def check_not_modelling(self, venue_id: str, name: str) -> None:
+        busy = self.db.one(
+            "SELECT id FROM jobs WHERE venue = :v AND state IN ('queued', 'running') AND videos LIKE :n",
+            v=venue_id,
+            n=f'%"{name}"%',
+        )
+        if busy:
+            raise ApiError(409, f"video {name!r} is being modelled by job {busy['id']}; cancel it first")
+
+    def delete_video(self, venue_id: str, name: str) -> int:
+        """Delete a video, its file and its frames (the venue answers from its other videos' frames);
+        returns how many frames went."""
+        v = self.video(venue_id, name)
+        self.check_not_modelling(venue_id, v["name"])
+        removed = remove_video(self.store, venue_id, v["name"])
         d = self.video_dir(venue_id)
-        for p in (d / name, d / f"{name}.part"):
+        for p in (d / v["name"], d / f"{v['name']}.part"):
             p.unlink(missing_ok=True)
+        self.db.run("DELETE FROM videos WHERE venue = :v AND name = :n", v=venue_id, n=v["name"])
+        self.bump(venue_id)
+        return removed
