@@ -170,6 +170,11 @@ class Store:
         arrays = {k: np.load(g / f"{k}.npy", mmap_mode=mode) for k in INDEX_ARRAYS if (g / f"{k}.npy").is_file()}
         return Generation(settings, lens, frames, spectra, videos, arrays if "keys" in arrays else None)
 
+    def frame_count(self, venue_id: str) -> int:
+        """Frames of the live generation, from the array's header alone (no index, no spectra)."""
+        g = self._current(self.require(venue_id))
+        return len(np.load(g / "frames.npy", mmap_mode="r")) if g else 0
+
     def generation(self, venue_id: str) -> str | None:
         """Name of the live generation (cheap: one small file), to notice a new one."""
         g = self._current(self.require(venue_id))

@@ -11,11 +11,13 @@ import json
 import math
 import re
 import time
+import uuid
 from pathlib import Path
 from typing import Any
 
 import cv2
 import numpy as np
+from sqlalchemy import text
 
 from ..errors import OmninavError
 from ..lens import Lens, lens_from_dict
@@ -114,11 +116,7 @@ class Catalog:
         """The public description of a venue: all a client needs to extract matching features."""
         v = self.venue(venue_id)
         conf = self.settings(venue_id)
-        frames = 0
-        try:
-            frames = len(self.store.load(venue_id).frames)
-        except OmninavError:
-            pass
+        frames = self.store.frame_count(venue_id)
         return {
             "id": v["id"],
             "name": v["name"],
@@ -175,8 +173,6 @@ class Catalog:
         if px_per_m is not None and not px_per_m > 0:
             raise ApiError(400, "'px_per_m' must be positive")
         with self.db.tx() as c:
-            from sqlalchemy import text
-
             if old:
                 c.execute(
                     text("UPDATE floors SET name = :n, px_per_m = :s WHERE venue = :v AND id = :f"),
@@ -264,8 +260,6 @@ class Catalog:
             area = [_num(v, f"{where} 'area'") for v in area]
             if area[2] <= area[0] or area[3] <= area[1]:
                 raise ApiError(400, f"{where}: 'area' needs x0 < x1 and y0 < y1")
-        import uuid
-
         return {
             "id": uuid.uuid4().hex[:12],
             "venue": venue_id,
@@ -282,8 +276,6 @@ class Catalog:
             raise ApiError(400, "places must be a JSON list of {name, floor, x, y[, area]}")
         floors = {f["id"] for f in self.floors(venue_id)}
         rows = [self._place_row(venue_id, p, i, floors) for i, p in enumerate(items)]
-        from sqlalchemy import text
-
         with self.db.tx() as c:
             if replace:
                 c.execute(text("DELETE FROM places WHERE venue = :v"), {"v": venue_id})

@@ -70,17 +70,18 @@ class Runtimes:
         with self._lock:  # one load per venue, however many requests wait for it
             rt = self._rt.get(venue_id)
             if rt is None or rt.revision != v["revision"] or rt.generation != gen:
-                rt = self._load(venue_id, v["revision"], rt)
+                rt = self._load(venue_id, v["revision"], gen, rt)
                 self._rt[venue_id] = rt
         return rt
 
-    def _load(self, venue_id: str, revision: int, old: Runtime | None) -> Runtime:
-        try:
-            loc = Locator(self.cat.store, venue_id, device=self.device)
-        except OmninavError as e:
-            raise ApiError(409, str(e)) from None
-        if old is not None and old.generation == loc.generation:
+    def _load(self, venue_id: str, revision: int, gen: str, old: Runtime | None) -> Runtime:
+        if old is not None and old.generation == gen:
             loc = old.locator  # only the catalogue changed: keep the loaded index
+        else:
+            try:
+                loc = Locator(self.cat.store, venue_id, device=self.device)
+            except OmninavError as e:
+                raise ApiError(409, str(e)) from None
         floors = {f["id"]: f for f in self.cat.floors(venue_id)}
         places: dict[str, list[dict[str, Any]]] = {}
         for p in self.cat.places(venue_id):
