@@ -39,11 +39,13 @@ def gray_world(rgb: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
     Under a colour cast hue shifts non-linearly and saturation with it; the paper's H and S curves
     then stop matching the venue's. Gray-world constancy fixes the cast before they are computed.
     """
+    # Accumulate in float64: numpy sums an axis-0 float32 reduction sequentially, whose error (1e-5
+    # relative) the opponent channels' cancellation amplifies; the phone's extractor sums in doubles.
     if valid is None or valid.all():
-        mean = rgb.reshape(-1, 3).mean(axis=0)
+        mean = rgb.reshape(-1, 3).mean(axis=0, dtype=np.float64)
     else:
-        mean = rgb[valid].mean(axis=0) if valid.any() else np.ones(3, np.float32)
-    return rgb * (0.5 / np.maximum(mean, _EPS)).astype(np.float32)
+        mean = rgb[valid].mean(axis=0, dtype=np.float64) if valid.any() else np.ones(3)
+    return rgb * (0.5 / np.maximum(mean.astype(np.float32), _EPS)).astype(np.float32)
 
 
 def _hgrad(x: np.ndarray, circular_unit: bool = False) -> np.ndarray:

@@ -1,0 +1,21 @@
+// Before the suite: the engine makes the golden files and the fake camera's clip; a real server
+// starts with the quick demo venue and models it through its job queue.
+import { execFileSync } from 'node:child_process';
+import { resolve } from 'node:path';
+import { GOLDEN, PYTHON, ROOT, WORK } from './env';
+import { startServer, waitModelled } from './server';
+
+export default async function globalSetup(): Promise<() => Promise<void>> {
+  const fixtures = resolve(ROOT, 'e2e/fixtures.py');
+  execFileSync(PYTHON, [fixtures, 'golden', GOLDEN], { stdio: 'inherit' });
+  execFileSync(PYTHON, [fixtures, 'clip', resolve(WORK, 'clip')], { stdio: 'inherit' });
+  const srv = await startServer(resolve(WORK, 'server'), 'quick');
+  try {
+    await waitModelled(srv.url, 'demo');
+  } catch (e) {
+    await srv.stop();
+    throw new Error(`${e}\n${srv.log()}`);
+  }
+  process.env.OMNINAV_E2E_URL = srv.url;
+  return async () => srv.stop();
+}

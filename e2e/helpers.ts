@@ -1,0 +1,42 @@
+// What the specs share: a spy on speech and vibration, and axe-core run in the page.
+import { createRequire } from 'node:module';
+import { expect, type Page } from '@playwright/test';
+
+declare global {
+  interface Window {
+    __spoken: string[];
+    __vibrated: number[][];
+  }
+}
+
+/** Record what the app asks the speech synthesiser to say, and each vibration pattern. */
+export async function spyOnSpeech(page: Page): Promise<void> {
+  await page.addInitScript(() => {
+    window.__spoken = [];
+    window.__vibrated = [];
+    const speak = speechSynthesis.speak.bind(speechSynthesis);
+    speechSynthesis.speak = (u: SpeechSynthesisUtterance) => {
+      if (u.text.trim()) window.__spoken.push(u.text);
+      speak(u);
+    };
+    navigator.vibrate = (p: VibratePattern) => {
+      window.__vibrated.push(Array.isArray(p) ? [...p] : [p]);
+      return true;
+    };
+  });
+}
+
+export const spoken = (page: Page): Promise<string[]> => page.evaluate(() => window.__spoken);
+
+const axeSource = createRequire(__filename).resolve('axe-core/axe.min.js');
+
+/** axe-core's WCAG 2.x A/AA rules and best practices on the page as it is now: no violation. */
+export async function expectNoAxeViolations(page: Page, what: string): Promise<void> {
+  await page.addScriptTag({ path: axeSource });
+  const violations = await page.evaluate(async () => {
+    const axe = (window as unknown as { axe: { run: (c: unknown, o: unknown) => Promise<{ violations: { id: string; help: string; nodes: { target: unknown }[] }[] }> } }).axe;
+    const r = await axe.run(document, { runOnly: { type: 'tag', values: ['wcag2a', 'wcag2aa', 'wcag21a', 'wcag21aa', 'wcag22aa', 'best-practice'] } });
+    return r.violations.map((v) => `${v.id}: ${v.help} (${v.nodes.map((n) => JSON.stringify(n.target)).join(', ')})`);
+  });
+  expect(violations, `axe on ${what}`).toEqual([]);
+}

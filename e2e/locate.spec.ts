@@ -1,0 +1,90 @@
+// The user's flow: open the app, press "Where am I?", hear and read where they are. The fake camera
+// plays a clip rendered at a known pose in the demo venue, which the server modelled from video.
+import { readFileSync } from 'node:fs';
+import { resolve } from 'node:path';
+import { expect, test, type Request } from '@playwright/test';
+import { WORK, base } from './env';
+import { expectNoAxeViolations, spoken, spyOnSpeech } from './helpers';
+
+const truth = () => JSON.parse(readFileSync(resolve(WORK, 'clip/clip.json'), 'utf8'));
+const angle = (a: number, b: number) => Math.abs(((a - b + 540) % 360) - 180);
+
+test('Where am I? answers within 2 m and 10 degrees, spoken and in the live region, from features only', async ({ page }) => {
+  await spyOnSpeech(page);
+  const requests: Request[] = [];
+  page.on('request', (r) => requests.push(r));
+  await page.goto(`${base()}/?venue=demo`);
+  // the live region is in the page before anything is said in it
+  await expect(page.locator('#live[role=status][aria-live=polite]')).toHaveCount(1);
+  await expect(page.locator('#venue-line')).toContainText('Ready');
+  await expectNoAxeViolations(page, 'the locate screen before an answer');
+
+  const answered = page.waitForResponse((r) => r.url().includes('/locate') && r.request().method() === 'POST');
+  await page.getByRole('button', { name: 'Where am I?' }).click();
+  const res = await answered;
+  expect(res.status()).toBe(200);
+  const a = await res.json();
+  const t = truth();
+  expect(Math.hypot(a.x - t.x, a.y - t.y), `answer (${a.x}, ${a.y}) vs truth (${t.x}, ${t.y})`).toBeLessThanOrEqual(2);
+  expect(angle(a.heading_deg, t.heading_deg), `heading ${a.heading_deg} vs ${t.heading_deg}`).toBeLessThanOrEqual(10);
+  expect(a.low_confidence).toBe(false);
+  expect(a.sent).toBe('features');
+
+  // what the user hears is what the screen reader reads, and it names the place
+  const live = page.locator('#live');
+  await expect(live).toContainText('You are in');
+  const sentence = (await live.textContent())!;
+  expect(sentence).toMatch(/o'clock/); // the default direction style
+  await expect.poll(() => spoken(page)).toContain(sentence);
+  await expect(page.locator('#answer-text')).toHaveText(sentence);
+  expect(await page.evaluate(() => window.__vibrated.length)).toBeGreaterThan(0);
+
+  // the request carried a feature record, not pictures: "ONV" header, 768 bytes per frame
+  const locates = requests.filter((r) => r.url().includes('/locate'));
+  expect(locates).toHaveLength(1);
+  const body = locates[0].postDataBuffer()!;
+  expect(locates[0].headers()['content-type']).toBe('application/octet-stream');
+  expect(body.subarray(0, 3).toString()).toBe('ONV');
+  const frames = body.readUInt32LE(10);
+  expect(frames).toBeGreaterThanOrEqual(8);
+  expect(body.length).toBe(20 + 768 * frames);
+  for (const r of requests) expect(r.headers()['content-type'] ?? '', r.url()).not.toMatch(/image|video|multipart/);
+  await expect(page.locator('#debug-facts')).toContainText('768');
+
+  // the plan's text alternative tells the same answer; nothing is only on the map
+  await expect(page.locator('#plan')).toHaveAttribute('aria-label', /you are in .*within about/);
+  await expectNoAxeViolations(page, 'the locate screen with an answer');
+
+  // Repeat says the last sentence again
+  const before = (await spoken(page)).length;
+  await page.getByRole('button', { name: 'Repeat' }).click();
+  await expect.poll(async () => (await spoken(page)).slice(before)).toContain(sentence);
+
+  // another direction style, chosen in Settings, rephrases the same answer
+  await page.getByRole('button', { name: 'Settings' }).click();
+  await page.getByLabel(/Left and right/).check();
+  await page.getByRole('button', { name: 'Locate' }).click();
+  await expect(page.locator('#answer-text')).not.toContainText("o'clock");
+  await expect(page.locator('#answer-text')).toContainText(/ahead|right|left|behind/);
+});
+
+test('continuous mode re-locates and speaks only when something changed', async ({ page }) => {
+  await spyOnSpeech(page);
+  let posts = 0;
+  page.on('request', (r) => {
+    if (r.url().includes('/locate')) posts++;
+  });
+  await page.goto(`${base()}/?venue=demo`);
+  await page.getByRole('button', { name: 'Settings' }).click();
+  await page.getByLabel(/When telling continuously/).selectOption('2');
+  await page.getByRole('button', { name: 'Locate' }).click();
+  const toggle = page.getByRole('button', { name: 'Keep telling me' });
+  await toggle.click();
+  await expect(toggle).toHaveAttribute('aria-pressed', 'true');
+  await expect.poll(() => posts, { timeout: 60_000 }).toBeGreaterThanOrEqual(3);
+  await toggle.click();
+  await expect(toggle).toHaveAttribute('aria-pressed', 'false');
+  // the user stood still: three answers, one sentence (then "Stopped telling you.")
+  const said = (await spoken(page)).filter((s) => s.startsWith('You are'));
+  expect(said).toHaveLength(1);
+});

@@ -1,0 +1,143 @@
+/**
+ * Lens profiles (CONVENTIONS.md `lens.json`) and the unwarp tables (the paper's Eq. 1), computed
+ * exactly as the engine's lens.py/unwarp.py do, so that a phone's panorama matches the server's.
+ */
+
+export interface CatadioptricLens {
+  model: 'catadioptric';
+  image_size: [number, number];
+  center: [number, number];
+  r_inner: number;
+  r_outer: number;
+  elevation_poly: number[];
+  forward_deg?: number;
+  ccw?: boolean;
+}
+
+export interface EquirectangularLens {
+  model: 'equirectangular';
+  image_size: [number, number];
+  forward_x: number;
+  ccw?: boolean;
+}
+
+export type Lens = CatadioptricLens | EquirectangularLens;
+
+/** Remap tables (float32, rows x cols), the rows' elevations, and which directions the lens sees. */
+export interface UnwarpMap {
+  rows: number;
+  cols: number;
+  mapX: Float32Array;
+  mapY: Float32Array;
+  elevations: Float64Array;
+  valid: Uint8Array;
+  /** OpenCV border mode: constant (black) outside the donut, wrap across a 360-camera's seam. */
+  wrap: boolean;
+}
+
+/** numpy.linspace: start + i * step, the last value exactly `stop`. */
+export function linspace(start: number, stop: number, n: number): Float64Array {
+  const out = new Float64Array(n);
+  const step = n > 1 ? (stop - start) / (n - 1) : 0;
+  for (let i = 0; i < n; i++) out[i] = start + i * step;
+  if (n > 1) out[n - 1] = stop;
+  return out;
+}
+
+/** Polynomial in ascending powers, by Horner's rule (numpy.polynomial.polynomial.polyval). */
+export function polyval(x: number, c: readonly number[]): number {
+  let v = c[c.length - 1];
+  for (let i = c.length - 2; i >= 0; i--) v = c[i] + v * x;
+  return v;
+}
+
+/** numpy.interp with left = right = NaN; `xp` ascending. */
+export function interp(x: number, xp: Float64Array, fp: Float64Array): number {
+  const n = xp.length;
+  if (!(x >= xp[0] && x <= xp[n - 1])) return NaN;
+  if (x === xp[n - 1]) return fp[n - 1];
+  let lo = 0;
+  let hi = n - 1;
+  while (hi - lo > 1) {
+    const mid = (lo + hi) >> 1;
+    if (xp[mid] <= x) lo = mid;
+    else hi = mid;
+  }
+  const slope = (fp[lo + 1] - fp[lo]) / (xp[lo + 1] - xp[lo]);
+  return slope * (x - xp[lo]) + fp[lo];
+}
+
+/** The radius (px) at which a donut lens sees each elevation; NaN outside its ring. */
+export function radiusTable(lens: CatadioptricLens): (elevDeg: number) => number {
+  const n = 4097;
+  let r = linspace(lens.r_inner, lens.r_outer, n);
+  let e = r.map((v) => polyval(v, lens.elevation_poly));
+  if (e[0] > e[n - 1]) {
+    r = r.slice().reverse();
+    e = e.slice().reverse();
+  }
+  return (el) => interp(el, e, r);
+}
+
+/** Pixel (x, y) that sees (azimuth clockwise from forward, elevation), in degrees. */
+export function directionToPixel(lens: Lens, radius: ((el: number) => number) | null, az: number, el: number): [number, number] {
+  const sign = (lens.ccw ?? lens.model === 'catadioptric') ? -1 : 1; // donuts default to ccw
+  if (lens.model === 'catadioptric') {
+    const r = radius!(el);
+    const phi = (((lens.forward_deg ?? 0) + sign * az) * Math.PI) / 180;
+    return [lens.center[0] + r * Math.cos(phi), lens.center[1] + r * Math.sin(phi)];
+  }
+  const [w, h] = lens.image_size;
+  const a = lens.forward_x + (sign * az * w) / 360;
+  const x = a - Math.floor(a / w) * w; // numpy.mod: the result takes the divisor's sign
+  return [x, ((90 - el) * h) / 180 - 0.5];
+}
+
+/** Elevations of the panorama's rows, top (highest) first (unwarp.panorama_elevations). */
+export function panoramaElevations(top: number, bottom: number, step: number): Float64Array {
+  return linspace(top, bottom, Math.round((top - bottom) / step) + 1);
+}
+
+/** The remap tables for a panorama of `width` columns; column j looks at azimuth (j + 0.5) * 360 / width. */
+export function buildMap(lens: Lens, elevations: Float64Array, width: number): UnwarpMap {
+  const rows = elevations.length;
+  const mapX = new Float32Array(rows * width);
+  const mapY = new Float32Array(rows * width);
+  const valid = new Uint8Array(rows * width);
+  const radius = lens.model === 'catadioptric' ? radiusTable(lens) : null;
+  for (let i = 0; i < rows; i++) {
+    for (let j = 0; j < width; j++) {
+      const az = ((j + 0.5) * 360) / width;
+      const [x, y] = directionToPixel(lens, radius, az, elevations[i]);
+      const ok = Number.isFinite(x) && Number.isFinite(y);
+      const k = i * width + j;
+      valid[k] = ok ? 1 : 0;
+      // unseen directions read a pixel outside the image, which the constant border makes black
+      mapX[k] = ok ? x : -10;
+      mapY[k] = ok ? y : -10;
+    }
+  }
+  return { rows, cols: width, mapX, mapY, elevations, valid, wrap: lens.model !== 'catadioptric' };
+}
+
+/** The remap a feature preset needs: the rows of all its bands, at `oversample` x the columns. */
+export function bandMap(lens: Lens, s: { bands: [number, number][]; row_step_deg: number; pano_width: number; oversample: number }): UnwarpMap {
+  const lo = Math.min(...s.bands.map((b) => b[0]));
+  const hi = Math.max(...s.bands.map((b) => b[1]));
+  return buildMap(lens, panoramaElevations(hi, lo, s.row_step_deg), s.pano_width * s.oversample);
+}
+
+/** Why a lens profile cannot be used, or null when it can (the server validates it fully). */
+export function lensProblem(lens: unknown): string | null {
+  if (typeof lens !== 'object' || lens === null) return 'the lens profile is not an object';
+  const l = lens as Record<string, unknown>;
+  const size = l.image_size;
+  if (!Array.isArray(size) || size.length !== 2 || !size.every((v) => Number.isInteger(v) && v > 0))
+    return "the lens profile's image_size must be [width, height]";
+  if (l.model === 'catadioptric') {
+    if (!Array.isArray(l.center) || !Array.isArray(l.elevation_poly)) return 'the donut lens profile lacks center or elevation_poly';
+    return null;
+  }
+  if (l.model === 'equirectangular') return typeof l.forward_x === 'number' ? null : 'the 360 lens profile lacks forward_x';
+  return `unknown lens model ${String(l.model)}`;
+}

@@ -1,0 +1,150 @@
+/**
+ * Fourier spectra of the curves and the compact record the phone sends (the engine's spectrum.py).
+ * Magnitudes travel as float16, phases as int16 steps of 2*pi/65536: 4 bytes per harmonic.
+ */
+import type { FeatureSettings } from './settings';
+
+export const RECORD_VERSION = 1;
+export const HEADER_BYTES = 20;
+
+/** One frame's quantised spectrum: C*K float16 magnitude bits and int16 phases, curve-major. */
+export interface FrameSpectrum {
+  mag: Uint16Array;
+  phase: Int16Array;
+}
+
+/**
+ * DFT rows (interleaved re, im; `width` complex values per curve, as cv.dft with DFT_ROWS |
+ * DFT_COMPLEX_OUTPUT gives them) -> harmonics 1..K scaled to unit total energy, as float64 re/im.
+ */
+export function harmonics(dft: Float32Array | Float64Array, nCurves: number, width: number, k: number): { re: Float64Array; im: Float64Array } {
+  if (k < 1 || k > width >> 1) throw new Error(`n_harmonics must be in [1, ${width >> 1}], got ${k}`);
+  const re = new Float64Array(nCurves * k);
+  const im = new Float64Array(nCurves * k);
+  let e = 0;
+  for (let c = 0; c < nCurves; c++) {
+    for (let h = 0; h < k; h++) {
+      const p = 2 * (c * width + h + 1);
+      re[c * k + h] = dft[p];
+      im[c * k + h] = dft[p + 1];
+      e += dft[p] ** 2 + dft[p + 1] ** 2;
+    }
+  }
+  const s = 1 / Math.max(Math.sqrt(e), 1e-12);
+  for (let i = 0; i < re.length; i++) {
+    re[i] *= s;
+    im[i] *= s;
+  }
+  return { re, im };
+}
+
+const f32buf = new Float32Array(1);
+const u32buf = new Uint32Array(f32buf.buffer);
+
+/** float32 -> IEEE half bits, round to nearest even (numpy's astype(float16)). */
+export function toHalf(v: number): number {
+  f32buf[0] = v;
+  const x = u32buf[0];
+  const sign = (x >>> 16) & 0x8000;
+  const exp = (x >>> 23) & 0xff;
+  let mant = x & 0x7fffff;
+  if (exp === 0xff) return sign | 0x7c00 | (mant ? 0x200 : 0);
+  let e = exp - 127 + 15;
+  if (e >= 0x1f) return sign | 0x7c00;
+  if (e <= 0) {
+    if (e < -10) return sign;
+    mant |= 0x800000;
+    const shift = 14 - e;
+    let half = mant >>> shift;
+    const rem = mant & ((1 << shift) - 1);
+    const mid = 1 << (shift - 1);
+    if (rem > mid || (rem === mid && half & 1)) half++;
+    return sign | half;
+  }
+  let half = (e << 10) | (mant >>> 13);
+  const rem = mant & 0x1fff;
+  if (rem > 0x1000 || (rem === 0x1000 && half & 1)) half++; // a carry into the exponent is still right
+  return sign | half;
+}
+
+/** IEEE half bits -> number. */
+export function fromHalf(h: number): number {
+  const s = h & 0x8000 ? -1 : 1;
+  const e = (h >>> 10) & 0x1f;
+  const m = h & 0x3ff;
+  if (e === 0) return s * m * 2 ** -24;
+  if (e === 0x1f) return m ? NaN : s * Infinity;
+  return s * (1 + m / 1024) * 2 ** (e - 15);
+}
+
+/** Round half to even (numpy.round). */
+function roundEven(v: number): number {
+  const r = Math.round(v);
+  return Math.abs(v % 1) === 0.5 && r % 2 !== 0 ? r - 1 : r;
+}
+
+/** Unit-energy harmonics -> the record's quantised magnitudes and phases. */
+export function quantise(re: Float64Array, im: Float64Array): FrameSpectrum {
+  const n = re.length;
+  const mag = new Uint16Array(n);
+  const phase = new Int16Array(n);
+  for (let i = 0; i < n; i++) {
+    // the engine takes |f| and angle(f) of complex64 values: round to float32 first, as it does
+    const a = Math.fround(re[i]);
+    const b = Math.fround(im[i]);
+    mag[i] = toHalf(Math.fround(Math.hypot(a, b)));
+    let p = roundEven(Math.atan2(b, a) * (32768 / Math.PI));
+    if (p >= 32768) p -= 65536;
+    phase[i] = p;
+  }
+  return { mag, phase };
+}
+
+/** Quantised spectrum -> complex values (re, im), as the server decodes them. */
+export function dequantise(s: FrameSpectrum): { re: Float64Array; im: Float64Array } {
+  const n = s.mag.length;
+  const re = new Float64Array(n);
+  const im = new Float64Array(n);
+  for (let i = 0; i < n; i++) {
+    const m = fromHalf(s.mag[i]);
+    const a = (s.phase[i] * Math.PI) / 32768;
+    re[i] = m * Math.cos(a);
+    im[i] = m * Math.sin(a);
+  }
+  return { re, im };
+}
+
+/**
+ * Frames -> the version-1 binary record: header `<3sBHHHII2x` (magic "ONV", version, curves,
+ * harmonics, panorama width, frames, settings id), then all magnitudes, then all phases.
+ */
+export function encodeRecord(frames: FrameSpectrum[], s: FeatureSettings, settingsId: number): Uint8Array {
+  if (!frames.length) throw new Error('a record needs at least one frame');
+  const ck = frames[0].mag.length;
+  const out = new Uint8Array(HEADER_BYTES + 4 * ck * frames.length);
+  const dv = new DataView(out.buffer);
+  out.set([0x4f, 0x4e, 0x56], 0); // "ONV"
+  dv.setUint8(3, RECORD_VERSION);
+  dv.setUint16(4, s.bands.length * s.channels.length, true);
+  dv.setUint16(6, s.n_harmonics, true);
+  dv.setUint16(8, s.pano_width, true);
+  dv.setUint32(10, frames.length, true);
+  dv.setUint32(14, settingsId >>> 0, true);
+  let o = HEADER_BYTES;
+  for (const f of frames) for (const m of f.mag) (dv.setUint16(o, m, true), (o += 2));
+  for (const f of frames) for (const p of f.phase) (dv.setInt16(o, p, true), (o += 2));
+  return out;
+}
+
+/** Relative error ||a - b|| / ||b|| of two quantised spectra (as complex vectors). */
+export function relativeError(a: FrameSpectrum, b: FrameSpectrum): number {
+  const x = dequantise(a);
+  const y = dequantise(b);
+  let num = 0;
+  let den = 0;
+  for (let i = 0; i < x.re.length; i++) {
+    num += (x.re[i] - y.re[i]) ** 2 + (x.im[i] - y.im[i]) ** 2;
+    den += y.re[i] ** 2 + y.im[i] ** 2;
+  }
+  return Math.sqrt(num / Math.max(den, 1e-30));
+}

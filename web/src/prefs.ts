@@ -1,0 +1,32 @@
+/** The user's settings, kept on the phone (localStorage). */
+import type { Style } from './directions';
+
+export interface Prefs {
+  venue: string;
+  lens: string;
+  style: Style;
+  rate: number;
+  voice: string;
+  vibrate: boolean;
+  interval: number;
+}
+
+const KEY = 'omninav.prefs';
+export const DEFAULTS: Prefs = { venue: '', lens: '', style: 'clock', rate: 1, voice: '', vibrate: true, interval: 3 };
+
+export function loadPrefs(): Prefs {
+  try {
+    const raw = JSON.parse(localStorage.getItem(KEY) ?? '{}');
+    return { ...DEFAULTS, ...(typeof raw === 'object' && raw ? raw : {}) };
+  } catch {
+    return { ...DEFAULTS };
+  }
+}
+
+export function savePrefs(p: Prefs): void {
+  try {
+    localStorage.setItem(KEY, JSON.stringify(p));
+  } catch {
+    // private browsing may refuse storage: the settings then last for this visit
+  }
+}

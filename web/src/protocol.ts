@@ -1,0 +1,13 @@
+/** Messages between the page and the feature worker (src/worker.ts). */
+import type { Lens } from './features/lens';
+import type { FeatureSettings } from './features/settings';
+
+export type ToWorker =
+  | { type: 'init'; lens: Lens; settings: FeatureSettings }
+  /** One camera frame; `keep` returns the panorama and curves too (self-test only). */
+  | { type: 'frame'; id: number; bitmap: ImageBitmap; keep?: boolean };
+
+export type FromWorker =
+  | { type: 'ready'; loadMs: number }
+  | { type: 'features'; id: number; mag: Uint16Array; phase: Int16Array; ms: number; pano?: Uint8Array; curves?: Float32Array }
+  | { type: 'error'; id?: number; message: string };

@@ -1,0 +1,78 @@
+/**
+ * Self-test page: runs reference frames through the real feature worker (the same path as camera
+ * frames: ImageBitmap -> OffscreenCanvas -> opencv.js) and reports the spectra and the timing.
+ * The end-to-end tests feed it the engine's golden files and compare; anyone can open it on a phone
+ * to time extraction there: `selftest.html?golden=<url of golden.json>`.
+ */
+import { ExtractorClient, type FrameResult } from './extractor-client';
+import type { Lens } from './features/lens';
+import type { FeatureSettings } from './features/settings';
+
+interface Case {
+  name: string;
+  lens: Lens;
+  settings: FeatureSettings;
+  frames: { stem: string }[];
+}
+
+export interface SelfTestResult {
+  loadMs: number;
+  cases: { name: string; frames: { stem: string; mag: number[]; phase: number[]; curves: number[]; ms: number }[] }[];
+  timing: { frames: number; medianMs: number; p90Ms: number; width: number; height: number };
+}
+
+declare global {
+  interface Window {
+    selftest?: Promise<SelfTestResult>;
+  }
+}
+
+async function bitmap(url: string): Promise<ImageBitmap> {
+  const blob = await (await fetch(url)).blob();
+  // no colour management: the pixels must be the file's bytes, as the engine reads them
+  return createImageBitmap(blob, { colorSpaceConversion: 'none', premultiplyAlpha: 'none' });
+}
+
+async function run(base: string, repeats: number): Promise<SelfTestResult> {
+  const cases: Case[] = (await (await fetch(`${base}/golden.json`)).json()).cases;
+  const ext = new ExtractorClient();
+  const out: SelfTestResult = { loadMs: 0, cases: [], timing: { frames: 0, medianMs: 0, p90Ms: 0, width: 0, height: 0 } };
+  for (const c of cases) {
+    const loadMs = await ext.configure(c.lens, c.settings);
+    out.loadMs ||= loadMs;
+    const frames = [];
+    for (const f of c.frames) {
+      const r: FrameResult = await ext.extract(await bitmap(`${base}/${f.stem}.png`), true);
+      frames.push({ stem: f.stem, mag: Array.from(r.mag), phase: Array.from(r.phase), curves: Array.from(r.curves ?? []), ms: r.ms });
+    }
+    out.cases.push({ name: c.name, frames });
+  }
+  // timing: the first case's lens (960x720 donut), its frames over and over, as a camera would
+  const c = cases[0];
+  await ext.configure(c.lens, c.settings);
+  const bms = await Promise.all(c.frames.map((f) => bitmap(`${base}/${f.stem}.png`)));
+  const canvas = new OffscreenCanvas(bms[0].width, bms[0].height);
+  const cx = canvas.getContext('2d')!;
+  const ms: number[] = [];
+  for (let i = 0; i < repeats; i++) {
+    cx.drawImage(bms[i % bms.length], 0, 0);
+    const r = await ext.extract(await createImageBitmap(canvas));
+    ms.push(r.ms);
+  }
+  ms.sort((a, b) => a - b);
+  out.timing = { frames: ms.length, medianMs: ms[ms.length >> 1], p90Ms: ms[Math.floor(ms.length * 0.9)], width: bms[0].width, height: bms[0].height };
+  return out;
+}
+
+const params = new URLSearchParams(location.search);
+const golden = params.get('golden');
+const el = document.getElementById('result')!;
+if (golden) {
+  window.selftest = run(golden.replace(/\/golden\.json$/, ''), Number(params.get('repeats') ?? 60));
+  window.selftest.then(
+    (r) => (el.textContent = `Done: extraction ${r.timing.medianMs.toFixed(1)} ms per ${r.timing.width}x${r.timing.height} frame (median of ${r.timing.frames}).`),
+    (e) => (el.textContent = `Failed: ${e}`),
+  );
+} else {
+  el.textContent = 'Give the reference data with ?golden=<url of golden.json>.';
+}

@@ -1,0 +1,134 @@
+/**
+ * Speech, vibration and earcons. Speech never talks over itself: a new sentence while one is being
+ * spoken waits, and only the latest waiting sentence is kept. iOS speaks only after a first
+ * utterance made inside a user gesture, so `prime()` runs on the first tap.
+ */
+
+export type Cue = 'ok' | 'unsure' | 'error' | 'start';
+
+const PATTERNS: Record<Cue, number[]> = { ok: [80], unsure: [80, 80, 80], error: [300], start: [30] };
+// earcon tones (Hz, ms) where there is no vibration (iOS Safari)
+const TONES: Record<Cue, [number, number][]> = {
+  ok: [[880, 90]],
+  unsure: [[440, 90], [0, 60], [440, 90]],
+  error: [[220, 250]],
+  start: [[660, 40]],
+};
+
+export class Speaker {
+  rate = 1;
+  voiceName = '';
+  cues = true;
+  last = '';
+  private waiting: string | null = null;
+  private speaking = false;
+  private primed = false;
+  private audio: AudioContext | null = null;
+  private readonly synth: SpeechSynthesis | null = 'speechSynthesis' in globalThis ? speechSynthesis : null;
+
+  constructor(
+    private readonly live: HTMLElement,
+    private readonly alert: HTMLElement,
+  ) {}
+
+  get available(): boolean {
+    return this.synth !== null;
+  }
+
+  /** Inside the first user gesture: unlock speech (iOS) and audio. */
+  prime(): void {
+    if (this.primed) return;
+    this.primed = true;
+    if (this.synth) {
+      const u = new SpeechSynthesisUtterance(' ');
+      u.volume = 0;
+      this.synth.speak(u);
+    }
+    const AC = globalThis.AudioContext ?? (globalThis as unknown as { webkitAudioContext?: typeof AudioContext }).webkitAudioContext;
+    if (AC) {
+      this.audio = new AC();
+      void this.audio.resume().catch(() => undefined);
+    }
+  }
+
+  voices(): SpeechSynthesisVoice[] {
+    return this.synth?.getVoices() ?? [];
+  }
+
+  /**
+   * Say a sentence: in the live region (screen readers read it), aloud, with a cue. `urgent`
+   * sentences (errors) go to the assertive region and are spoken at once, cutting a waiting one.
+   */
+  say(text: string, cue: Cue | null = 'ok', urgent = false): void {
+    this.last = text;
+    const region = urgent ? this.alert : this.live;
+    (urgent ? this.live : this.alert).textContent = '';
+    // the same text twice in a row would not be announced again: clear, then set on the next frame
+    region.textContent = '';
+    requestAnimationFrame(() => (region.textContent = text));
+    if (cue) this.cue(cue);
+    if (urgent) this.waiting = null;
+    this.speak(text, urgent);
+  }
+
+  repeat(): void {
+    if (this.last) this.say(this.last, null);
+  }
+
+  private speak(text: string, now: boolean): void {
+    const synth = this.synth;
+    if (!synth) return;
+    if (this.speaking && !now) {
+      this.waiting = text;
+      return;
+    }
+    if (now) synth.cancel();
+    const u = new SpeechSynthesisUtterance(text);
+    u.rate = this.rate;
+    u.lang = 'en';
+    const v = this.voices().find((x) => x.name === this.voiceName);
+    if (v) u.voice = v;
+    this.speaking = true;
+    const done = () => {
+      if (!this.speaking) return;
+      this.speaking = false;
+      const next = this.waiting;
+      this.waiting = null;
+      if (next) this.speak(next, false);
+    };
+    u.onend = done;
+    u.onerror = done;
+    // a synthesiser that never reports the end (some Android voices) must not block speech forever
+    setTimeout(done, 1500 + 120 * text.length / Math.max(this.rate, 0.5));
+    synth.speak(u);
+  }
+
+  get busy(): boolean {
+    return this.speaking;
+  }
+
+  cue(kind: Cue): void {
+    if (!this.cues) return;
+    if (typeof navigator.vibrate === 'function' && navigator.vibrate(PATTERNS[kind])) return;
+    this.beep(TONES[kind]);
+  }
+
+  private beep(tones: [number, number][]): void {
+    const ac = this.audio;
+    if (!ac) return;
+    let t = ac.currentTime;
+    for (const [hz, ms] of tones) {
+      if (hz > 0) {
+        const o = ac.createOscillator();
+        const g = ac.createGain();
+        o.frequency.value = hz;
+        g.gain.setValueAtTime(0.2, t);
+        g.gain.exponentialRampToValueAtTime(0.001, t + ms / 1000);
+        o.connect(g).connect(ac.destination);
+        o.start(t);
+        o.stop(t + ms / 1000);
+      }
+      t += ms / 1000;
+    }
+  }
+}
