@@ -23,6 +23,7 @@ from omninav.spectrum import encode_binary
 from omninav.synth import QUERY, donut_lens, equirect_lens
 from omninav.synth.scene import build_scene
 from omninav.synth.walks import Perturb, Pose, render_frames
+from omninav.unwarp import unwarp
 
 # poses in the small synthetic layout (scene.py): corridor points, headings all round
 POSES = [Pose(0.0, 6.0, 2.0, 30.0), Pose(0.1, 14.5, 2.2, 200.0), Pose(0.2, 20.0, 8.0, 300.0)]
@@ -39,7 +40,7 @@ def _case(out: Path, name: str, lens, preset: str, frames: list[np.ndarray]) -> 
         rgb = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
         rgba = np.dstack([rgb, np.full(rgb.shape[:2], 255, np.uint8)])
         (out / f"{stem}.rgba").write_bytes(rgba.tobytes())
-        pano = cv2.cvtColor(cv2.remap(bgr, ext.map.map_x, ext.map.map_y, cv2.INTER_LINEAR, borderMode=ext.map.border), cv2.COLOR_BGR2RGB)
+        pano = cv2.cvtColor(unwarp(bgr, ext.map), cv2.COLOR_BGR2RGB)
         (out / f"{stem}.pano").write_bytes(pano.tobytes())
         (out / f"{stem}.curves").write_bytes(ext.curves(bgr).astype("<f4").tobytes())
         spec = ext.spectrum(bgr)

@@ -3,6 +3,7 @@
 import { readFileSync } from 'node:fs';
 import { resolve } from 'node:path';
 import { expect, test } from '@playwright/test';
+import type { SelfTestResult } from '../web/src/selftest';
 import { GOLDEN, base } from './env';
 
 const half = (h: number) => {
@@ -30,7 +31,7 @@ function engineSpectrum(stem: string): { re: number[]; im: number[] } {
 test('the browser extracts the engine\'s records (relative error <= 1e-3) and its curves', async ({ page }) => {
   await page.route((u) => u.pathname.startsWith('/golden/'), (route) => route.fulfill({ path: resolve(GOLDEN, new URL(route.request().url()).pathname.split('/').pop()!) }));
   await page.goto(`${base()}/selftest.html?golden=/golden/golden.json&repeats=20`);
-  const r = await page.evaluate(() => window.selftest!);
+  const r: SelfTestResult = await page.evaluate(() => (window as unknown as { selftest: Promise<SelfTestResult> }).selftest);
   const cases = JSON.parse(readFileSync(resolve(GOLDEN, 'golden.json'), 'utf8')).cases;
   expect(r.cases.map((c) => c.name)).toEqual(cases.map((c: { name: string }) => c.name));
   let checked = 0;

@@ -9,7 +9,7 @@ test('settings and about screens: reachable by role and name, no axe violation',
   await page.getByRole('button', { name: 'Settings' }).click();
   await expect(page.getByRole('heading', { name: 'Settings' })).toBeVisible();
   await expect(page.getByLabel('Venue')).toHaveValue('demo');
-  await expect(page.getByLabel('Lens profile')).toHaveValue('donut');
+  await expect(page.getByLabel('Lens profile', { exact: true })).toHaveValue('donut');
   await expect(page.getByLabel(/Speech rate/)).toBeVisible();
   await expectNoAxeViolations(page, 'the settings screen');
   await page.getByRole('button', { name: 'About' }).click();
@@ -57,7 +57,7 @@ test('the wrong lens: the camera picture does not fit the chosen profile', async
   await page.goto(`${base()}/?venue=demo`);
   await expect(page.locator('#venue-line')).toContainText('Ready');
   await page.getByRole('button', { name: 'Settings' }).click();
-  await page.getByLabel('Lens profile').selectOption('theta');
+  await page.getByLabel('Lens profile', { exact: true }).selectOption('theta');
   await page.getByRole('button', { name: 'Locate' }).click();
   await page.getByRole('button', { name: 'Where am I?' }).click();
   await expect(page.getByRole('alert')).toContainText('lens profile “theta” is for 1920 by 960');

@@ -26,3 +26,28 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   fi
   echo "$want" > "$stamp"
 fi
+
+# The web app: npm packages (one install at the root: the web/ workspace and the e2e tools), then
+# the PWA built into web/dist, which the server serves at /. Stamps skip both when nothing changed.
+node_ok=$(node -e 'const [a,b]=process.versions.node.split(".").map(Number); console.log(a>22||(a===22&&b>=12)||(a===20&&b>=19)?1:0)' 2>/dev/null || echo 0)
+if [ "$node_ok" != 1 ]; then
+  echo "omninav's web app needs Node.js 20.19+ or 22.12+ (found: $(node --version 2>/dev/null || echo none))" >&2
+  exit 1
+fi
+want=$(sha256sum package.json web/package.json package-lock.json | sha256sum | cut -d' ' -f1)
+if [ "$(cat node_modules/.omninav-stamp 2>/dev/null)" != "$want" ]; then
+  echo "setup: installing npm packages" >&2
+  npm ci --no-audit --no-fund --loglevel=error
+  echo "$want" > node_modules/.omninav-stamp
+fi
+want=$(find web/src web/public web/index.html web/selftest.html web/vite.config.ts web/tsconfig.json node_modules/.omninav-stamp -type f -print0 | sort -z | xargs -0 sha256sum | sha256sum | cut -d' ' -f1)
+if [ "$(cat web/dist/.omninav-stamp 2>/dev/null)" != "$want" ]; then
+  echo "setup: building the web app into web/dist" >&2
+  log=node_modules/.omninav-build.log
+  if ! npm run build -w web >"$log" 2>&1; then
+    cat "$log" >&2
+    echo "setup: building the web app failed" >&2
+    exit 1
+  fi
+  echo "$want" > web/dist/.omninav-stamp
+fi

@@ -1,7 +1,14 @@
 #!/usr/bin/env bash
-# `npm test`: every test suite. For now the engine's pytest suite (lint and types first: cheap).
+# `npm test`: every test suite. Lint and types first (cheap), then the web app's unit tests
+# (golden parity in Node), the engine and server (pytest), and the browser end to end (Playwright
+# on Debian's Chromium against a real `omninav serve`). setup.sh has built web/dist already.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-.venv/bin/ruff check backend tests bench
+.venv/bin/ruff check backend tests bench e2e
 .venv/bin/mypy backend/omninav
+npx tsc -p web --noEmit
+npx tsc -p e2e --noEmit
+npm test -w web --silent
 .venv/bin/python -m pytest "$@"
+bash scripts/chromium.sh
+npx playwright test -c e2e/playwright.config.ts

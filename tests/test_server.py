@@ -504,3 +504,33 @@ def test_cancelling_a_job_keeps_the_venue_as_it_was(built, small_ds, clip):
     assert api.get(f"/api/admin/jobs/{j['id']}", headers=ADMIN).json["state"] == "cancelled"
     assert store.generation("lab") == gen
     assert api.delete("/api/admin/venues/lab/videos/again.mp4", headers=ADMIN).json["frames_removed"] == 0
+
+
+def test_the_web_app_is_served_gzipped_to_browsers_that_accept_it(tmp_path):
+    import gzip
+
+    dist = tmp_path / "dist"
+    (dist / "assets").mkdir(parents=True)
+    (dist / "index.html").write_text("<!doctype html><html><title>app</title></html>")
+    big = b"const x = 1;\n" * 5000
+    (dist / "assets" / "worker-1.js").write_bytes(big)
+    (dist / "assets" / "worker-1.js.gz").write_bytes(gzip.compress(big))
+    client = make_app(tmp_path, WEB_DIST=str(dist)).test_client()
+
+    def get(path, **kw):  # file responses stream: read and close them
+        r = client.get(path, **kw)
+        r.get_data()
+        r.close()
+        return r
+
+    r = get("/assets/worker-1.js", headers={"Accept-Encoding": "gzip, deflate, br"})
+    assert r.status_code == 200 and r.headers["Content-Encoding"] == "gzip"
+    assert r.mimetype in ("text/javascript", "application/javascript") and "Accept-Encoding" in r.headers["Vary"]
+    assert gzip.decompress(r.data) == big and "Content-Disposition" not in r.headers
+    r = get("/assets/worker-1.js")  # a client that does not accept gzip gets the plain file
+    assert r.status_code == 200 and "Content-Encoding" not in r.headers and r.data == big
+    r = get("/")
+    assert r.status_code == 200 and b"<title>app" in r.data and r.cache_control.max_age == 0
+    r = get("/assets/nothing.js", headers={"Accept-Encoding": "gzip"})
+    assert r.status_code == 404 and r.is_json
+    assert get("/assets/../../etc/passwd", headers={"Accept-Encoding": "gzip"}).status_code == 404

@@ -8,7 +8,7 @@ import { ApiProblem, UNREACHABLE, Unreachable, locate, venue as fetchVenue, venu
 import { CameraProblem, captureClip, lensMismatch, openCamera } from './camera';
 import { describe, gist, type Answer, type Style } from './directions';
 import { ExtractorClient } from './extractor-client';
-import type { Lens } from './features/lens';
+import { lensProblem, type Lens } from './features/lens';
 import { encodeRecord, HEADER_BYTES } from './features/spectrum';
 import { askMotion, onShake, onTwoFingerDoubleTap } from './gestures';
 import { drawPlan } from './plan';
@@ -64,10 +64,38 @@ function facts(dl: HTMLElement, rows: [string, string][]): void {
   );
 }
 
+const MY_LENS = 'my lens';
+
+/** The venue's lens profiles, and the user's own one when they loaded it. */
+function lensesOf(v: Venue): Record<string, Lens> {
+  return prefs.myLens ? { ...v.lenses, [MY_LENS]: prefs.myLens } : v.lenses;
+}
+
 function chosenLens(v: Venue): [string, Lens] | null {
-  const names = Object.keys(v.lenses);
+  const all = lensesOf(v);
+  const names = Object.keys(all);
   const name = names.includes(prefs.lens) ? prefs.lens : names[0];
-  return name ? [name, v.lenses[name]] : null;
+  return name ? [name, all[name]] : null;
+}
+
+async function loadMyLens(file: File): Promise<void> {
+  let lens: unknown;
+  try {
+    lens = JSON.parse(await file.text());
+  } catch {
+    speaker.say(`${file.name} is not a lens profile: it is not JSON.`, 'error', true);
+    return;
+  }
+  const bad = lensProblem(lens);
+  if (bad) {
+    speaker.say(`${file.name} is not a usable lens profile: ${bad}.`, 'error', true);
+    return;
+  }
+  prefs.myLens = lens as Lens;
+  prefs.lens = MY_LENS;
+  savePrefs(prefs);
+  if (current) fillSelect(ui.lens, Object.keys(lensesOf(current)).map((n) => [n, n]), MY_LENS);
+  speaker.say(`Loaded your lens profile from ${file.name}; it is now the lens in use.`, 'ok');
 }
 
 function fillSelect(sel: HTMLSelectElement, items: [string, string][], value: string): void {
@@ -89,9 +117,9 @@ async function loadVenue(): Promise<Venue | null> {
     current = v;
     prefs.venue = id;
     const lens = chosenLens(v);
-    fillSelect(ui.lens, Object.keys(v.lenses).map((n) => [n, n]), lens?.[0] ?? '');
+    fillSelect(ui.lens, Object.keys(lensesOf(v)).map((n) => [n, n]), lens?.[0] ?? '');
     ui.venueLine.textContent = v.modelled
-      ? `Venue: ${v.name}. ${v.frames} places seen. Ready.`
+      ? `Venue: ${v.name}. Ready (${v.frames} modelled frames).`
       : `Venue: ${v.name}. Not modelled yet.`;
     if (lens) {
       ext ??= new ExtractorClient();
@@ -257,6 +285,10 @@ function wire(): void {
   ui.lens.addEventListener('change', () => {
     prefs.lens = ui.lens.value;
     save();
+  });
+  $<HTMLInputElement>('lens-file').addEventListener('change', (e) => {
+    const f = (e.target as HTMLInputElement).files?.[0];
+    if (f) void loadMyLens(f);
   });
   ui.rate.addEventListener('input', () => {
     prefs.rate = Number(ui.rate.value);

@@ -1,5 +1,6 @@
 /** The user's settings, kept on the phone (localStorage). */
 import type { Style } from './directions';
+import type { Lens } from './features/lens';
 
 export interface Prefs {
   venue: string;
@@ -9,10 +10,12 @@ export interface Prefs {
   voice: string;
   vibrate: boolean;
   interval: number;
+  /** A lens profile the user loaded (their phone's own calibration), offered beside the venue's. */
+  myLens: Lens | null;
 }
 
 const KEY = 'omninav.prefs';
-export const DEFAULTS: Prefs = { venue: '', lens: '', style: 'clock', rate: 1, voice: '', vibrate: true, interval: 3 };
+export const DEFAULTS: Prefs = { venue: '', lens: '', style: 'clock', rate: 1, voice: '', vibrate: true, interval: 3, myLens: null };
 
 export function loadPrefs(): Prefs {
   try {

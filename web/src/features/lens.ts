@@ -134,8 +134,13 @@ export function lensProblem(lens: unknown): string | null {
   const size = l.image_size;
   if (!Array.isArray(size) || size.length !== 2 || !size.every((v) => Number.isInteger(v) && v > 0))
     return "the lens profile's image_size must be [width, height]";
+  const num = (v: unknown) => typeof v === 'number' && Number.isFinite(v);
   if (l.model === 'catadioptric') {
-    if (!Array.isArray(l.center) || !Array.isArray(l.elevation_poly)) return 'the donut lens profile lacks center or elevation_poly';
+    if (!Array.isArray(l.center) || l.center.length !== 2 || !l.center.every(num)) return 'its center must be [x, y]';
+    if (!Array.isArray(l.elevation_poly) || !l.elevation_poly.length || !l.elevation_poly.every(num))
+      return 'its elevation_poly must be a list of numbers';
+    if (!num(l.r_inner) || !num(l.r_outer) || !((l.r_inner as number) >= 0 && (l.r_inner as number) < (l.r_outer as number)))
+      return 'it needs 0 <= r_inner < r_outer';
     return null;
   }
   if (l.model === 'equirectangular') return typeof l.forward_x === 'number' ? null : 'the 360 lens profile lacks forward_x';

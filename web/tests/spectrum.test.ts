@@ -1,0 +1,74 @@
+import { describe, expect, it } from 'vitest';
+import { encodeRecord, fromHalf, harmonics, quantise, toHalf } from '../src/features/spectrum';
+import { linspace, interp, polyval } from '../src/features/lens';
+
+describe('float16 as numpy rounds it', () => {
+  it('every finite half value survives a round trip', () => {
+    for (let h = 0; h < 0x10000; h++) {
+      if (((h >> 10) & 0x1f) === 0x1f) continue; // Inf and NaN
+      expect(toHalf(fromHalf(h))).toBe(h);
+    }
+  });
+  it('ties go to even, overflow to infinity, tiny values to zero', () => {
+    expect(toHalf(1 + 2 ** -11)).toBe(0x3c00); // halfway between 1 and the next half: even (1)
+    expect(toHalf(1 + 3 * 2 ** -11)).toBe(0x3c02);
+    expect(toHalf(65520)).toBe(0x7c00);
+    expect(toHalf(2 ** -26)).toBe(0);
+    expect(fromHalf(toHalf(0.1))).toBeCloseTo(0.0999755859375, 12);
+  });
+});
+
+describe('spectrum and record', () => {
+  it('harmonics 1..K of a pure cosine: all energy in its harmonic, phase 0', () => {
+    const w = 16;
+    const dft = new Float32Array(2 * w); // one curve: 3 cycles of a cosine -> bin 3 = w/2
+    dft[2 * 3] = w / 2;
+    dft[2 * (w - 3)] = w / 2;
+    const { re, im } = harmonics(dft, 1, w, 4);
+    expect(Array.from(re)).toEqual([0, 0, 1, 0]);
+    expect(Array.from(im)).toEqual([0, 0, 0, 0]);
+    expect(() => harmonics(dft, 1, w, 9)).toThrow(/n_harmonics/);
+  });
+  it('phases are int16 steps of pi/32768 and +pi wraps to -32768', () => {
+    const q = quantise(Float64Array.from([-1, 0, 1]), Float64Array.from([0, 1, 0]));
+    expect(Array.from(q.phase)).toEqual([-32768, 16384, 0]);
+    expect(Array.from(q.mag).map(fromHalf)).toEqual([1, 1, 1]);
+  });
+  it('the binary record: header <3sBHHHII2x, then magnitudes, then phases', () => {
+    const s = { pano_width: 360, oversample: 4, row_step_deg: 1, bands: [[-25, 0]] as [number, number][], channels: ['I'], gray_world: false, n_harmonics: 2 };
+    const f = { mag: Uint16Array.from([0x3c00, 0x3800]), phase: Int16Array.from([1, -2]) };
+    const rec = encodeRecord([f, f], s, 0xdeadbeef);
+    const dv = new DataView(rec.buffer);
+    expect(new TextDecoder().decode(rec.slice(0, 3))).toBe('ONV');
+    expect([dv.getUint8(3), dv.getUint16(4, true), dv.getUint16(6, true), dv.getUint16(8, true), dv.getUint32(10, true), dv.getUint32(14, true)]).toEqual([1, 1, 2, 360, 2, 0xdeadbeef]);
+    expect(rec.length).toBe(20 + 2 * 2 * 4);
+    expect(dv.getUint16(20, true)).toBe(0x3c00);
+    expect(dv.getInt16(20 + 8 + 2, true)).toBe(-2);
+    expect(() => encodeRecord([], s, 1)).toThrow(/at least one frame/);
+  });
+});
+
+describe('numpy helpers the unwarp tables need', () => {
+  it('linspace ends exactly at stop; interp is NaN outside; polyval is ascending', () => {
+    const l = linspace(25, -25, 51);
+    expect([l[0], l[25], l[50]]).toEqual([25, 0, -25]);
+    const xp = Float64Array.from([0, 1, 2]);
+    const fp = Float64Array.from([10, 20, 40]);
+    expect([interp(0.5, xp, fp), interp(2, xp, fp), interp(-0.1, xp, fp), interp(2.1, xp, fp)]).toEqual([15, 40, NaN, NaN]);
+    expect(polyval(2, [1, 2, 3])).toBe(1 + 4 + 12);
+  });
+});
+
+describe('lens profiles the user loads', async () => {
+  const { lensProblem } = await import('../src/features/lens');
+  it('accepts both models and names what is wrong', () => {
+    const donut = { model: 'catadioptric', image_size: [960, 720], center: [487, 352], r_inner: 105, r_outer: 340, elevation_poly: [-90, 0.5] };
+    expect(lensProblem(donut)).toBeNull();
+    expect(lensProblem({ model: 'equirectangular', image_size: [1920, 960], forward_x: 960 })).toBeNull();
+    expect(lensProblem({ ...donut, r_inner: 400 })).toMatch(/r_inner < r_outer/);
+    expect(lensProblem({ ...donut, image_size: [960] })).toMatch(/image_size/);
+    expect(lensProblem({ ...donut, model: 'fisheye' })).toMatch(/unknown lens model fisheye/);
+    expect(lensProblem([1, 2])).toMatch(/image_size/);
+    expect(lensProblem(null)).toMatch(/not an object/);
+  });
+});
