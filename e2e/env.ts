@@ -6,6 +6,8 @@ export const ROOT = resolve(__dirname, '..');
 export const WORK = resolve(ROOT, 'data/e2e');
 export const GOLDEN = resolve(WORK, 'golden');
 export const CLIP = resolve(WORK, 'clip/clip.y4m');
+/** A clip filmed in another building, which the demo venue has never seen. */
+export const ELSEWHERE = resolve(WORK, 'elsewhere/clip.y4m');
 export const TOKEN = 'e2e-admin-token-0123456789';
 export const PYTHON = resolve(ROOT, '.venv/bin/python');
 export const OMNINAV = resolve(ROOT, '.venv/bin/omninav');

@@ -1,7 +1,8 @@
 """Test data for the web app, made by the Python engine at test time (nothing binary is committed).
 
     python e2e/fixtures.py golden OUT   # frames + the engine's panoramas, curves and records
-    python e2e/fixtures.py clip OUT     # a Y4M clip for Chromium's fake camera, at a known pose
+    python e2e/fixtures.py clip OUT [SCENE]  # a Y4M clip for Chromium's fake camera, at a known pose
+                                             # (SCENE: another venue's seed; the demo's is 0)
 
 Golden files: a few frames of the synthetic venue through the engine's stages, so that the
 TypeScript extractor (in Node and in Chromium) can be checked against them stage by stage.
@@ -84,11 +85,12 @@ def write_y4m(path: Path, frames: list[np.ndarray], fps: int) -> None:
             f.write(cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420).tobytes())
 
 
-def clip(out: Path, scale: float = 0.5, frames: int = 20, fps: int = 10) -> None:
+def clip(out: Path, scene_seed: int = 0, scale: float = 0.5, frames: int = 20, fps: int = 10) -> None:
     """A user standing still in the quick demo venue (small layout), the phone turned away from the
-    corridor: `frames` frames with sensor noise, a cast and a lens shift, and the truth."""
+    corridor: `frames` frames with sensor noise, a cast and a lens shift, and the truth. Another
+    `scene_seed` films another building instead, one the demo venue has never seen."""
     out.mkdir(parents=True, exist_ok=True)
-    scene = build_scene(0, "small")
+    scene = build_scene(scene_seed, "small")
     lens = donut_lens(scale)
     truth = {"x": 14.0, "y": 2.3, "heading_deg": 250.0}
     poses = [Pose(i / fps, truth["x"], truth["y"], truth["heading_deg"]) for i in range(frames)]
@@ -99,6 +101,9 @@ def clip(out: Path, scale: float = 0.5, frames: int = 20, fps: int = 10) -> None
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 3 or sys.argv[1] not in ("golden", "clip"):
+    if len(sys.argv) not in (3, 4) or sys.argv[1] not in ("golden", "clip"):
         sys.exit(__doc__)
-    {"golden": golden, "clip": clip}[sys.argv[1]](Path(sys.argv[2]))
+    if sys.argv[1] == "golden":
+        golden(Path(sys.argv[2]))
+    else:
+        clip(Path(sys.argv[2]), int(sys.argv[3]) if len(sys.argv) == 4 else 0)

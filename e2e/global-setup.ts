@@ -9,6 +9,7 @@ export default async function globalSetup(): Promise<() => Promise<void>> {
   const fixtures = resolve(ROOT, 'e2e/fixtures.py');
   execFileSync(PYTHON, [fixtures, 'golden', GOLDEN], { stdio: 'inherit' });
   execFileSync(PYTHON, [fixtures, 'clip', resolve(WORK, 'clip')], { stdio: 'inherit' });
+  execFileSync(PYTHON, [fixtures, 'clip', resolve(WORK, 'elsewhere'), '13'], { stdio: 'inherit' });
   const srv = await startServer(resolve(WORK, 'server'), 'quick');
   try {
     await waitModelled(srv.url, 'demo');

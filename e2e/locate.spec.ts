@@ -3,7 +3,7 @@
 import { readFileSync } from 'node:fs';
 import { resolve } from 'node:path';
 import { expect, test, type Request } from '@playwright/test';
-import { WORK, base } from './env';
+import { ELSEWHERE, WORK, base, chromiumArgs, chromiumPath } from './env';
 import { expectNoAxeViolations, spoken, spyOnSpeech } from './helpers';
 
 const truth = () => JSON.parse(readFileSync(resolve(WORK, 'clip/clip.json'), 'utf8'));
@@ -87,4 +87,23 @@ test('continuous mode re-locates and speaks only when something changed', async 
   // the user stood still: three answers, one sentence (then "Stopped telling you.")
   const said = (await spoken(page)).filter((s) => s.startsWith('You are'));
   expect(said).toHaveLength(1);
+});
+
+test('a clip from a building the venue has never seen: "not sure", not a wrong place', async ({ playwright }) => {
+  const browser = await playwright.chromium.launch({ executablePath: chromiumPath(), args: chromiumArgs(ELSEWHERE) });
+  const page = await (await browser.newContext({ permissions: ['camera'] })).newPage();
+  try {
+    await spyOnSpeech(page);
+    await page.goto(`${base()}/?venue=demo`);
+    await expect(page.locator('#venue-line')).toContainText('Ready');
+    const answered = page.waitForResponse((r) => r.url().includes('/locate'));
+    await page.getByRole('button', { name: 'Where am I?' }).click();
+    expect((await (await answered).json()).low_confidence).toBe(true);
+    await expect(page.locator('#live')).toHaveText('Not sure where you are; turn slowly and try again.');
+    await expect.poll(() => spoken(page)).toContain('Not sure where you are; turn slowly and try again.');
+    await expect(page.locator('#answer-facts')).not.toContainText('Nearest place');
+    await expect(page.locator('#plan')).toHaveAttribute('aria-label', /no position shown, the last answer was not sure/);
+  } finally {
+    await browser.close();
+  }
 });
