@@ -18,7 +18,9 @@ execFileSync(PY, [resolve(ROOT, 'e2e/fixtures.py'), 'golden', GOLDEN], { stdio: 
 
 // baseline: the engine's Extractor on the same three frames, single-threaded, same count
 const py = JSON.parse(
-  execFileSync(PY, ['-c', `
+  execFileSync(PY, [
+    '-c',
+    `
 import json, time, cv2, sys
 from threadpoolctl import threadpool_limits
 from omninav.extract import Extractor
@@ -33,16 +35,23 @@ with threadpool_limits(1):
     for i in range(int(sys.argv[2])):
         t = time.perf_counter(); ext.spectrum(frames[i % len(frames)]); ms.append((time.perf_counter() - t) * 1e3)
 print(json.dumps(ms))
-`, GOLDEN, String(repeats)]).toString(),
+`,
+    GOLDEN,
+    String(repeats),
+  ]).toString(),
 );
 
 // the browser: the server serves web/dist as `npm start` does; the golden files are routed in
 const port = 8700 + Math.floor(Math.random() * 200);
-const srv = spawn(resolve(ROOT, '.venv/bin/omninav'), ['serve', '--port', String(port), '--demo', 'none', '--workers', '1'], {
-  env: { ...process.env, OMNINAV_DATA: resolve(WORK, 'server'), OMNINAV_ADMIN_TOKEN: 'bench-token-0123456789' },
-  stdio: 'ignore',
-  detached: true,
-});
+const srv = spawn(
+  resolve(ROOT, '.venv/bin/omninav'),
+  ['serve', '--port', String(port), '--demo', 'none', '--workers', '1'],
+  {
+    env: { ...process.env, OMNINAV_DATA: resolve(WORK, 'server'), OMNINAV_ADMIN_TOKEN: 'bench-token-0123456789' },
+    stdio: 'ignore',
+    detached: true,
+  },
+);
 try {
   for (let i = 0; ; i++) {
     try {
@@ -53,21 +62,40 @@ try {
   }
   const browser = await chromium.launch({
     executablePath: process.env.CHROMIUM ?? '/usr/bin/chromium',
-    args: ['--disable-gpu', '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+    args: [
+      '--disable-gpu',
+      '--no-first-run',
+      '--disable-background-networking',
+      '--disable-component-update',
+      '--disable-sync',
+    ],
   });
   const page = await browser.newPage();
-  await page.route((u) => u.pathname.startsWith('/golden/'), (r) => r.fulfill({ path: resolve(GOLDEN, new URL(r.request().url()).pathname.split('/').pop()) }));
+  await page.route(
+    (u) => u.pathname.startsWith('/golden/'),
+    (r) => r.fulfill({ path: resolve(GOLDEN, new URL(r.request().url()).pathname.split('/').pop()) }),
+  );
   await page.goto(`http://127.0.0.1:${port}/selftest.html?golden=/golden/golden.json&repeats=${repeats}`);
   const t0 = Date.now();
   const r = await page.evaluate(() => window.selftest);
   const version = browser.version();
   await browser.close();
   const rec = r.cases[0].frames[0].mag.length * 4;
-  console.log(`machine: ${cpus()[0].model}, ${cpus().length} cores, ${(totalmem() / 2 ** 30).toFixed(0)} GiB; Chromium ${version} headless, no GPU`);
-  console.log(`frames: ${r.timing.width}x${r.timing.height} donut, preset default; ${r.timing.frames} frames each side (after ${r.cases.reduce((n, c) => n + c.frames.length, 0)} warm-up)`);
-  console.log(`opencv.js load + init in the worker: ${r.loadMs.toFixed(0)} ms; self-test wall ${((Date.now() - t0) / 1000).toFixed(1)} s`);
-  console.log(`browser worker, per frame (draw + getImageData + remap + curves + dft + quantise): median ${r.timing.medianMs.toFixed(2)} ms, p90 ${r.timing.p90Ms.toFixed(2)} ms`);
-  console.log(`engine (Python, NumPy + OpenCV, 1 thread), per frame: median ${pct(py, 0.5).toFixed(2)} ms, p90 ${pct(py, 0.9).toFixed(2)} ms`);
+  console.log(
+    `machine: ${cpus()[0].model}, ${cpus().length} cores, ${(totalmem() / 2 ** 30).toFixed(0)} GiB; Chromium ${version} headless, no GPU`,
+  );
+  console.log(
+    `frames: ${r.timing.width}x${r.timing.height} donut, preset default; ${r.timing.frames} frames each side (after ${r.cases.reduce((n, c) => n + c.frames.length, 0)} warm-up)`,
+  );
+  console.log(
+    `opencv.js load + init in the worker: ${r.loadMs.toFixed(0)} ms; self-test wall ${((Date.now() - t0) / 1000).toFixed(1)} s`,
+  );
+  console.log(
+    `browser worker, per frame (draw + getImageData + remap + curves + dft + quantise): median ${r.timing.medianMs.toFixed(2)} ms, p90 ${r.timing.p90Ms.toFixed(2)} ms`,
+  );
+  console.log(
+    `engine (Python, NumPy + OpenCV, 1 thread), per frame: median ${pct(py, 0.5).toFixed(2)} ms, p90 ${pct(py, 0.9).toFixed(2)} ms`,
+  );
   console.log(`ratio browser / engine (median): ${(r.timing.medianMs / pct(py, 0.5)).toFixed(2)}`);
   console.log(`record: ${rec} bytes per frame + 20-byte header; a 10-frame clip sends ${20 + 10 * rec} bytes`);
 } finally {

@@ -14,7 +14,8 @@ export const OMNINAV = resolve(ROOT, '.venv/bin/omninav');
 
 export function chromiumPath(): string {
   const p = process.env.CHROMIUM ?? '/usr/bin/chromium';
-  if (!existsSync(p)) throw new Error(`no Chromium at ${p}: run scripts/chromium.sh (apt-get install chromium) or set CHROMIUM`);
+  if (!existsSync(p))
+    throw new Error(`no Chromium at ${p}: run scripts/chromium.sh (apt-get install chromium) or set CHROMIUM`);
   return p;
 }
 

@@ -3,7 +3,7 @@
 import { readFileSync } from 'node:fs';
 import { resolve } from 'node:path';
 import { expect, test } from '@playwright/test';
-import type { SelfTestResult } from '../web/src/selftest';
+import type { SelfTestResult } from '../web/src/client/selftest';
 import { GOLDEN, base } from './env';
 
 const half = (h: number) => {
@@ -28,10 +28,15 @@ function engineSpectrum(stem: string): { re: number[]; im: number[] } {
   return { re, im };
 }
 
-test('the browser extracts the engine\'s records (relative error <= 1e-3) and its curves', async ({ page }) => {
-  await page.route((u) => u.pathname.startsWith('/golden/'), (route) => route.fulfill({ path: resolve(GOLDEN, new URL(route.request().url()).pathname.split('/').pop()!) }));
+test("the browser extracts the engine's records (relative error <= 1e-3) and its curves", async ({ page }) => {
+  await page.route(
+    (u) => u.pathname.startsWith('/golden/'),
+    (route) => route.fulfill({ path: resolve(GOLDEN, new URL(route.request().url()).pathname.split('/').pop()!) }),
+  );
   await page.goto(`${base()}/selftest.html?golden=/golden/golden.json&repeats=20`);
-  const r: SelfTestResult = await page.evaluate(() => (window as unknown as { selftest: Promise<SelfTestResult> }).selftest);
+  const r: SelfTestResult = await page.evaluate(
+    () => (window as unknown as { selftest: Promise<SelfTestResult> }).selftest,
+  );
   const cases = JSON.parse(readFileSync(resolve(GOLDEN, 'golden.json'), 'utf8')).cases;
   expect(r.cases.map((c) => c.name)).toEqual(cases.map((c: { name: string }) => c.name));
   let checked = 0;
@@ -55,5 +60,10 @@ test('the browser extracts the engine\'s records (relative error <= 1e-3) and it
   }
   expect(checked).toBe(5);
   expect(r.timing.width).toBe(960);
-  test.info().annotations.push({ type: 'extraction', description: `${r.timing.medianMs.toFixed(1)} ms median per 960x720 frame` });
+  test
+    .info()
+    .annotations.push({
+      type: 'extraction',
+      description: `${r.timing.medianMs.toFixed(1)} ms median per 960x720 frame`,
+    });
 });

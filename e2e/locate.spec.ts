@@ -9,7 +9,9 @@ import { expectNoAxeViolations, spoken, spyOnSpeech } from './helpers';
 const truth = () => JSON.parse(readFileSync(resolve(WORK, 'clip/clip.json'), 'utf8'));
 const angle = (a: number, b: number) => Math.abs(((a - b + 540) % 360) - 180);
 
-test('Where am I? answers within 2 m and 10 degrees, spoken and in the live region, from features only', async ({ page }) => {
+test('Where am I? answers within 2 m and 10 degrees, spoken and in the live region, from features only', async ({
+  page,
+}) => {
   await spyOnSpeech(page);
   const requests: Request[] = [];
   page.on('request', (r) => requests.push(r));
@@ -102,7 +104,10 @@ test('a clip from a building the venue has never seen: "not sure", not a wrong p
     await expect(page.locator('#live')).toHaveText('Not sure where you are; turn slowly and try again.');
     await expect.poll(() => spoken(page)).toContain('Not sure where you are; turn slowly and try again.');
     await expect(page.locator('#answer-facts')).not.toContainText('Nearest place');
-    await expect(page.locator('#plan')).toHaveAttribute('aria-label', /no position shown, the last answer was not sure/);
+    await expect(page.locator('#plan')).toHaveAttribute(
+      'aria-label',
+      /no position shown, the last answer was not sure/,
+    );
   } finally {
     await browser.close();
   }

@@ -10,10 +10,13 @@ export default defineConfig({
   timeout: 120_000,
   expect: { timeout: 30_000 },
   workers: 1, // one server, a 2-core machine: tests take turns
+  forbidOnly: !!process.env.CI,
+  retries: process.env.CI ? 1 : 0, // a retry is reported as flaky, with its trace kept
   reporter: [['list']],
   use: {
     launchOptions: { executablePath: chromiumPath(), args: chromiumArgs(CLIP) },
     permissions: ['camera'],
     serviceWorkers: 'allow',
+    trace: 'on-first-retry',
   },
 });

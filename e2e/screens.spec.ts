@@ -52,7 +52,11 @@ test('a venue without modelled frames: spoken, with what to do', async ({ page }
 });
 
 test('the wrong lens: the camera picture does not fit the chosen profile', async ({ page }) => {
-  await admin('/venues/demo/lenses/theta', 'PUT', { model: 'equirectangular', image_size: [1920, 960], forward_x: 960 });
+  await admin('/venues/demo/lenses/theta', 'PUT', {
+    model: 'equirectangular',
+    image_size: [1920, 960],
+    forward_x: 960,
+  });
   await spyOnSpeech(page);
   await page.goto(`${base()}/?venue=demo`);
   await expect(page.locator('#venue-line')).toContainText('Ready');

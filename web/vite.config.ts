@@ -20,7 +20,8 @@ export default defineConfig({
       manifest: {
         name: 'omninav: where am I?',
         short_name: 'omninav',
-        description: 'Indoor localisation for blind and visually impaired people: where you are and what is around, spoken.',
+        description:
+          'Indoor localisation for blind and visually impaired people: where you are and what is around, spoken.',
         lang: 'en',
         start_url: '/',
         scope: '/',

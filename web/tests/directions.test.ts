@@ -1,10 +1,22 @@
 import { describe as group, expect, it } from 'vitest';
-import { UNSURE, clockHour, describe, direction, gist, withArticle, type Answer } from '../src/directions';
+import { UNSURE, clockHour, describe, direction, gist, withArticle, type Answer } from '../src/client/directions';
 
 const answer = (over: Partial<Answer> = {}): Answer => ({
-  x: 14, y: 2.3, heading_deg: 250, confidence: 0.95, floor: '1', place: 'Room 1', area: 'Corridor 1',
-  nearest: { name: 'Room 1', distance_m: 3.2, bearing_deg: 88 }, facing: 'the entrance', sentence: '',
-  low_confidence: false, accuracy_m: 2, frames: 10, sent: 'features', ...over,
+  x: 14,
+  y: 2.3,
+  heading_deg: 250,
+  confidence: 0.95,
+  floor: '1',
+  place: 'Room 1',
+  area: 'Corridor 1',
+  nearest: { name: 'Room 1', distance_m: 3.2, bearing_deg: 88 },
+  facing: 'the entrance',
+  sentence: '',
+  low_confidence: false,
+  accuracy_m: 2,
+  frames: 10,
+  sent: 'features',
+  ...over,
 });
 
 group('directions', () => {
@@ -35,12 +47,22 @@ group('directions', () => {
 
 group('the sentence', () => {
   it('area, then the nearest place in the chosen style, then what the user faces', () => {
-    expect(describe(answer(), 'clock')).toBe("You are in Corridor 1. Room 1 at 3 o'clock, 3 metres. Facing the entrance.");
-    expect(describe(answer(), 'sides')).toBe('You are in Corridor 1. Room 1 to your right, 3 metres. Facing the entrance.');
-    expect(describe(answer(), 'degrees')).toBe('You are in Corridor 1. Room 1 88 degrees right, 3 metres. Facing the entrance.');
+    expect(describe(answer(), 'clock')).toBe(
+      "You are in Corridor 1. Room 1 at 3 o'clock, 3 metres. Facing the entrance.",
+    );
+    expect(describe(answer(), 'sides')).toBe(
+      'You are in Corridor 1. Room 1 to your right, 3 metres. Facing the entrance.',
+    );
+    expect(describe(answer(), 'degrees')).toBe(
+      'You are in Corridor 1. Room 1 88 degrees right, 3 metres. Facing the entrance.',
+    );
   });
   it('a far place is not "near"; the floor stands in for a missing area; facing the nearest is said once', () => {
-    const far = answer({ area: null, nearest: { name: 'the lifts', distance_m: 14, bearing_deg: 2 }, facing: 'the lifts' });
+    const far = answer({
+      area: null,
+      nearest: { name: 'the lifts', distance_m: 14, bearing_deg: 2 },
+      facing: 'the lifts',
+    });
     expect(describe(far, 'clock', 'Ground floor')).toBe('You are on Ground floor. Facing the lifts.');
     const near = answer({ nearest: { name: 'the lifts', distance_m: 1.2, bearing_deg: 2 }, facing: 'the lifts' });
     expect(describe(near, 'clock')).toBe("You are in Corridor 1. The lifts at 12 o'clock, 1 metre.");
@@ -50,7 +72,12 @@ group('the sentence', () => {
   });
   it('the gist changes with what would be said, not with small moves', () => {
     const a = gist(answer(), 'clock');
-    expect(gist(answer({ x: 14.4, heading_deg: 252, nearest: { name: 'Room 1', distance_m: 3.0, bearing_deg: 86 } }), 'clock')).toBe(a);
+    expect(
+      gist(
+        answer({ x: 14.4, heading_deg: 252, nearest: { name: 'Room 1', distance_m: 3.0, bearing_deg: 86 } }),
+        'clock',
+      ),
+    ).toBe(a);
     expect(gist(answer({ nearest: { name: 'Room 1', distance_m: 3.0, bearing_deg: 170 } }), 'clock')).not.toBe(a);
     expect(gist(answer({ area: 'Corridor 2' }), 'clock')).not.toBe(a);
     expect(gist(answer({ low_confidence: true }), 'clock')).toBe('unsure');

@@ -7,5 +7,7 @@ export const ROOT = resolve(fileURLToPath(import.meta.url), '../../..');
 export const GOLDEN = resolve(ROOT, 'web/test-data/golden');
 
 export default function setup(): void {
-  execFileSync(resolve(ROOT, '.venv/bin/python'), [resolve(ROOT, 'e2e/fixtures.py'), 'golden', GOLDEN], { stdio: 'inherit' });
+  execFileSync(resolve(ROOT, '.venv/bin/python'), [resolve(ROOT, 'e2e/fixtures.py'), 'golden', GOLDEN], {
+    stdio: 'inherit',
+  });
 }

@@ -4,10 +4,10 @@ import { readFileSync } from 'node:fs';
 import { createRequire } from 'node:module';
 import { resolve } from 'node:path';
 import { beforeAll, describe, expect, it } from 'vitest';
-import { Extractor, readyCv, type Cv } from '../src/features/extract';
-import type { Lens } from '../src/features/lens';
-import type { FeatureSettings } from '../src/features/settings';
-import { HEADER_BYTES, encodeRecord, fromHalf, relativeError, type FrameSpectrum } from '../src/features/spectrum';
+import { Extractor, readyCv, type Cv } from '../src/worker/extract';
+import type { Lens } from '../src/shared/lens';
+import type { FeatureSettings } from '../src/shared/settings';
+import { HEADER_BYTES, encodeRecord, fromHalf, relativeError, type FrameSpectrum } from '../src/shared/record';
 import { GOLDEN } from './global-setup';
 
 interface Case {
@@ -71,7 +71,8 @@ describe('golden parity with the Python engine', () => {
       expect(Array.from(rec.slice(0, HEADER_BYTES))).toEqual(Array.from(want.slice(0, HEADER_BYTES)));
       const a = recordSpectrum(rec, spectra.length - 1);
       const b = recordSpectrum(want, spectra.length - 1);
-      for (let i = 0; i < a.mag.length; i++) expect(Math.abs(fromHalf(a.mag[i]) - fromHalf(b.mag[i]))).toBeLessThan(2e-3);
+      for (let i = 0; i < a.mag.length; i++)
+        expect(Math.abs(fromHalf(a.mag[i]) - fromHalf(b.mag[i]))).toBeLessThan(2e-3);
       ext.delete();
     });
   }

@@ -1,6 +1,7 @@
 import { describe, expect, it } from 'vitest';
-import { encodeRecord, fromHalf, harmonics, quantise, toHalf } from '../src/features/spectrum';
-import { linspace, interp, polyval } from '../src/features/lens';
+import { encodeRecord, fromHalf, toHalf } from '../src/shared/record';
+import { harmonics, quantise } from '../src/worker/spectrum';
+import { linspace, interp, polyval } from '../src/shared/lens';
 
 describe('float16 as numpy rounds it', () => {
   it('every finite half value survives a round trip', () => {
@@ -35,12 +36,27 @@ describe('spectrum and record', () => {
     expect(Array.from(q.mag).map(fromHalf)).toEqual([1, 1, 1]);
   });
   it('the binary record: header <3sBHHHII2x, then magnitudes, then phases', () => {
-    const s = { pano_width: 360, oversample: 4, row_step_deg: 1, bands: [[-25, 0]] as [number, number][], channels: ['I'], gray_world: false, n_harmonics: 2 };
+    const s = {
+      pano_width: 360,
+      oversample: 4,
+      row_step_deg: 1,
+      bands: [[-25, 0]] as [number, number][],
+      channels: ['I'],
+      gray_world: false,
+      n_harmonics: 2,
+    };
     const f = { mag: Uint16Array.from([0x3c00, 0x3800]), phase: Int16Array.from([1, -2]) };
     const rec = encodeRecord([f, f], s, 0xdeadbeef);
     const dv = new DataView(rec.buffer);
     expect(new TextDecoder().decode(rec.slice(0, 3))).toBe('ONV');
-    expect([dv.getUint8(3), dv.getUint16(4, true), dv.getUint16(6, true), dv.getUint16(8, true), dv.getUint32(10, true), dv.getUint32(14, true)]).toEqual([1, 1, 2, 360, 2, 0xdeadbeef]);
+    expect([
+      dv.getUint8(3),
+      dv.getUint16(4, true),
+      dv.getUint16(6, true),
+      dv.getUint16(8, true),
+      dv.getUint32(10, true),
+      dv.getUint32(14, true),
+    ]).toEqual([1, 1, 2, 360, 2, 0xdeadbeef]);
     expect(rec.length).toBe(20 + 2 * 2 * 4);
     expect(dv.getUint16(20, true)).toBe(0x3c00);
     expect(dv.getInt16(20 + 8 + 2, true)).toBe(-2);
@@ -54,15 +70,27 @@ describe('numpy helpers the unwarp tables need', () => {
     expect([l[0], l[25], l[50]]).toEqual([25, 0, -25]);
     const xp = Float64Array.from([0, 1, 2]);
     const fp = Float64Array.from([10, 20, 40]);
-    expect([interp(0.5, xp, fp), interp(2, xp, fp), interp(-0.1, xp, fp), interp(2.1, xp, fp)]).toEqual([15, 40, NaN, NaN]);
+    expect([interp(0.5, xp, fp), interp(2, xp, fp), interp(-0.1, xp, fp), interp(2.1, xp, fp)]).toEqual([
+      15,
+      40,
+      NaN,
+      NaN,
+    ]);
     expect(polyval(2, [1, 2, 3])).toBe(1 + 4 + 12);
   });
 });
 
 describe('lens profiles the user loads', async () => {
-  const { lensProblem } = await import('../src/features/lens');
+  const { lensProblem } = await import('../src/shared/lens');
   it('accepts both models and names what is wrong', () => {
-    const donut = { model: 'catadioptric', image_size: [960, 720], center: [487, 352], r_inner: 105, r_outer: 340, elevation_poly: [-90, 0.5] };
+    const donut = {
+      model: 'catadioptric',
+      image_size: [960, 720],
+      center: [487, 352],
+      r_inner: 105,
+      r_outer: 340,
+      elevation_poly: [-90, 0.5],
+    };
     expect(lensProblem(donut)).toBeNull();
     expect(lensProblem({ model: 'equirectangular', image_size: [1920, 960], forward_x: 960 })).toBeNull();
     expect(lensProblem({ ...donut, r_inner: 400 })).toMatch(/r_inner < r_outer/);

@@ -2,8 +2,8 @@
  * The camera: the rear camera at the lens profile's resolution, and ~1 s clips of frames handed to
  * the feature worker as ImageBitmaps (frames never leave the phone: only their features do).
  */
-import type { Lens } from './features/lens';
-import type { ExtractorClient, FrameResult } from './extractor-client';
+import type { Lens } from '../shared/lens';
+import type { ExtractorClient, FrameResult } from './bridge';
 
 export class CameraProblem extends Error {
   constructor(
@@ -29,7 +29,12 @@ export async function openCamera(video: HTMLVideoElement, lens: Lens): Promise<M
   try {
     stream = await navigator.mediaDevices.getUserMedia({
       audio: false,
-      video: { facingMode: { ideal: 'environment' }, width: { ideal: w }, height: { ideal: h }, frameRate: { ideal: 30 } },
+      video: {
+        facingMode: { ideal: 'environment' },
+        width: { ideal: w },
+        height: { ideal: h },
+        frameRate: { ideal: 30 },
+      },
     });
   } catch (e) {
     const name = (e as DOMException).name;
@@ -62,7 +67,12 @@ export interface Clip {
 }
 
 /** Grab `n` frames `intervalMs` apart and extract each as it comes (extraction overlaps capture). */
-export async function captureClip(video: HTMLVideoElement, ext: ExtractorClient, n: number, intervalMs: number): Promise<Clip> {
+export async function captureClip(
+  video: HTMLVideoElement,
+  ext: ExtractorClient,
+  n: number,
+  intervalMs: number,
+): Promise<Clip> {
   const jobs: Promise<FrameResult>[] = [];
   const times: number[] = [];
   for (let i = 0; i < n; i++) {

@@ -4,9 +4,11 @@
  * record matches what the server would compute from the same frame.
  */
 import { extractCurves } from './curves';
-import { bandMap, type Lens, type UnwarpMap } from './lens';
-import type { FeatureSettings } from './settings';
-import { harmonics, quantise, type FrameSpectrum } from './spectrum';
+import type { Lens } from '../shared/lens';
+import { bandMap, type UnwarpMap } from './unwarp';
+import type { FeatureSettings } from '../shared/settings';
+import type { FrameSpectrum } from '../shared/record';
+import { harmonics, quantise } from './spectrum';
 
 // The slice of opencv.js we use: typed here so that the rest of the code is checked.
 export interface CvMat {
@@ -68,7 +70,9 @@ export class Extractor {
   /** Why a frame of this size cannot be used with the lens, or null. */
   sizeProblem(width: number, height: number): string | null {
     const [w, h] = this.lens.image_size;
-    return width === w && height === h ? null : `frame is ${width}x${height} but the lens profile is for ${w}x${h} images`;
+    return width === w && height === h
+      ? null
+      : `frame is ${width}x${height} but the lens profile is for ${w}x${h} images`;
   }
 
   /** RGBA pixels of one frame (the lens's image size) -> its quantised spectrum. */
@@ -76,7 +80,15 @@ export class Extractor {
     const { cv, map, settings: s } = this;
     this.src.data.set(rgba);
     // bilinear, as the engine: the same fixed-point interpolation, so the same panorama bytes
-    cv.remap(this.src, this.pano, this.mx, this.my, cv.INTER_LINEAR, map.wrap ? cv.BORDER_WRAP : cv.BORDER_CONSTANT, new cv.Scalar(0, 0, 0, 0));
+    cv.remap(
+      this.src,
+      this.pano,
+      this.mx,
+      this.my,
+      cv.INTER_LINEAR,
+      map.wrap ? cv.BORDER_WRAP : cv.BORDER_CONSTANT,
+      new cv.Scalar(0, 0, 0, 0),
+    );
     const curves = extractCurves(this.pano.data, map.rows, map.cols, map.elevations, map.valid, s);
     this.curveMat.data32F.set(curves);
     cv.dft(this.curveMat, this.dftMat, cv.DFT_ROWS | cv.DFT_COMPLEX_OUTPUT, 0);

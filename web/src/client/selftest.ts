@@ -4,9 +4,9 @@
  * The end-to-end tests feed it the engine's golden files and compare; anyone can open it on a phone
  * to time extraction there: `selftest.html?golden=<url of golden.json>`.
  */
-import { ExtractorClient, type FrameResult } from './extractor-client';
-import type { Lens } from './features/lens';
-import type { FeatureSettings } from './features/settings';
+import { ExtractorClient, type FrameResult } from './bridge';
+import type { Lens } from '../shared/lens';
+import type { FeatureSettings } from '../shared/settings';
 
 interface Case {
   name: string;
@@ -36,14 +36,24 @@ async function bitmap(url: string): Promise<ImageBitmap> {
 async function run(base: string, repeats: number): Promise<SelfTestResult> {
   const cases: Case[] = (await (await fetch(`${base}/golden.json`)).json()).cases;
   const ext = new ExtractorClient();
-  const out: SelfTestResult = { loadMs: 0, cases: [], timing: { frames: 0, medianMs: 0, p90Ms: 0, width: 0, height: 0 } };
+  const out: SelfTestResult = {
+    loadMs: 0,
+    cases: [],
+    timing: { frames: 0, medianMs: 0, p90Ms: 0, width: 0, height: 0 },
+  };
   for (const c of cases) {
     const loadMs = await ext.configure(c.lens, c.settings);
     out.loadMs ||= loadMs;
     const frames = [];
     for (const f of c.frames) {
       const r: FrameResult = await ext.extract(await bitmap(`${base}/${f.stem}.png`), true);
-      frames.push({ stem: f.stem, mag: Array.from(r.mag), phase: Array.from(r.phase), curves: Array.from(r.curves ?? []), ms: r.ms });
+      frames.push({
+        stem: f.stem,
+        mag: Array.from(r.mag),
+        phase: Array.from(r.phase),
+        curves: Array.from(r.curves ?? []),
+        ms: r.ms,
+      });
     }
     out.cases.push({ name: c.name, frames });
   }
@@ -60,7 +70,13 @@ async function run(base: string, repeats: number): Promise<SelfTestResult> {
     ms.push(r.ms);
   }
   ms.sort((a, b) => a - b);
-  out.timing = { frames: ms.length, medianMs: ms[ms.length >> 1], p90Ms: ms[Math.floor(ms.length * 0.9)], width: bms[0].width, height: bms[0].height };
+  out.timing = {
+    frames: ms.length,
+    medianMs: ms[ms.length >> 1],
+    p90Ms: ms[Math.floor(ms.length * 0.9)],
+    width: bms[0].width,
+    height: bms[0].height,
+  };
   return out;
 }
 
@@ -70,7 +86,8 @@ const el = document.getElementById('result')!;
 if (golden) {
   window.selftest = run(golden.replace(/\/golden\.json$/, ''), Number(params.get('repeats') ?? 60));
   window.selftest.then(
-    (r) => (el.textContent = `Done: extraction ${r.timing.medianMs.toFixed(1)} ms per ${r.timing.width}x${r.timing.height} frame (median of ${r.timing.frames}).`),
+    (r) =>
+      (el.textContent = `Done: extraction ${r.timing.medianMs.toFixed(1)} ms per ${r.timing.width}x${r.timing.height} frame (median of ${r.timing.frames}).`),
     (e) => (el.textContent = `Failed: ${e}`),
   );
 } else {

@@ -10,7 +10,11 @@ const PATTERNS: Record<Cue, number[]> = { ok: [80], unsure: [80, 80, 80], error:
 // earcon tones (Hz, ms) where there is no vibration (iOS Safari)
 const TONES: Record<Cue, [number, number][]> = {
   ok: [[880, 90]],
-  unsure: [[440, 90], [0, 60], [440, 90]],
+  unsure: [
+    [440, 90],
+    [0, 60],
+    [440, 90],
+  ],
   error: [[220, 250]],
   start: [[660, 40]],
 };
@@ -44,7 +48,9 @@ export class Speaker {
       u.volume = 0;
       this.synth.speak(u);
     }
-    const AC = globalThis.AudioContext ?? (globalThis as unknown as { webkitAudioContext?: typeof AudioContext }).webkitAudioContext;
+    const AC =
+      globalThis.AudioContext ??
+      (globalThis as unknown as { webkitAudioContext?: typeof AudioContext }).webkitAudioContext;
     if (AC) {
       this.audio = new AC();
       void this.audio.resume().catch(() => undefined);
@@ -63,9 +69,10 @@ export class Speaker {
     this.last = text;
     const region = urgent ? this.alert : this.live;
     (urgent ? this.live : this.alert).textContent = '';
-    // the same text twice in a row would not be announced again: clear, then set on the next frame
+    // the same text twice in a row would not be announced again: clear, then set a moment later
+    // (a timer, not an animation frame: those stop while the screen is off)
     region.textContent = '';
-    requestAnimationFrame(() => (region.textContent = text));
+    setTimeout(() => (region.textContent = text), 50);
     if (cue) this.cue(cue);
     if (urgent) this.waiting = null;
     this.speak(text, urgent);
@@ -99,7 +106,7 @@ export class Speaker {
     u.onend = done;
     u.onerror = done;
     // a synthesiser that never reports the end (some Android voices) must not block speech forever
-    setTimeout(done, 1500 + 120 * text.length / Math.max(this.rate, 0.5));
+    setTimeout(done, 1500 + (120 * text.length) / Math.max(this.rate, 0.5));
     synth.speak(u);
   }
 

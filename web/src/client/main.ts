@@ -4,12 +4,20 @@
  * the screen reader.
  */
 import './style.css';
-import { ApiProblem, UNREACHABLE, Unreachable, locate, venue as fetchVenue, venues as fetchVenues, type Venue } from './api';
+import {
+  ApiProblem,
+  UNREACHABLE,
+  Unreachable,
+  locate,
+  venue as fetchVenue,
+  venues as fetchVenues,
+  type Venue,
+} from './api';
 import { CameraProblem, captureClip, lensMismatch, openCamera } from './camera';
 import { describe, gist, type Answer, type Style } from './directions';
-import { ExtractorClient } from './extractor-client';
-import { lensProblem, type Lens } from './features/lens';
-import { encodeRecord, HEADER_BYTES } from './features/spectrum';
+import { ExtractorClient } from './bridge';
+import { lensProblem, type Lens } from '../shared/lens';
+import { encodeRecord, HEADER_BYTES } from '../shared/record';
 import { askMotion, onShake, onTwoFingerDoubleTap } from './gestures';
 import { drawPlan } from './plan';
 import { loadPrefs, savePrefs, type Prefs } from './prefs';
@@ -94,7 +102,12 @@ async function loadMyLens(file: File): Promise<void> {
   prefs.myLens = lens as Lens;
   prefs.lens = MY_LENS;
   savePrefs(prefs);
-  if (current) fillSelect(ui.lens, Object.keys(lensesOf(current)).map((n) => [n, n]), MY_LENS);
+  if (current)
+    fillSelect(
+      ui.lens,
+      Object.keys(lensesOf(current)).map((n) => [n, n]),
+      MY_LENS,
+    );
   speaker.say(`Loaded your lens profile from ${file.name}; it is now the lens in use.`, 'ok');
 }
 
@@ -112,12 +125,20 @@ async function loadVenue(): Promise<Venue | null> {
     }
     const want = new URLSearchParams(location.search).get('venue') || prefs.venue;
     const id = list.some((v) => v.id === want) ? want : list[0].id;
-    fillSelect(ui.venue, list.map((v) => [v.id, v.name]), id);
+    fillSelect(
+      ui.venue,
+      list.map((v) => [v.id, v.name]),
+      id,
+    );
     const v = await fetchVenue(id);
     current = v;
     prefs.venue = id;
     const lens = chosenLens(v);
-    fillSelect(ui.lens, Object.keys(lensesOf(v)).map((n) => [n, n]), lens?.[0] ?? '');
+    fillSelect(
+      ui.lens,
+      Object.keys(lensesOf(v)).map((n) => [n, n]),
+      lens?.[0] ?? '',
+    );
     ui.venueLine.textContent = v.modelled
       ? `Venue: ${v.name}. Ready (${v.frames} modelled frames).`
       : `Venue: ${v.name}. Not modelled yet.`;
@@ -128,7 +149,8 @@ async function loadVenue(): Promise<Venue | null> {
     void drawPlan(ui.plan, v.floors[0], v.places, null).then((label) => ui.plan.setAttribute('aria-label', label));
     return v;
   } catch (e) {
-    ui.venueLine.textContent = e instanceof Unreachable ? UNREACHABLE : `The venue did not load: ${(e as Error).message}`;
+    ui.venueLine.textContent =
+      e instanceof Unreachable ? UNREACHABLE : `The venue did not load: ${(e as Error).message}`;
     return null;
   }
 }
@@ -159,7 +181,15 @@ async function show(a: Answer, v: Venue): Promise<void> {
   }
   rows.push(['Confidence', `${Math.round(a.confidence * 100)} %`]);
   facts(ui.answerFacts, rows);
-  ui.plan.setAttribute('aria-label', await drawPlan(ui.plan, floor, v.places.filter((p) => p.floor === a.floor), a));
+  ui.plan.setAttribute(
+    'aria-label',
+    await drawPlan(
+      ui.plan,
+      floor,
+      v.places.filter((p) => p.floor === a.floor),
+      a,
+    ),
+  );
   ui.repeat.disabled = false;
 }
 
@@ -177,6 +207,8 @@ async function whereAmI(quietIfSame = false): Promise<void> {
     if (!lens) throw new ApiProblem(422, NO_LENS);
     ext ??= new ExtractorClient();
     const ready = ext.configure(lens[1], v.features.settings);
+    // a stream ends when the phone locks or another app takes the camera: open it again
+    if (stream?.getVideoTracks().every((t) => t.readyState === 'ended')) stream = null;
     stream ??= await openCamera(ui.video, lens[1]);
     const bad = lensMismatch(ui.video.videoWidth, ui.video.videoHeight, lens[1], lens[0]);
     if (bad) throw new CameraProblem('lens', bad);
@@ -199,7 +231,8 @@ async function whereAmI(quietIfSame = false): Promise<void> {
       ['Confidence', a.confidence.toFixed(3)],
     ]);
     const g = gist(a, prefs.style as Style);
-    if (!quietIfSame || g !== lastGist) speaker.say(ui.answerText.textContent ?? '', a.low_confidence ? 'unsure' : 'ok');
+    if (!quietIfSame || g !== lastGist)
+      speaker.say(ui.answerText.textContent ?? '', a.low_confidence ? 'unsure' : 'ok');
     lastGist = g;
   } catch (e) {
     const text = problemText(e);
@@ -262,7 +295,11 @@ function applyPrefs(): void {
 
 function fillVoices(): void {
   const voices = speaker.voices().filter((v) => v.lang.startsWith('en') || v.default);
-  fillSelect(ui.voice, [['', 'The phone’s default voice'], ...voices.map((v): [string, string] => [v.name, `${v.name} (${v.lang})`])], prefs.voice);
+  fillSelect(
+    ui.voice,
+    [['', 'The phone’s default voice'], ...voices.map((v): [string, string] => [v.name, `${v.name} (${v.lang})`])],
+    prefs.voice,
+  );
 }
 
 function wire(): void {
@@ -271,7 +308,8 @@ function wire(): void {
   ui.where.addEventListener('click', () => void whereAmI());
   ui.repeat.addEventListener('click', () => speaker.repeat());
   ui.continuous.addEventListener('click', toggleContinuous);
-  for (const b of document.querySelectorAll<HTMLButtonElement>('.tab')) b.addEventListener('click', () => showScreen(b.dataset.screen!));
+  for (const b of document.querySelectorAll<HTMLButtonElement>('.tab'))
+    b.addEventListener('click', () => showScreen(b.dataset.screen!));
   for (const h of document.querySelectorAll<HTMLElement>('.screen h2')) h.tabIndex = -1;
   onShake(() => void whereAmI());
   onTwoFingerDoubleTap(document.body, () => void whereAmI());
@@ -315,7 +353,9 @@ function wire(): void {
       save();
       if (lastAnswer && current) void show(lastAnswer, current);
     });
-  $('test-speech').addEventListener('click', () => speaker.say('This is how omninav sounds. The lifts at 3 o’clock, 4 metres.'));
+  $('test-speech').addEventListener('click', () =>
+    speaker.say('This is how omninav sounds. The lifts at 3 o’clock, 4 metres.'),
+  );
   if (speaker.available) {
     fillVoices();
     speechSynthesis.addEventListener?.('voiceschanged', fillVoices);

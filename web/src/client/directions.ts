@@ -72,7 +72,8 @@ export function describe(a: Answer, style: Style, floorName?: string): string {
   const parts: string[] = [];
   parts.push(a.area ? `You are in ${withArticle(a.area)}.` : `You are on ${floorName ?? `floor ${a.floor}`}.`);
   const n = a.nearest;
-  if (n && n.distance_m <= NEAR_M) parts.push(`${cap(n.name)} ${direction(n.bearing_deg, style)}, ${metres(n.distance_m)}.`);
+  if (n && n.distance_m <= NEAR_M)
+    parts.push(`${cap(n.name)} ${direction(n.bearing_deg, style)}, ${metres(n.distance_m)}.`);
   if (a.facing && !(n && n.distance_m <= NEAR_M && a.facing === n.name)) parts.push(`Facing ${a.facing}.`);
   return parts.join(' ');
 }

@@ -1,6 +1,6 @@
 /**
- * Lens profiles (CONVENTIONS.md `lens.json`) and the unwarp tables (the paper's Eq. 1), computed
- * exactly as the engine's lens.py/unwarp.py do, so that a phone's panorama matches the server's.
+ * Lens profiles (CONVENTIONS.md `lens.json`): which camera pixel looks in which direction, computed
+ * exactly as the engine's lens.py does (NumPy's linspace, interp and polyval included).
  */
 
 export interface CatadioptricLens {
@@ -22,18 +22,6 @@ export interface EquirectangularLens {
 }
 
 export type Lens = CatadioptricLens | EquirectangularLens;
-
-/** Remap tables (float32, rows x cols), the rows' elevations, and which directions the lens sees. */
-export interface UnwarpMap {
-  rows: number;
-  cols: number;
-  mapX: Float32Array;
-  mapY: Float32Array;
-  elevations: Float64Array;
-  valid: Uint8Array;
-  /** OpenCV border mode: constant (black) outside the donut, wrap across a 360-camera's seam. */
-  wrap: boolean;
-}
 
 /** numpy.linspace: start + i * step, the last value exactly `stop`. */
 export function linspace(start: number, stop: number, n: number): Float64Array {
@@ -80,7 +68,12 @@ export function radiusTable(lens: CatadioptricLens): (elevDeg: number) => number
 }
 
 /** Pixel (x, y) that sees (azimuth clockwise from forward, elevation), in degrees. */
-export function directionToPixel(lens: Lens, radius: ((el: number) => number) | null, az: number, el: number): [number, number] {
+export function directionToPixel(
+  lens: Lens,
+  radius: ((el: number) => number) | null,
+  az: number,
+  el: number,
+): [number, number] {
   const sign = (lens.ccw ?? lens.model === 'catadioptric') ? -1 : 1; // donuts default to ccw
   if (lens.model === 'catadioptric') {
     const r = radius!(el);
@@ -91,40 +84,6 @@ export function directionToPixel(lens: Lens, radius: ((el: number) => number) | 
   const a = lens.forward_x + (sign * az * w) / 360;
   const x = a - Math.floor(a / w) * w; // numpy.mod: the result takes the divisor's sign
   return [x, ((90 - el) * h) / 180 - 0.5];
-}
-
-/** Elevations of the panorama's rows, top (highest) first (unwarp.panorama_elevations). */
-export function panoramaElevations(top: number, bottom: number, step: number): Float64Array {
-  return linspace(top, bottom, Math.round((top - bottom) / step) + 1);
-}
-
-/** The remap tables for a panorama of `width` columns; column j looks at azimuth (j + 0.5) * 360 / width. */
-export function buildMap(lens: Lens, elevations: Float64Array, width: number): UnwarpMap {
-  const rows = elevations.length;
-  const mapX = new Float32Array(rows * width);
-  const mapY = new Float32Array(rows * width);
-  const valid = new Uint8Array(rows * width);
-  const radius = lens.model === 'catadioptric' ? radiusTable(lens) : null;
-  for (let i = 0; i < rows; i++) {
-    for (let j = 0; j < width; j++) {
-      const az = ((j + 0.5) * 360) / width;
-      const [x, y] = directionToPixel(lens, radius, az, elevations[i]);
-      const ok = Number.isFinite(x) && Number.isFinite(y);
-      const k = i * width + j;
-      valid[k] = ok ? 1 : 0;
-      // unseen directions read a pixel outside the image, which the constant border makes black
-      mapX[k] = ok ? x : -10;
-      mapY[k] = ok ? y : -10;
-    }
-  }
-  return { rows, cols: width, mapX, mapY, elevations, valid, wrap: lens.model !== 'catadioptric' };
-}
-
-/** The remap a feature preset needs: the rows of all its bands, at `oversample` x the columns. */
-export function bandMap(lens: Lens, s: { bands: [number, number][]; row_step_deg: number; pano_width: number; oversample: number }): UnwarpMap {
-  const lo = Math.min(...s.bands.map((b) => b[0]));
-  const hi = Math.max(...s.bands.map((b) => b[1]));
-  return buildMap(lens, panoramaElevations(hi, lo, s.row_step_deg), s.pano_width * s.oversample);
 }
 
 /** Why a lens profile cannot be used, or null when it can (the server validates it fully). */
@@ -139,10 +98,15 @@ export function lensProblem(lens: unknown): string | null {
     if (!Array.isArray(l.center) || l.center.length !== 2 || !l.center.every(num)) return 'its center must be [x, y]';
     if (!Array.isArray(l.elevation_poly) || !l.elevation_poly.length || !l.elevation_poly.every(num))
       return 'its elevation_poly must be a list of numbers';
-    if (!num(l.r_inner) || !num(l.r_outer) || !((l.r_inner as number) >= 0 && (l.r_inner as number) < (l.r_outer as number)))
+    if (
+      !num(l.r_inner) ||
+      !num(l.r_outer) ||
+      !((l.r_inner as number) >= 0 && (l.r_inner as number) < (l.r_outer as number))
+    )
       return 'it needs 0 <= r_inner < r_outer';
     return null;
   }
-  if (l.model === 'equirectangular') return typeof l.forward_x === 'number' ? null : 'the 360 lens profile lacks forward_x';
+  if (l.model === 'equirectangular')
+    return typeof l.forward_x === 'number' ? null : 'the 360 lens profile lacks forward_x';
   return `unknown lens model ${String(l.model)}`;
 }

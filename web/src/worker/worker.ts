@@ -4,13 +4,14 @@
  * main thread so that the page, speech and the screen reader never wait on image work.
  */
 import cvModule from '@techstark/opencv-js';
-import { Extractor, readyCv, type Cv } from './features/extract';
-import type { FromWorker, ToWorker } from './protocol';
+import { Extractor, readyCv, type Cv } from './extract';
+import type { FromWorker, ToWorker } from '../shared/protocol';
 
 declare const self: DedicatedWorkerGlobalScope;
 
-const t0 = performance.now();
-const cvReady: Promise<Cv> = readyCv(cvModule);
+// opencv.js compiles its WebAssembly once, on the first lens: one memoised promise
+let cvReady: Promise<Cv> | null = null;
+const loadCv = (): Promise<Cv> => (cvReady ??= readyCv(cvModule));
 let ext: Extractor | null = null;
 let canvas: OffscreenCanvas | null = null;
 let ctx: OffscreenCanvasRenderingContext2D | null = null;
@@ -20,7 +21,8 @@ function post(m: FromWorker, transfer: Transferable[] = []): void {
 }
 
 async function init(m: Extract<ToWorker, { type: 'init' }>): Promise<void> {
-  const cv = await cvReady;
+  const t0 = performance.now();
+  const cv = await loadCv();
   ext?.delete();
   ext = new Extractor(cv, m.lens, m.settings);
   const [w, h] = m.lens.image_size;
@@ -43,7 +45,10 @@ function frame(m: Extract<ToWorker, { type: 'frame' }>): void {
     const transfer: Transferable[] = [mag.buffer, phase.buffer];
     if (out.pano) transfer.push(out.pano.buffer);
     if (out.curves) transfer.push(out.curves.buffer);
-    post({ type: 'features', id: m.id, mag, phase, ms: performance.now() - start, pano: out.pano, curves: out.curves }, transfer);
+    post(
+      { type: 'features', id: m.id, mag, phase, ms: performance.now() - start, pano: out.pano, curves: out.curves },
+      transfer,
+    );
   } catch (e) {
     post({ type: 'error', id: m.id, message: e instanceof Error ? e.message : String(e) });
   }
@@ -51,6 +56,7 @@ function frame(m: Extract<ToWorker, { type: 'frame' }>): void {
 
 self.onmessage = (ev: MessageEvent<ToWorker>) => {
   const m = ev.data;
-  if (m.type === 'init') init(m).catch((e) => post({ type: 'error', message: `the feature extractor did not start: ${e}` }));
+  if (m.type === 'init')
+    init(m).catch((e) => post({ type: 'error', message: `the feature extractor did not start: ${e}` }));
   else if (m.type === 'frame') frame(m);
 };

@@ -3,7 +3,7 @@
  * of colour channels over elevation bands, normalised to zero mean and unit variance.
  * Input is the unwarped band panorama as RGBA bytes (what canvas and opencv.js give us).
  */
-import type { FeatureSettings } from './settings';
+import type { FeatureSettings } from '../shared/settings';
 
 export const CHANNELS = ['H', 'S', 'I', 'dH', 'dS', 'dI', 'O1', 'O2', 'dO1', 'dO2'] as const;
 const EPS = 1e-6;
@@ -49,7 +49,9 @@ function hsi(r: Float32Array, g: Float32Array, b: Float32Array): { H: Float32Arr
   const S = new Float32Array(n);
   const I = new Float32Array(n);
   for (let i = 0; i < n; i++) {
-    const R = r[i], G = g[i], B = b[i];
+    const R = r[i],
+      G = g[i],
+      B = b[i];
     const s3 = R + G + B;
     I[i] = s3 / 3;
     S[i] = 1 - (3 * Math.min(R, G, B)) / Math.max(s3, EPS);
@@ -76,7 +78,12 @@ function hgrad(x: Float32Array, rows: number, cols: number, circularUnit: boolea
 }
 
 /** The per-pixel channel images the curves average, (rows x cols) each. */
-export function channelImages(rgb: Float32Array[], rows: number, cols: number, channels: readonly string[]): Map<string, Float32Array> {
+export function channelImages(
+  rgb: Float32Array[],
+  rows: number,
+  cols: number,
+  channels: readonly string[],
+): Map<string, Float32Array> {
   const [r, g, b] = rgb;
   const n = r.length;
   const base = new Map<string, Float32Array>();
@@ -100,7 +107,8 @@ export function channelImages(rgb: Float32Array[], rows: number, cols: number, c
   const out = new Map<string, Float32Array>();
   for (const ch of channels) {
     if (ch === 'H' || ch === 'S' || ch === 'I' || ch === 'O1' || ch === 'O2') out.set(ch, base.get(ch)!);
-    else if (ch.startsWith('d') && base.has(ch.slice(1))) out.set(ch, hgrad(base.get(ch.slice(1))!, rows, cols, ch === 'dH'));
+    else if (ch.startsWith('d') && base.has(ch.slice(1)))
+      out.set(ch, hgrad(base.get(ch.slice(1))!, rows, cols, ch === 'dH'));
     else throw new Error(`unknown channel ${ch}; known: ${CHANNELS.join(', ')}`);
   }
   return out;

@@ -1,7 +1,7 @@
 /** The server's public API (backend/omninav/server/openapi.yaml), with errors a person can act on. */
 import type { Answer } from './directions';
-import type { Lens } from './features/lens';
-import type { VenueFeatures } from './features/settings';
+import type { Lens } from '../shared/lens';
+import type { VenueFeatures } from '../shared/settings';
 
 export interface Place {
   name: string;

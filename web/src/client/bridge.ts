@@ -1,8 +1,8 @@
 /** The page's side of the feature worker: promises for frames, one worker per page. */
-import type { Lens } from './features/lens';
-import type { FeatureSettings } from './features/settings';
-import type { FrameSpectrum } from './features/spectrum';
-import type { FromWorker, ToWorker } from './protocol';
+import type { Lens } from '../shared/lens';
+import type { FeatureSettings } from '../shared/settings';
+import type { FrameSpectrum } from '../shared/record';
+import type { FromWorker, ToWorker } from '../shared/protocol';
 
 export interface FrameResult extends FrameSpectrum {
   ms: number;
@@ -18,7 +18,7 @@ export class ExtractorClient {
   configured: string | null = null;
 
   constructor() {
-    this.worker = new Worker(new URL('./worker.ts', import.meta.url), { type: 'module' });
+    this.worker = new Worker(new URL('../worker/worker.ts', import.meta.url), { type: 'module' });
     this.worker.onmessage = (ev: MessageEvent<FromWorker>) => this.receive(ev.data);
     this.worker.onerror = (ev) => this.failAll(new Error(`the feature worker failed: ${ev.message}`));
   }

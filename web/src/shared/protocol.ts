@@ -1,6 +1,6 @@
 /** Messages between the page and the feature worker (src/worker.ts). */
-import type { Lens } from './features/lens';
-import type { FeatureSettings } from './features/settings';
+import type { Lens } from './lens';
+import type { FeatureSettings } from './settings';
 
 export type ToWorker =
   | { type: 'init'; lens: Lens; settings: FeatureSettings }
@@ -9,5 +9,13 @@ export type ToWorker =
 
 export type FromWorker =
   | { type: 'ready'; loadMs: number }
-  | { type: 'features'; id: number; mag: Uint16Array; phase: Int16Array; ms: number; pano?: Uint8Array; curves?: Float32Array }
+  | {
+      type: 'features';
+      id: number;
+      mag: Uint16Array;
+      phase: Int16Array;
+      ms: number;
+      pano?: Uint8Array;
+      curves?: Float32Array;
+    }
   | { type: 'error'; id?: number; message: string };

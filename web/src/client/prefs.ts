@@ -1,6 +1,6 @@
 /** The user's settings, kept on the phone (localStorage). */
 import type { Style } from './directions';
-import type { Lens } from './features/lens';
+import type { Lens } from '../shared/lens';
 
 export interface Prefs {
   venue: string;
@@ -15,7 +15,16 @@ export interface Prefs {
 }
 
 const KEY = 'omninav.prefs';
-export const DEFAULTS: Prefs = { venue: '', lens: '', style: 'clock', rate: 1, voice: '', vibrate: true, interval: 3, myLens: null };
+export const DEFAULTS: Prefs = {
+  venue: '',
+  lens: '',
+  style: 'clock',
+  rate: 1,
+  voice: '',
+  vibrate: true,
+  interval: 3,
+  myLens: null,
+};
 
 export function loadPrefs(): Prefs {
   try {

@@ -24,7 +24,12 @@ function loadImage(url: string): Promise<HTMLImageElement> {
 }
 
 /** Draw the plan (or a blank sheet when the floor has none) with the answer; returns the label. */
-export async function drawPlan(canvas: HTMLCanvasElement, floor: Floor | undefined, places: Place[], a: Answer | null): Promise<string> {
+export async function drawPlan(
+  canvas: HTMLCanvasElement,
+  floor: Floor | undefined,
+  places: Place[],
+  a: Answer | null,
+): Promise<string> {
   const ctx = canvas.getContext('2d');
   if (!ctx) return '';
   const scale = floor?.px_per_m ?? 20;
