@@ -60,10 +60,8 @@ test("the browser extracts the engine's records (relative error <= 1e-3) and its
   }
   expect(checked).toBe(5);
   expect(r.timing.width).toBe(960);
-  test
-    .info()
-    .annotations.push({
-      type: 'extraction',
-      description: `${r.timing.medianMs.toFixed(1)} ms median per 960x720 frame`,
-    });
+  test.info().annotations.push({
+    type: 'extraction',
+    description: `${r.timing.medianMs.toFixed(1)} ms median per 960x720 frame`,
+  });
 });

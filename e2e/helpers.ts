@@ -5,6 +5,7 @@ import { expect, type Page } from '@playwright/test';
 declare global {
   interface Window {
     __spoken: string[];
+    __utterances: { text: string; inGesture: boolean }[];
     __vibrated: number[][];
   }
 }
@@ -13,9 +14,11 @@ declare global {
 export async function spyOnSpeech(page: Page): Promise<void> {
   await page.addInitScript(() => {
     window.__spoken = [];
+    window.__utterances = [];
     window.__vibrated = [];
     const speak = speechSynthesis.speak.bind(speechSynthesis);
     speechSynthesis.speak = (u: SpeechSynthesisUtterance) => {
+      window.__utterances.push({ text: u.text, inGesture: navigator.userActivation?.isActive ?? false });
       if (u.text.trim()) window.__spoken.push(u.text);
       speak(u);
     };

@@ -38,6 +38,9 @@ test('Where am I? answers within 2 m and 10 degrees, spoken and in the live regi
   const sentence = (await live.textContent())!;
   expect(sentence).toMatch(/o'clock/); // the default direction style
   await expect.poll(() => spoken(page)).toContain(sentence);
+  // speech was unlocked inside the first tap (iOS speaks only after that), before any answer
+  const first = (await page.evaluate(() => window.__utterances))[0];
+  expect(first).toEqual({ text: ' ', inGesture: true });
   await expect(page.locator('#answer-text')).toHaveText(sentence);
   expect(await page.evaluate(() => window.__vibrated.length)).toBeGreaterThan(0);
 

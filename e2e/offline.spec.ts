@@ -25,6 +25,11 @@ test('offline start from the service worker, with a spoken "cannot reach the ser
       return urls;
     });
     expect(cached).toContain('/index.html');
+    // installable: Chromium finds nothing missing in the manifest, icons or service worker (a test
+    // context is a private window, which Chromium never installs from: that one reason is expected)
+    const cdp = await page.context().newCDPSession(page);
+    const { installabilityErrors } = await cdp.send('Page.getInstallabilityErrors');
+    expect(installabilityErrors.map((e) => e.errorId)).toEqual(['in-incognito']);
     expect(cached.some((u) => /\/assets\/worker-.*\.js$/.test(u))).toBe(true);
   } finally {
     await srv.stop();
