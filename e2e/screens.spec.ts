@@ -67,3 +67,12 @@ test('the wrong lens: the camera picture does not fit the chosen profile', async
   await expect(page.getByRole('alert')).toContainText('lens profile “theta” is for 1920 by 960');
   await expect.poll(() => spoken(page)).toContainEqual(expect.stringContaining('Attach the lens'));
 });
+
+test('an unknown venue in the address: said, and the first venue shown instead', async ({ page }) => {
+  await page.goto(`${base()}/?venue=nope`);
+  await expect(page.locator('#venue-line')).toContainText(
+    'This server has no venue “nope”; showing Synthetic demo venue instead.',
+  );
+  await page.getByRole('button', { name: 'Settings' }).click();
+  await expect(page.getByLabel('Venue')).toHaveValue('demo');
+});

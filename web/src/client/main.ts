@@ -139,9 +139,10 @@ async function loadVenue(): Promise<Venue | null> {
       Object.keys(lensesOf(v)).map((n) => [n, n]),
       lens?.[0] ?? '',
     );
-    ui.venueLine.textContent = v.modelled
-      ? `Venue: ${v.name}. Ready (${v.frames} modelled frames).`
-      : `Venue: ${v.name}. Not modelled yet.`;
+    const missing = want && want !== id ? `This server has no venue “${want}”; showing ${v.name} instead. ` : '';
+    ui.venueLine.textContent =
+      missing +
+      (v.modelled ? `Venue: ${v.name}. Ready (${v.frames} modelled frames).` : `Venue: ${v.name}. Not modelled yet.`);
     if (lens) {
       ext ??= new ExtractorClient();
       ext.configure(lens[1], v.features.settings).catch(() => undefined); // warm up; errors surface on use
