@@ -4,29 +4,8 @@ import { readFileSync } from 'node:fs';
 import { resolve } from 'node:path';
 import { expect, test } from '@playwright/test';
 import type { SelfTestResult } from '../web/src/client/selftest';
+import { recordFrame, relativeError } from '../web/src/shared/record';
 import { GOLDEN, base } from './env';
-
-const half = (h: number) => {
-  const e = (h >> 10) & 0x1f;
-  const m = h & 0x3ff;
-  const s = h & 0x8000 ? -1 : 1;
-  return e === 0 ? s * m * 2 ** -24 : s * (1 + m / 1024) * 2 ** (e - 15);
-};
-
-/** (re, im) of a one-frame record made by the engine. */
-function engineSpectrum(stem: string): { re: number[]; im: number[] } {
-  const b = readFileSync(resolve(GOLDEN, `${stem}.rec`));
-  const ck = b.readUInt16LE(4) * b.readUInt16LE(6);
-  const re: number[] = [];
-  const im: number[] = [];
-  for (let i = 0; i < ck; i++) {
-    const m = half(b.readUInt16LE(20 + 2 * i));
-    const p = (b.readInt16LE(20 + 2 * ck + 2 * i) * Math.PI) / 32768;
-    re.push(m * Math.cos(p));
-    im.push(m * Math.sin(p));
-  }
-  return { re, im };
-}
 
 test("the browser extracts the engine's records (relative error <= 1e-3) and its curves", async ({ page }) => {
   await page.route(
@@ -42,15 +21,9 @@ test("the browser extracts the engine's records (relative error <= 1e-3) and its
   let checked = 0;
   for (const c of r.cases) {
     for (const f of c.frames) {
-      const want = engineSpectrum(f.stem);
-      let num = 0;
-      let den = 0;
-      f.mag.forEach((m, i) => {
-        const p = (f.phase[i] * Math.PI) / 32768;
-        num += (half(m) * Math.cos(p) - want.re[i]) ** 2 + (half(m) * Math.sin(p) - want.im[i]) ** 2;
-        den += want.re[i] ** 2 + want.im[i] ** 2;
-      });
-      expect(Math.sqrt(num / den), `${f.stem}: record relative error`).toBeLessThanOrEqual(1e-3);
+      const want = recordFrame(new Uint8Array(readFileSync(resolve(GOLDEN, `${f.stem}.rec`))));
+      const got = { mag: Uint16Array.from(f.mag), phase: Int16Array.from(f.phase) };
+      expect(relativeError(got, want), `${f.stem}: record relative error`).toBeLessThanOrEqual(1e-3);
       const curves = new Float32Array(readFileSync(resolve(GOLDEN, `${f.stem}.curves`)).buffer.slice(0));
       let worst = 0;
       curves.forEach((v, i) => (worst = Math.max(worst, Math.abs(v - f.curves[i]))));

@@ -7,7 +7,14 @@ import { beforeAll, describe, expect, it } from 'vitest';
 import { Extractor, readyCv, type Cv } from '../src/worker/extract';
 import type { Lens } from '../src/shared/lens';
 import type { FeatureSettings } from '../src/shared/settings';
-import { HEADER_BYTES, encodeRecord, fromHalf, relativeError, type FrameSpectrum } from '../src/shared/record';
+import {
+  HEADER_BYTES,
+  encodeRecord,
+  fromHalf,
+  recordFrame,
+  relativeError,
+  type FrameSpectrum,
+} from '../src/shared/record';
 import { GOLDEN } from './global-setup';
 
 interface Case {
@@ -21,20 +28,6 @@ interface Case {
 
 const read = (f: string) => new Uint8Array(readFileSync(resolve(GOLDEN, f)));
 const cases = (): Case[] => JSON.parse(readFileSync(resolve(GOLDEN, 'golden.json'), 'utf8')).cases;
-
-/** A one-frame record's spectrum, as the engine wrote it. */
-export function recordSpectrum(rec: Uint8Array, frame = 0): FrameSpectrum {
-  const dv = new DataView(rec.buffer, rec.byteOffset, rec.byteLength);
-  const ck = dv.getUint16(4, true) * dv.getUint16(6, true);
-  const nf = dv.getUint32(10, true);
-  const mag = new Uint16Array(ck);
-  const phase = new Int16Array(ck);
-  for (let i = 0; i < ck; i++) {
-    mag[i] = dv.getUint16(HEADER_BYTES + 2 * (frame * ck + i), true);
-    phase[i] = dv.getInt16(HEADER_BYTES + 2 * nf * ck + 2 * (frame * ck + i), true);
-  }
-  return { mag, phase };
-}
 
 let cv: Cv;
 beforeAll(async () => {
@@ -60,7 +53,7 @@ describe('golden parity with the Python engine', () => {
         let cd = 0;
         for (let i = 0; i < wc.length; i++) cd = Math.max(cd, Math.abs(got.curves![i] - wc[i]));
         expect(cd, `${stem} curves (unit variance)`).toBeLessThan(1e-4);
-        const err = relativeError(got.spectrum, recordSpectrum(read(`${stem}.rec`)));
+        const err = relativeError(got.spectrum, recordFrame(read(`${stem}.rec`)));
         expect(err, `${stem} record relative error`).toBeLessThanOrEqual(1e-3);
         spectra.push(got.spectrum);
       }
@@ -69,8 +62,8 @@ describe('golden parity with the Python engine', () => {
       const want = read(`${c.name}.rec`);
       expect(rec.length).toBe(want.length);
       expect(Array.from(rec.slice(0, HEADER_BYTES))).toEqual(Array.from(want.slice(0, HEADER_BYTES)));
-      const a = recordSpectrum(rec, spectra.length - 1);
-      const b = recordSpectrum(want, spectra.length - 1);
+      const a = recordFrame(rec, spectra.length - 1);
+      const b = recordFrame(want, spectra.length - 1);
       for (let i = 0; i < a.mag.length; i++)
         expect(Math.abs(fromHalf(a.mag[i]) - fromHalf(b.mag[i]))).toBeLessThan(2e-3);
       ext.delete();

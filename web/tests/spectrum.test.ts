@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { encodeRecord, fromHalf, toHalf } from '../src/shared/record';
+import { encodeRecord, fromHalf, recordFrame, relativeError, toHalf } from '../src/shared/record';
 import { harmonics, quantise } from '../src/worker/spectrum';
 import { linspace, interp, polyval } from '../src/shared/lens';
 
@@ -61,6 +61,34 @@ describe('spectrum and record', () => {
     expect(dv.getUint16(20, true)).toBe(0x3c00);
     expect(dv.getInt16(20 + 8 + 2, true)).toBe(-2);
     expect(() => encodeRecord([], s, 1)).toThrow(/at least one frame/);
+  });
+});
+
+describe('the checks the golden tests rely on', () => {
+  it('recordFrame reads back what encodeRecord wrote, frame by frame', () => {
+    const s = {
+      pano_width: 8,
+      oversample: 1,
+      row_step_deg: 1,
+      bands: [[0, 1]] as [number, number][],
+      channels: ['I', 'dI'],
+      gray_world: false,
+      n_harmonics: 2,
+    };
+    const a = { mag: Uint16Array.from([1, 2, 3, 4]), phase: Int16Array.from([-5, 6, -7, 8]) };
+    const b = { mag: Uint16Array.from([9, 10, 11, 12]), phase: Int16Array.from([13, -14, 15, -16]) };
+    const rec = encodeRecord([a, b], s, 7);
+    expect(recordFrame(rec, 0)).toEqual(a);
+    expect(recordFrame(rec, 1)).toEqual(b);
+  });
+  it('relativeError is 0 for the same spectrum and the norm ratio otherwise', () => {
+    const one = toHalf(1);
+    const x = { mag: Uint16Array.from([one, 0]), phase: Int16Array.from([0, 0]) };
+    expect(relativeError(x, x)).toBe(0);
+    const turned = { mag: x.mag, phase: Int16Array.from([16384, 0]) }; // 1 -> i: |1 - i| / |1|
+    expect(relativeError(turned, x)).toBeCloseTo(Math.SQRT2, 12);
+    const small = { mag: Uint16Array.from([toHalf(1.001), 0]), phase: x.phase };
+    expect(relativeError(small, x)).toBeCloseTo(fromHalf(toHalf(1.001)) - 1, 12);
   });
 });
 

@@ -88,6 +88,20 @@ export function encodeRecord(frames: FrameSpectrum[], s: FeatureSettings, settin
   return out;
 }
 
+/** One frame's spectrum out of a binary record (the checks are the server's; this trusts the record). */
+export function recordFrame(rec: Uint8Array, frame = 0): FrameSpectrum {
+  const dv = new DataView(rec.buffer, rec.byteOffset, rec.byteLength);
+  const ck = dv.getUint16(4, true) * dv.getUint16(6, true);
+  const nf = dv.getUint32(10, true);
+  const mag = new Uint16Array(ck);
+  const phase = new Int16Array(ck);
+  for (let i = 0; i < ck; i++) {
+    mag[i] = dv.getUint16(HEADER_BYTES + 2 * (frame * ck + i), true);
+    phase[i] = dv.getInt16(HEADER_BYTES + 2 * nf * ck + 2 * (frame * ck + i), true);
+  }
+  return { mag, phase };
+}
+
 /** Relative error ||a - b|| / ||b|| of two quantised spectra (as complex vectors). */
 export function relativeError(a: FrameSpectrum, b: FrameSpectrum): number {
   const x = dequantise(a);
