@@ -167,7 +167,7 @@ function problemText(e: unknown): string {
   return `Something went wrong: ${(e as Error).message ?? e}`;
 }
 
-async function show(a: Answer, v: Venue): Promise<void> {
+function show(a: Answer, v: Venue): void {
   lastAnswer = a;
   const floor = v.floors.find((f) => f.id === a.floor);
   const text = describe(a, prefs.style as Style, floor?.name);
@@ -182,16 +182,14 @@ async function show(a: Answer, v: Venue): Promise<void> {
   }
   rows.push(['Confidence', `${Math.round(a.confidence * 100)} %`]);
   facts(ui.answerFacts, rows);
-  ui.plan.setAttribute(
-    'aria-label',
-    await drawPlan(
-      ui.plan,
-      floor,
-      v.places.filter((p) => p.floor === a.floor),
-      a,
-    ),
-  );
   ui.repeat.disabled = false;
+  // the plan image may still be loading: speech must not wait for it
+  void drawPlan(
+    ui.plan,
+    floor,
+    v.places.filter((p) => p.floor === a.floor),
+    a,
+  ).then((label) => ui.plan.setAttribute('aria-label', label));
 }
 
 /** One "Where am I?": capture ~1 s, extract in the worker, send features only, say the answer. */
@@ -201,7 +199,8 @@ async function whereAmI(quietIfSame = false): Promise<void> {
   ui.where.setAttribute('aria-busy', 'true');
   ui.where.textContent = 'Locating…';
   try {
-    const v = current ?? (await loadVenue());
+    // a venue not modelled yet may have been since: ask the server again rather than the cache
+    const v = current?.modelled ? current : await loadVenue();
     if (!v) throw new Unreachable(ui.venueLine.textContent || UNREACHABLE);
     if (!v.modelled) throw new ApiProblem(409, NO_FRAMES);
     const lens = chosenLens(v);
@@ -220,7 +219,7 @@ async function whereAmI(quietIfSame = false): Promise<void> {
     const t0 = performance.now();
     const a = await locate(v.id, record, clip.fps, `web-${Date.now()}`);
     const rtt = performance.now() - t0;
-    await show(a, v);
+    show(a, v);
     const ms = clip.frames.map((f) => f.ms).sort((x, y) => x - y);
     facts(ui.debugFacts, [
       ['Sent', `features only: ${record.length} bytes for ${clip.frames.length} frames`],
@@ -236,6 +235,8 @@ async function whereAmI(quietIfSame = false): Promise<void> {
       speaker.say(ui.answerText.textContent ?? '', a.low_confidence ? 'unsure' : 'ok');
     lastGist = g;
   } catch (e) {
+    // the venue changed under us (re-modelled with other settings, emptied): reload it next time
+    if (e instanceof ApiProblem && (e.status === 400 || e.status === 409)) current = null;
     const text = problemText(e);
     if (!quietIfSame || lastGist !== text) speaker.say(text, 'error', true);
     lastGist = text;
@@ -352,7 +353,7 @@ function wire(): void {
     r.addEventListener('change', () => {
       prefs.style = r.value as Style;
       save();
-      if (lastAnswer && current) void show(lastAnswer, current);
+      if (lastAnswer && current) show(lastAnswer, current);
     });
   $('test-speech').addEventListener('click', () =>
     speaker.say('This is how omninav sounds. The lifts at 3 o’clock, 4 metres.'),
