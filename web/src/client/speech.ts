@@ -25,7 +25,8 @@ export class Speaker {
   cues = true;
   last = '';
   private waiting: string | null = null;
-  private speaking = false;
+  private current: SpeechSynthesisUtterance | null = null;
+  private pendingText: ReturnType<typeof setTimeout> | undefined;
   private primed = false;
   private audio: AudioContext | null = null;
   private readonly synth: SpeechSynthesis | null = 'speechSynthesis' in globalThis ? speechSynthesis : null;
@@ -68,11 +69,13 @@ export class Speaker {
   say(text: string, cue: Cue | null = 'ok', urgent = false): void {
     this.last = text;
     const region = urgent ? this.alert : this.live;
-    (urgent ? this.live : this.alert).textContent = '';
+    // one message on screen at a time: the other region empties, and its pending text is dropped
+    clearTimeout(this.pendingText);
+    this.live.textContent = '';
+    this.alert.textContent = '';
     // the same text twice in a row would not be announced again: clear, then set a moment later
     // (a timer, not an animation frame: those stop while the screen is off)
-    region.textContent = '';
-    setTimeout(() => (region.textContent = text), 50);
+    this.pendingText = setTimeout(() => (region.textContent = text), 50);
     if (cue) this.cue(cue);
     if (urgent) this.waiting = null;
     this.speak(text, urgent);
@@ -85,7 +88,7 @@ export class Speaker {
   private speak(text: string, now: boolean): void {
     const synth = this.synth;
     if (!synth) return;
-    if (this.speaking && !now) {
+    if (this.current && !now) {
       this.waiting = text;
       return;
     }
@@ -95,10 +98,11 @@ export class Speaker {
     u.lang = 'en';
     const v = this.voices().find((x) => x.name === this.voiceName);
     if (v) u.voice = v;
-    this.speaking = true;
+    this.current = u;
+    // only this utterance's own end moves on: a cancelled one may report its end late
     const done = () => {
-      if (!this.speaking) return;
-      this.speaking = false;
+      if (this.current !== u) return;
+      this.current = null;
       const next = this.waiting;
       this.waiting = null;
       if (next) this.speak(next, false);
@@ -111,7 +115,7 @@ export class Speaker {
   }
 
   get busy(): boolean {
-    return this.speaking;
+    return this.current !== null;
   }
 
   cue(kind: Cue): void {
