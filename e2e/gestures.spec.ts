@@ -4,16 +4,13 @@ import { resolve } from 'node:path';
 import { writeFileSync } from 'node:fs';
 import { expect, test } from '@playwright/test';
 import { WORK, base } from './env';
-import { spyOnSpeech } from './helpers';
+import { countLocates, spyOnSpeech } from './helpers';
 
 test.use({ hasTouch: true });
 
 test('a shake, then a two-finger double tap, each locate', async ({ page }) => {
   await spyOnSpeech(page);
-  let posts = 0;
-  page.on('request', (r) => {
-    if (r.url().includes('/locate')) posts++;
-  });
+  const posts = countLocates(page);
   await page.goto(`${base()}/?venue=demo`);
   await expect(page.locator('#venue-line')).toContainText('Ready');
   await page.evaluate(() => {
@@ -22,7 +19,7 @@ test('a shake, then a two-finger double tap, each locate', async ({ page }) => {
         new DeviceMotionEvent('devicemotion', { accelerationIncludingGravity: { x: 30, y: 4, z: 9.8 } }),
       );
   });
-  await expect.poll(() => posts).toBe(1);
+  await expect.poll(posts).toBe(1);
   await expect(page.locator('#live')).toContainText('You are in');
   await expect(page.getByRole('button', { name: 'Where am I?' })).not.toHaveAttribute('aria-busy', 'true');
   await page.evaluate(async () => {
@@ -37,7 +34,7 @@ test('a shake, then a two-finger double tap, each locate', async ({ page }) => {
       await new Promise((r) => setTimeout(r, 120));
     }
   });
-  await expect.poll(() => posts).toBe(2);
+  await expect.poll(posts).toBe(2);
 });
 
 test("the user's own lens profile, loaded from a file, is offered and used; a bad file is refused aloud", async ({

@@ -54,3 +54,12 @@ export async function expectNoAxeViolations(page: Page, what: string): Promise<v
   });
   expect(violations, `axe on ${what}`).toEqual([]);
 }
+
+/** How many locate requests the page has sent so far (a live count). */
+export function countLocates(page: Page): () => number {
+  let n = 0;
+  page.on('request', (r) => {
+    if (r.url().includes('/locate')) n++;
+  });
+  return () => n;
+}

@@ -4,7 +4,7 @@ import { readFileSync } from 'node:fs';
 import { resolve } from 'node:path';
 import { expect, test, type Request } from '@playwright/test';
 import { ELSEWHERE, WORK, base, chromiumArgs, chromiumPath } from './env';
-import { expectNoAxeViolations, spoken, spyOnSpeech } from './helpers';
+import { countLocates, expectNoAxeViolations, spoken, spyOnSpeech } from './helpers';
 
 const truth = () => JSON.parse(readFileSync(resolve(WORK, 'clip/clip.json'), 'utf8'));
 const angle = (a: number, b: number) => Math.abs(((a - b + 540) % 360) - 180);
@@ -75,10 +75,7 @@ test('Where am I? answers within 2 m and 10 degrees, spoken and in the live regi
 
 test('continuous mode re-locates and speaks only when something changed', async ({ page }) => {
   await spyOnSpeech(page);
-  let posts = 0;
-  page.on('request', (r) => {
-    if (r.url().includes('/locate')) posts++;
-  });
+  const posts = countLocates(page);
   await page.goto(`${base()}/?venue=demo`);
   await page.getByRole('button', { name: 'Settings' }).click();
   await page.getByLabel(/When telling continuously/).selectOption('2');
@@ -86,7 +83,7 @@ test('continuous mode re-locates and speaks only when something changed', async 
   const toggle = page.getByRole('button', { name: 'Keep telling me' });
   await toggle.click();
   await expect(toggle).toHaveAttribute('aria-pressed', 'true');
-  await expect.poll(() => posts, { timeout: 60_000 }).toBeGreaterThanOrEqual(3);
+  await expect.poll(posts, { timeout: 60_000 }).toBeGreaterThanOrEqual(3);
   await toggle.click();
   await expect(toggle).toHaveAttribute('aria-pressed', 'false');
   // the user stood still: three answers, one sentence (then "Stopped telling you.")

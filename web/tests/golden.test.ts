@@ -69,12 +69,4 @@ describe('golden parity with the Python engine', () => {
       ext.delete();
     });
   }
-
-  it('a frame of another size is refused with the sizes named', () => {
-    const c = cases()[0];
-    const ext = new Extractor(cv, c.lens, c.settings);
-    expect(ext.sizeProblem(640, 480)).toMatch(/640x480 but the lens profile is for 960x720/);
-    expect(ext.sizeProblem(960, 720)).toBeNull();
-    ext.delete();
-  });
 });

@@ -167,7 +167,8 @@ function problemText(e: unknown): string {
   return `Something went wrong: ${(e as Error).message ?? e}`;
 }
 
-function show(a: Answer, v: Venue): void {
+/** Show an answer as text, facts and on the plan; returns the sentence to speak. */
+function show(a: Answer, v: Venue): string {
   lastAnswer = a;
   const floor = v.floors.find((f) => f.id === a.floor);
   const text = describe(a, prefs.style as Style, floor?.name);
@@ -190,6 +191,7 @@ function show(a: Answer, v: Venue): void {
     v.places.filter((p) => p.floor === a.floor),
     a,
   ).then((label) => ui.plan.setAttribute('aria-label', label));
+  return text;
 }
 
 /** One "Where am I?": capture ~1 s, extract in the worker, send features only, say the answer. */
@@ -219,7 +221,7 @@ async function whereAmI(quietIfSame = false): Promise<void> {
     const t0 = performance.now();
     const a = await locate(v.id, record, clip.fps, `web-${Date.now()}`);
     const rtt = performance.now() - t0;
-    show(a, v);
+    const sentence = show(a, v);
     const ms = clip.frames.map((f) => f.ms).sort((x, y) => x - y);
     facts(ui.debugFacts, [
       ['Sent', `features only: ${record.length} bytes for ${clip.frames.length} frames`],
@@ -231,8 +233,7 @@ async function whereAmI(quietIfSame = false): Promise<void> {
       ['Confidence', a.confidence.toFixed(3)],
     ]);
     const g = gist(a, prefs.style as Style);
-    if (!quietIfSame || g !== lastGist)
-      speaker.say(ui.answerText.textContent ?? '', a.low_confidence ? 'unsure' : 'ok');
+    if (!quietIfSame || g !== lastGist) speaker.say(sentence, a.low_confidence ? 'unsure' : 'ok');
     lastGist = g;
   } catch (e) {
     // the venue changed under us (re-modelled with other settings, emptied): reload it next time

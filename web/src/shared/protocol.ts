@@ -3,12 +3,12 @@ import type { Lens } from './lens';
 import type { FeatureSettings } from './settings';
 
 export type ToWorker =
-  | { type: 'init'; lens: Lens; settings: FeatureSettings }
+  | { type: 'init'; id: number; lens: Lens; settings: FeatureSettings }
   /** One camera frame; `keep` returns the panorama and curves too (self-test only). */
   | { type: 'frame'; id: number; bitmap: ImageBitmap; keep?: boolean };
 
 export type FromWorker =
-  | { type: 'ready'; loadMs: number }
+  | { type: 'ready'; id: number; loadMs: number }
   | {
       type: 'features';
       id: number;

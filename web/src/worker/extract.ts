@@ -67,14 +67,6 @@ export class Extractor {
     this.dftMat = new cv.Mat();
   }
 
-  /** Why a frame of this size cannot be used with the lens, or null. */
-  sizeProblem(width: number, height: number): string | null {
-    const [w, h] = this.lens.image_size;
-    return width === w && height === h
-      ? null
-      : `frame is ${width}x${height} but the lens profile is for ${w}x${h} images`;
-  }
-
   /** RGBA pixels of one frame (the lens's image size) -> its quantised spectrum. */
   extract(rgba: Uint8Array | Uint8ClampedArray, keep = false): Extracted {
     const { cv, map, settings: s } = this;

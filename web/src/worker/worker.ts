@@ -29,7 +29,7 @@ async function init(m: Extract<ToWorker, { type: 'init' }>): Promise<void> {
   canvas = new OffscreenCanvas(w, h);
   // willReadFrequently keeps the canvas in CPU memory: getImageData every frame is then cheap
   ctx = canvas.getContext('2d', { willReadFrequently: true, alpha: false });
-  post({ type: 'ready', loadMs: performance.now() - t0 });
+  post({ type: 'ready', id: m.id, loadMs: performance.now() - t0 });
 }
 
 function frame(m: Extract<ToWorker, { type: 'frame' }>): void {
@@ -57,6 +57,6 @@ function frame(m: Extract<ToWorker, { type: 'frame' }>): void {
 self.onmessage = (ev: MessageEvent<ToWorker>) => {
   const m = ev.data;
   if (m.type === 'init')
-    init(m).catch((e) => post({ type: 'error', message: `the feature extractor did not start: ${e}` }));
+    init(m).catch((e) => post({ type: 'error', id: m.id, message: `the feature extractor did not start: ${e}` }));
   else if (m.type === 'frame') frame(m);
 };
