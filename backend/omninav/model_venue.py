@@ -133,6 +133,11 @@ def model_videos(
         ts = time.perf_counter()
         rows, specs = _extract(p, settings, tick)
         extracted.append((p, rows, specs, time.perf_counter() - ts))
+    with store.lock(venue_id):  # read the live generation and commit the next as one step
+        return _merge_commit(store, venue_id, settings, sources[-1].lens, extracted)
+
+
+def _merge_commit(store: Store, venue_id: str, settings: dict, lens: Lens, extracted: list) -> list[ModelResult]:
     old = _current(store, venue_id)
     videos = list(old.videos) if old else []
     frames = old.frames if old is not None else np.zeros(0, FRAME_DTYPE)
@@ -153,7 +158,7 @@ def model_videos(
         vid_secs = (int(rows["frame"][-1]) - p.first + 1) / p.vfps
         results.append(ModelResult(venue_id, name, len(rows), 0, secs, vid_secs))
     # the lens of the last video is the venue's default query lens (for clients that send frames)
-    store.commit(venue_id, Generation(settings, sources[-1].lens, frames, spectra, videos))
+    store.commit(venue_id, Generation(settings, lens, frames, spectra, videos))
     for r in results:
         r.total_frames = len(frames)
     return results
@@ -170,6 +175,11 @@ def remove_video(store: Store, venue_id: str, name: str) -> int:
 
     Removing the last video leaves a venue with no frames (it answers 'not modelled yet').
     """
+    with store.lock(venue_id):
+        return _remove(store, venue_id, name)
+
+
+def _remove(store: Store, venue_id: str, name: str) -> int:
     old = _current(store, venue_id)
     if old is None or name not in old.videos:
         return 0

@@ -12,11 +12,14 @@ so a run that is interrupted (Ctrl-C, crash, power) leaves the venue answering a
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import re
 import shutil
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -180,11 +183,52 @@ class Store:
         g = self._current(self.require(venue_id))
         return g.name if g else None
 
-    def commit(self, venue_id: str, gen: Generation) -> Path:
-        """Write a new generation completely, then make it live in one atomic rename."""
+    @contextmanager
+    def lock(self, venue_id: str) -> Iterator[None]:
+        """Hold the venue's write lock: one reader-modify-commit of its generations at a time,
+        across threads, worker processes and server instances on this data directory (flock)."""
         d = self.require(venue_id)
-        for stale in d.glob(".tmp-gen-*"):  # left by an interrupted run: never live, safe to drop
-            shutil.rmtree(stale, ignore_errors=True)
+        fd = os.open(d / ".lock", os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            yield
+        finally:
+            os.close(fd)  # closing releases the lock
+
+    def recover(self, venue_id: str) -> list[str]:
+        """Drop what an interrupted commit left: temporary folders, and generations newer than
+        CURRENT (written, never made live: a crash between the rename and the switch). Returns
+        their names. Call it holding the lock."""
+        d = self.require(venue_id)
+        cur = self._current(d)
+        live = int(cur.name.split("-")[1]) if cur else 0
+        gone = []
+        for p in sorted(d.glob(".tmp-gen-*")) + sorted(d.glob("gen-*")):
+            if p.name.startswith("gen-"):
+                try:
+                    if int(p.name.split("-")[1]) <= live:
+                        continue
+                except ValueError:
+                    continue
+            shutil.rmtree(p, ignore_errors=True)
+            gone.append(p.name)
+        return gone
+
+    def recover_all(self) -> dict[str, list[str]]:
+        """recover() every venue (at server start): venue -> what was dropped."""
+        out = {}
+        for v in self.list():
+            with self.lock(v):
+                if gone := self.recover(v):
+                    out[v] = gone
+        return out
+
+    def commit(self, venue_id: str, gen: Generation) -> Path:
+        """Write a new generation completely, then make it live in one atomic rename.
+
+        Callers that read the live generation to build the next one hold lock() around both."""
+        d = self.require(venue_id)
+        self.recover(venue_id)  # a crash of an earlier commit must not block this one
         cur = self._current(d)
         n = int(cur.name.split("-")[1]) + 1 if cur else 1
         name = f"gen-{n:06d}"

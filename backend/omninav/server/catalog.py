@@ -26,7 +26,7 @@ from ..presets import PRESETS, n_curves, settings_id
 from ..spectrum import HEADER_BYTES, record_bytes_per_frame
 from ..store import Store, check_id
 from ..track import Track, parse_track
-from .db import Db
+from .db import Db, inline_lens_name
 from .http import ApiError
 
 FLOOR_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,31}$")
@@ -380,7 +380,7 @@ class Catalog:
         self.check_track(venue_id, floor, track)
         lens = body.get("lens", DEFAULT_LENS)
         if isinstance(lens, dict):  # an inline profile becomes the video's own named lens
-            profile, lens = lens, f"video-{name.replace('.', '-')}"[:64]
+            profile, lens = lens, inline_lens_name(lens)
             self.put_lens(venue_id, lens, profile)
         if not isinstance(lens, str):
             raise ApiError(400, "'lens' must be a lens profile name or a lens profile object")

@@ -11,7 +11,9 @@ guessed at.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import hashlib
+import json
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -21,7 +23,27 @@ from sqlalchemy.engine import Engine, make_url
 
 from ..errors import OmninavError
 
-MIGRATIONS: list[list[str]] = [
+
+def _rename_inline_lenses(c: Connection) -> None:
+    """Inline lens profiles were named after their video ('video-<name>'), and the public venue
+    document lists lens names: name them by their content instead, so no video name leaks."""
+    rows = c.execute(text("SELECT venue, name, profile FROM lenses WHERE name LIKE 'video-%'")).all()
+    for venue, name, profile in rows:
+        p = {"v": venue, "n": inline_lens_name(json.loads(profile)), "o": name}
+        if c.execute(text("SELECT 1 FROM lenses WHERE venue = :v AND name = :n"), p).first():
+            c.execute(text("DELETE FROM lenses WHERE venue = :v AND name = :o"), p)
+        else:
+            c.execute(text("UPDATE lenses SET name = :n WHERE venue = :v AND name = :o"), p)
+        c.execute(text("UPDATE videos SET lens = :n WHERE venue = :v AND lens = :o"), p)
+
+
+def inline_lens_name(profile: dict[str, Any]) -> str:
+    """The name of a lens profile sent inline with a video: from its content, never its video."""
+    return "lens-" + hashlib.sha256(json.dumps(profile, sort_keys=True).encode()).hexdigest()[:12]
+
+
+Migration = list[str | Callable[[Connection], None]]
+MIGRATIONS: list[Migration] = [
     # 1: the first schema
     [
         "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL)",
@@ -52,6 +74,21 @@ MIGRATIONS: list[list[str]] = [
             heartbeat DOUBLE PRECISION, owner TEXT, cancel INTEGER NOT NULL DEFAULT 0, error TEXT)""",
         "CREATE INDEX jobs_venue_state ON jobs (venue, state)",
         "CREATE INDEX places_venue ON places (venue)",
+    ],
+    # 2: one active job per venue (a constraint, not check-then-insert); job retries; one writer
+    # per video upload (a lease that expires if its process dies); inline lenses named by content
+    [
+        """UPDATE jobs SET state = 'failed', finished = created,
+                error = 'another modelling job of this venue was active at the same time'
+            WHERE state IN ('queued', 'running') AND EXISTS (
+                SELECT 1 FROM jobs j2 WHERE j2.venue = jobs.venue AND j2.state IN ('queued', 'running')
+                AND (j2.created < jobs.created OR (j2.created = jobs.created AND j2.id < jobs.id)))""",
+        "CREATE UNIQUE INDEX jobs_one_active ON jobs (venue) WHERE state IN ('queued', 'running')",
+        "ALTER TABLE jobs ADD COLUMN attempts INTEGER NOT NULL DEFAULT 0",
+        "ALTER TABLE jobs ADD COLUMN not_before DOUBLE PRECISION",
+        "ALTER TABLE videos ADD COLUMN writer TEXT",
+        "ALTER TABLE videos ADD COLUMN writer_until DOUBLE PRECISION",
+        _rename_inline_lenses,
     ],
 ]
 SCHEMA_VERSION = len(MIGRATIONS)
@@ -114,7 +151,10 @@ class Db:
         for n in range(have, SCHEMA_VERSION):
             with self.tx() as c:
                 for stmt in MIGRATIONS[n]:
-                    c.execute(text(stmt))
+                    if callable(stmt):  # a data migration that SQL alone cannot express
+                        stmt(c)
+                    else:
+                        c.execute(text(stmt))
                 c.execute(
                     text(
                         "INSERT INTO meta (key, value) VALUES ('schema_version', :v) "
