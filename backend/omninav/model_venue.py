@@ -61,7 +61,7 @@ class _Plan:
 
 def _plan(src: VideoSource, settings: dict) -> _Plan:
     """Check a video against its lens and track before any work: errors come first, not last."""
-    info = VideoInfo(src.video)
+    info = VideoInfo(src.video, label=src.video.name)
     w, h = src.lens.image_size
     if (info.width, info.height) != (w, h):
         raise OmninavError(
@@ -83,9 +83,11 @@ def _extract(p: _Plan, settings: dict, tick: Callable[[], None]) -> tuple[np.nda
     ext = Extractor(p.src.lens, settings)
     rows, specs = [], []
     track = p.src.track
+    seen = -1
     for i, frame in iter_video(p.info, stride=p.stride, start=p.first):
         if i > p.last:
             break
+        seen = i
         t = i / track.fps
         xy, hd, ok = track.pose_at(np.array([t]))
         if not ok[0]:
@@ -93,6 +95,7 @@ def _extract(p: _Plan, settings: dict, tick: Callable[[], None]) -> tuple[np.nda
         specs.append(ext.spectrum(frame))
         rows.append((xy[0, 0], xy[0, 1], hd[0], t, i))
         tick()
+    _check_complete(p, seen)
     if not rows:
         raise OmninavError(
             f"{p.src.video.name}: no frame of the video lies between the track's first and last waypoint"
@@ -102,6 +105,19 @@ def _extract(p: _Plan, settings: dict, tick: Callable[[], None]) -> tuple[np.nda
     new["x"], new["y"], new["heading"], new["t"] = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3]
     new["frame"] = arr[:, 4].astype(np.int32)
     return new, np.stack(specs)
+
+
+def _check_complete(p: _Plan, seen: int) -> None:
+    """A damaged file decodes up to the damage and then ends as if it were shorter: the container
+    still says how many frames it holds. Modelling what came before would model part of the walk."""
+    want = min(p.last, p.info.frames - 1) if p.info.frames else p.last
+    want -= (want - p.first) % p.stride  # the last frame the sampling would reach
+    if p.info.frames and seen < want - p.stride:
+        at = max(seen, p.first) / p.vfps
+        raise OmninavError(
+            f"{p.src.video.name}: the video stops decoding at {int(at // 60)}:{at % 60:04.1f} "
+            f"(frame {max(seen, 0)} of {p.info.frames}): the file is damaged; upload it again"
+        )
 
 
 def _current(store: Store, venue_id: str) -> Generation | None:

@@ -20,11 +20,13 @@ IMAGE_EXT = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
 
 
 class VideoInfo:
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, label: str | None = None):
+        """`label` names the video in errors (the server names a video, never a path on its disk)."""
+        label = label or str(path)
         if not path.exists():
-            raise OmninavError(f"{path}: video not found")
+            raise OmninavError(f"{label}: video not found")
         if path.is_dir():
-            raise OmninavError(f"{path}: is a directory, expected a video file")
+            raise OmninavError(f"{label}: is a directory, expected a video file")
         self.path = path
         cap = cv2.VideoCapture(str(path))
         ok = cap.isOpened()
@@ -35,7 +37,7 @@ class VideoInfo:
         self.height = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT) or 0)
         cap.release()
         if not ok or not first:
-            raise OmninavError(f"{path}: not a readable video (no decodable frames)")
+            raise OmninavError(f"{label}: not a readable video (no decodable frames)")
 
 
 def iter_video(info: VideoInfo, stride: int = 1, start: int = 0) -> Iterator[tuple[int, np.ndarray]]:

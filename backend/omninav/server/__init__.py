@@ -24,6 +24,14 @@ from .jobs import Jobs
 from .locate_api import Runtimes
 from .ratelimit import RateLimiter
 
+# The app's own origin only; opencv.js compiles its WebAssembly ('wasm-unsafe-eval', and nothing
+# more: no eval, no inline script or style); the annotated plan arrives as a data: URL; no framing.
+CSP = (
+    "default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; worker-src 'self'; connect-src 'self'; "
+    "img-src 'self' data: blob:; media-src 'self' blob:; style-src 'self'; object-src 'none'; "
+    "base-uri 'none'; form-action 'self'; frame-ancestors 'none'"
+)
+
 
 @dataclass
 class Services:
@@ -77,6 +85,19 @@ def create_app(overrides: dict[str, Any] | None = None) -> Flask:
         n = request.content_length
         if n is not None and n > limit and request.endpoint != "admin.upload_content":
             raise ApiError(413, f"request body too large: {n} bytes (the limit here is {limit})")
+    @app.after_request
+    def _security_headers(resp: Any) -> Any:
+        h = resp.headers
+        h.setdefault("Content-Security-Policy", CSP)
+        h.setdefault("X-Content-Type-Options", "nosniff")
+        h.setdefault("Referrer-Policy", "no-referrer")
+        h.setdefault("X-Frame-Options", "DENY")
+        h.setdefault("Permissions-Policy", "camera=(self), microphone=(), geolocation=()")
+        # the front says whether the client came over TLS (it terminates it; no client reaches us directly)
+        if request.is_secure or request.headers.get("X-Forwarded-Proto") == "https":
+            h.setdefault("Strict-Transport-Security", "max-age=31536000")
+        return resp
+
     from . import admin_api, locate_api, venues_api, web
 
     for mod in (venues_api, locate_api, admin_api, web):

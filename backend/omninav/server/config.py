@@ -21,9 +21,10 @@ DEFAULTS: dict[str, Any] = {
     "MAX_CONTENT_LENGTH": 32 * 1024 * 1024,  # any request body but a video upload
     "MAX_UPLOAD_BYTES": 16 * 1024**3,  # one modelling video
     "MAX_LOCATE_FRAMES": 60,  # frames in one locate request (records or images)
-    "LOCATE_RATE": 10.0,  # sustained locate requests per second per client, per worker process
+    "LOCATE_RATE": 10.0,  # sustained locate requests per second per client (the whole server: front.py)
     "LOCATE_BURST": 30,  # and the burst it allows
-    "TRUST_PROXY": False,  # take the client address from X-Forwarded-For (behind a reverse proxy)
+    "TRUST_PROXY": False,  # behind another reverse proxy: the client is the last X-Forwarded-For entry
+    "FRONT_TIMEOUT_S": 10.0,  # TLS handshake, request head, a pause in a body: longer and the front hangs up
     "LOW_CONFIDENCE": 0.5,  # below it, the spoken answer says 'not sure' instead of a place
     "JOB_RUNNER": True,  # run modelling jobs in this process's background thread
     "JOB_STALE_S": 30.0,  # a running job with no heartbeat for this long died with its server

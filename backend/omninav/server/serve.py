@@ -1,24 +1,41 @@
-"""`omninav serve`: prepare the data directory, then run the app under gunicorn (gthread workers).
+"""`omninav serve`: prepare the data directory, then run three kinds of process:
 
-Before any worker starts: the database schema is migrated, an admin token is made (and printed
-once) if there is none, the demo venue is set up on first start, and with --https a self-signed
-certificate is made for this machine's LAN address.
+    front (this process, asyncio)  the network: TLS, deadlines, limits, the locate rate limit (front.py)
+    gunicorn workers (gthread)     the Flask app, on a unix socket only the front can reach
+    job runner (one, niced)        modelling jobs, outside any worker: a job never holds a worker's GIL
+
+Before any of them starts: the database schema is migrated, what an interrupted commit left in a
+venue's folder is dropped, an admin token is made (and printed once) if there is none, the demo venue
+is set up on first start, and with --https a self-signed certificate is made for this machine's LAN
+address. The children die with this process (SIGTERM on the parent's death, Linux).
 """
 
 from __future__ import annotations
 
+import asyncio
+import ctypes
 import multiprocessing
+import os
+import shutil
+import signal
+import ssl
 import sys
+import tempfile
+import threading
+import time
 from pathlib import Path
 from typing import Any
 
 from gunicorn.app.base import BaseApplication  # type: ignore[import-untyped]
 
-from .auth import ensure_token
+from ..errors import OmninavError
+from .auth import KEY, ensure_token
 from .catalog import Catalog
 from .config import database_url
 from .db import Db
+from .front import Front, Limits, run_front
 from .jobs import Jobs
+from .ratelimit import RateLimiter
 
 
 class _Gunicorn(BaseApplication):  # type: ignore[misc]
@@ -45,6 +62,8 @@ class _Gunicorn(BaseApplication):  # type: ignore[misc]
 def prepare(conf: dict[str, Any], demo: str, echo: Any = print) -> None:
     db = Db(database_url(conf))
     db.migrate()
+    for venue, gone in Catalog(db, Path(conf["DATA"])).store.recover_all().items():
+        echo(f"venue {venue}: dropped what an interrupted modelling run left ({', '.join(gone)})")
     if not conf["ADMIN_TOKEN"]:
         token = ensure_token(db)
         if token:
@@ -70,35 +89,141 @@ def serve(
     echo: Any = print,
 ) -> None:
     prepare(conf, demo, echo)
+    run_dir = tempfile.mkdtemp(prefix="omninav-")  # short: a unix socket path has ~100 bytes
+    sock = os.path.join(run_dir, "workers.sock")
     options: dict[str, Any] = {
-        "bind": f"{host}:{port}",
+        "bind": f"unix:{sock}",
         "workers": workers,
         "worker_class": "gthread",
         "threads": threads,
         "timeout": 60,
         "graceful_timeout": 10,
-        "keepalive": 30,
+        "keepalive": 75,  # the front keeps its connections to the workers open
         "accesslog": None,
         "errorlog": "-",
         "loglevel": "warning",
         "proc_name": "omninav",
     }
-    scheme = "http"
+    # the front limits locate per client for the whole server; jobs run in their own process
+    overrides = {"DATA": conf["DATA"], "JOB_RUNNER": False, "LOCATE_RATE": 0.0}
+    ssl_ctx = None
+    scheme = "https" if https else "http"
     if https:
         from .tls import ensure_cert, lan_addresses
 
         cert, key, made = ensure_cert(Path(conf["DATA"]) / "tls")
-        options.update(certfile=str(cert), keyfile=str(key))
-        scheme = "https"
+        ssl_ctx = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
+        ssl_ctx.load_cert_chain(cert, key)
         if made:
             echo(f"made a self-signed certificate: {cert} (see the README to trust it on a phone)")
-        for ip in lan_addresses():
-            echo(f"omninav: {scheme}://{ip}:{port}/")
+        urls = [f"{scheme}://{ip}:{port}/" for ip in lan_addresses()]
     else:
         shown = "localhost" if host in ("127.0.0.1", "0.0.0.0") else host
-        echo(f"omninav: {scheme}://{shown}:{port}/")
-    sys.stdout.flush()
-    _Gunicorn(options, {k: conf[k] for k in ("DATA",)}).run()
+        urls = [f"{scheme}://{shown}:{port}/"]
+    fork = multiprocessing.get_context("fork")
+    children = [fork.Process(target=_run_workers, args=(options, overrides), name="omninav-workers", daemon=False)]
+    if conf["JOB_RUNNER"]:
+        children.append(fork.Process(target=_run_jobs, args=(conf,), name="omninav-jobs", daemon=False))
+    for c in children:
+        c.start()
+    try:
+        _wait_for_socket(sock, children[0])
+        for u in urls:
+            echo(f"omninav: {u}")
+        sys.stdout.flush()
+        t = conf["FRONT_TIMEOUT_S"]
+        limits = Limits(
+            handshake_s=t,
+            head_s=t,
+            first_byte_s=t,
+            body_idle_s=t,
+            max_body=conf["MAX_CONTENT_LENGTH"],
+            backend_concurrency=workers * threads,
+        )
+        asyncio.run(_front(conf, sock, host, port, ssl_ctx, limits, children))
+    finally:
+        for c in children:
+            if c.is_alive():
+                c.terminate()
+        for c in children:
+            c.join(15)
+            if c.is_alive():
+                c.kill()
+        shutil.rmtree(run_dir, ignore_errors=True)
+
+
+async def _front(
+    conf: dict[str, Any],
+    sock: str,
+    host: str,
+    port: int,
+    ssl_ctx: ssl.SSLContext | None,
+    limits: Limits,
+    children: list[Any],
+) -> None:
+    db = Db(database_url(conf))
+    front = Front(
+        sock,
+        limits,
+        RateLimiter(conf["LOCATE_RATE"], conf["LOCATE_BURST"]),
+        lambda: db.get_meta(KEY),
+        trust_proxy=conf["TRUST_PROXY"],
+        https=ssl_ctx is not None,
+        max_upload=conf["MAX_UPLOAD_BYTES"],
+    )
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        loop.add_signal_handler(sig, stop.set)
+
+    async def watch() -> None:  # the server is down if its workers are: say so and stop
+        while not stop.is_set():
+            if not children[0].is_alive():
+                print("omninav: the worker processes stopped; shutting down", file=sys.stderr)
+                stop.set()
+            await asyncio.sleep(1.0)
+
+    watcher = asyncio.create_task(watch())
+    try:
+        await run_front(front, host, port, ssl_ctx, stop)
+    finally:
+        watcher.cancel()
+        db.engine.dispose()
+
+
+def _wait_for_socket(sock: str, proc: Any, timeout_s: float = 120.0) -> None:
+    t0 = time.monotonic()
+    while not os.path.exists(sock):
+        if not proc.is_alive():
+            raise OmninavError("the server's worker processes did not start (see the messages above)")
+        if time.monotonic() - t0 > timeout_s:
+            raise OmninavError("the server's worker processes did not start within 2 minutes")
+        time.sleep(0.05)
+
+
+def _die_with_parent() -> None:
+    """Linux: this child gets SIGTERM when the front dies, even by kill -9 (prctl PR_SET_PDEATHSIG)."""
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)
+    except (OSError, AttributeError):
+        pass
+
+
+def _run_workers(options: dict[str, Any], overrides: dict[str, Any]) -> None:
+    _die_with_parent()
+    _Gunicorn(options, overrides).run()
+
+
+def _run_jobs(conf: dict[str, Any]) -> None:
+    """The job runner: claims queued jobs from the database and models them, at a lower priority
+    than the workers (a modelling job must not slow the answers: measured in docs/benchmarks.md)."""
+    _die_with_parent()
+    os.nice(10)
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
+    db = Db(database_url(conf))
+    jobs = Jobs(Catalog(db, Path(conf["DATA"])), stale_s=conf["JOB_STALE_S"])
+    jobs.start()
+    threading.Event().wait()
 
 
 def default_workers() -> int:

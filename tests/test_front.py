@@ -1,0 +1,243 @@
+"""The server as a building runs it (`omninav serve`: the asynchronous front, gunicorn workers, the
+job runner), attacked over real sockets the way someone on the same Wi-Fi could, without the admin
+token: slow and idle connections, malformed requests, forged X-Forwarded-For, two uploads of one
+video at once. Each test names the finding of issue 9 that it guards."""
+
+from __future__ import annotations
+
+import json
+import socket
+import threading
+import time
+import urllib.request
+
+import pytest
+
+from server_helpers import ADMIN
+from test_server_live import Server
+
+
+@pytest.fixture
+def fast_timeouts(monkeypatch):
+    """Deadlines of 1.5 s instead of 10 s, so the tests see the front hang up."""
+    monkeypatch.setenv("OMNINAV_FRONT_TIMEOUT_S", "1.5")
+
+
+def health_ms(srv: Server) -> float:
+    t0 = time.perf_counter()
+    with urllib.request.urlopen(srv.base + "/api/health", timeout=5, context=srv.ctx) as r:
+        assert r.status == 200 and json.loads(r.read())["status"] == "ok"
+    return (time.perf_counter() - t0) * 1000
+
+
+def slow_sockets(port: int, n: int, tls: bool = False) -> list[socket.socket]:
+    """n connections that announce a 100 KB body and send 3 bytes of it (or, with tls, nothing at all:
+    not even a TLS handshake)."""
+    out = []
+    for _ in range(n):
+        s = socket.create_connection(("127.0.0.1", port))
+        if not tls:
+            s.sendall(
+                b"POST /api/admin/venues HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+                b"Content-Length: 100000\r\n\r\nabc"
+            )
+        out.append(s)
+    return out
+
+
+def raw_request(port: int, data: bytes, timeout: float = 10) -> bytes:
+    with socket.create_connection(("127.0.0.1", port), timeout=timeout) as s:
+        s.sendall(data)
+        got = b""
+        while chunk := s.recv(65536):
+            got += chunk
+    return got
+
+
+def test_slow_bodies_do_not_starve_anyone_and_are_cut_off(tmp_path, fast_timeouts):
+    """Finding 3: 8 sockets that announced a 100 KB body and sent 3 bytes stopped /api/health for minutes."""
+    srv = Server(tmp_path / "data")
+    try:
+        socks = slow_sockets(srv.port, 64)  # more than every worker thread together (2 x 4)
+        times = [health_ms(srv) for _ in range(20)]
+        assert max(times) < 1000, times
+        # the front answers the stalled ones itself, 408 in JSON, once the body stops for 1.5 s
+        socks[0].settimeout(10)
+        head = b""
+        while chunk := socks[0].recv(65536):
+            head += chunk
+        assert head.startswith(b"HTTP/1.1 408") and b'"status": 408' in head and b"too slowly" in head
+        for s in socks:
+            s.close()
+    finally:
+        srv.kill()
+
+
+def test_idle_connections_under_https_do_not_block_the_handshake(tmp_path, fast_timeouts):
+    """Finding 3: under --https six idle TCP connections blocked /api/health (the handshake ran in a
+    worker thread). Now the handshake is asynchronous, and an idle connection is closed."""
+    srv = Server(tmp_path / "data", "--https")
+    try:
+        idle = slow_sockets(srv.port, 40, tls=True)
+        assert max(health_ms(srv) for _ in range(10)) < 1000
+        idle[0].settimeout(10)
+        t0 = time.monotonic()
+        assert idle[0].recv(100) == b""  # hung up on, after the handshake deadline
+        assert time.monotonic() - t0 < 5
+        with urllib.request.urlopen(srv.base + "/", timeout=5, context=srv.ctx) as r:
+            assert r.headers["Strict-Transport-Security"].startswith("max-age=")  # finding 14: HSTS on HTTPS
+        for s in idle:
+            s.close()
+    finally:
+        srv.kill()
+
+
+def test_malformed_requests_get_json_errors_not_html(tmp_path):
+    """Finding 14: gunicorn answered an over-long request line with an HTML 414."""
+    srv = Server(tmp_path / "data")
+    try:
+        got = raw_request(srv.port, b"GET /api/" + b"a" * 70000 + b" HTTP/1.1\r\nHost: x\r\n\r\n")
+        status, _, rest = got.partition(b"\r\n")
+        assert status.split()[1] in (b"414", b"431"), status
+        body = json.loads(rest.split(b"\r\n\r\n", 1)[1])
+        assert body["status"] in (414, 431) and "too large" in body["error"]
+        got = raw_request(srv.port, b"GARBAGE\r\n\r\n")
+        assert got.startswith(b"HTTP/1.1 400") and b'"error"' in got and b"<html" not in got.lower()
+        # an announced body over the limit is refused before it is read
+        got = raw_request(
+            srv.port,
+            b"POST /api/venues/x/locate HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+            b"Content-Length: 999999999\r\n\r\n",
+        )
+        assert got.startswith(b"HTTP/1.1 413") and b"too large" in got
+    finally:
+        srv.kill()
+
+
+def test_security_headers_on_the_app_and_the_api(tmp_path):
+    """Finding 14: CSP (opencv.js needs 'wasm-unsafe-eval' and nothing more), nosniff, Referrer-Policy,
+    frame-ancestors."""
+    srv = Server(tmp_path / "data")
+    try:
+        for path in ("/", "/api/health"):
+            with urllib.request.urlopen(srv.base + path, timeout=5) as r:
+                csp = r.headers["Content-Security-Policy"]
+                assert "script-src 'self' 'wasm-unsafe-eval';" in csp and "unsafe-inline" not in csp
+                assert "frame-ancestors 'none'" in csp and "'unsafe-eval'" not in csp
+                assert r.headers["X-Content-Type-Options"] == "nosniff"
+                assert r.headers["Referrer-Policy"] == "no-referrer"
+                assert "Strict-Transport-Security" not in r.headers  # plain HTTP: no HSTS
+                assert "gunicorn" not in (r.headers.get("Server") or "")
+    finally:
+        srv.kill()
+
+
+def locate_statuses(srv: Server, n: int, forwarded: list[str] | None = None) -> list[int]:
+    out = []
+    for i in range(n):
+        h = {"Content-Type": "application/json"}
+        if forwarded:
+            h["X-Forwarded-For"] = forwarded[i % len(forwarded)]
+        out.append(srv.call("POST", "/api/venues/lab/locate", {"mag": []}, h)[0])
+    return out
+
+
+@pytest.mark.parametrize("trust_proxy", [False, True])
+def test_the_locate_limit_is_per_client_across_workers_and_cannot_be_forged(tmp_path, trust_proxy):
+    """Finding 10: with 2 workers 66 of 150 passed a limit of 30 (each worker had its own buckets), and
+    with TRUST_PROXY the client chose its own address with the leftmost X-Forwarded-For."""
+    env = {"OMNINAV_LOCATE_RATE": "1", "OMNINAV_LOCATE_BURST": "10", "OMNINAV_TRUST_PROXY": str(int(trust_proxy))}
+    srv = Server(tmp_path / "data", env=env)
+    try:
+        assert srv.call("POST", "/api/admin/venues", {"id": "lab"}, admin=True)[0] == 201
+        t0 = time.monotonic()
+        # every request forges a new leftmost address; the proxy (trusted or not) appended the last one
+        forged = [f"10.0.{i}.1, 192.0.2.7" for i in range(60)]
+        got = locate_statuses(srv, 60, forged)
+        passed = sum(s != 429 for s in got)
+        allowed = 10 + (time.monotonic() - t0) * 1.0
+        assert 10 <= passed <= allowed + 1, (passed, allowed, got)
+        assert set(got) == {409, 429}  # not modelled (it got through) or limited, nothing else
+        if trust_proxy:  # another client behind the same trusted proxy has its own bucket
+            assert locate_statuses(srv, 3, ["192.0.2.8"]) == [409] * 3
+        else:  # without a trusted proxy the header means nothing: same client, still limited
+            assert locate_statuses(srv, 3, ["192.0.2.8"]) == [429] * 3
+    finally:
+        srv.kill()
+
+
+def test_two_uploads_of_one_video_at_once_have_one_writer(tmp_path, small_ds):
+    """Finding 6: two simultaneous uploads could leave a file marked ready with the other upload's bytes."""
+    srv = Server(tmp_path / "data")
+    try:
+        assert srv.call("POST", "/api/admin/venues", {"id": "lab"}, admin=True)[0] == 201
+        plan = small_ds.floorplan.read_bytes()
+        assert srv.call("PUT", "/api/admin/venues/lab/floors/1/plan", plan, {"Content-Type": "image/png"}, True)[0]
+        assert srv.call("PUT", "/api/admin/venues/lab/floors/1", {"px_per_m": 20}, admin=True)[0] == 200
+        lens = json.loads((small_ds.root / "model_lens.json").read_text())
+        assert srv.call("PUT", "/api/admin/venues/lab/lenses/donut", lens, admin=True)[0] == 200
+        data = small_ds.model_video.read_bytes()
+        track = json.loads(small_ds.model_track.read_text())
+        body = {"name": "walk.mp4", "size": len(data), "track": track, "lens": "donut"}
+        assert srv.call("POST", "/api/admin/venues/lab/videos", body, admin=True)[0] == 201
+        url = "/api/admin/venues/lab/videos/walk.mp4/content"
+
+        # upload A sends half, pauses while B tries, then sends the rest
+        a = socket.create_connection(("127.0.0.1", srv.port), timeout=30)
+        a.sendall(
+            f"PUT {url} HTTP/1.1\r\nHost: x\r\nAuthorization: {ADMIN['Authorization']}\r\n"
+            f"Content-Type: application/octet-stream\r\nContent-Length: {len(data)}\r\n\r\n".encode()
+        )
+        a.sendall(data[: len(data) // 2])
+        time.sleep(1.0)
+        other = bytes(len(data))  # B's bytes differ everywhere
+        st, err = srv.call("PUT", url, other, {"Content-Type": "application/octet-stream"}, admin=True)
+        assert st == 409 and "another upload" in err["error"], err
+        st, err = srv.call("POST", "/api/admin/venues/lab/videos", body, admin=True)  # nor replaced meanwhile
+        assert st == 409 and "being uploaded" in err["error"]
+        a.sendall(data[len(data) // 2 :])
+        reply = b""
+        while b"\r\n\r\n" not in reply or not reply.rstrip().endswith(b"}"):
+            reply += a.recv(65536)
+        a.close()
+        assert reply.startswith(b"HTTP/1.1 200"), reply[:200]
+        _, v = srv.call("GET", "/api/admin/venues/lab/videos/walk.mp4", admin=True)
+        assert v["status"] == "ready" and v["received"] == len(data)
+        assert (tmp_path / "data" / "videos" / "lab" / "walk.mp4").read_bytes() == data
+        # once A is done, the video is not writable as an upload any more
+        st, err = srv.call("PUT", url, other, {"Content-Type": "application/octet-stream"}, admin=True)
+        assert st == 409 and "already uploaded" in err["error"]
+    finally:
+        srv.kill()
+
+
+def test_health_answers_while_many_clients_trickle(tmp_path, fast_timeouts):
+    """50 clients sending one byte a second (under the body deadline each time) and 50 holding TLS-less
+    idle connections: the server still answers everyone else at once."""
+    srv = Server(tmp_path / "data")
+    stop = threading.Event()
+
+    def trickle() -> None:
+        try:
+            with socket.create_connection(("127.0.0.1", srv.port), timeout=10) as s:
+                s.sendall(b"POST /api/venues/x/locate HTTP/1.1\r\nHost: x\r\nContent-Length: 5000\r\n\r\n")
+                while not stop.is_set():
+                    s.sendall(b"[")
+                    time.sleep(1.0)
+        except OSError:
+            pass
+
+    threads = [threading.Thread(target=trickle, daemon=True) for _ in range(50)]
+    try:
+        for t in threads:
+            t.start()
+        idle = slow_sockets(srv.port, 50, tls=True)
+        time.sleep(0.5)
+        assert max(health_ms(srv) for _ in range(20)) < 1000
+        for s in idle:
+            s.close()
+    finally:
+        stop.set()
+        for t in threads:
+            t.join(5)
+        srv.kill()
