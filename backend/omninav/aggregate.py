@@ -62,6 +62,8 @@ def sequence(m: Matches, xy: np.ndarray, times: np.ndarray, conf: dict[str, Any]
     rival = float(total[far].max()) if far.any() else 0.0
     rows = np.flatnonzero(best_v[a] > 0)
     picks = rows * k + best_k[a, rows]
+    if rows.size == 0:  # no match scored above 0 (a blank frame, a lens cap): hypothesis a, unsupported
+        rows, picks = np.array([a // k]), np.array([a])
     w = sc[picks]
     tr = np.asarray(times, np.float64)[rows]
     t_last = float(np.asarray(times, np.float64)[-1])

@@ -19,18 +19,10 @@ from .auth import set_token
 from .catalog import Catalog
 from .config import DEFAULTS, database_url, from_env
 from .db import Db
-from .http import ApiError, install_error_handlers
+from .http import CSP, ApiError, install_error_handlers
 from .jobs import Jobs
 from .locate_api import Runtimes
 from .ratelimit import RateLimiter
-
-# The app's own origin only; opencv.js compiles its WebAssembly ('wasm-unsafe-eval', and nothing
-# more: no eval, no inline script or style); the annotated plan arrives as a data: URL; no framing.
-CSP = (
-    "default-src 'self'; script-src 'self' 'wasm-unsafe-eval'; worker-src 'self'; connect-src 'self'; "
-    "img-src 'self' data: blob:; media-src 'self' blob:; style-src 'self'; object-src 'none'; "
-    "base-uri 'none'; form-action 'self'; frame-ancestors 'none'"
-)
 
 
 @dataclass
@@ -85,6 +77,7 @@ def create_app(overrides: dict[str, Any] | None = None) -> Flask:
         n = request.content_length
         if n is not None and n > limit and request.endpoint != "admin.upload_content":
             raise ApiError(413, f"request body too large: {n} bytes (the limit here is {limit})")
+
     @app.after_request
     def _security_headers(resp: Any) -> Any:
         h = resp.headers

@@ -16,22 +16,27 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 from flask import Blueprint, current_app, jsonify, request
 
 from ..errors import OmninavError
-from ..lens import Lens
-from ..locate import DEFAULT_CLIP_FPS, Locator, clip_frames
-from ..spectrum import decode_binary, decode_json
+from ..extract import Extractor
+from ..locate import DEFAULT_CLIP_FPS, Locator
+from ..presets import n_curves
+from ..spectrum import HEADER_BYTES, decode_binary, decode_json, record_bytes_per_frame
 from .catalog import Catalog
 from .describe import UNSURE, describe
 from .http import ApiError, client_address, json_body
+from .media import decode_image, iter_sampled, probe_image, probe_mp4, same_size, sampled_count
 from .plan import annotate
 
 bp = Blueprint("locate", __name__)
 RECORD_TYPES = ("application/octet-stream", "application/vnd.omninav.record")
 PATH_WINDOW_S = 6.0  # the matched modelling path drawn on the plan: this long either side of the match
+JSON_HEAD_BYTES = 4096  # a JSON feature record's fields other than its numbers
+JSON_NUMBER_BYTES = 48  # a number in a JSON record: digits, sign, exponent, separator, indentation
+MAX_CLIP_S = 5.0  # a video clip: a phone films about a second; five is generous
+MAX_VIDEO_FRAMES = int(MAX_CLIP_S * 240)  # frames decoded from one video clip (5 s at 240 fps), sampled or not
 
 
 @dataclass
@@ -108,22 +113,20 @@ def _float_arg(name: str, lo: float, hi: float) -> float | None:
     return v
 
 
-def _decode_image(data: bytes, what: str) -> np.ndarray:
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR) if data else None
-    if img is None:
-        raise ApiError(422, f"{what} is not a readable JPEG or PNG image")
-    return img
-
-
-def _query_lens(cat: Catalog, venue_id: str) -> Lens | None:
+def _clip_lens(cat: Catalog, venue_id: str, loc: Locator) -> tuple[Extractor, str]:
+    """The extractor for the clip's lens (the 'lens' form or query parameter, else the lens the
+    venue was modelled with) and how to name that lens in a message."""
     name = request.form.get("lens") or request.args.get("lens")
-    return cat.lens(venue_id, name) if name else None
+    ext = loc.extractor(cat.lens(venue_id, name) if name else None)
+    return ext, (f"lens {name!r}" if name else "the venue's modelling lens")
 
 
 def _read_clip(cat: Catalog, venue_id: str, rt: Runtime, max_frames: int) -> tuple[np.ndarray, float | None, str]:
     """The request body -> ((F, C, K) spectra, fps or None, what it was)."""
     loc = rt.locator
     ct = request.mimetype
+    if ct in RECORD_TYPES or ct == "application/json":
+        _check_record_size(loc.conf, max_frames, as_json=ct == "application/json")
     if ct == "application/json":
         obj = json_body()
         n = len(obj.get("mag") or []) if isinstance(obj.get("mag"), list) else 0
@@ -140,49 +143,118 @@ def _read_clip(cat: Catalog, venue_id: str, rt: Runtime, max_frames: int) -> tup
         if len(spec) > max_frames:
             raise ApiError(413, f"too many frames: {len(spec)} (a clip may have at most {max_frames})")
         return spec, None, "features"
-    frames: list[np.ndarray]
-    fps: float | None = None
     if ct == "multipart/form-data":
         files = request.files.getlist("frame")
         video = request.files.get("video")
         if video is not None and not files:
-            frames, fps = _video_frames(video.read(), loc, max_frames)
-        elif files:
-            if len(files) > max_frames:
-                raise ApiError(413, f"too many frames: {len(files)} (a clip may have at most {max_frames})")
-            frames = [_decode_image(f.read(), f"frame {i} ({f.filename})") for i, f in enumerate(files)]
-        else:
+            return (*_video_spectra(video.read(), *_clip_lens(cat, venue_id, loc), loc, max_frames), "frames")
+        if not files:
             raise ApiError(400, "a multipart locate request needs 'frame' files (JPEG/PNG, in order) or one 'video'")
-    elif ct in ("image/jpeg", "image/png"):
-        frames = [_decode_image(request.get_data(), "the frame")]
-    elif ct.startswith("video/"):
-        frames, fps = _video_frames(request.get_data(), loc, max_frames)
-    else:
+        if len(files) > max_frames:
+            raise ApiError(413, f"too many frames: {len(files)} (a clip may have at most {max_frames})")
+        images = [(f.read(), f"frame {i} ({f.filename})") for i, f in enumerate(files)]
+        return _image_spectra(images, *_clip_lens(cat, venue_id, loc)), None, "frames"
+    if ct in ("image/jpeg", "image/png"):
+        return _image_spectra([(request.get_data(), "the frame")], *_clip_lens(cat, venue_id, loc)), None, "frames"
+    if ct.startswith("video/"):
+        return (*_video_spectra(request.get_data(), *_clip_lens(cat, venue_id, loc), loc, max_frames), "frames")
+    raise ApiError(
+        415,
+        f"unsupported Content-Type {ct or 'none'}: send a feature record (application/json or "
+        "application/octet-stream), frames (multipart/form-data, image/jpeg, image/png) or a video (video/*)",
+    )
+
+
+def _check_record_size(conf: dict[str, Any], max_frames: int, as_json: bool) -> None:
+    """413 for a feature record longer than one of `max_frames` frames can be, before it is parsed:
+    parsing is what costs (31 MB of JSON numbers took 410 MB and 6 s to parse and refuse)."""
+    n = request.content_length if request.content_length is not None else len(request.get_data(cache=True))
+    if not as_json:  # binary: a fixed header, then 4 bytes a harmonic of a curve
+        frames = (n - HEADER_BYTES) // record_bytes_per_frame(conf)
+        if frames > max_frames:
+            raise ApiError(413, f"too many frames: {frames} (a clip may have at most {max_frames})")
+        return
+    # JSON: two numbers a harmonic of a curve, each at most JSON_NUMBER_BYTES however it is printed
+    limit = JSON_HEAD_BYTES + max_frames * 2 * n_curves(conf) * conf["n_harmonics"] * JSON_NUMBER_BYTES
+    if n > limit:
         raise ApiError(
-            415,
-            f"unsupported Content-Type {ct or 'none'}: send a feature record (application/json or "
-            "application/octet-stream), frames (multipart/form-data, image/jpeg, image/png) or a video (video/*)",
+            413, f"the JSON feature record is {n} bytes; one of at most {max_frames} frames is at most {limit}"
         )
-    ext = loc.extractor(_query_lens(cat, venue_id))
-    for i, f in enumerate(frames):
-        try:
-            ext.check_frame(f, f"frame {i}")
-        except OmninavError as e:
-            raise ApiError(422, f"{e}; name the clip's lens profile with 'lens'") from None
-    return ext.spectra(frames), fps, "frames"
 
 
-def _video_frames(data: bytes, loc: Locator, max_frames: int) -> tuple[list[np.ndarray], float]:
+def _image_spectra(images: list[tuple[bytes, str]], ext: Extractor, lens_name: str) -> np.ndarray:
+    """JPEG/PNG frames -> (F, C, K) spectra. Every header is checked against the lens's frame size
+    before any frame is decoded, and each frame becomes its spectrum before the next is decoded:
+    the request holds one decoded frame, of the size the lens allows, whatever it sent."""
+    want = ext.lens.image_size
+    for data, what in images:
+        head = probe_image(data)
+        if head is None:
+            raise ApiError(422, f"{what} is not a readable JPEG or PNG image")
+        if not same_size(head.width, head.height, want):
+            raise ApiError(
+                422,
+                f"{what} is {head.width}x{head.height} but {lens_name} is for {want[0]}x{want[1]} images; "
+                "name the clip's lens profile with 'lens'",
+            )
+    out = []
+    for data, what in images:
+        img = decode_image(data)
+        if img is None:
+            raise ApiError(422, f"{what} is not a readable JPEG or PNG image")
+        out.append(_frame_spectrum(ext, img, what))
+    return np.stack(out)
+
+
+def _frame_spectrum(ext: Extractor, frame: np.ndarray, what: str) -> np.ndarray:
+    try:
+        ext.check_frame(frame, what)  # exact, once decoded (a rotated frame may come either way round)
+    except OmninavError as e:
+        raise ApiError(422, f"{e}; name the clip's lens profile with 'lens'") from None
+    return ext.spectrum(frame)
+
+
+def _video_spectra(
+    data: bytes, ext: Extractor, lens_name: str, loc: Locator, max_frames: int
+) -> tuple[np.ndarray, float]:
+    """An MP4/QuickTime clip -> ((F, C, K) spectra of its frames sampled at the venue's modelling
+    rate, ending at its last frame; the sampled frame rate).
+
+    The container's boxes say the frame size, the frame count and the duration: all are checked
+    before the clip is written to a file or any frame is decoded, and decoding stops at the count
+    it declared, so a clip costs what its lens and MAX_CLIP_S allow, whatever its stream holds.
+    """
+    tracks = probe_mp4(data)
+    if tracks is None:
+        raise ApiError(422, "the video does not decode: send an MP4 or QuickTime (.mov) video")
+    want = ext.lens.image_size
+    for t in tracks:  # FFmpeg decodes a frame of every track when it opens the file
+        if not same_size(t.width, t.height, want):
+            raise ApiError(422, f"the video is {t.width}x{t.height} but {lens_name} is for {want[0]}x{want[1]}")
+    v = tracks[0]
+    if v.duration_s > MAX_CLIP_S:
+        raise ApiError(413, f"the video is {v.duration_s:g} s long; a clip may be at most {MAX_CLIP_S:g} s")
+    if v.frames > MAX_VIDEO_FRAMES:
+        raise ApiError(413, f"the video has {v.frames} frames; a clip may have at most {MAX_VIDEO_FRAMES}")
+    stride = max(1, int(round(v.fps / loc.conf["model_fps"]))) if v.fps else 1
+    if sampled_count(v.frames, stride) > max_frames:
+        raise ApiError(
+            413,
+            f"too many frames: {sampled_count(v.frames, stride)} after sampling (a clip may have at most {max_frames})",
+        )
+    spectra: list[np.ndarray] = []
     with tempfile.TemporaryDirectory(prefix="omninav-clip-") as d:
-        p = Path(d) / "clip"
+        p = Path(d) / "clip.mp4"
         p.write_bytes(data)
-        try:
-            frames, fps = clip_frames(p, loc.conf["model_fps"])
-        except OmninavError:
-            raise ApiError(422, "the video does not decode (no readable frames)") from None
-    if len(frames) > max_frames:
-        raise ApiError(413, f"too many frames: {len(frames)} after sampling (a clip may have at most {max_frames})")
-    return frames, fps
+        for i, frame in enumerate(iter_sampled(p, v.frames, stride, MAX_VIDEO_FRAMES)):
+            if i >= max_frames:  # a clip whose container gave no count
+                raise ApiError(
+                    413, f"too many frames: over {max_frames} after sampling (a clip may have at most {max_frames})"
+                )
+            spectra.append(_frame_spectrum(ext, frame, f"the video's sampled frame {i}"))
+    if not spectra:
+        raise ApiError(422, "the video does not decode (no readable frames)")
+    return np.stack(spectra), (v.fps or DEFAULT_CLIP_FPS) / stride
 
 
 def accuracy_m(confidence: float, low: float) -> float | None:

@@ -8,7 +8,7 @@ from importlib.resources import files
 from typing import Any
 
 import yaml
-from flask import Blueprint, Response, current_app, jsonify
+from flask import Blueprint, current_app, jsonify, send_file
 
 from .. import __version__
 from .catalog import valid_floor_id
@@ -51,6 +51,5 @@ def plan(venue_id: str, floor: str) -> Any:
     f = cat.floor(venue_id, valid_floor_id(floor))
     if not f["plan_file"]:
         raise ApiError(404, f"floor {floor!r} of venue {venue_id!r} has no floor plan yet")
-    resp = Response(cat.plan_path(venue_id, floor).read_bytes(), mimetype="image/png")  # plans are small
-    resp.cache_control.max_age = 60
-    return resp
+    # streamed from the file, not read whole: a plan may be 40 megapixels (catalog.PLAN_MAX_PX)
+    return send_file(cat.plan_path(venue_id, floor), mimetype="image/png", max_age=60)

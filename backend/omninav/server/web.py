@@ -9,6 +9,8 @@ from typing import Any
 
 from flask import Blueprint, Response, current_app, request, send_from_directory
 
+from .http import WORKER_CSP
+
 bp = Blueprint("web", __name__)
 NO_CACHE = ("sw.js", "index.html", "manifest.webmanifest")  # must update as soon as the app does
 
@@ -19,6 +21,13 @@ def _dist() -> Path:
 
 def _send(name: str) -> Any:
     """A file of the app, gzipped when the build made a .gz copy and the browser accepts it."""
+    resp = _file(name)
+    if name.startswith("assets/worker-") and name.endswith(".js"):
+        resp.headers["Content-Security-Policy"] = WORKER_CSP
+    return resp
+
+
+def _file(name: str) -> Any:
     max_age = 0 if name in NO_CACHE else 3600
     gz = _dist() / f"{name}.gz"
     if "gzip" in request.accept_encodings and gz.is_file() and ".." not in Path(name).parts:
