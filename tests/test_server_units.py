@@ -63,3 +63,32 @@ def test_migrations_run_once_and_a_newer_database_is_refused(tmp_path):
     db.set_meta("schema_version", str(SCHEMA_VERSION + 1))
     with pytest.raises(OmninavError, match="newer than this omninav"):
         db.migrate()
+
+
+def test_lens_names_made_from_video_names_are_renamed_by_content(tmp_path):
+    """Finding 10: an inline lens was named 'video-<video name>' and the public venue document lists
+    lens names, so a video's name leaked; schema 2 names such lenses by their content instead."""
+    from sqlalchemy import text
+
+    from omninav.server.db import MIGRATIONS, inline_lens_name
+
+    db = Db(f"sqlite:///{tmp_path / 'o.sqlite'}")
+    with db.tx() as c:  # a database as schema 1 left it
+        for stmt in MIGRATIONS[0]:
+            c.execute(text(stmt))
+        c.execute(text("INSERT INTO meta VALUES ('schema_version', '1')"))
+        c.execute(text("INSERT INTO venues VALUES ('v', 'V', 'default', 0, 0)"))
+        prof = '{"model": "equirectangular", "image_size": [720, 360], "forward_x": 360, "ccw": false}'
+        c.execute(text("INSERT INTO lenses VALUES ('v', 'video-secret-plans-mp4', :p)"), {"p": prof})
+        c.execute(
+            text(
+                "INSERT INTO videos (venue, name, floor, lens, track, size, status, created) "
+                "VALUES ('v', 'secret-plans.mp4', '1', 'video-secret-plans-mp4', '{}', 1, 'ready', 0)"
+            )
+        )
+    db.migrate()
+    import json
+
+    want = inline_lens_name(json.loads(prof))
+    assert [r["name"] for r in db.all("SELECT name FROM lenses")] == [want]
+    assert db.one("SELECT lens FROM videos")["lens"] == want and "secret" not in want

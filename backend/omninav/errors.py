@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import json
 import math
+import reprlib
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -27,8 +29,16 @@ def read_json(path: str | Path, what: str) -> Any:
         raise OmninavError(f"{p}: {what} is not readable JSON ({e})") from None
 
 
+def is_finite_number(v: Any) -> bool:
+    """A JSON number that a float holds: not a bool, NaN or Inf, nor an integer past 1.8e308
+    (JSON integers have no limit, and math.isfinite raises OverflowError on those)."""
+    if isinstance(v, float):
+        return math.isfinite(v)
+    return isinstance(v, int) and not isinstance(v, bool) and abs(v) <= sys.float_info.max
+
+
 def finite(v: Any, what: str, where: str) -> float:
-    """A finite JSON number (not a bool, NaN or Inf) as float, else an error naming the field."""
-    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-        raise OmninavError(f"{where}: {what} must be a finite number, got {v!r}")
+    """A finite JSON number as float, else an error naming the field (and a short form of the value)."""
+    if not is_finite_number(v):
+        raise OmninavError(f"{where}: {what} must be a finite number, got {reprlib.repr(v)}")
     return float(v)

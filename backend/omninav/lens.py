@@ -93,12 +93,21 @@ def _num(v: Any, key: str, where: str) -> float:
     return finite(v, f"lens field '{key}'", where)
 
 
+def _flag(d: dict[str, Any], key: str, default: bool, where: str) -> bool:
+    """A true/false field: "false" or 0 would otherwise read as true or be guessed at."""
+    v = d.get(key, default)
+    if not isinstance(v, bool):
+        raise OmninavError(f"{where}: lens field '{key}' must be true or false, got {v!r}")
+    return v
+
+
+def _whole(x: Any) -> bool:
+    """A JSON integer: 720, or 720.0 as some encoders write it (JSON Schema counts both)."""
+    return not isinstance(x, bool) and (isinstance(x, int) or (isinstance(x, float) and x.is_integer()))
+
+
 def _size(v: Any, where: str) -> tuple[int, int]:
-    if (
-        not isinstance(v, list | tuple)
-        or len(v) != 2
-        or not all(isinstance(x, int) and not isinstance(x, bool) and x > 0 for x in v)
-    ):
+    if not isinstance(v, list | tuple) or len(v) != 2 or not all(_whole(x) and x > 0 for x in v):
         raise OmninavError(f"{where}: lens field 'image_size' must be [width, height] in pixels")
     return int(v[0]), int(v[1])
 
@@ -129,10 +138,13 @@ def lens_from_dict(d: Any, where: str = "lens") -> Lens:
             r_outer=r_out,
             elevation_poly=coeffs,
             forward_deg=_num(d.get("forward_deg", 0.0), "forward_deg", where),
-            ccw=bool(d.get("ccw", True)),
+            ccw=_flag(d, "ccw", True, where),
         )
-        e = lens.elevation(np.linspace(r_in, r_out, 512))
-        de = np.diff(e)
+        with np.errstate(all="ignore"):  # huge coefficients or radii overflow: refused below, not raised
+            e = lens.elevation(np.linspace(r_in, r_out, 512))
+            de = np.diff(e)
+        if not np.isfinite(e).all():
+            raise OmninavError(f"{where}: 'elevation_poly' overflows over [r_inner, r_outer]")
         if not (np.all(de > 0) or np.all(de < 0)):
             raise OmninavError(f"{where}: 'elevation_poly' is not monotonic over [r_inner, r_outer]")
         return lens
@@ -141,7 +153,7 @@ def lens_from_dict(d: Any, where: str = "lens") -> Lens:
         return Equirectangular(
             image_size=size,
             forward_x=_num(_need(d, "forward_x", where), "forward_x", where),
-            ccw=bool(d.get("ccw", False)),
+            ccw=_flag(d, "ccw", False, where),
         )
     raise OmninavError(f"{where}: unknown lens model {model!r} (expected 'catadioptric' or 'equirectangular')")
 

@@ -120,7 +120,7 @@ def decode_json(obj: Any, expect: dict[str, Any] | None = None) -> np.ndarray:
         ph = np.asarray(obj["phase"], dtype=np.float64)
     except KeyError as e:
         raise OmninavError(f"feature record is missing {e.args[0]!r}") from None
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # ragged, not numbers, or an integer past float64
         raise OmninavError("feature record 'mag' and 'phase' must be arrays of numbers") from None
     if mag.ndim != 3 or mag.shape != ph.shape:
         raise OmninavError(
@@ -131,14 +131,21 @@ def decode_json(obj: Any, expect: dict[str, Any] | None = None) -> np.ndarray:
     if (ph < -32768).any() or (ph > 32767).any() or (ph != np.round(ph)).any():
         raise OmninavError("feature record phases must be integers in [-32768, 32767]")
     _, c, k = mag.shape
-    sid = obj.get("settings_id")
-    if not isinstance(sid, int) or isinstance(sid, bool):
+    sid = _whole(obj.get("settings_id"))
+    if sid is None:
         raise OmninavError("feature record 'settings_id' must be an integer")
-    w = obj.get("pano_width")
-    if not isinstance(w, int) or isinstance(w, bool):
+    w = _whole(obj.get("pano_width"))
+    if w is None:
         raise OmninavError("feature record 'pano_width' must be an integer")
     _check(mag, c, k, w, sid, expect)
     return _join(mag.astype(np.float16), ph.astype(np.int16))
+
+
+def _whole(v: Any) -> int | None:
+    """A JSON integer (42, or 42.0 as some encoders write it) as int, else None."""
+    if isinstance(v, float) and v.is_integer():
+        return int(v)
+    return v if isinstance(v, int) and not isinstance(v, bool) else None
 
 
 def _check(mag: np.ndarray, c: int, k: int, w: int, sid: int, expect: dict[str, Any] | None) -> None:

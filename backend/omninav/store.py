@@ -40,7 +40,7 @@ FRAME_DTYPE = np.dtype(
 
 
 def check_id(venue_id: str) -> str:
-    if not isinstance(venue_id, str) or not VENUE_ID.match(venue_id):
+    if not isinstance(venue_id, str) or not VENUE_ID.fullmatch(venue_id):  # match lets "a\n" through
         raise OmninavError(
             f"invalid venue id {venue_id!r}: use 1-64 letters, digits, '-' or '_', starting with a letter or digit"
         )

@@ -10,16 +10,16 @@ from __future__ import annotations
 import json
 import math
 import re
+import reprlib
 import time
 import uuid
 from pathlib import Path
 from typing import Any
 
 import cv2
-import numpy as np
 from sqlalchemy import text
 
-from ..errors import OmninavError
+from ..errors import OmninavError, is_finite_number
 from ..lens import Lens, lens_from_dict
 from ..model_venue import remove_video
 from ..presets import PRESETS, n_curves, settings_id
@@ -31,7 +31,8 @@ from .http import ApiError
 
 FLOOR_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,31}$")
 VIDEO_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]*(\.[A-Za-z0-9_-]+)*$")
-PLAN_MAX_PX = 16384
+PLAN_MAX_PX = 8192  # a floor plan's side; more is no use on any screen, and costs memory to draw
+PLAN_MAX_MEGAPIXELS = 40  # and its area (120 MB decoded)
 DEFAULT_LENS = "default"
 
 
@@ -43,13 +44,13 @@ def valid_venue_id(venue_id: str) -> str:
 
 
 def valid_floor_id(floor: str) -> str:
-    if not isinstance(floor, str) or not FLOOR_ID.match(floor):
+    if not isinstance(floor, str) or not FLOOR_ID.fullmatch(floor):  # match would let "1\n" through
         raise ApiError(400, f"invalid floor id {floor!r}: use 1-32 letters, digits, '-' or '_'")
     return floor
 
 
 def valid_video_name(name: str) -> str:
-    if not isinstance(name, str) or len(name) > 128 or not VIDEO_NAME.match(name) or name.endswith(".part"):
+    if not isinstance(name, str) or len(name) > 128 or not VIDEO_NAME.fullmatch(name) or name.endswith(".part"):
         raise ApiError(
             400, f"invalid video name {name!r}: use up to 128 letters, digits, '-', '_' and dots between them"
         )
@@ -57,8 +58,8 @@ def valid_video_name(name: str) -> str:
 
 
 def _num(v: Any, what: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-        raise ApiError(400, f"{what} must be a finite number, got {v!r}")
+    if not is_finite_number(v):  # 1e400 written as an integer is one too
+        raise ApiError(400, f"{what} must be a finite number, got {reprlib.repr(v)}")
     return float(v)
 
 
@@ -93,16 +94,26 @@ class Catalog:
             raise ApiError(400, f"unknown preset {preset!r} (use one of {', '.join(PRESETS)})")
         if self.db.one("SELECT id FROM venues WHERE id = :id", id=venue_id):
             raise ApiError(409, f"venue {venue_id!r} already exists")
-        if not self.store.exists(venue_id):
-            self.store.create(venue_id, name=name, preset=preset)
-        self.db.run(
-            "INSERT INTO venues (id, name, preset, created, revision) VALUES (:id, :n, :p, :t, 0)",
-            id=venue_id,
-            n=name,
-            p=preset,
-            t=time.time(),
-        )
-        self.put_floor(venue_id, "1", {"name": "Floor 1"})
+        # The rows and the store folder together: the folder is made inside the transaction, after
+        # the database has taken the rows, and removed again if anything fails, so a refused venue
+        # leaves nothing behind (a name the database cannot store used to leave an orphan folder).
+        d = self.store.venue_dir(venue_id)
+        new_dir = not d.exists()  # a venue made by the CLI keeps its folder: only the rows are new
+        try:
+            with self.db.tx() as c:
+                c.execute(
+                    text("INSERT INTO venues (id, name, preset, created, revision) VALUES (:id, :n, :p, :t, 1)"),
+                    {"id": venue_id, "n": name, "p": preset, "t": time.time()},
+                )
+                c.execute(text("INSERT INTO floors (venue, id, name) VALUES (:v, '1', 'Floor 1')"), {"v": venue_id})
+                if not self.store.exists(venue_id):
+                    self.store.create(venue_id, name=name, preset=preset)
+        except BaseException:
+            if new_dir:
+                import shutil  # here only: the one place the catalogue removes a folder it made
+
+                shutil.rmtree(d, ignore_errors=True)
+            raise
         return self.venue(venue_id)
 
     def rename_venue(self, venue_id: str, name: str) -> None:
@@ -163,8 +174,8 @@ class Catalog:
         valid_floor_id(floor)
         old = self.db.one("SELECT * FROM floors WHERE venue = :v AND id = :f", v=venue_id, f=floor)
         name = body.get("name", old["name"] if old else f"Floor {floor}")
-        if not isinstance(name, str) or not name.strip():
-            raise ApiError(400, "floor 'name' must be a non-empty string")
+        if not isinstance(name, str) or not name.strip() or len(name) > 200:
+            raise ApiError(400, "floor 'name' must be a non-empty string of at most 200 characters")
         px_per_m = old["px_per_m"] if old else None
         if "px_per_m" in body:
             px_per_m = _num(body["px_per_m"], "'px_per_m'")
@@ -196,6 +207,8 @@ class Catalog:
         px = math.hypot(b[0] - a[0], b[1] - a[1])
         if d <= 0 or px <= 0:
             raise ApiError(400, "scale: the two points must differ and 'distance_m' must be positive")
+        if not math.isfinite(px / d):  # points 1e308 apart, or 1e-300 m: no JSON number holds the scale
+            raise ApiError(400, "scale: the points and 'distance_m' must give a finite number of pixels a metre")
         return px / d
 
     def plan_path(self, venue_id: str, floor: str) -> Path:
@@ -203,12 +216,25 @@ class Catalog:
 
     def set_plan(self, venue_id: str, floor: str, data: bytes) -> dict[str, Any]:
         self.floor(venue_id, floor)
-        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR) if data else None
+        # The size from the header first: a 16384^2 plan is a 100 KB upload and 800 MB decoded
+        from .media import decode_image, probe_image
+
+        head = probe_image(data)
+        if head is None:
+            raise ApiError(422, "the floor plan is not a readable PNG or JPEG image")
+        w, h = head.width, head.height
+        if max(w, h) > PLAN_MAX_PX:
+            raise ApiError(422, f"the floor plan is {w}x{h} pixels; at most {PLAN_MAX_PX} on a side")
+        if w * h > PLAN_MAX_MEGAPIXELS * 1e6:
+            raise ApiError(
+                422,
+                f"the floor plan is {w}x{h} pixels ({w * h / 1e6:.1f} megapixels); "
+                f"at most {PLAN_MAX_MEGAPIXELS} megapixels",
+            )
+        img = decode_image(data)
         if img is None:
             raise ApiError(422, "the floor plan is not a readable PNG or JPEG image")
-        h, w = img.shape[:2]
-        if max(h, w) > PLAN_MAX_PX:
-            raise ApiError(422, f"the floor plan is {w}x{h} pixels; at most {PLAN_MAX_PX} on a side")
+        h, w = img.shape[:2]  # upright: OpenCV applies a JPEG's EXIF orientation
         p = self.plan_path(venue_id, floor)
         p.parent.mkdir(parents=True, exist_ok=True)
         tmp = p.with_suffix(".tmp.png")
@@ -303,7 +329,10 @@ class Catalog:
     def put_lens(self, venue_id: str, name: str, profile: Any) -> dict[str, Any]:
         self.venue(venue_id)
         try:
-            check_id(name)
+            try:
+                check_id(name)
+            except OmninavError:  # check_id speaks of venue ids: say which name was wrong
+                raise OmninavError(f"invalid lens name {name!r}: use 1-64 letters, digits, '-' or '_'") from None
             lens = lens_from_dict(profile, where=f"lens {name!r}")
         except OmninavError as e:
             raise ApiError(400, str(e)) from None
@@ -372,6 +401,8 @@ class Catalog:
         name = valid_video_name(body.get("name"))  # type: ignore[arg-type]
         floor = str(body.get("floor", "1"))
         size = body.get("size")
+        if isinstance(size, float) and size.is_integer():  # 1.0 is a JSON integer too
+            size = int(size)
         if isinstance(size, bool) or not isinstance(size, int) or size <= 0:
             raise ApiError(400, "'size' must be the video's length in bytes (a positive integer)")
         if size > max_bytes:
@@ -380,13 +411,21 @@ class Catalog:
         self.check_track(venue_id, floor, track)
         lens = body.get("lens", DEFAULT_LENS)
         if isinstance(lens, dict):  # an inline profile becomes the video's own named lens
-            profile, lens = lens, inline_lens_name(lens)
+            try:  # named by its normalised content: the same profile is one lens, and no name leaks
+                profile = lens_from_dict(lens, where="the video's lens").to_dict()
+            except OmninavError as e:
+                raise ApiError(400, str(e)) from None
+            lens = inline_lens_name(profile)
             self.put_lens(venue_id, lens, profile)
         if not isinstance(lens, str):
             raise ApiError(400, "'lens' must be a lens profile name or a lens profile object")
         self.lens(venue_id, lens)
         self.check_not_modelling(venue_id, name)
         old = self.db.one("SELECT * FROM videos WHERE venue = :v AND name = :n", v=venue_id, n=name)
+        if old is not None and old["writer"] and (old["writer_until"] or 0) > time.time():
+            raise ApiError(
+                409, f"video {name!r} is being uploaded right now; wait for that upload to end, then send it again"
+            )
         if old is not None:  # a new upload under the same name replaces the file when it completes
             self.db.run("DELETE FROM videos WHERE venue = :v AND name = :n", v=venue_id, n=name)
         part = self.video_dir(venue_id) / f"{name}.part"
