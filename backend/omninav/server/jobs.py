@@ -1,14 +1,23 @@
-"""Modelling jobs: queued in the database, run by a background thread in each server process.
+"""Modelling jobs: queued in the database, run by a job runner (a background thread of a server
+process, or a dedicated process that calls `run_forever`).
 
-Any process may claim a queued job (one atomic UPDATE decides who); its progress, heartbeat and
-cancel flag live in the job's row, so every worker can report on it and cancel it. A job whose
-process died (the server was killed) is seen as failed: at start-up for dead processes on this
-host, and by a stale heartbeat otherwise. Modelling commits one new generation at the very end
-(model_venue.py), so a job that dies or is cancelled leaves the venue answering as before.
+One active job per venue is a database constraint (the partial unique index `jobs_one_active`):
+`submit` inserts and turns the constraint's refusal into a 409, so two simultaneous requests
+cannot both create one. Any runner may claim a queued job (one atomic UPDATE decides who); its
+progress, heartbeat and cancel flag live in the job's row, so every process can report on it and
+cancel it.
+
+Jobs recover by themselves. A job whose runner died (the server was killed: a dead pid on this
+host, a stale heartbeat from another) is queued again with a backoff, and so is one that met a
+fault of its surroundings (a full disk); after MAX_ATTEMPTS it fails. A job that fails on its
+input (OmninavError: a video that does not fit its lens...) fails at once: retrying cannot help.
+Modelling commits one new generation at the very end (model_venue.py), so a job that dies, fails
+or is cancelled leaves the venue answering as before.
 """
 
 from __future__ import annotations
 
+import errno
 import json
 import logging
 import os
@@ -18,6 +27,8 @@ import time
 import uuid
 from pathlib import Path
 from typing import Any
+
+from sqlalchemy.exc import IntegrityError
 
 from ..errors import OmninavError
 from ..model_venue import VideoSource, model_videos
@@ -30,10 +41,24 @@ ACTIVE = ("queued", "running")
 FINAL = ("done", "failed", "cancelled")
 PROGRESS_EVERY_S = 0.5
 HEARTBEAT_EVERY_S = 2.0
+POLL_S = 1.0  # how often an idle runner looks for work (and for jobs whose runner died)
+MAX_ATTEMPTS = 3  # a job is claimed at most this often
+BACKOFF_S = 2.0  # wait before attempt n+1: BACKOFF_S * 2**(n-1), i.e. 2 s, 4 s, 8 s...
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
+STOPPED = "the server stopped while this job ran; the venue kept its previous frames"
 
 
 class Cancelled(Exception):
     pass
+
+
+class Lost(Exception):
+    """This runner no longer owns its job (another runner took it over): stop, write nothing."""
+
+
+def backoff_s(attempts: int) -> float:
+    """The wait before the next attempt of a job that has been claimed `attempts` times."""
+    return BACKOFF_S * 2 ** max(0, attempts - 1)
 
 
 def _start_time(pid: int) -> str | None:
@@ -76,6 +101,7 @@ def owner_alive(owner: str) -> bool | None:
 def job_doc(r: dict[str, Any]) -> dict[str, Any]:
     done, total, fps = r["frames_done"], r["frames_total"], r["fps"]
     eta = (total - done) / fps if r["state"] == "running" and fps > 0 and total >= done else None
+    retry_at = r["not_before"] if r["state"] == "queued" and r["not_before"] else None
     return {
         "id": r["id"],
         "venue": r["venue"],
@@ -88,8 +114,26 @@ def job_doc(r: dict[str, Any]) -> dict[str, Any]:
         "created": r["created"],
         "started": r["started"],
         "finished": r["finished"],
-        "error": r["error"],
+        "attempts": r["attempts"],
+        "max_attempts": MAX_ATTEMPTS,
+        "retry_at": retry_at,
+        "error": r["error"],  # the last error: on a job queued again, why its last attempt ended
     }
+
+
+def failure(e: BaseException) -> tuple[str, bool]:
+    """A job's error line for an exception, and whether another attempt may succeed.
+
+    Bad input (OmninavError, ApiError) fails at once; a full disk and other faults of the
+    machine (OSError) are worth another attempt; anything else is a bug, which would only repeat."""
+    if isinstance(e, OmninavError | ApiError):
+        return str(e), False
+    if isinstance(e, OSError) and e.errno in DISK_FULL:
+        what = os.strerror(e.errno).lower()
+        return f"disk full ({what}) while writing the venue's new frames; the venue kept its previous frames", True
+    if isinstance(e, OSError):
+        return f"could not read or write the venue's files ({e})", True
+    return f"internal error ({type(e).__name__}: {e})", False
 
 
 class Jobs:
@@ -115,11 +159,10 @@ class Jobs:
         self.reap()
         return self.db.all("SELECT * FROM jobs WHERE venue = :v ORDER BY created DESC", v=venue_id)
 
-    def submit(self, venue_id: str, names: Any) -> dict[str, Any]:
-        self.cat.venue(venue_id)
-        self.reap()
+    def _check_videos(self, venue_id: str, names: Any) -> list[str]:
+        """The names of the videos to model (default: every uploaded one not modelled yet)."""
         vids = self.cat.videos(venue_id)
-        if names is None:  # default: every uploaded video not modelled yet
+        if names is None:
             names = [v["name"] for v in vids if v["status"] == "ready"]
             if not names:
                 raise ApiError(409, f"venue {venue_id!r} has no uploaded video waiting to be modelled")
@@ -134,17 +177,34 @@ class Jobs:
                     409,
                     f"video {n!r} is not completely uploaded ({by_name[n]['received']} of {by_name[n]['size']} bytes)",
                 )
-        busy = self.db.one("SELECT id FROM jobs WHERE venue = :v AND state IN ('queued', 'running')", v=venue_id)
-        if busy:
-            raise ApiError(409, f"venue {venue_id!r} is already being modelled by job {busy['id']}")
+        return list(dict.fromkeys(names))
+
+    def submit(self, venue_id: str, names: Any) -> dict[str, Any]:
+        """Queue a job. The database's one-active-job-per-venue index decides between simultaneous
+        submissions: checking first and inserting after would let two through."""
+        self.cat.venue(venue_id)
+        self.reap()
+        names = self._check_videos(venue_id, names)
         job_id = uuid.uuid4().hex[:16]
-        self.db.run(
-            "INSERT INTO jobs (id, venue, videos, state, created) VALUES (:id, :v, :vs, 'queued', :t)",
-            id=job_id,
-            v=venue_id,
-            vs=json.dumps(list(dict.fromkeys(names))),
-            t=time.time(),
-        )
+        for _ in range(3):
+            try:
+                self.db.run(
+                    "INSERT INTO jobs (id, venue, videos, state, created) VALUES (:id, :v, :vs, 'queued', :t)",
+                    id=job_id,
+                    v=venue_id,
+                    vs=json.dumps(names),
+                    t=time.time(),
+                )
+                break
+            except IntegrityError:
+                busy = self.db.one(
+                    "SELECT id FROM jobs WHERE venue = :v AND state IN ('queued', 'running')", v=venue_id
+                )
+                if busy:
+                    raise ApiError(409, f"venue {venue_id!r} is already being modelled by job {busy['id']}") from None
+                # the active job ended between our insert and this look: try again
+        else:
+            raise ApiError(409, f"venue {venue_id!r} is busy with other modelling jobs; try again")
         self.wake.set()
         return self.get(job_id)
 
@@ -163,46 +223,99 @@ class Jobs:
         return self.get(job_id)
 
     def reap(self) -> int:
-        """Mark jobs whose process died as failed; returns how many."""
+        """Take back the jobs whose runner died: queue them again (after a backoff) or, after
+        MAX_ATTEMPTS, fail them. Returns how many. Safe to run in many processes at once: each
+        update names the owner it saw, so a job another runner has claimed since is left alone."""
         n = 0
         now = time.time()
-        for r in self.db.all("SELECT id, owner, heartbeat FROM jobs WHERE state = 'running'"):
+        for r in self.db.all("SELECT id, owner, heartbeat, attempts, cancel FROM jobs WHERE state = 'running'"):
             alive = owner_alive(r["owner"] or "")
             if alive is None:
                 alive = (r["heartbeat"] or 0) > now - self.stale_s
-            if not alive:
+            if alive:
+                continue
+            if r["cancel"]:  # cancelled while it ran: its runner's death ends it as asked
                 n += self.db.run(
-                    "UPDATE jobs SET state = 'failed', finished = :t, error = :e WHERE id = :id AND state = 'running'",
-                    id=r["id"],
+                    "UPDATE jobs SET state = 'cancelled', finished = :t WHERE id = :id AND state = 'running' "
+                    "AND owner = :o",
                     t=now,
-                    e="the server stopped while this job ran; the venue kept its previous frames. Start the job again.",
+                    id=r["id"],
+                    o=r["owner"],
                 )
+            else:
+                n += self._end_attempt(r["id"], r["owner"], r["attempts"], STOPPED, retry=True)
         return n
+
+    def _end_attempt(self, job_id: str, owner: str | None, attempts: int, error: str, retry: bool) -> int:
+        """Queue the job again with a backoff, or fail it when it may not be retried; only while
+        it is still running under `owner`. Returns 1 if this call changed it."""
+        now = time.time()
+        if retry and attempts < MAX_ATTEMPTS:
+            wait = backoff_s(attempts)
+            line = f"{error} (attempt {attempts} of {MAX_ATTEMPTS}; trying again in {wait:g} s)"
+            sql = "UPDATE jobs SET state = 'queued', owner = NULL, not_before = :nb, error = :e"
+            params: dict[str, Any] = {"nb": now + wait}
+        else:
+            line = f"{error} (attempt {attempts} of {MAX_ATTEMPTS})" if retry else error
+            sql = "UPDATE jobs SET state = 'failed', finished = :t, error = :e"
+            params = {"t": now}
+            if retry:
+                line += ". Start the job again."
+        owner_is = "owner = :o" if owner is not None else "owner IS NULL"
+        got = self.db.run(
+            f"{sql} WHERE id = :id AND state = 'running' AND {owner_is}",
+            id=job_id,
+            o=owner,
+            e=line,
+            **params,
+        )
+        if got:
+            log.warning("job %s: %s", job_id, line)
+        return got
 
     # ---- runner side --------------------------------------------------------------------------
     def start(self) -> None:
+        """Run jobs in a background thread of this process (create_app with JOB_RUNNER)."""
         self.reap()
         self._thread = threading.Thread(target=self._loop, name="omninav-jobs", daemon=True)
         self._thread.start()
 
-    def stop(self) -> None:
+    def run_forever(self) -> None:
+        """Run jobs in the calling thread until stop() (a dedicated job-runner process)."""
+        self.reap()
+        self._loop()
+
+    def stop(self, wait_s: float = 0.0) -> None:
+        """Stop the runner after its current job; wait up to wait_s for the thread to end."""
         self._stop.set()
         self.wake.set()
+        t = self._thread
+        if wait_s > 0 and t is not None and t is not threading.current_thread():
+            t.join(wait_s)
 
     def _loop(self) -> None:
         while not self._stop.is_set():
             try:
-                self.run_next()
-            except Exception:  # the runner must outlive any one job's bug
+                self.reap()  # a job whose runner died is taken over here, by whichever runner looks
+                while self.run_next() and not self._stop.is_set():
+                    pass
+            except Exception:  # the runner must outlive any one job's bug, and a database outage
                 log.exception("job runner")
-            self.wake.wait(1.0)
+            self.wake.wait(POLL_S)
             self.wake.clear()
 
     def claim(self) -> dict[str, Any] | None:
-        for r in self.db.all("SELECT id FROM jobs WHERE state = 'queued' ORDER BY created"):
+        """Take the oldest queued job that is due; the UPDATE's state check makes it ours alone."""
+        now = time.time()
+        due = self.db.all(
+            "SELECT id FROM jobs WHERE state = 'queued' AND (not_before IS NULL OR not_before <= :t) ORDER BY created",
+            t=now,
+        )
+        for r in due:
             t = time.time()
             got = self.db.run(
-                "UPDATE jobs SET state = 'running', owner = :o, started = :t, heartbeat = :t "
+                "UPDATE jobs SET state = 'running', owner = :o, started = :t, heartbeat = :t, "
+                "attempts = attempts + 1, not_before = NULL, frames_done = 0, fps = 0 "
                 "WHERE id = :id AND state = 'queued'",
                 o=self.me,
                 t=t,
@@ -220,7 +333,15 @@ class Jobs:
 
         def beat() -> None:  # a heartbeat independent of progress: opening or committing may be slow
             while not beat_stop.wait(HEARTBEAT_EVERY_S):
-                self.db.run("UPDATE jobs SET heartbeat = :t WHERE id = :id", t=time.time(), id=job["id"])
+                try:
+                    self.db.run(
+                        "UPDATE jobs SET heartbeat = :t WHERE id = :id AND owner = :o",
+                        t=time.time(),
+                        id=job["id"],
+                        o=self.me,
+                    )
+                except Exception:  # a database hiccup: the next beat tries again
+                    log.exception("job %s heartbeat", job["id"])
 
         hb = threading.Thread(target=beat, daemon=True)
         hb.start()
@@ -243,7 +364,7 @@ class Jobs:
         return out
 
     def _run(self, job: dict[str, Any]) -> None:
-        jid = job["id"]
+        jid, venue = job["id"], job["venue"]
         last = 0.0
 
         def progress(done: int, total: int, elapsed: float) -> None:
@@ -260,32 +381,57 @@ class Jobs:
                 t=time.time(),
                 id=jid,
             )
-            if self.db.one("SELECT cancel FROM jobs WHERE id = :id", id=jid)["cancel"]:  # type: ignore[index]
+            row = self.db.one("SELECT cancel, owner FROM jobs WHERE id = :id", id=jid)
+            if row is None or row["owner"] != self.me:
+                raise Lost
+            if row["cancel"]:
                 raise Cancelled
 
-        state, error = "done", None
         try:
-            results = model_videos(self.cat.store, job["venue"], self._sources(job), progress)
+            results = model_videos(self.cat.store, venue, self._sources(job), progress)
             for r in results:
                 self.db.run(
                     "UPDATE videos SET status = 'modelled', frames = :f WHERE venue = :v AND name = :n",
                     f=r.frames,
-                    v=job["venue"],
+                    v=venue,
                     n=r.video,
                 )
+        except Lost:
+            log.warning("job %s was taken over by another runner; this one stops", jid)
+            return
         except Cancelled:
-            state = "cancelled"
-        except (OmninavError, ApiError) as e:
-            state, error = "failed", str(e)
-        except Exception as e:  # a bug: the job fails with a line, the log has the rest
-            log.exception("job %s", jid)
-            state, error = "failed", f"internal error ({type(e).__name__}: {e})"
+            self._finish(jid, "cancelled", None)
+        except Exception as e:
+            error, retry = failure(e)
+            if not retry and not isinstance(e, OmninavError | ApiError):
+                log.exception("job %s", jid)  # a bug: the job fails with a line, the log has the rest
+            if isinstance(e, OSError):
+                self._drop_leftovers(venue)
+            self._end_attempt(jid, self.me, job["attempts"], error, retry)  # a retry: the loop's poll finds it
+        else:
+            self._finish(jid, "done", None)
+        self.cat.bump(venue)
+
+    def _finish(self, jid: str, state: str, error: str | None) -> None:
+        """The job's end, recorded only while this runner still owns it. A done job keeps the
+        error of an earlier attempt: the admin sees why it needed more than one."""
         self.db.run(
-            "UPDATE jobs SET state = :s, error = :e, finished = :t WHERE id = :id",
+            "UPDATE jobs SET state = :s, error = COALESCE(:e, error), finished = :t "
+            "WHERE id = :id AND owner = :o AND state = 'running'",
             s=state,
             e=error,
             t=time.time(),
             id=jid,
+            o=self.me,
         )
-        self.cat.bump(job["venue"])
-        log.info("job %s %s%s", jid, state, f": {error}" if error else "")
+        log.info("job %s %s", jid, state)
+
+    def _drop_leftovers(self, venue: str) -> None:
+        """A commit that failed half-way (a full disk) left a temporary generation: remove it now,
+        so the space comes back before the retry, not at the next commit."""
+        try:
+            with self.cat.store.lock(venue):
+                if gone := self.cat.store.recover(venue):
+                    log.info("job on %s: dropped %s", venue, ", ".join(gone))
+        except OSError:
+            log.exception("dropping what a failed commit left in %s", venue)
