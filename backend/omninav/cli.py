@@ -412,6 +412,28 @@ def admin_token(ctx: click.Context, reset: bool) -> None:
     click.echo(token)
 
 
+@cli.command("backup")
+@click.argument("dest", type=click.Path(path_type=Path))
+@click.option("--no-videos", is_flag=True, help="Leave the modelling videos out (re-modelling needs them again).")
+@click.pass_context
+def backup_cmd(ctx: click.Context, dest: Path, no_videos: bool) -> None:
+    """Back up the server's catalogue, venues, plans and videos into DEST, a new folder (safe while it serves)."""
+    from .server.backup import backup
+
+    click.echo(json.dumps(backup(_server_conf(ctx), dest, videos=not no_videos)))
+
+
+@cli.command("restore")
+@click.argument("src", type=click.Path(path_type=Path))
+@click.option("--force", is_flag=True, help="Replace the venues the target database and data folder already have.")
+@click.pass_context
+def restore_cmd(ctx: click.Context, src: Path, force: bool) -> None:
+    """Restore the backup SRC into this data folder and database (stop the server first)."""
+    from .server.backup import restore
+
+    click.echo(json.dumps(restore(_server_conf(ctx), src, force=force)))
+
+
 def main() -> None:
     try:
         cli.main(standalone_mode=False, prog_name="omninav")
