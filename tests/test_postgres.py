@@ -110,3 +110,35 @@ def test_killing_the_server_running_a_job_lets_the_other_take_it_over(pair, smal
     assert st == 200 and abs(ans["x"] - truth[0]) < 2 and abs(ans["y"] - truth[1]) < 2
     # the killed attempt committed nothing; the one that took over committed once
     assert (survivor.data / "venues" / "lab" / "CURRENT").read_text().strip() == "gen-000002"
+
+
+def test_servers_starting_at_once_migrate_a_new_database_once(pg):
+    """Two instances starting together on a new PostgreSQL must not both run a migration (the
+    second failed on 'relation already exists')."""
+    import threading
+
+    from omninav.server.db import SCHEMA_VERSION
+
+    url = pg.url("migrate_race")
+    dbs = [Db(url) for _ in range(4)]
+    ran: list[int] = []
+    errors: list[BaseException] = []
+    go = threading.Barrier(len(dbs))
+
+    def start(db: Db) -> None:
+        go.wait()
+        try:
+            ran.append(db.migrate())
+        except BaseException as e:  # noqa: BLE001 - the assertion below reports it
+            errors.append(e)
+
+    threads = [threading.Thread(target=start, args=(db,)) for db in dbs]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(60)
+    version = dbs[0].version()
+    for db in dbs:
+        db.engine.dispose()
+    assert not errors, errors
+    assert sum(ran) == SCHEMA_VERSION and version == SCHEMA_VERSION

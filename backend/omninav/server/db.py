@@ -92,6 +92,14 @@ MIGRATIONS: list[Migration] = [
     ],
 ]
 SCHEMA_VERSION = len(MIGRATIONS)
+MIGRATION_LOCK = 0x6F6D6E69  # 'omni': the advisory lock id migrations hold on PostgreSQL
+
+
+def _version(c: Connection) -> int:
+    if not inspect(c).has_table("meta"):
+        return 0
+    row = c.execute(text("SELECT value FROM meta WHERE key = 'schema_version'")).first()
+    return int(row[0]) if row else 0
 
 
 def _sqlite_pragmas(dbapi_conn: Any, _record: Any) -> None:
@@ -141,15 +149,23 @@ class Db:
         return int(row["value"]) if row else 0
 
     def migrate(self) -> int:
-        """Bring the schema up to SCHEMA_VERSION; returns how many migrations ran."""
+        """Bring the schema up to SCHEMA_VERSION; returns how many migrations ran.
+
+        Several servers may start at once on one PostgreSQL: each migration takes a transaction
+        lock and reads the version again under it, so each runs exactly once."""
         have = self.version()
         if have > SCHEMA_VERSION:
             raise OmninavError(
                 f"the database {self.url} has schema version {have}, newer than this omninav ({SCHEMA_VERSION}); "
                 "upgrade omninav"
             )
+        ran = 0
         for n in range(have, SCHEMA_VERSION):
             with self.tx() as c:
+                if self.engine.dialect.name == "postgresql":
+                    c.execute(text("SELECT pg_advisory_xact_lock(:k)"), {"k": MIGRATION_LOCK})
+                    if _version(c) > n:  # another server ran it while this one waited
+                        continue
                 for stmt in MIGRATIONS[n]:
                     if callable(stmt):  # a data migration that SQL alone cannot express
                         stmt(c)
@@ -162,7 +178,8 @@ class Db:
                     ),
                     {"v": str(n + 1)},
                 )
-        return SCHEMA_VERSION - have
+                ran += 1
+        return ran
 
     def get_meta(self, key: str) -> str | None:
         row = self.one("SELECT value FROM meta WHERE key = :k", k=key)

@@ -131,9 +131,10 @@ def failure(e: BaseException) -> tuple[str, bool]:
     if isinstance(e, OSError) and e.errno in DISK_FULL:
         what = os.strerror(e.errno).lower()
         return f"disk full ({what}) while writing the venue's new frames; the venue kept its previous frames", True
+    # the admin sees the kind of fault, never a path on the server (the log has the whole exception)
     if isinstance(e, OSError):
-        return f"could not read or write the venue's files ({e})", True
-    return f"internal error ({type(e).__name__}: {e})", False
+        return f"could not read or write the venue's files ({e.strerror or type(e).__name__})", True
+    return f"internal error ({type(e).__name__}); it has been logged", False
 
 
 class Jobs:
@@ -403,8 +404,8 @@ class Jobs:
             self._finish(jid, "cancelled", None)
         except Exception as e:
             error, retry = failure(e)
-            if not retry and not isinstance(e, OmninavError | ApiError):
-                log.exception("job %s", jid)  # a bug: the job fails with a line, the log has the rest
+            if not isinstance(e, OmninavError | ApiError):
+                log.exception("job %s", jid)  # a fault or a bug: the admin gets a line, the log the rest
             if isinstance(e, OSError):
                 self._drop_leftovers(venue)
             self._end_attempt(jid, self.me, job["attempts"], error, retry)  # a retry: the loop's poll finds it

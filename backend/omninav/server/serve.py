@@ -21,7 +21,6 @@ import signal
 import ssl
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -219,11 +218,12 @@ def _run_jobs(conf: dict[str, Any]) -> None:
     than the workers (a modelling job must not slow the answers: measured in docs/benchmarks.md)."""
     _die_with_parent()
     os.nice(10)
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
     db = Db(database_url(conf))
     jobs = Jobs(Catalog(db, Path(conf["DATA"])), stale_s=conf["JOB_STALE_S"])
-    jobs.start()
-    threading.Event().wait()
+    # SIGTERM (the server stopping) ends the process at once: a job it was running wrote nothing
+    # live, and the next runner takes it up again (its owner is gone: Jobs.reap)
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
+    jobs.run_forever()
 
 
 def default_workers() -> int:
