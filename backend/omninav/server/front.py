@@ -175,7 +175,10 @@ class Front:
     # ---- connections ------------------------------------------------------------------------------
     async def handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         peer = (writer.get_extra_info("peername") or ("?",))[0]
-        if self.total >= self.limits.max_conns or self.conns.get(peer, 0) >= self.limits.max_conns_per_client:
+        per_client = not self.trust_proxy  # behind a proxy every connection comes from the proxy
+        if self.total >= self.limits.max_conns or (
+            per_client and self.conns.get(peer, 0) >= self.limits.max_conns_per_client
+        ):
             writer.close()  # no answer: an answer is what a flood wants
             return
         self.total += 1
