@@ -38,7 +38,7 @@ def slow_sockets(port: int, n: int, tls: bool = False) -> list[socket.socket]:
         s = socket.create_connection(("127.0.0.1", port))
         if not tls:
             s.sendall(
-                b"POST /api/admin/venues HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+                b"POST /api/venues/lab/locate HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
                 b"Content-Length: 100000\r\n\r\nabc"
             )
         out.append(s)
@@ -170,16 +170,9 @@ def test_two_uploads_of_one_video_at_once_have_one_writer(tmp_path, small_ds):
     """Finding 6: two simultaneous uploads could leave a file marked ready with the other upload's bytes."""
     srv = Server(tmp_path / "data")
     try:
-        assert srv.call("POST", "/api/admin/venues", {"id": "lab"}, admin=True)[0] == 201
-        plan = small_ds.floorplan.read_bytes()
-        assert srv.call("PUT", "/api/admin/venues/lab/floors/1/plan", plan, {"Content-Type": "image/png"}, True)[0]
-        assert srv.call("PUT", "/api/admin/venues/lab/floors/1", {"px_per_m": 20}, admin=True)[0] == 200
-        lens = json.loads((small_ds.root / "model_lens.json").read_text())
-        assert srv.call("PUT", "/api/admin/venues/lab/lenses/donut", lens, admin=True)[0] == 200
-        data = small_ds.model_video.read_bytes()
+        data = build_lab(srv, small_ds)
         track = json.loads(small_ds.model_track.read_text())
         body = {"name": "walk.mp4", "size": len(data), "track": track, "lens": "donut"}
-        assert srv.call("POST", "/api/admin/venues/lab/videos", body, admin=True)[0] == 201
         url = "/api/admin/venues/lab/videos/walk.mp4/content"
 
         # upload A sends half, pauses while B tries, then sends the rest
@@ -211,9 +204,10 @@ def test_two_uploads_of_one_video_at_once_have_one_writer(tmp_path, small_ds):
         srv.kill()
 
 
-def test_health_answers_while_many_clients_trickle(tmp_path, fast_timeouts):
-    """50 clients sending one byte a second (under the body deadline each time) and 50 holding TLS-less
-    idle connections: the server still answers everyone else at once."""
+def test_health_answers_while_many_clients_trickle(tmp_path):
+    """50 clients trickling a body one byte a second (the default 10 s deadlines: they are still
+    connected while the health checks run) and 50 holding idle connections: everyone else is
+    answered at once."""
     srv = Server(tmp_path / "data")
     stop = threading.Event()
 
@@ -241,3 +235,117 @@ def test_health_answers_while_many_clients_trickle(tmp_path, fast_timeouts):
         for t in threads:
             t.join(5)
         srv.kill()
+
+
+def test_slow_readers_of_a_large_answer_hold_no_worker(tmp_path):
+    """Review finding: answers were written to the client while a worker slot was held, so a few
+    clients reading a large file slowly blocked everyone (the front now takes the whole answer
+    first, lets the worker go, and writes at the client's pace)."""
+    dist = tmp_path / "dist"
+    dist.mkdir()
+    (dist / "index.html").write_text("<!doctype html><html lang=en><title>x</title></html>")
+    (dist / "big.bin").write_bytes(bytes(8 * 1024 * 1024))
+    srv = Server(tmp_path / "data", env={"OMNINAV_WEB_DIST": str(dist)})
+    readers = []
+    try:
+        for _ in range(24):  # three times every worker thread (2 workers x 4 threads)
+            s = socket.create_connection(("127.0.0.1", srv.port))
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+            s.sendall(b"GET /big.bin HTTP/1.1\r\nHost: x\r\nAccept-Encoding: identity\r\n\r\n")
+            readers.append(s)
+        time.sleep(1.0)
+        assert max(health_ms(srv) for _ in range(10)) < 1000
+        got = b""
+        while len(got) < 8 * 1024 * 1024:  # and a slow reader still gets all of it
+            chunk = readers[0].recv(1 << 20)
+            assert chunk
+            got += chunk if got or b"\r\n\r\n" not in chunk else chunk.split(b"\r\n\r\n", 1)[1]
+    finally:
+        for s in readers:
+            s.close()
+        srv.kill()
+
+
+def test_uploads_cut_off_mid_body_free_their_worker_and_resume(tmp_path, small_ds):
+    """Review finding: a client that went away in the middle of an upload left a worker thread
+    waiting for the rest for ever; ten such uploads (more than the workers' threads) and the server
+    still answers, and the upload resumes where the server says it stands."""
+    srv = Server(tmp_path / "data")
+    try:
+        data = build_lab(srv, small_ds)
+        url = "/api/admin/venues/lab/videos/walk.mp4/content"
+        sent = 0
+        for i in range(10):
+            with socket.create_connection(("127.0.0.1", srv.port), timeout=30) as a:
+                a.sendall(
+                    f"PUT {url} HTTP/1.1\r\nHost: x\r\nAuthorization: {ADMIN['Authorization']}\r\n"
+                    f"Content-Type: application/octet-stream\r\nContent-Range: bytes {sent}-{len(data) - 1}/"
+                    f"{len(data)}\r\nContent-Length: {len(data) - sent}\r\n\r\n".encode()
+                )
+                a.sendall(data[sent : sent + 1000])
+                if i % 2:
+                    a.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, b"\x01\x00\x00\x00\x00\x00\x00\x00")
+            deadline = time.time() + 10  # the workers see the end of the body and keep what came
+            while srv.call("GET", "/api/admin/venues/lab/videos/walk.mp4", admin=True)[1]["received"] < sent + 1000:
+                assert time.time() < deadline, "the cut-off upload did not end"
+                time.sleep(0.1)
+            sent += 1000
+            assert health_ms(srv) < 2000
+        st, v = srv.call(
+            "PUT",
+            url,
+            data[sent:],
+            {"Content-Type": "application/octet-stream", "Content-Range": f"bytes {sent}-{len(data) - 1}/{len(data)}"},
+            admin=True,
+        )
+        assert st == 200 and v["status"] == "ready"
+        assert (tmp_path / "data" / "videos" / "lab" / "walk.mp4").read_bytes() == data
+    finally:
+        srv.kill()
+
+
+def test_an_encoded_locate_path_is_still_limited_and_admin_bodies_need_the_token(tmp_path):
+    """Review findings: /api/venues/x/%6Cocate reached locate past the limit (the workers decode
+    the path); an admin body without the token was read into memory before the workers refused it."""
+    env = {"OMNINAV_LOCATE_RATE": "0.5", "OMNINAV_LOCATE_BURST": "2"}
+    srv = Server(tmp_path / "data", env=env)
+    try:
+        paths = ["/api/venues/lab/locate", "/api/venues/lab/%6Cocate", "/api/venues/lab/loc%61te"] * 2
+        got = [
+            int(
+                raw_request(
+                    srv.port,
+                    f"POST {p} HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+                    "Content-Length: 2\r\nConnection: close\r\n\r\n{}".encode(),
+                ).split()[1]
+            )
+            for p in paths
+        ]
+        assert got[:2] == [404, 404] and set(got[2:]) == {429}, got
+        assert raw_request(srv.port, b"POST http://x/api/venues/lab/locate HTTP/1.1\r\nHost: x\r\n\r\n").startswith(
+            b"HTTP/1.1 400"
+        )
+        t0 = time.monotonic()
+        head = (
+            b"POST /api/admin/venues HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+            b"Content-Length: 30000000\r\n\r\n"
+        )
+        got = raw_request(srv.port, head)  # no token, and no byte of the 30 MB body is sent
+        assert got.startswith(b"HTTP/1.1 401") and b"admin token" in got and time.monotonic() - t0 < 5
+    finally:
+        srv.kill()
+
+
+def build_lab(srv: Server, small_ds) -> bytes:
+    """Venue 'lab' with a plan, a scale and a lens, and video walk.mp4 announced: -> its bytes."""
+    assert srv.call("POST", "/api/admin/venues", {"id": "lab"}, admin=True)[0] == 201
+    plan = small_ds.floorplan.read_bytes()
+    assert srv.call("PUT", "/api/admin/venues/lab/floors/1/plan", plan, {"Content-Type": "image/png"}, True)[0] == 200
+    assert srv.call("PUT", "/api/admin/venues/lab/floors/1", {"px_per_m": 20}, admin=True)[0] == 200
+    lens = json.loads((small_ds.root / "model_lens.json").read_text())
+    assert srv.call("PUT", "/api/admin/venues/lab/lenses/donut", lens, admin=True)[0] == 200
+    data = small_ds.model_video.read_bytes()
+    track = json.loads(small_ds.model_track.read_text())
+    body = {"name": "walk.mp4", "size": len(data), "track": track, "lens": "donut"}
+    assert srv.call("POST", "/api/admin/venues/lab/videos", body, admin=True)[0] == 201
+    return data

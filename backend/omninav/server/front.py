@@ -38,6 +38,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
+from urllib.parse import unquote
 
 import h11
 
@@ -118,11 +119,14 @@ class TokenCheck:
         scheme, _, token = (authorization or "").partition(" ")
         if scheme.lower() != "bearer" or not token.strip():
             return False
+        have = hashlib.sha256(token.strip().encode()).hexdigest()
         t, want = self._cached
-        if time.monotonic() - t > self.ttl_s:
+        age = time.monotonic() - t
+        # a token that does not match is checked again against the database (at most once a
+        # second): a token made a moment ago by `admin-token --reset` works at once
+        if age > self.ttl_s or (age > 1.0 and not (want and hmac.compare_digest(have, want))):
             want = await asyncio.get_running_loop().run_in_executor(None, self._digest)
             self._cached = (time.monotonic(), want)
-        have = hashlib.sha256(token.strip().encode()).hexdigest()
         return bool(want) and hmac.compare_digest(have, want or "")
 
 
@@ -170,7 +174,9 @@ class Front:
         self.max_upload = max_upload
         self.conns: dict[str, int] = {}
         self.total = 0
-        self.buffered = 0  # bytes of bodies and answers held in memory now
+        self.buffered = 0  # bytes of request bodies and answers held in memory now, all clients
+        self.client_buffered: dict[str, int] = {}  # and per client: no one client may hold the budget
+        self.tasks: set[asyncio.Task] = set()
 
     # ---- connections ------------------------------------------------------------------------------
     async def handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
@@ -181,11 +187,16 @@ class Front:
         ):
             writer.close()  # no answer: an answer is what a flood wants
             return
+        task = asyncio.current_task()
+        if task is not None:
+            self.tasks.add(task)
         self.total += 1
         self.conns[peer] = self.conns.get(peer, 0) + 1
         try:
             await self._serve(reader, writer, peer)
-        except (ConnectionError, asyncio.IncompleteReadError, ssl.SSLError, TimeoutError):
+        except (ConnectionError, asyncio.IncompleteReadError, ssl.SSLError, TimeoutError, h11.ProtocolError):
+            pass
+        except asyncio.CancelledError:  # the server is stopping
             pass
         except Exception:  # a bug here must not take the front down: drop this connection only
             log.exception("front: connection from %s", peer)
@@ -195,8 +206,7 @@ class Front:
             if not self.conns[peer]:
                 del self.conns[peer]
             writer.close()
-            with contextlib.suppress(Exception):
-                await asyncio.wait_for(writer.wait_closed(), 1.0)
+            self.tasks.discard(task)  # type: ignore[arg-type]
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter, peer: str) -> None:
         conn = h11.Connection(h11.SERVER, max_incomplete_event_size=self.limits.max_head)
@@ -257,20 +267,20 @@ class Front:
         req: h11.Request,
         peer: str,
     ) -> bool:
-        target = req.target.decode("latin-1")
-        path = target.split("?", 1)[0]
         method = req.method.decode("latin-1")
         headers = list(req.headers)
         hmap = {k: v for k, v in headers}
         client = client_address(peer, headers, self.trust_proxy)
+        body = b""
         try:
+            path = route_path(req.target)
             length = int(hmap[b"content-length"]) if b"content-length" in hmap else None
             chunked = b"transfer-encoding" in hmap
-            stream = (
-                method == "PUT"
-                and UPLOAD.match(path) is not None
-                and await self.tokens.ok(hmap.get(b"authorization", b"").decode("latin-1"))
-            )
+            if chunked and length is not None:  # two framings: a request smuggler's favourite
+                raise HttpError(400, "a request may not have both Content-Length and Transfer-Encoding")
+            admin = path.startswith("/api/admin/")
+            authorised = admin and await self.tokens.ok(hmap.get(b"authorization", b"").decode("latin-1"))
+            stream = authorised and method == "PUT" and UPLOAD.match(path) is not None
             limit = self.max_upload if stream else self.limits.max_body
             if length is not None and length > limit:
                 raise HttpError(413, f"request body too large: {length} bytes (the limit here is {limit})")
@@ -282,82 +292,166 @@ class Front:
                         "too many locate requests from this client; slow down",
                         [("Retry-After", str(max(1, int(wait + 0.999))))],
                     )
+            fwd = forwarded_headers(headers, client, self.https)
+            if admin and not authorised:  # the workers refuse it (401/403) before reading a body:
+                fwd.append((b"content-length", b"0"))  # so the body is never read, never buffered
+                return await self._forward(conn, writer, req, fwd, b"") and False
             if conn.they_are_waiting_for_100_continue:
                 await self._send(writer, conn.send(h11.InformationalResponse(status_code=100, headers=[])))
-            fwd = [(k, v) for k, v in headers if k not in HOP_BY_HOP]
-            fwd += [
-                (b"x-forwarded-for", client.encode("latin-1")),
-                (b"x-forwarded-proto", b"https" if self.https else b"http"),
-            ]
             if stream:
                 return await self._forward_streamed(conn, reader, writer, req, fwd, length, chunked)
-            body = await self._read_body(conn, reader, length)
+            body = await self._read_body(conn, reader, length, client)
+            fwd.append((b"content-length", str(len(body)).encode()))
+            return await self._forward(conn, writer, req, fwd, body)
         except HttpError as e:
             await self._error(conn, writer, e)
             return False
-        try:
-            fwd.append((b"content-length", str(len(body)).encode()))
-            return await self._forward(conn, writer, req, fwd, body)
         finally:
-            self.buffered -= len(body)
+            self._unhold(client, len(body))
 
-    async def _read_body(self, conn: h11.Connection, reader: asyncio.StreamReader, length: int | None) -> bytes:
+    def _hold(self, client: str, n: int) -> None:
+        """Count n more bytes held in memory for `client`; 503 when the server or this client is at
+        its share (a quarter of the budget each: one client cannot starve the others)."""
+        mine = self.client_buffered.get(client, 0)
+        if self.buffered + n > self.limits.buffer_budget or mine + n > self.limits.buffer_budget // 4:
+            raise HttpError(503, "the server is busy; try again in a moment", [("Retry-After", "2")])
+        self.buffered += n
+        self.client_buffered[client] = mine + n
+
+    def _unhold(self, client: str, n: int) -> None:
+        if n:
+            self.buffered -= n
+            left = self.client_buffered.get(client, 0) - n
+            if left > 0:
+                self.client_buffered[client] = left
+            else:
+                self.client_buffered.pop(client, None)
+
+    async def _read_body(
+        self, conn: h11.Connection, reader: asyncio.StreamReader, length: int | None, client: str
+    ) -> bytes:
+        """The whole body, held in memory (counted against the budget), arriving at no less than
+        body_min_rate on average after body_idle_s of grace, with no pause over body_idle_s."""
         lim = self.limits
-        grace = lim.body_idle_s + (length or 0) / lim.body_min_rate
-        deadline = time.monotonic() + grace
+        t0 = time.monotonic()
         parts: list[bytes] = []
         got = 0
         try:
             while True:
                 ev = conn.next_event()
                 if ev is h11.NEED_DATA:
-                    left = min(lim.body_idle_s, deadline - time.monotonic())
+                    due = t0 + lim.body_idle_s + (length if length is not None else got + CHUNK) / lim.body_min_rate
                     try:
-                        await self._recv(conn, reader, left)
+                        await self._recv(conn, reader, min(lim.body_idle_s, due - time.monotonic()))
                     except TimeoutError:
                         raise HttpError(408, "the request body arrived too slowly; send it again") from None
                     continue
                 if isinstance(ev, h11.Data):
-                    got += len(ev.data)
-                    if got > lim.max_body:
+                    if got + len(ev.data) > lim.max_body:
                         raise HttpError(413, f"request body too large (the limit here is {lim.max_body} bytes)")
-                    if self.buffered + len(ev.data) > lim.buffer_budget:
-                        raise HttpError(503, "the server is busy; try again in a moment", [("Retry-After", "2")])
-                    self.buffered += len(ev.data)
+                    self._hold(client, len(ev.data))
+                    got += len(ev.data)
                     parts.append(bytes(ev.data))
                     continue
                 if isinstance(ev, h11.EndOfMessage):
-                    break
+                    return b"".join(parts)
                 raise HttpError(400, "the request ended before its body")
         except h11.RemoteProtocolError as e:
-            self.buffered -= got
+            self._unhold(client, got)
             raise HttpError(400, f"malformed request body: {e}") from None
-        except HttpError:
-            self.buffered -= sum(len(p) for p in parts)
+        except BaseException:  # an error, a reset, a cancelled task: whatever was held is let go
+            self._unhold(client, got)
             raise
-        return b"".join(parts)
 
     async def _forward(
         self, conn: h11.Connection, writer: asyncio.StreamWriter, req: h11.Request, fwd: list, body: bytes
     ) -> bool:
+        """A complete request to the workers; their answer read whole (memory within the budget,
+        else a temporary file) and the worker let go, then written at the client's pace."""
+        idempotent = req.method in (b"GET", b"HEAD", b"OPTIONS")
         async with self.backend.gate:
-            for attempt in (0, 1):  # a kept-alive backend connection may have been closed meanwhile
-                r, w, reused = await self.backend.connect()
-                bc = h11.Connection(h11.CLIENT)
+            for attempt in (0, 1):
+                written = False
+                r = w = None
                 try:
+                    r, w, reused = await self.backend.connect()
+                    bc = h11.Connection(h11.CLIENT)
                     w.write(bc.send(h11.Request(method=req.method, target=req.target, headers=fwd)))
                     if body:
                         w.write(bc.send(h11.Data(data=body)))
                     w.write(bc.send(h11.EndOfMessage()))
                     await w.drain()
+                    written = True
                     resp = await self._backend_event(bc, r)
-                except (ConnectionError, h11.RemoteProtocolError, asyncio.IncompleteReadError):
-                    w.close()
-                    if reused and attempt == 0:
+                except (OSError, h11.ProtocolError, asyncio.IncompleteReadError):
+                    if w is not None:
+                        w.close()
+                    # a kept-alive connection the workers had closed: safe to send again only if
+                    # the request never went out, or if doing it twice does no harm
+                    if attempt == 0 and r is not None and reused and (idempotent or not written):
                         continue
                     raise HttpError(502, "the server's workers did not answer; try again") from None
                 break
-            return await self._relay(conn, writer, bc, r, w, resp)
+            assert r is not None and w is not None  # the loop either connected or raised
+            if not any(k == b"content-length" for k, _ in resp.headers):
+                return await self._stream_answer(conn, writer, bc, r, w, resp)  # server-sent events
+            try:
+                answer = await self._take_answer(bc, r, w)
+            except (OSError, h11.ProtocolError, asyncio.IncompleteReadError):
+                w.close()
+                raise HttpError(502, "the server's workers stopped in the middle of an answer") from None
+        return await self._write_answer(conn, writer, resp, *answer)
+
+    async def _take_answer(self, bc: h11.Connection, r: Any, w: Any) -> tuple[Any, int, int]:
+        """The rest of a worker's answer -> (spool, size, bytes held in memory); the connection
+        goes back to the pool. Memory up to the per-answer bound and what the budget has left."""
+        room = max(1, min(self.limits.max_response_buffer, self.limits.buffer_budget - self.buffered))
+        spool = tempfile.SpooledTemporaryFile(max_size=room)  # (0 would mean: never to a file)  # noqa: SIM115 (closed by _write_answer)
+        size = 0
+        try:
+            while isinstance(ev := await self._backend_event(bc, r), h11.Data):
+                spool.write(ev.data)
+                size += len(ev.data)
+        except BaseException:
+            spool.close()
+            raise
+        self.backend.release(r, w, bc.our_state is h11.DONE and bc.their_state is h11.DONE)
+        held = size if size <= room else 0
+        self.buffered += held
+        return spool, size, held
+
+    async def _write_answer(
+        self, conn: h11.Connection, writer: asyncio.StreamWriter, resp: h11.Response, spool: Any, size: int, held: int
+    ) -> bool:
+        """Write a taken answer; the client must read it at body_min_rate on average (after write_s
+        of grace), or it is dropped."""
+        lim = self.limits
+        try:
+            due = time.monotonic() + lim.write_s + size / lim.body_min_rate
+            await self._send(writer, conn.send(answer_head(resp)), due)
+            spool.seek(0)
+            while piece := spool.read(CHUNK):
+                await self._send(writer, conn.send(h11.Data(data=piece)), due)
+            await self._send(writer, conn.send(h11.EndOfMessage()), due)
+        finally:
+            spool.close()
+            self.buffered -= held
+        return not any(k == b"connection" and v.lower() == b"close" for k, v in resp.headers)
+
+    async def _stream_answer(
+        self, conn: h11.Connection, writer: asyncio.StreamWriter, bc: h11.Connection, r: Any, w: Any, resp: Any
+    ) -> bool:
+        """An answer without a length (server-sent events, admin only): passed on piece by piece."""
+        try:
+            await self._send(writer, conn.send(answer_head(resp)))
+            while isinstance(ev := await self._backend_event(bc, r), h11.Data):
+                await self._send(writer, conn.send(h11.Data(data=ev.data)))
+            await self._send(writer, conn.send(h11.EndOfMessage()))
+        except BaseException:
+            w.close()
+            raise
+        self.backend.release(r, w, bc.our_state is h11.DONE and bc.their_state is h11.DONE)
+        return True
 
     async def _forward_streamed(
         self,
@@ -369,58 +463,77 @@ class Front:
         length: int | None,
         chunked: bool,
     ) -> bool:
-        """An admin's video upload: passed on as it arrives. A pause longer than upload_idle_s ends
-        it; the workers keep what arrived and the client resumes from there."""
+        """An admin's video upload: passed on as it arrives. A pause longer than upload_idle_s, or
+        the client going away, ends the body where it stands; the workers keep what arrived, and
+        the client resumes from there."""
         if length is not None:
             fwd.append((b"content-length", str(length).encode()))
         elif chunked:
             fwd.append((b"transfer-encoding", b"chunked"))
         async with self.backend.gate:
-            r, w, _ = await self.backend.connect()
+            try:
+                r, w, _ = await self.backend.connect()
+            except OSError:
+                raise HttpError(502, "the server's workers did not answer; try again") from None
             bc = h11.Connection(h11.CLIENT)
             w.write(bc.send(h11.Request(method=req.method, target=req.target, headers=fwd)))
             # the workers may answer before taking the body (409: another upload holds the video)
             pump = asyncio.create_task(self._pump(conn, reader, bc, w))
             answer = asyncio.create_task(self._backend_event(bc, r))
-            await asyncio.wait({pump, answer}, return_when=asyncio.FIRST_COMPLETED)
-            early = not pump.done()
-            if early:
-                pump.cancel()
             try:
-                resp = await answer
-            except (ConnectionError, h11.RemoteProtocolError, asyncio.IncompleteReadError):
+                await asyncio.wait({pump, answer}, return_when=asyncio.FIRST_COMPLETED)
+                early = not pump.done()
+                if early:
+                    pump.cancel()
+                    with contextlib.suppress(BaseException):
+                        await pump
+                resp = await asyncio.wait_for(answer, self.limits.upload_idle_s * 2)
+            except (OSError, h11.ProtocolError, asyncio.IncompleteReadError, TimeoutError):
                 w.close()
                 raise HttpError(502, "the server's workers did not answer; try again") from None
-            keep = await self._relay(conn, writer, bc, r, w, resp)
-            return keep and not early and conn.their_state is h11.DONE
+            finally:
+                for t in (pump, answer):
+                    t.cancel()
+            if not any(k == b"content-length" for k, _ in resp.headers):
+                return await self._stream_answer(conn, writer, bc, r, w, resp) and False
+            try:
+                taken = await self._take_answer(bc, r, w)
+            except (OSError, h11.ProtocolError, asyncio.IncompleteReadError):
+                w.close()
+                raise HttpError(502, "the server's workers stopped in the middle of an answer") from None
+        keep = await self._write_answer(conn, writer, resp, *taken)
+        return keep and not early and conn.their_state is h11.DONE
 
     async def _pump(
         self, conn: h11.Connection, reader: asyncio.StreamReader, bc: h11.Connection, w: asyncio.StreamWriter
     ) -> None:
-        """The client's body to the workers as it arrives; a pause longer than upload_idle_s ends it
-        (the workers see a short body and keep what came)."""
+        """The client's body to the workers as it arrives. However it ends short (a pause over
+        upload_idle_s, a reset, a broken TLS record, too many bytes) the workers are told at once
+        (end of stream), so none of their threads waits on a client that has gone."""
+        sent = 0
         try:
             while True:
                 ev = conn.next_event()
                 if ev is h11.NEED_DATA:
-                    try:
-                        await self._recv(conn, reader, self.limits.upload_idle_s)
-                    except TimeoutError:
-                        break
+                    await self._recv(conn, reader, self.limits.upload_idle_s)
                     continue
                 if isinstance(ev, h11.Data):
+                    sent += len(ev.data)
+                    if sent > self.max_upload:
+                        return
                     w.write(bc.send(h11.Data(data=ev.data)))
                     await w.drain()
                     continue
                 if isinstance(ev, h11.EndOfMessage):
                     w.write(bc.send(h11.EndOfMessage()))
                     await w.drain()
-                    return
-                break
-            if w.can_write_eof():
-                w.write_eof()
-        except (ConnectionError, h11.ProtocolError):
-            pass  # the workers stopped reading: their answer says why
+                return
+        except Exception:  # noqa: BLE001 - any way the client's side ends: the workers keep what came
+            return
+        finally:
+            if bc.our_state is not h11.DONE and not w.is_closing():
+                with contextlib.suppress(Exception):
+                    w.write_eof()
 
     async def _backend_event(self, bc: h11.Connection, r: asyncio.StreamReader) -> Any:
         while True:
@@ -435,63 +548,11 @@ class Front:
                 continue
             return ev
 
-    async def _relay(
-        self,
-        conn: h11.Connection,
-        writer: asyncio.StreamWriter,
-        bc: h11.Connection,
-        r: asyncio.StreamReader,
-        w: asyncio.StreamWriter,
-        resp: h11.Response,
-    ) -> bool:
-        """The backend's answer to the client. With a length: read it all (memory up to a bound,
-        then a temporary file), give the backend connection back, then write at the client's pace.
-        Without one (server-sent events): pass each piece on as it comes."""
-        headers = [
-            (k, v) for k, v in resp.headers if k != b"server" and (k not in HOP_BY_HOP or k == b"content-length")
-        ]
-        if not any(k == b"content-length" for k, _ in resp.headers):
-            await self._send(
-                writer, conn.send(h11.Response(status_code=resp.status_code, headers=headers, reason=resp.reason))
-            )
-            try:
-                while isinstance(ev := await self._backend_event(bc, r), h11.Data):
-                    await self._send(writer, conn.send(h11.Data(data=ev.data)))
-                await self._send(writer, conn.send(h11.EndOfMessage()))
-            except BaseException:
-                w.close()
-                raise
-            self.backend.release(r, w, bc.our_state is h11.DONE and bc.their_state is h11.DONE)
-            return True
-        spool = tempfile.SpooledTemporaryFile(max_size=self.limits.max_response_buffer)  # noqa: SIM115
-        held = 0
-        try:
-            while True:
-                ev = await self._backend_event(bc, r)
-                if isinstance(ev, h11.Data):
-                    spool.write(ev.data)
-                    if held < self.limits.max_response_buffer:
-                        held += len(ev.data)
-                        self.buffered += len(ev.data)
-                    continue
-                break
-            self.backend.release(r, w, bc.our_state is h11.DONE and bc.their_state is h11.DONE)
-            await self._send(
-                writer, conn.send(h11.Response(status_code=resp.status_code, headers=headers, reason=resp.reason))
-            )
-            spool.seek(0)
-            while piece := spool.read(CHUNK):
-                await self._send(writer, conn.send(h11.Data(data=piece)))
-            await self._send(writer, conn.send(h11.EndOfMessage()))
-        finally:
-            spool.close()
-            self.buffered -= held
-        return not any(k == b"connection" and v.lower() == b"close" for k, v in resp.headers)
-
-    async def _send(self, writer: asyncio.StreamWriter, data: bytes | None) -> None:
+    async def _send(self, writer: asyncio.StreamWriter, data: bytes | None, due: float | None = None) -> None:
         if data:
             writer.write(data)
-            await asyncio.wait_for(writer.drain(), self.limits.write_s)
+            wait = self.limits.write_s if due is None else due - time.monotonic()
+            await asyncio.wait_for(writer.drain(), max(wait, 0.001))
 
     async def _error(self, conn: h11.Connection, writer: asyncio.StreamWriter, e: HttpError) -> None:
         """A JSON error, as the API's own: {"error", "status"}; then the connection is closed."""
@@ -509,6 +570,36 @@ class Front:
             await self._send(writer, conn.send(h11.Response(status_code=e.status, headers=headers)))
             await self._send(writer, conn.send(h11.Data(data=body)))
             await self._send(writer, conn.send(h11.EndOfMessage()))
+
+
+def route_path(target: bytes) -> str:
+    """The path the workers will route: percent-decoded as gunicorn decodes it, so that
+    /api/venues/x/%6Cocate is the locate it is. Only origin-form targets ("/...") are taken."""
+    t = target.decode("latin-1")
+    if not t.startswith("/"):
+        raise HttpError(400, "the request target must be a path starting with '/'")
+    return unquote(t.split("?", 1)[0], encoding="latin-1")
+
+
+def _without_connection_tokens(headers: list[tuple[bytes, bytes]]) -> list[tuple[bytes, bytes]]:
+    """Drop hop-by-hop headers: the fixed list and any named in Connection (RFC 9110 7.6.1)."""
+    named = {t.strip().lower() for k, v in headers if k == b"connection" for t in v.split(b",")}
+    return [(k, v) for k, v in headers if k not in HOP_BY_HOP and k not in named]
+
+
+def forwarded_headers(headers: list[tuple[bytes, bytes]], client: str, https: bool) -> list[tuple[bytes, bytes]]:
+    return [
+        *_without_connection_tokens(headers),
+        (b"x-forwarded-for", client.encode("latin-1")),
+        (b"x-forwarded-proto", b"https" if https else b"http"),
+    ]
+
+
+def answer_head(resp: h11.Response) -> h11.Response:
+    """The workers' answer head for the client: their framing kept, hop-by-hop and Server dropped."""
+    length = [(k, v) for k, v in resp.headers if k == b"content-length"]
+    kept = [(k, v) for k, v in _without_connection_tokens(list(resp.headers)) if k != b"server"]
+    return h11.Response(status_code=resp.status_code, headers=kept + length, reason=resp.reason)
 
 
 async def run_front(
@@ -531,5 +622,10 @@ async def run_front(
     )
     if ready:
         ready()
-    async with server:
+    try:
         await stop.wait()
+    finally:
+        server.close()
+        for t in list(front.tasks):  # open connections end now (Python 3.12+ would wait for them)
+            t.cancel()
+        await asyncio.gather(*front.tasks, return_exceptions=True)

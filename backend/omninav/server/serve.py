@@ -13,6 +13,7 @@ address. The children die with this process (SIGTERM on the parent's death, Linu
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import ctypes
 import multiprocessing
 import os
@@ -119,10 +120,10 @@ def serve(
     else:
         shown = "localhost" if host in ("127.0.0.1", "0.0.0.0") else host
         urls = [f"{scheme}://{shown}:{port}/"]
-    fork = multiprocessing.get_context("fork")
+    fork = multiprocessing.get_context("fork")  # before any thread exists in this process
     children = [fork.Process(target=_run_workers, args=(options, overrides), name="omninav-workers", daemon=False)]
     if conf["JOB_RUNNER"]:
-        children.append(fork.Process(target=_run_jobs, args=(conf,), name="omninav-jobs", daemon=False))
+        children.append(_job_runner(conf))
     for c in children:
         c.start()
     try:
@@ -131,7 +132,9 @@ def serve(
             echo(f"omninav: {u}")
         sys.stdout.flush()
         t = conf["FRONT_TIMEOUT_S"]
+        fds = _raise_fd_limit()
         limits = Limits(
+            max_conns=max(64, min(2048, fds - 256)),  # a socket each, and room for the workers' and files
             handshake_s=t,
             head_s=t,
             first_byte_s=t,
@@ -175,11 +178,16 @@ async def _front(
     for sig in (signal.SIGTERM, signal.SIGINT):
         loop.add_signal_handler(sig, stop.set)
 
-    async def watch() -> None:  # the server is down if its workers are: say so and stop
+    async def watch() -> None:
         while not stop.is_set():
-            if not children[0].is_alive():
+            if not children[0].is_alive():  # the server is down if its workers are: say so and stop
                 print("omninav: the worker processes stopped; shutting down", file=sys.stderr)
                 stop.set()
+            if len(children) > 1 and not children[1].is_alive():  # e.g. killed for memory mid-job
+                print("omninav: the job runner stopped; starting it again", file=sys.stderr)
+                children[1] = _job_runner(conf)  # its job is taken up again (Jobs.reap)
+                children[1].start()
+                await asyncio.sleep(5.0)
             await asyncio.sleep(1.0)
 
     watcher = asyncio.create_task(watch())
@@ -188,6 +196,23 @@ async def _front(
     finally:
         watcher.cancel()
         db.engine.dispose()
+
+
+def _job_runner(conf: dict[str, Any]) -> Any:
+    # spawned, not forked: the front has threads by the time it may need a new runner
+    return multiprocessing.get_context("spawn").Process(target=_run_jobs, args=(conf,), name="omninav-jobs")
+
+
+def _raise_fd_limit() -> int:
+    """Every connection is a file descriptor: raise the soft limit to the hard one; -> the limit."""
+    import resource
+
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    want = hard if hard != resource.RLIM_INFINITY else max(soft, 65536)
+    with contextlib.suppress(ValueError, OSError):
+        resource.setrlimit(resource.RLIMIT_NOFILE, (want, hard))
+        soft = want
+    return soft
 
 
 def _wait_for_socket(sock: str, proc: Any, timeout_s: float = 120.0) -> None:
