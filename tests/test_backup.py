@@ -19,9 +19,10 @@ import pytest
 from conftest import run_cli
 from omninav.errors import OmninavError
 from omninav.server import create_app
+from omninav.server import db as db_mod
 from omninav.server.backup import backup, dump_rows, restore
 from omninav.server.catalog import Catalog
-from omninav.server.db import Db
+from omninav.server.db import SCHEMA_VERSION, Db
 from omninav.spectrum import encode_binary
 from omninav.store import Store
 from server_helpers import ADMIN, Api, clip_spectra, query_clip
@@ -312,3 +313,26 @@ def test_a_backup_moves_between_sqlite_and_postgresql(served, pg, tmp_path):
         assert catalogue(back) == catalogue(Api(app.test_client()))
     finally:
         app.extensions["omninav"].db.engine.dispose()
+
+
+def test_a_backup_never_migrates_the_database_it_reads(tmp_path, monkeypatch):
+    """A newer omninav's CLI beside an older server: the backup refuses the server's database with
+    one line and leaves its schema as it is (migrating it would change it under that server)."""
+    url = f"sqlite:///{tmp_path / 'old.sqlite'}"
+    old = Db(url)
+    with monkeypatch.context() as m:  # the database of an omninav one schema version older
+        m.setattr(db_mod, "SCHEMA_VERSION", SCHEMA_VERSION - 1)
+        old.migrate()
+    assert old.version() == SCHEMA_VERSION - 1
+    monkeypatch.setenv("OMNINAV_DATABASE_URL", url)
+    p = run_cli("backup", str(tmp_path / "b"), data=tmp_path)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1, p.stderr
+    assert f"schema version {SCHEMA_VERSION - 1}, this omninav {SCHEMA_VERSION}" in p.stderr
+    assert "never migrates" in p.stderr
+    assert old.version() == SCHEMA_VERSION - 1 and not (tmp_path / "b").exists() and not (tmp_path / "b.tmp").exists()
+    old.engine.dispose()
+    # no database at all: nothing to back up, and the look does not create one
+    none = {"DATA": str(tmp_path), "DATABASE_URL": f"sqlite:///{tmp_path / 'none.sqlite'}"}
+    with pytest.raises(OmninavError, match="holds no omninav catalogue: nothing to back up"):
+        backup(none, tmp_path / "b")
+    assert not (tmp_path / "none.sqlite").exists()

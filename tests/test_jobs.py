@@ -1,7 +1,8 @@
 """Modelling jobs under concurrency and faults: one active job per venue however many ask at once
 (on SQLite and on a real PostgreSQL); a job whose runner died queued again with a growing wait and
 failed after MAX_ATTEMPTS; bad input failed at once; a full disk met while writing the new
-generation: the venue answers as before, nothing half-written stays, and the job is retried.
+generation: the venue answers as before, nothing half-written stays, and the job is retried; a
+runner whose job another host took over writes nothing more (no progress, no generation).
 
 The apps here run no job thread: each test runs the job runner's steps itself (claim, run_next,
 reap), so that it decides when time passes. The database is SQLite, or PostgreSQL with
@@ -204,3 +205,54 @@ def test_a_job_on_another_host_is_taken_back_only_when_its_heartbeat_stops(lab):
     assert api.post(f"/api/admin/jobs/{j['id']}/cancel", headers=ADMIN).json["state"] == "running"
     db.run("UPDATE jobs SET owner = :o, heartbeat = :t WHERE id = :id", o=elsewhere, t=stale, id=j["id"])
     assert runner.reap() == 1 and job(api, j["id"])["state"] == "cancelled"
+
+
+@pytest.mark.parametrize("when", ["extracting", "before_commit"])
+def test_a_runner_whose_job_was_taken_over_commits_nothing_and_writes_nothing(lab, when):
+    """A runner whose heartbeat went stale (a paused machine, a network cut) is taken over by
+    another host's runner while it still runs; when it goes on it must stop: no progress or
+    heartbeat over the new owner's, no generation, no video rows. The test holds the venue's lock,
+    so the runner cannot commit before the takeover: it is taken over either while it extracts
+    (after its first progress write) or once it has extracted everything and waits for the lock."""
+    app, api, record = lab
+    svc = app.extensions["omninav"]
+    runner, db, store = svc.jobs, svc.db, svc.catalog.store
+    answer = api.post("/api/venues/lab/locate", data=record, content_type=OCTET).json
+    gen, videos = store.generation("lab"), db.all("SELECT * FROM videos WHERE venue = 'lab' ORDER BY name")
+    j = api.post("/api/admin/venues/lab/jobs", json={"videos": ["walk.mp4"]}, headers=ADMIN).json
+    done = threading.Event()
+    try:
+        with store.lock("lab"):  # a commit (or a backup) holds the venue: this runner must wait
+            t = threading.Thread(target=lambda: (runner.run_next(), done.set()))
+            t.start()
+            seen = wait_progress(db, j["id"], full=when == "before_commit")
+            beat = time.time()
+            # what reap + claim on the other host leave: the job running there, attempt 2, no progress yet
+            assert db.run(
+                "UPDATE jobs SET owner = 'another-host:4242:1', heartbeat = :t, attempts = attempts + 1, "
+                "frames_done = 0, fps = 0 WHERE id = :id AND state = 'running'",
+                t=beat,
+                id=j["id"],
+            )
+        t.join(60)
+        assert done.is_set()
+        row = db.one("SELECT * FROM jobs WHERE id = :id", id=j["id"])
+        assert (seen["frames_done"] < seen["frames_total"]) == (when == "extracting"), seen
+        assert row["owner"] == "another-host:4242:1" and row["state"] == "running" and row["attempts"] == 2
+        assert row["frames_done"] == 0 and row["fps"] == 0 and row["heartbeat"] == beat, row
+        assert store.generation("lab") == gen and not list(store.venue_dir("lab").glob(".tmp-gen-*"))
+        assert db.all("SELECT * FROM videos WHERE venue = 'lab' ORDER BY name") == videos
+        assert api.post("/api/venues/lab/locate", data=record, content_type=OCTET).json == answer
+    finally:  # the other host's runner "finishes": the next test may model the venue again
+        db.run("UPDATE jobs SET state = 'cancelled', finished = :t WHERE id = :id", t=time.time(), id=j["id"])
+
+
+def wait_progress(db, job_id, full, timeout=60.0):
+    """The job's row once its runner has written progress (all its frames, with full)."""
+    t_end = time.monotonic() + timeout
+    while time.monotonic() < t_end:
+        r = db.one("SELECT frames_done, frames_total FROM jobs WHERE id = :id", id=job_id)
+        if r["frames_done"] > 0 and (not full or r["frames_done"] == r["frames_total"]):
+            return r
+        time.sleep(0.005)
+    raise AssertionError(f"job {job_id} wrote no progress in {timeout} s")

@@ -128,9 +128,16 @@ def _current(store: Store, venue_id: str) -> Generation | None:
 
 
 def model_videos(
-    store: Store, venue_id: str, sources: list[VideoSource], progress: Progress | None = None
+    store: Store,
+    venue_id: str,
+    sources: list[VideoSource],
+    progress: Progress | None = None,
+    before_commit: Callable[[], None] | None = None,
 ) -> list[ModelResult]:
-    """Model several videos into one new generation; a video already in the venue is replaced."""
+    """Model several videos into one new generation; a video already in the venue is replaced.
+
+    `before_commit` runs under the venue's lock just before the commit; it may raise to commit
+    nothing (a job runner checks there that the job is still its own: see server/jobs.py)."""
     store.require(venue_id)
     settings = store.settings(venue_id)
     plans = [_plan(s, settings) for s in sources]
@@ -150,10 +157,17 @@ def model_videos(
         rows, specs = _extract(p, settings, tick)
         extracted.append((p, rows, specs, time.perf_counter() - ts))
     with store.lock(venue_id):  # read the live generation and commit the next as one step
-        return _merge_commit(store, venue_id, settings, sources[-1].lens, extracted)
+        return _merge_commit(store, venue_id, settings, sources[-1].lens, extracted, before_commit)
 
 
-def _merge_commit(store: Store, venue_id: str, settings: dict, lens: Lens, extracted: list) -> list[ModelResult]:
+def _merge_commit(
+    store: Store,
+    venue_id: str,
+    settings: dict,
+    lens: Lens,
+    extracted: list,
+    before_commit: Callable[[], None] | None = None,
+) -> list[ModelResult]:
     old = _current(store, venue_id)
     videos = list(old.videos) if old else []
     frames = old.frames if old is not None else np.zeros(0, FRAME_DTYPE)
@@ -173,6 +187,8 @@ def _merge_commit(store: Store, venue_id: str, settings: dict, lens: Lens, extra
         spectra = np.concatenate([spectra, specs])
         vid_secs = (int(rows["frame"][-1]) - p.first + 1) / p.vfps
         results.append(ModelResult(venue_id, name, len(rows), 0, secs, vid_secs))
+    if before_commit:
+        before_commit()
     # the lens of the last video is the venue's default query lens (for clients that send frames)
     store.commit(venue_id, Generation(settings, lens, frames, spectra, videos))
     for r in results:

@@ -11,9 +11,10 @@ A backup is a folder:
 It does not depend on the database: the rows are read through SQLAlchemy in one snapshot
 transaction (REPEATABLE READ on PostgreSQL, one read transaction on SQLite's WAL) and restored into
 any empty database after `Db.migrate()`, so a backup also moves a deployment from SQLite to
-PostgreSQL. It is written into `DIR.tmp` and renamed to DIR only once its manifest is in, so a
-half-written backup is never taken for a good one; restore checks every file against the manifest
-before it touches anything.
+PostgreSQL. A backup never migrates the database it reads (a server may be using it): it refuses
+one whose schema version is not this omninav's. It is written into `DIR.tmp` and renamed to DIR
+only once its manifest is in, so a half-written backup is never taken for a good one; restore
+checks every file against the manifest before it touches anything.
 
 Consistency with a modelling job that runs meanwhile: each venue's generation is read and linked
 under the venue's write lock (store.py), so a commit cannot delete it under us; generations, plans,
@@ -137,10 +138,25 @@ def dump_rows(db: Db) -> Rows:
 def _dump(conf: dict[str, Any]) -> Rows:
     db = Db(database_url(conf))
     try:
-        db.migrate()  # as the server does at start: a backup always has this omninav's schema
+        _check_schema(db)
         return dump_rows(db)
     finally:
         db.engine.dispose()
+
+
+def _check_schema(db: Db) -> None:
+    """A backup reads the live database and never migrates it: a server of another omninav may
+    be using it (a newer CLI beside an older server would change the schema under it). So it
+    backs up only a database of this omninav's schema version, and says which omninav can."""
+    path = db.engine.url.database if db.engine.dialect.name == "sqlite" else None
+    have = 0 if path and not Path(path).is_file() else db.version()  # (a look would create the file)
+    if have == 0:
+        raise OmninavError(f"the database {db.engine.url!r} holds no omninav catalogue: nothing to back up")
+    if have != SCHEMA_VERSION:
+        raise OmninavError(
+            f"the database {db.engine.url!r} has catalogue schema version {have}, this omninav {SCHEMA_VERSION}: "
+            "back it up with the omninav that serves it (a backup never migrates a live database)"
+        )
 
 
 def _schema_version(rows: Rows) -> int:

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import cv2
-from sqlalchemy import text
+from sqlalchemy import Connection, text
 
 from ..errors import OmninavError, is_finite_number
 from ..lens import Lens, lens_from_dict
@@ -105,7 +105,7 @@ class Catalog:
                     text("INSERT INTO venues (id, name, preset, created, revision) VALUES (:id, :n, :p, :t, 1)"),
                     {"id": venue_id, "n": name, "p": preset, "t": time.time()},
                 )
-                c.execute(text("INSERT INTO floors (venue, id, name) VALUES (:v, '1', 'Floor 1')"), {"v": venue_id})
+                self._insert_floor(c, venue_id, "1", "Floor 1", None)  # in this transaction, not put_floor's
                 if not self.store.exists(venue_id):
                     self.store.create(venue_id, name=name, preset=preset)
         except BaseException:
@@ -190,12 +190,19 @@ class Catalog:
                     {"n": name.strip(), "s": px_per_m, "v": venue_id, "f": floor},
                 )
             else:
-                c.execute(
-                    text("INSERT INTO floors (venue, id, name, px_per_m) VALUES (:v, :f, :n, :s)"),
-                    {"n": name.strip(), "s": px_per_m, "v": venue_id, "f": floor},
-                )
+                self._insert_floor(c, venue_id, floor, name.strip(), px_per_m)
             c.execute(text("UPDATE venues SET revision = revision + 1 WHERE id = :id"), {"id": venue_id})
         return self.floor(venue_id, floor)
+
+    @staticmethod
+    def _insert_floor(c: Connection, venue_id: str, floor: str, name: str, px_per_m: float | None) -> None:
+        """Add a floor row in the caller's transaction: put_floor's, or create_venue's for a new
+        venue's first floor (put_floor itself cannot serve there: it opens its own transaction and
+        looks the venue up, which create_venue has not committed yet)."""
+        c.execute(
+            text("INSERT INTO floors (venue, id, name, px_per_m) VALUES (:v, :f, :n, :s)"),
+            {"v": venue_id, "f": floor, "n": name, "s": px_per_m},
+        )
 
     @staticmethod
     def _scale_from_points(s: Any) -> float:

@@ -13,6 +13,12 @@ fault of its surroundings (a full disk); after MAX_ATTEMPTS it fails. A job that
 input (OmninavError: a video that does not fit its lens...) fails at once: retrying cannot help.
 Modelling commits one new generation at the very end (model_venue.py), so a job that dies, fails
 or is cancelled leaves the venue answering as before.
+
+A runner can be taken over while it still runs (its heartbeat stopped reaching the database for
+stale_s: a paused machine, a network cut). So every write a runner makes to its job names it as
+the owner (`Jobs._MINE`), and it checks again under the venue's lock just before its commit; where
+a write finds the job no longer its own, it stops (Lost) and writes nothing more: the job, its
+progress and the venue's next generation are the new owner's.
 """
 
 from __future__ import annotations
@@ -28,6 +34,7 @@ import uuid
 from pathlib import Path
 from typing import Any
 
+from sqlalchemy import text
 from sqlalchemy.exc import IntegrityError
 
 from ..errors import OmninavError
@@ -138,6 +145,9 @@ def failure(e: BaseException) -> tuple[str, bool]:
 
 
 class Jobs:
+    # the WHERE of every write a runner makes to its job: 0 rows means it was taken over (Lost)
+    _MINE = "id = :id AND owner = :o AND state = 'running'"
+
     def __init__(self, catalog: Catalog, stale_s: float = 30.0):
         self.cat = catalog
         self.db = catalog.db
@@ -336,7 +346,7 @@ class Jobs:
             while not beat_stop.wait(HEARTBEAT_EVERY_S):
                 try:
                     self.db.run(
-                        "UPDATE jobs SET heartbeat = :t WHERE id = :id AND owner = :o",
+                        f"UPDATE jobs SET heartbeat = :t WHERE {self._MINE}",
                         t=time.time(),
                         id=job["id"],
                         o=self.me,
@@ -374,34 +384,38 @@ class Jobs:
             if now - last < PROGRESS_EVERY_S and done < total:
                 return
             last = now
-            self.db.run(
-                "UPDATE jobs SET frames_done = :d, frames_total = :n, fps = :f, heartbeat = :t WHERE id = :id",
+            got = self.db.run(
+                f"UPDATE jobs SET frames_done = :d, frames_total = :n, fps = :f, heartbeat = :t WHERE {self._MINE}",
                 d=done,
                 n=total,
                 f=done / max(elapsed, 1e-9),
                 t=time.time(),
                 id=jid,
+                o=self.me,
             )
-            row = self.db.one("SELECT cancel, owner FROM jobs WHERE id = :id", id=jid)
-            if row is None or row["owner"] != self.me:
+            if not got:  # taken over: the row and its heartbeat are the new owner's now
+                raise Lost
+            row = self.db.one("SELECT cancel FROM jobs WHERE id = :id", id=jid)
+            if row is None:
                 raise Lost
             if row["cancel"]:
                 raise Cancelled
 
+        def still_mine() -> None:  # under the venue's lock, just before the commit
+            if self.db.one(f"SELECT id FROM jobs WHERE {self._MINE}", id=jid, o=self.me) is None:
+                raise Lost
+
+        results = None
         try:
-            results = model_videos(self.cat.store, venue, self._sources(job), progress)
-            for r in results:
-                self.db.run(
-                    "UPDATE videos SET status = 'modelled', frames = :f WHERE venue = :v AND name = :n",
-                    f=r.frames,
-                    v=venue,
-                    n=r.video,
-                )
+            results = model_videos(self.cat.store, venue, self._sources(job), progress, before_commit=still_mine)
+            self._done(jid, venue, results)
         except Lost:
             log.warning("job %s was taken over by another runner; this one stops", jid)
+            if results is not None:  # lost after its commit: the venue did change, say so to caches
+                self.cat.bump(venue)
             return
         except Cancelled:
-            self._finish(jid, "cancelled", None)
+            self._finish(jid, "cancelled")
         except Exception as e:
             error, retry = failure(e)
             if not isinstance(e, OmninavError | ApiError):
@@ -409,21 +423,28 @@ class Jobs:
             if isinstance(e, OSError):
                 self._drop_leftovers(venue)
             self._end_attempt(jid, self.me, job["attempts"], error, retry)  # a retry: the loop's poll finds it
-        else:
-            self._finish(jid, "done", None)
         self.cat.bump(venue)
 
-    def _finish(self, jid: str, state: str, error: str | None) -> None:
-        """The job's end, recorded only while this runner still owns it. A done job keeps the
-        error of an earlier attempt: the admin sees why it needed more than one."""
+    def _done(self, jid: str, venue: str, results: list[Any]) -> None:
+        """Record a committed job: the job done and its videos modelled, in one transaction that
+        is also the last ownership check (a runner taken over after its commit writes no row;
+        the new owner models the videos again and records them)."""
+        mine = {"t": time.time(), "id": jid, "o": self.me}
+        with self.db.tx() as c:
+            if not c.execute(text(f"UPDATE jobs SET state = 'done', finished = :t WHERE {self._MINE}"), mine).rowcount:
+                raise Lost  # leaving the block this way rolls the transaction back
+            for r in results:
+                c.execute(
+                    text("UPDATE videos SET status = 'modelled', frames = :f WHERE venue = :v AND name = :n"),
+                    {"f": r.frames, "v": venue, "n": r.video},
+                )
+        log.info("job %s done", jid)
+
+    def _finish(self, jid: str, state: str) -> None:
+        """The job's end, recorded only while this runner still owns it. It keeps the error of an
+        earlier attempt: the admin sees why it needed more than one."""
         self.db.run(
-            "UPDATE jobs SET state = :s, error = COALESCE(:e, error), finished = :t "
-            "WHERE id = :id AND owner = :o AND state = 'running'",
-            s=state,
-            e=error,
-            t=time.time(),
-            id=jid,
-            o=self.me,
+            f"UPDATE jobs SET state = :s, finished = :t WHERE {self._MINE}", s=state, t=time.time(), id=jid, o=self.me
         )
         log.info("job %s %s", jid, state)
 

@@ -1,4 +1,10 @@
-"""Per-client token buckets for `locate` (in-process: each worker limits its share)."""
+"""Per-client token buckets for `locate`.
+
+`omninav serve` keeps one limiter in its front (server/front.py): one bucket per client for the
+whole server, however many workers answer behind it (serve sets the workers' own LOCATE_RATE to 0).
+The app's limiter (locate_api.py) applies only where the app is served some other way (a WSGI
+server of one's own, the tests): there it limits per process, so N processes allow N times the rate.
+"""
 
 from __future__ import annotations
 
