@@ -129,15 +129,43 @@ def load(port: int, method: str, path: str, body: bytes | None, rate: float, sec
     for t in ts:
         t.join()
     took = time.perf_counter() - t0
-    ms = lat * 1e3
+    return {"rate": rate, "achieved": round(n / took, 1), **summary(lat * 1e3)}
+
+
+def summary(ms: np.ndarray) -> dict:
+    """Latencies in ms -> p50, p90, p99 and max, rounded for printing."""
     return {
-        "rate": rate,
-        "achieved": round(n / took, 1),
         "p50": round(float(np.percentile(ms, 50)), 2),
         "p90": round(float(np.percentile(ms, 90)), 2),
         "p99": round(float(np.percentile(ms, 99)), 2),
         "max": round(float(ms.max()), 2),
     }
+
+
+def start_server(data: Path, port: int, workers: int | None = None, threads: int | None = None) -> subprocess.Popen:
+    """`omninav serve` as npm start runs it, on `data`, with the per-client locate limit off (all
+    load comes from one address) and admin token "bench"; returns once it answers /api/health."""
+    env = {**os.environ, "OMNINAV_DATA": str(data), "OMNINAV_LOCATE_RATE": "0", "OMNINAV_ADMIN_TOKEN": "bench"}
+    cmd = [str(REPO / ".venv" / "bin" / "omninav"), "serve", "--demo", "none", "--port", str(port)]
+    if workers:
+        cmd += ["--workers", str(workers)]
+    if threads:
+        cmd += ["--threads", str(threads)]
+    srv = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    for _ in range(100):
+        try:
+            c = http.client.HTTPConnection("127.0.0.1", port, timeout=2)
+            c.request("GET", "/api/health")
+            if c.getresponse().status == 200:
+                break
+        except OSError:
+            time.sleep(0.2)
+    return srv
+
+
+def stop_server(srv: subprocess.Popen) -> None:
+    os.killpg(srv.pid, signal.SIGTERM)
+    srv.wait(20)
 
 
 def max_rate(port: int, method: str, path: str, body: bytes | None, seconds: float) -> dict:
@@ -163,22 +191,8 @@ def main() -> None:
     data = REPO / "data" / "bench-server"
     record = build(data)
     port = free_port()
-    env = {**os.environ, "OMNINAV_DATA": str(data), "OMNINAV_LOCATE_RATE": "0", "OMNINAV_ADMIN_TOKEN": "bench"}
-    cmd = [str(REPO / ".venv" / "bin" / "omninav"), "serve", "--demo", "none", "--port", str(port)]
-    if a.workers:
-        cmd += ["--workers", str(a.workers)]
-    if a.threads:
-        cmd += ["--threads", str(a.threads)]
-    srv = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    srv = start_server(data, port, a.workers, a.threads)
     try:
-        for _ in range(100):
-            try:
-                c = http.client.HTTPConnection("127.0.0.1", port, timeout=2)
-                c.request("GET", "/api/health")
-                if c.getresponse().status == 200:
-                    break
-            except OSError:
-                time.sleep(0.2)
         loc = "/api/venues/bench8k/locate"
         c = http.client.HTTPConnection("127.0.0.1", port)
         c.request("POST", loc, body=record, headers={"Content-Type": "application/octet-stream"})
@@ -206,8 +220,7 @@ def main() -> None:
         share = ml["rate"] / max(mh["rate"], 1)
         print(f"  health {mh['rate']}/s, locate {ml['rate']}/s: locate sustains {share:.2f} of health's rate")
     finally:
-        os.killpg(srv.pid, signal.SIGTERM)
-        srv.wait(20)
+        stop_server(srv)
 
 
 if __name__ == "__main__":

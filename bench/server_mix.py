@@ -1,0 +1,557 @@
+"""`locate` under the real mix: phones in continuous mode, presses, a video upload, a modelling job,
+and slow clients, against `omninav serve` as `npm start` runs it (issue 9).
+
+Uses server_load.py's 8,000-frame venue, server start and latency summary. Phases, one server, one
+run, each `--seconds` long (latency counts from each request's scheduled send time: open loop):
+
+  (a)  the mix alone: 100 phones in continuous mode, each its own keep-alive connection and a locate
+       every 3 s (random phase), plus 20 presses per second (Poisson arrivals, each press a new
+       connection, as a phone that was not connected);
+  (b)  the mix while a 10-minute 960x720 30 fps video uploads through the admin API in 8 MiB
+       Content-Range pieces at full speed (again and again) and a modelling job runs (the demo
+       venue's real walk, registered under several names, so it models real frames for the whole
+       phase); the job's frames/s over the phase;
+  (c)  the mix with 50 slow clients (a locate head, then its body one byte a second) and 50 idle
+       connections (nothing sent) held open: each reconnects as soon as the server drops it;
+  (a') the mix alone again: the noise band of (a), and (c)'s neighbour in time.
+
+All requests come from 127.0.0.1, so the per-client locate limit is off (OMNINAV_LOCATE_RATE=0):
+with it on, one address at 53 locates/s would be refused. The client runs on the same machine.
+
+    python bench/server_mix.py [--seconds 40] [--phones 100] [--presses 20] [--slow 50] [--idle 50]
+"""
+
+from __future__ import annotations
+
+import argparse
+import http.client
+import json
+import math
+import os
+import select
+import socket
+import sys
+import threading
+import time
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from search_speed import machine  # noqa: E402
+from server_load import REPO, build, free_port, load, start_server, stop_server, summary  # noqa: E402
+
+LOCATE = "/api/venues/bench8k/locate"
+JOB_VENUE = "mixjob"
+AUTH = {"Authorization": "Bearer bench"}
+PIECE = 8 << 20  # upload piece, as bench/model_speed.py
+SRC = REPO / "data" / "demo-src"
+
+
+# ---- the mix: phones and presses ----------------------------------------------------------------
+class Record:
+    """The outcome of every locate in one phase: latency (ms, from the scheduled time) or failure."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.ms: list[float] = []
+        self.due: list[float] = []  # when each of them was due (perf_counter)
+        self.failures: Counter[str] = Counter()
+
+    def done(self, due: float, status: int) -> None:
+        with self.lock:
+            if status == 200:
+                self.ms.append((time.perf_counter() - due) * 1e3)
+                self.due.append(due)
+            else:
+                self.failures[f"HTTP {status}"] += 1
+
+    def failed(self, why: str) -> None:
+        with self.lock:
+            self.failures[why] += 1
+
+
+def _locate(c: http.client.HTTPConnection, body: bytes, close: bool = False) -> int:
+    headers = {"Content-Type": "application/octet-stream"}
+    if close:
+        headers["Connection"] = "close"
+    c.request("POST", LOCATE, body=body, headers=headers)
+    r = c.getresponse()
+    r.read()
+    return r.status
+
+
+def _sleep_until(due: float) -> None:
+    wait = due - time.perf_counter()
+    if wait > 0:
+        time.sleep(wait)
+
+
+def _phone(port: int, body: bytes, dues: list[float], rec: Record) -> None:
+    """One phone in continuous mode: its own keep-alive connection, a locate at each due time."""
+    c = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+    for due in dues:
+        _sleep_until(due)
+        try:
+            rec.done(due, _locate(c, body))
+        except (OSError, http.client.HTTPException) as e:
+            rec.failed(type(e).__name__)
+            c.close()  # the next request connects again
+    c.close()
+
+
+def _presser(port: int, body: bytes, dues: list[float], nxt: list[int], lock: threading.Lock, rec: Record) -> None:
+    """Takes the next due press from the shared schedule; each press is a new connection."""
+    while True:
+        with lock:
+            i = nxt[0]
+            nxt[0] += 1
+        if i >= len(dues):
+            return
+        _sleep_until(dues[i])
+        c = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+        try:
+            rec.done(dues[i], _locate(c, body, close=True))
+        except (OSError, http.client.HTTPException) as e:
+            rec.failed(type(e).__name__)
+        finally:
+            c.close()
+
+
+def run_mix(port: int, body: bytes, a: argparse.Namespace, seed: int) -> dict[str, Any]:
+    """One phase of the mix, open loop; -> latency summary, counts and failures."""
+    rng = np.random.default_rng(seed)
+    t0 = time.perf_counter() + 0.5
+    end = t0 + a.seconds
+    phones = [[float(t) for t in np.arange(t0 + rng.uniform(0, a.period), end, a.period)] for _ in range(a.phones)]
+    gaps = rng.exponential(1.0 / a.presses, int(a.presses * a.seconds * 1.5) + 10) if a.presses else []
+    presses = [float(t) for t in t0 + np.cumsum(gaps) if t < end]
+    rec = Record()
+    lock, nxt = threading.Lock(), [0]
+    ts = [threading.Thread(target=_phone, args=(port, body, d, rec)) for d in phones]
+    ts += [threading.Thread(target=_presser, args=(port, body, presses, nxt, lock, rec)) for _ in range(8)]
+    for t in ts:
+        t.start()
+    for t in ts:
+        t.join()
+    n = sum(map(len, phones)) + len(presses)
+    ms = np.array(rec.ms) if rec.ms else np.array([math.nan])
+    worst = np.argsort(ms)[::-1][:5] if rec.ms else []
+    return {
+        "n": n,
+        "ok": len(rec.ms),
+        "failures": dict(rec.failures),
+        **summary(ms),
+        "load": os.getloadavg()[0],
+        "t0": t0,
+        "slowest": [(round(rec.due[i] - t0, 1), round(float(ms[i]))) for i in worst],  # (s into the phase, ms)
+    }
+
+
+# ---- admin calls ---------------------------------------------------------------------------------
+class Admin:
+    """The admin API over one keep-alive connection; an error answer raises with its one line."""
+
+    def __init__(self, port: int):
+        self.port = port
+        self.c = http.client.HTTPConnection("127.0.0.1", port, timeout=120)
+        self.status = 0  # of the last answer
+
+    def call(self, method: str, path: str, body: Any = None, headers: dict | None = None, ok=(200, 201, 202)) -> Any:
+        h = {**AUTH, **(headers or {})}
+        if isinstance(body, dict | list):
+            body, h["Content-Type"] = json.dumps(body).encode(), "application/json"
+        try:
+            self.c.request(method, path, body=body, headers=h)
+            r = self.c.getresponse()
+            raw = r.read()
+        except (OSError, http.client.HTTPException):
+            self.c.close()
+            raise
+        self.status = r.status
+        doc = json.loads(raw) if raw else {}
+        if r.status not in ok:
+            raise RuntimeError(f"{method} {path}: {r.status} {doc.get('error', raw[:200])}")
+        return doc
+
+    def upload(self, venue: str, name: str, video: Path, track: dict, stop: threading.Event | None = None) -> int:
+        """Announce the video and send it in Content-Range pieces; -> bytes sent (less when stopped)."""
+        size = video.stat().st_size
+        v = self.call("POST", f"/api/admin/venues/{venue}/videos", {"name": name, "size": size, "track": track})
+        sent = 0
+        with open(video, "rb") as f:
+            while sent < size and not (stop and stop.is_set()):
+                piece = f.read(PIECE)
+                rng = f"bytes {sent}-{sent + len(piece) - 1}/{size}"
+                self.call(
+                    "PUT", v["upload_url"], piece, {"Content-Range": rng, "Content-Type": "application/octet-stream"}
+                )
+                sent += len(piece)
+        return sent
+
+
+def job_venue(adm: Admin, copies: int) -> list[str]:
+    """The venue the modelling job works on (made once): the demo's plan, lens and `copies` uploads
+    of its real modelling walk under different names; -> their names."""
+    adm.call("POST", "/api/admin/venues", {"id": JOB_VENUE, "name": "bench: modelling job"}, ok=(201, 409))
+    if adm.status == 201:
+        adm.call("PUT", f"/api/admin/venues/{JOB_VENUE}/floors/1/plan", (SRC / "floorplan.png").read_bytes(),
+                 {"Content-Type": "image/png"})  # fmt: skip
+        adm.call("PUT", f"/api/admin/venues/{JOB_VENUE}/floors/1", {"px_per_m": 20.0})
+        adm.call(
+            "PUT", f"/api/admin/venues/{JOB_VENUE}/lenses/default", json.loads((SRC / "model_lens.json").read_text())
+        )
+    have = {v["name"]: v["status"] for v in adm.call("GET", f"/api/admin/venues/{JOB_VENUE}/videos")["videos"]}
+    track = json.loads((SRC / "model_track.json").read_text())
+    names = [f"walk{k}.mp4" for k in range(1, copies + 1)]
+    for n in names:
+        if have.get(n) not in ("ready", "modelled"):
+            if n in have:
+                adm.call("DELETE", f"/api/admin/venues/{JOB_VENUE}/videos/{n}")
+            adm.upload(JOB_VENUE, n, SRC / "model.mp4", track)
+    for j in adm.call("GET", f"/api/admin/venues/{JOB_VENUE}/jobs")["jobs"]:  # a run cut short left one?
+        if j["state"] in ("queued", "running"):
+            adm.call("POST", f"/api/admin/jobs/{j['id']}/cancel")
+    return names
+
+
+class JobDriver(threading.Thread):
+    """Keeps a modelling job running on JOB_VENUE (a new one when one ends) and samples its progress:
+    (time, frames modelled so far by all its jobs)."""
+
+    def __init__(self, port: int, videos: list[str]):
+        super().__init__(daemon=True)
+        self.adm, self.videos = Admin(port), videos
+        self.stop = threading.Event()
+        self.samples: list[tuple[float, int]] = []
+        self.jobs = 0
+        self.errors: list[str] = []
+        self.job: dict = {}
+
+    def submit(self) -> None:
+        self.job = self.adm.call("POST", f"/api/admin/venues/{JOB_VENUE}/jobs", {"videos": self.videos})
+        self.jobs += 1
+
+    def run(self) -> None:
+        try:
+            self._drive()
+        except (OSError, http.client.HTTPException, RuntimeError) as e:
+            self.errors.append(f"driving the job: {e}")
+
+    def _drive(self) -> None:
+        base = 0
+        while not self.stop.is_set():
+            j = self.adm.call("GET", f"/api/admin/jobs/{self.job['id']}")
+            self.samples.append((time.perf_counter(), base + j["frames_done"]))
+            if j["state"] not in ("queued", "running"):
+                if j["state"] != "done":
+                    self.errors.append(f"job {j['state']}: {j['error']}")
+                base += j["frames_done"]
+                self.submit()
+            self.stop.wait(0.5)
+        j = self.adm.call("POST", f"/api/admin/jobs/{self.job['id']}/cancel", ok=(202, 409))
+        for _ in range(120):  # a running job stops at its next frame
+            if j["state"] not in ("queued", "running"):
+                break
+            time.sleep(0.25)
+            j = self.adm.call("GET", f"/api/admin/jobs/{self.job['id']}")
+
+    def started(self, timeout: float = 120.0) -> None:
+        """Wait until the job models frames, so the phase measures a job at work, not one opening."""
+        t = time.perf_counter()
+        while not (self.samples and self.samples[-1][1] > 0):
+            if time.perf_counter() - t > timeout or not self.is_alive():
+                raise SystemExit(f"the modelling job did not start: {'; '.join(self.errors) or 'in 2 minutes'}")
+            time.sleep(0.2)
+
+    def frames_between(self, t0: float, t1: float) -> float:
+        ts, fs = zip(*self.samples, strict=True)
+        return float(np.interp(t1, ts, fs) - np.interp(t0, ts, fs))
+
+
+class Uploader(threading.Thread):
+    """The 10-minute video, uploaded again and again at full speed until stopped (each copy deleted
+    once complete, the last, partial one at the end)."""
+
+    def __init__(self, port: int, video: Path):
+        super().__init__(daemon=True)
+        self.adm, self.video = Admin(port), video
+        self.track = json.loads((SRC / "model_track.json").read_text())
+        self.stop = threading.Event()
+        self.sent = 0
+        self.complete = 0
+        self.errors: list[str] = []
+        self.took = 0.0
+
+    def run(self) -> None:
+        t, k = time.perf_counter(), 0
+        while not self.stop.is_set():
+            name = f"upload-{os.getpid()}-{k}.mp4"
+            try:
+                got = self.adm.upload(JOB_VENUE, name, self.video, self.track, self.stop)
+                self.sent += got
+                self.complete += got == self.video.stat().st_size
+            except (OSError, http.client.HTTPException, RuntimeError) as e:
+                self.errors.append(str(e))
+                self.adm = Admin(self.adm.port)
+            finally:
+                self.took = time.perf_counter() - t
+                try:
+                    self.adm.call("DELETE", f"/api/admin/venues/{JOB_VENUE}/videos/{name}", ok=(200, 404))
+                except (OSError, http.client.HTTPException, RuntimeError) as e:
+                    self.errors.append(str(e))
+            k += 1
+
+
+def long_video(minutes: float) -> Path:
+    """A `minutes`-long 960x720 30 fps MPEG-4 video (made once): the demo's modelling walk, decoded
+    again and again and encoded at 30 fps, so its bytes are a real video's, not a repeated frame's."""
+    out = REPO / "data" / "bench-server" / f"upload-{minutes:g}min.mp4"
+    if out.exists():
+        return out
+    from omninav.synth.walks import write_video
+
+    n, t = int(minutes * 60 * 30), time.perf_counter()
+
+    def frames():
+        made = 0
+        while True:
+            cap = cv2.VideoCapture(str(SRC / "model.mp4"))
+            while made < n:
+                ok, f = cap.read()
+                if not ok:
+                    break
+                made += 1
+                yield f
+            cap.release()
+            if made >= n:
+                return
+
+    tmp = out.with_suffix(".tmp.mp4")
+    write_video(tmp, frames(), 30.0, (960, 720))
+    tmp.replace(out)
+    print(f"made {out.name}: {n} frames, {out.stat().st_size / 1e6:.0f} MB in {time.perf_counter() - t:.0f} s")
+    return out
+
+
+# ---- slow clients --------------------------------------------------------------------------------
+class SlowClients:
+    """`slow` connections that send a locate's head and then one byte of its body a second, and `idle`
+    ones that send nothing; each opens again as soon as the server drops it (what an attacker does)."""
+
+    def __init__(self, port: int, slow: int, idle: int):
+        self.port = port
+        self.head = (
+            f"POST {LOCATE} HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/octet-stream\r\n"
+            "Content-Length: 7700\r\n\r\n"
+        ).encode()
+        self.stop = threading.Event()
+        self.lock = threading.Lock()
+        self.open = 0
+        self.answers: Counter[str] = Counter()  # how the server ended each connection
+        self.held: list[float] = []  # seconds each connection was held open by the server
+        self.ended: list[float] = []  # when (perf_counter)
+        self.counts: list[int] = []  # connections open, sampled twice a second
+        self.threads = [threading.Thread(target=self._client, args=(True, k), daemon=True) for k in range(slow)]
+        self.threads += [threading.Thread(target=self._client, args=(False, k), daemon=True) for k in range(idle)]
+        self.threads.append(threading.Thread(target=self._count, daemon=True))
+
+    def start(self) -> None:
+        for t in self.threads:
+            t.start()
+
+    def finish(self) -> None:
+        self.stop.set()
+        for t in self.threads:
+            t.join()
+
+    def _count(self) -> None:
+        while not self.stop.wait(0.5):
+            self.counts.append(self.open)
+
+    def _client(self, slow: bool, k: int) -> None:
+        self.stop.wait(k / 50)  # spread the starts over a second or two
+        while not self.stop.is_set():
+            try:
+                s = socket.create_connection(("127.0.0.1", self.port), timeout=5)
+            except OSError as e:
+                with self.lock:
+                    self.answers[f"connect: {type(e).__name__}"] += 1
+                self.stop.wait(0.5)
+                continue
+            with self.lock:
+                self.open += 1
+            t = time.perf_counter()
+            why = self._hold(s, slow)
+            with self.lock:
+                self.open -= 1
+                if why:
+                    self.answers[f"{'slow' if slow else 'idle'}: {why}"] += 1
+                    self.held.append(time.perf_counter() - t)
+                    self.ended.append(time.perf_counter())
+            s.close()
+
+    def _hold(self, s: socket.socket, slow: bool) -> str | None:
+        """Trickle (or stay silent) until the server answers or hangs up -> how it ended (None: we stopped)."""
+        try:
+            if slow:
+                s.sendall(self.head)
+            while not self.stop.is_set():
+                if select.select([s], [], [], 1.0)[0]:
+                    data = s.recv(4096)
+                    return data.split(b"\r\n", 1)[0].decode("latin-1")[9:] if data else "closed"
+                if slow:
+                    s.sendall(b"\0")
+        except OSError as e:
+            return type(e).__name__
+        return None
+
+
+# ---- the run ------------------------------------------------------------------------------------
+def _children() -> dict[int, list[int]]:
+    kids: dict[int, list[int]] = {}
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                ppid = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
+                continue
+            kids.setdefault(ppid, []).append(int(d.name))
+    return kids
+
+
+def _cpu_s(pid: int) -> float:
+    try:
+        f = (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def cpu_by_role(front: int) -> dict[str, float]:
+    """CPU seconds used so far by the server's front, its gunicorn workers (arbiter and workers) and
+    its job runner, and by this client (Linux /proc; a process that ended is not counted)."""
+    kids = _children()
+    out = {"front": _cpu_s(front), "workers": 0.0, "job runner": 0.0}
+    for c in kids.get(front, []):
+        if kids.get(c):  # the gunicorn arbiter has the workers under it; the job runner has none
+            out["workers"] += _cpu_s(c) + sum(_cpu_s(w) for w in kids[c])
+        else:
+            out["job runner"] += _cpu_s(c)
+    out["client"] = _cpu_s(os.getpid())
+    return out
+
+
+def cpu_line(before: dict[str, float], after: dict[str, float], seconds: float) -> str:
+    return ", ".join(f"{k} {(after[k] - before[k]) / seconds:.2f}" for k in before)
+
+
+def line(name: str, r: dict[str, Any]) -> str:
+    fails = sum(r["failures"].values())
+    why = f" ({', '.join(f'{k}: {v}' for k, v in r['failures'].items())})" if fails else ""
+    return (
+        f"  {name:30s} {r['n']:5d} {r['p50']:7.2f} {r['p90']:7.2f} {r['p99']:7.2f} {r['max']:8.2f} "
+        f"{fails:5d}  {r['load']:5.2f}{why}"
+    )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seconds", type=float, default=40.0, help="length of each of the four phases")
+    ap.add_argument("--phones", type=int, default=100, help="phones in continuous mode")
+    ap.add_argument("--period", type=float, default=3.0, help="seconds between a phone's locates")
+    ap.add_argument("--presses", type=float, default=20.0, help="presses per second")
+    ap.add_argument("--slow", type=int, default=50, help="clients trickling a body at one byte a second")
+    ap.add_argument("--idle", type=int, default=50, help="connections that send nothing")
+    ap.add_argument("--upload-minutes", type=float, default=10.0, help="length of the uploaded video")
+    ap.add_argument("--workers", type=int, default=None, help="server worker processes (default: as npm start)")
+    a = ap.parse_args()
+    load_before = os.getloadavg()
+    record = build(REPO / "data" / "bench-server")
+    video = long_video(a.upload_minutes)
+    port = free_port()
+    srv = start_server(REPO / "data" / "bench-server", port, a.workers)
+    try:
+        adm = Admin(port)
+        # enough copies of the 1,501-frame walk that the job outlasts the phase at ~150 frames/s
+        walks = job_venue(adm, copies=max(2, math.ceil(a.seconds * 150 / 1501) + 1))
+        load(port, "POST", LOCATE, record, 100, 3)  # warm every worker
+        print(f"machine: {machine()}")
+        print(f"load average before: {' '.join(f'{x:.2f}' for x in load_before)} (other work on the machine)")
+        rate = a.phones / a.period + a.presses
+        print(
+            f"mix: {a.phones} phones, a locate every {a.period:g} s each (own keep-alive connection) + "
+            f"{a.presses:g} presses/s (Poisson, new connection each) = {rate:.1f} locates/s of {len(record)} bytes "
+            f"against 8,000 frames; {a.seconds:g} s per phase; OMNINAV_LOCATE_RATE=0 (one client address)"
+        )
+        cpu = {"start": cpu_by_role(srv.pid)}
+        res = {"a": run_mix(port, record, a, seed=1)}
+        cpu["a"] = cpu_by_role(srv.pid)
+
+        job, up = JobDriver(port, walks), Uploader(port, video)
+        job.submit()
+        job.start()
+        job.started()
+        up.start()
+        time.sleep(1.0)  # the upload under way
+        t0, cpu["b0"] = time.perf_counter(), cpu_by_role(srv.pid)
+        res["b"] = run_mix(port, record, a, seed=2)
+        t1, cpu["b"] = time.perf_counter(), cpu_by_role(srv.pid)
+        up.stop.set()
+        job.stop.set()
+        up.join()
+        job.join()
+        fps = job.frames_between(t0, t1) / (t1 - t0)
+
+        slow = SlowClients(port, a.slow, a.idle)
+        slow.start()
+        time.sleep(2.0)  # all connected
+        cpu["c0"] = cpu_by_role(srv.pid)
+        res["c"] = run_mix(port, record, a, seed=3)
+        cpu["c"] = cpu_by_role(srv.pid)
+        slow.finish()
+        res["a2"] = run_mix(port, record, a, seed=4)
+        cpu["a2"] = cpu_by_role(srv.pid)
+
+        print("locate latency from the scheduled send time (ms):")
+        print(f"  {'phase':30s} {'n':>5s} {'p50':>7s} {'p90':>7s} {'p99':>7s} {'max':>8s} {'fails':>5s}  load1")
+        print(line("(a) mix alone", res["a"]))
+        print(line("(b) mix + upload + job", res["b"]))
+        print(line(f"(c) mix + {a.slow} slow + {a.idle} idle", res["c"]))
+        print(line("(a') mix alone, again", res["a2"]))
+        print(
+            f"(b) modelling job: {fps:.1f} frames/s over the phase ({job.jobs} job(s) of {len(walks)} x 1,501 frames"
+            f"{'; ' + '; '.join(job.errors) if job.errors else ''}); upload: {up.sent / 1e6:.0f} MB in {up.took:.1f} s "
+            f"= {up.sent / 1e6 / max(up.took, 1e-9):.0f} MB/s, {up.complete} complete copies of "
+            f"{video.stat().st_size / 1e6:.0f} MB, {len(up.errors)} failed pieces"
+            + (f" (first: {up.errors[0]})" if up.errors else "")
+        )
+        held = np.array(slow.held) if slow.held else np.array([math.nan])
+        print(
+            f"(c) connections held open: {np.mean(slow.counts):.0f} on average (min {min(slow.counts)}) of "
+            f"{a.slow + a.idle}; the server ended {len(slow.held)}, after {np.median(held):.1f} s median: "
+            + ", ".join(f"{k} x{v}" for k, v in sorted(slow.answers.items()))
+        )
+        print("CPU used, in cores (CPU seconds per second of the phase):")
+        for k, name, start in (("a", "(a)", "start"), ("b", "(b)", "b0"), ("c", "(c)", "c0"), ("a2", "(a')", "c")):
+            print(f"  {name:4s} {cpu_line(cpu[start], cpu[k], a.seconds + 0.5)}")
+        for k, name in (("a", "(a)"), ("b", "(b)"), ("c", "(c)"), ("a2", "(a')")):
+            print(f"{name} slowest (s into the phase, ms): {res[k]['slowest']}")
+        drops = np.array(slow.ended) - res["c"]["t0"]
+        bursts = sorted({round(float(t)) for t in drops if 0 <= t <= a.seconds})
+        print(f"(c) seconds into the phase at which the server dropped slow or idle connections: {bursts}")
+        ok = [
+            f"({k.replace('2', chr(39))}) {'yes' if r['p99'] < 50 and not r['failures'] else 'NO'}"
+            for k, r in res.items()
+        ]
+        print(f"p99 < 50 ms and no failed request: {', '.join(ok)}")
+    finally:
+        stop_server(srv)
+    print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+
+if __name__ == "__main__":
+    main()
