@@ -8,7 +8,10 @@ decoded, one frame at a time, each turned into what the caller keeps before the 
 
 Only PNG and JPEG images and MP4/QuickTime videos are read: they are what phones and browsers
 make, their headers are simple to read here without a decoder, and every other format that
-OpenCV or FFmpeg would try is one more parser exposed to the public.
+OpenCV or FFmpeg would try is one more parser exposed to the public. The image sizes come from
+Pillow's own PNG and JPEG header readers; the MP4 box walk (track size, frame count, duration) is
+written here, a few dozen lines, because the library alternative (PyAV) reads a file by opening it
+with FFmpeg's demuxer and stream probe, the very exposure this step must come before.
 """
 
 from __future__ import annotations
