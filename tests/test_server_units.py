@@ -1,4 +1,4 @@
-"""The server's pure parts: words for an answer, the rate limiter, settings, schema migrations."""
+"""The server's pure parts: the rate limiter, settings, schema migrations."""
 
 from __future__ import annotations
 
@@ -7,34 +7,7 @@ import pytest
 from omninav.errors import OmninavError
 from omninav.server.config import from_env
 from omninav.server.db import SCHEMA_VERSION, Db
-from omninav.server.describe import UNSURE, describe, relative_bearing
 from omninav.server.ratelimit import RateLimiter
-
-PLACES = [
-    {"name": "East corridor", "x": 30, "y": 4, "area": [5, 2, 55, 6]},
-    {"name": "Hall B", "x": 10, "y": 20, "area": [0, 10, 20, 30]},
-    {"name": "the lifts", "x": 27, "y": 3},
-    {"name": "Room 214", "x": 40, "y": 3},
-]
-
-
-def test_bearings_are_clockwise_from_the_heading_on_a_y_down_plan():
-    assert relative_bearing(0, 0, 0, 0, -5) == 0  # straight up the plan, facing up
-    assert relative_bearing(0, 0, 0, 5, 0) == 90  # to the right: clockwise
-    assert relative_bearing(0, 0, 90, 0, -5) == -90  # facing east, "up" is on the left
-    assert relative_bearing(0, 0, 0, 0, 5) == 180
-
-
-def test_the_sentence_names_area_near_place_and_what_is_ahead():
-    w = describe(28, 4, 90, PLACES, "Floor 2")  # in the corridor by the lifts, facing east
-    assert w["area"] == "East corridor" and w["nearest"]["name"] == "the lifts"
-    assert w["facing"] == "Room 214"
-    assert w["sentence"] == "You are in the East corridor, near the lifts, facing Room 214."
-    assert describe(10, 20, 0, PLACES, "Floor 2")["sentence"].startswith("You are in Hall B")  # no 'the'
-    far = describe(80, 80, 0, PLACES, "Floor 2")
-    assert far["sentence"] == "You are on Floor 2." and far["area"] is None
-    assert describe(1, 1, 0, [], "Floor 2")["nearest"] is None
-    assert UNSURE.startswith("Not sure")
 
 
 def test_rate_limiter_allows_a_burst_then_the_rate():

@@ -1,43 +1,124 @@
 """An answer in plain words: which area the user is in, what is near, what they face.
 
 Places are points with a name; a place with an `area` [x0, y0, x1, y1] is also a region one can be
-*in* (a corridor, a hall). Bearings are relative to the user's heading, clockwise, in (-180, 180]:
-the phone turns them into clock faces or left/right in the user's chosen style.
+*in* (a corridor, a hall). Bearings are relative to the user's heading, clockwise, in (-180, 180].
+
+The phone makes the words the user hears (web/src/client/directions.ts), in the user's chosen
+style and offline too; the answer's `sentence` is the same sentence in the default style, for API
+clients. Both are pinned by one table of cases, tests/data/sentences.json, which also holds the
+thresholds below: change a word or a number there and in both languages.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, Literal
 
 NEAR_M = 10.0  # a landmark further than this is not "near"
 FACING_M = 30.0  # nor one this far "faced"
 FACING_DEG = 30.0  # and "facing" means within this angle of the heading
 UNSURE = "Not sure where you are; turn slowly and try again."
 
+Style = Literal["clock", "sides", "degrees"]
+DEFAULT_STYLE: Style = "clock"
+
 
 def relative_bearing(x: float, y: float, heading: float, px: float, py: float) -> float:
     """Clockwise angle from the heading to the point, in (-180, 180] (plan: y down, 0 = up)."""
     b = math.degrees(math.atan2(px - x, -(py - y)))
-    r = (b - heading + 180.0) % 360.0 - 180.0
+    return _signed(b - heading)
+
+
+def _signed(b: float) -> float:
+    """Any angle -> (-180, 180]."""
+    r = (b + 180.0) % 360.0 - 180.0
     return 180.0 if r == -180.0 else r
 
 
-def _with_article(name: str) -> str:
+def _round(v: float) -> int:
+    """Half up, as JavaScript's Math.round (Python's round() goes half to even)."""
+    return math.floor(v + 0.5)
+
+
+def clock_hour(bearing: float) -> int:
+    """-> 1..12, 12 straight ahead. A bearing on a boundary (15, 45, ...) takes the hour nearer
+    straight ahead, on either side, so left and right mirror each other."""
+    b = _signed(bearing)
+    h = math.ceil(abs(b) / 30.0 - 0.5)
+    return (12 - h if b < 0 else h) % 12 or 12
+
+
+def direction(bearing: float, style: Style) -> str:
+    """'at 3 o'clock' | 'to your right' | 'at 90 degrees right': a phrase that follows a place name."""
+    b = _signed(bearing)
+    side = "right" if b > 0 else "left"
+    a = abs(b)
+    if style == "clock":
+        return f"at {clock_hour(b)} o'clock"
+    if style == "degrees":
+        d = _round(a)
+        if d == 0:
+            return "straight ahead"
+        if d == 180:
+            return "straight behind you"
+        return f"at {d} {'degree' if d == 1 else 'degrees'} {side}"
+    # sides: a bearing on a boundary belongs to the sector nearer straight ahead
+    if a <= 15:
+        return "straight ahead"
+    if a <= 60:
+        return f"ahead on your {side}"
+    if a <= 120:
+        return f"to your {side}"
+    if a <= 165:
+        return f"behind you on your {side}"
+    return "behind you"
+
+
+def with_article(name: str) -> str:
     """'North corridor' -> 'the North corridor'; 'Corridor 1', 'the hall', 'Hall B' stay as they are."""
-    last = name.split()[-1] if name.split() else ""
-    if name.lower().startswith("the ") or last[:1].isdigit() or (len(last) == 1 and last.isupper()):
+    words = name.split()
+    last = words[-1] if words else ""
+    first = last[:1]
+    if name.lower().startswith("the ") or (first.isascii() and first.isdigit()) or (len(last) == 1 and last.isupper()):
         return name
     return f"the {name}"
 
 
-def _inside(p: dict[str, Any], x: float, y: float) -> bool:
+def metres(d: float) -> str:
+    m = max(1, _round(d))
+    return "1 metre" if m == 1 else f"{m} metres"
+
+
+def sentence(answer: Mapping[str, Any], style: Style = DEFAULT_STYLE, floor_name: str | None = None) -> str:
+    """The sentence to speak for an answer (its area, nearest, facing, floor, low_confidence)."""
+    if answer["low_confidence"]:
+        return UNSURE
+    n = answer["nearest"]
+    near = n if n and n["distance_m"] <= NEAR_M else None
+    parts = []
+    if answer["area"]:
+        parts.append(f"in {with_article(answer['area'])}")
+    if near:
+        parts.append(f"near {near['name']} {direction(near['bearing_deg'], style)}, {metres(near['distance_m'])}")
+    if not parts:
+        parts.append(f"on {floor_name if floor_name is not None else 'floor ' + answer['floor']}")
+    facing = answer["facing"]
+    if facing and not (near and facing == near["name"]):
+        parts.append(f"facing {facing}")
+    return f"You are {', '.join(parts)}."
+
+
+def _inside(p: Mapping[str, Any], x: float, y: float) -> bool:
     a = p.get("area")
     return a is not None and a[0] <= x <= a[2] and a[1] <= y <= a[3]
 
 
-def describe(x: float, y: float, heading: float, places: list[dict[str, Any]], floor_name: str) -> dict[str, Any]:
-    """-> {area, nearest: {name, distance_m, bearing_deg}|None, facing, sentence} for a confident answer."""
+def describe(
+    x: float, y: float, heading: float, places: list[dict[str, Any]], floor_name: str, low: bool = False
+) -> dict[str, Any]:
+    """The answer's words for a pose on a floor: {place, area, nearest: {name, distance_m,
+    bearing_deg} | None, facing, sentence}. A low-confidence answer keeps the fields but says UNSURE."""
     areas = [p for p in places if _inside(p, x, y)]
     # the smallest area that holds the point: a room inside a wing says more than the wing
     area = min(areas, key=lambda p: (p["area"][2] - p["area"][0]) * (p["area"][3] - p["area"][1]), default=None)
@@ -57,18 +138,13 @@ def describe(x: float, y: float, heading: float, places: list[dict[str, Any]], f
         for p, d in zip(points, dist, strict=True)
         if 1.0 < d <= FACING_M and abs(relative_bearing(x, y, heading, p["x"], p["y"])) <= FACING_DEG
     ]
-    facing = min(ahead)[2] if ahead else None
-    parts = []
-    if area:
-        parts.append(f"in {_with_article(area['name'])}")
-    if nearest and nearest["distance_m"] <= NEAR_M:
-        parts.append(f"near {nearest['name']}")
-    sentence = "You are " + (", ".join(parts) if parts else f"on {floor_name}")
-    if facing and not (nearest and facing == nearest["name"] and nearest["distance_m"] <= NEAR_M):
-        sentence += f", facing {facing}"
-    return {
+    words: dict[str, Any] = {
         "area": area["name"] if area else None,
         "nearest": nearest,
-        "facing": facing,
-        "sentence": sentence + ".",
+        "facing": min(ahead)[2] if ahead else None,
     }
+    # the place the answer is at: a near landmark, else the area, else the nearest landmark however far
+    near = nearest if nearest and nearest["distance_m"] <= NEAR_M else None
+    words["place"] = near["name"] if near else words["area"] or (nearest and nearest["name"])
+    words["sentence"] = sentence({**words, "low_confidence": low}, DEFAULT_STYLE, floor_name)
+    return words

@@ -25,7 +25,7 @@ from ..locate import DEFAULT_CLIP_FPS, Locator
 from ..presets import n_curves
 from ..spectrum import HEADER_BYTES, decode_binary, decode_json, record_bytes_per_frame
 from .catalog import Catalog
-from .describe import UNSURE, describe
+from .describe import describe
 from .http import ApiError, client_address, json_body
 from .media import decode_image, iter_sampled, probe_image, probe_mp4, same_size, sampled_count
 from .plan import annotate
@@ -284,16 +284,12 @@ def locate(venue_id: str) -> Any:
     ans = loc.answer(e, clip)
     floor = rt.video_floor[int(loc.gen.frames["video"][e.venue_row])]
     fl = rt.floors.get(floor)
-    words = describe(ans["x"], ans["y"], ans["heading_deg"], rt.places.get(floor, []), fl["name"] if fl else floor)
-    near = words["nearest"]
     low = ans["confidence"] < app.config["LOW_CONFIDENCE"]
+    places = rt.places.get(floor, [])
+    words = describe(ans["x"], ans["y"], ans["heading_deg"], places, fl["name"] if fl else floor, low)
     ans.update(
         floor=floor,
-        place=(near["name"] if near and near["distance_m"] <= 10 else words["area"] or (near and near["name"])),
-        area=words["area"],
-        nearest=near,
-        facing=words["facing"],
-        sentence=UNSURE if low else words["sentence"],
+        **words,  # place, area, nearest, facing, sentence
         low_confidence=low,
         accuracy_m=accuracy_m(ans["confidence"], app.config["LOW_CONFIDENCE"]),
         frames=int(len(spec)),

@@ -1,34 +1,7 @@
 /** The server's public API (backend/omninav/server/openapi.yaml), with errors a person can act on. */
-import type { Answer } from './directions';
-import type { Lens } from '../shared/lens';
-import type { VenueFeatures } from '../shared/settings';
+import type { Answer, Venue } from '../shared/api-types';
 
-export interface Place {
-  name: string;
-  floor: string;
-  x: number;
-  y: number;
-  area?: [number, number, number, number] | null;
-}
-
-export interface Floor {
-  id: string;
-  name: string;
-  plan_url: string | null;
-  plan_size_px: [number, number] | null;
-  px_per_m: number | null;
-}
-
-export interface Venue {
-  id: string;
-  name: string;
-  modelled: boolean;
-  frames: number;
-  floors: Floor[];
-  places: Place[];
-  lenses: Record<string, Lens>;
-  features: VenueFeatures;
-}
+export type { Answer, Floor, Nearest, Place, Venue } from '../shared/api-types';
 
 /** The server could not be reached at all (offline, wrong network, server stopped). */
 export class Unreachable extends Error {}

@@ -1,89 +1,103 @@
 /**
- * The answer in words, in the user's chosen style. Bearings come from the server relative to the
- * user's heading, clockwise, in (-180, 180]; the phone turns them into a clock face, left/right or
- * degrees. Pure functions: unit-tested, and the same words go to speech and to the screen.
+ * The answer in words, in the user's chosen style: the words the user hears are made here, on the
+ * phone, so that every style works offline too (Repeat, a changed style). Bearings come from the
+ * server relative to the user's heading, clockwise, in (-180, 180]. The server's `sentence` is
+ * the same sentence in the default style (backend/omninav/server/describe.py); one table of cases,
+ * tests/data/sentences.json, holds both to the same words. Pure functions: the same words go to
+ * speech and to the screen.
  */
+import type { Answer } from '../shared/api-types';
+
+export type { Answer };
 
 export type Style = 'clock' | 'sides' | 'degrees';
 
-export interface Answer {
-  x: number;
-  y: number;
-  heading_deg: number;
-  confidence: number;
-  floor: string;
-  place: string | null;
-  area: string | null;
-  nearest: { name: string; distance_m: number; bearing_deg: number } | null;
-  facing: string | null;
-  sentence: string;
-  low_confidence: boolean;
-  accuracy_m: number | null;
-  frames: number;
-  sent: string;
-}
-
+export const DEFAULT_STYLE: Style = 'clock';
 export const UNSURE = 'Not sure where you are; turn slowly and try again.';
-const NEAR_M = 10;
+/** A place further than this (metres) is not "near". */
+export const NEAR_M = 10;
 
-/** 0..360 or -180..180 clockwise -> "3 o'clock" (12 is straight ahead). */
-export function clockHour(bearing: number): number {
-  const h = Math.round((((bearing % 360) + 360) % 360) / 30) % 12;
-  return h === 0 ? 12 : h;
+/** Any angle -> (-180, 180], computed as Python's float % does, so both sides agree to the bit. */
+function signed(b: number): number {
+  let m = (b + 180) % 360;
+  if (m < 0) m += 360;
+  const r = m - 180;
+  return r === -180 ? 180 : r;
 }
 
-/** "at 3 o'clock" | "to your right" | "90 degrees right": a phrase that follows a place name. */
+/** Half up, as Python's describe.py rounds. */
+const round = (v: number): number => Math.floor(v + 0.5);
+
+/**
+ * A bearing -> 1..12, 12 straight ahead. A bearing on a boundary (15, 45, ...) takes the hour
+ * nearer straight ahead, on either side, so left and right mirror each other.
+ */
+export function clockHour(bearing: number): number {
+  const b = signed(bearing);
+  const h = Math.ceil(Math.abs(b) / 30 - 0.5);
+  return (b < 0 ? 12 - h : h) % 12 || 12;
+}
+
+/** "at 3 o'clock" | "to your right" | "at 90 degrees right": a phrase that follows a place name. */
 export function direction(bearing: number, style: Style): string {
-  const b = ((((bearing + 180) % 360) + 360) % 360) - 180; // (-180, 180]
+  const b = signed(bearing);
   const side = b > 0 ? 'right' : 'left';
   const a = Math.abs(b);
   if (style === 'clock') return `at ${clockHour(b)} o'clock`;
   if (style === 'degrees') {
-    const d = Math.round(a);
+    const d = round(a);
     if (d === 0) return 'straight ahead';
     if (d === 180) return 'straight behind you';
-    return `${d} degrees ${side}`;
+    return `at ${d} ${d === 1 ? 'degree' : 'degrees'} ${side}`;
   }
+  // sides: a bearing on a boundary belongs to the sector nearer straight ahead
   if (a <= 15) return 'straight ahead';
   if (a <= 60) return `ahead on your ${side}`;
   if (a <= 120) return `to your ${side}`;
-  if (a < 165) return `behind you on your ${side}`;
+  if (a <= 165) return `behind you on your ${side}`;
   return 'behind you';
 }
 
-/** "Corridor 1" and "the lifts" stay; "North corridor" becomes "the North corridor". */
+/** "Corridor 1", "Hall B" and "the lifts" stay; "North corridor" becomes "the North corridor". */
 export function withArticle(name: string): string {
   const words = name.trim().split(/\s+/);
   const last = words[words.length - 1] ?? '';
-  if (/^the /i.test(name) || /^\d/.test(last) || (last.length === 1 && last === last.toUpperCase())) return name;
+  if (/^the /i.test(name) || /^[0-9]/.test(last) || /^\p{Lu}$/u.test(last)) return name;
   return `the ${name}`;
 }
 
 function metres(d: number): string {
-  const m = Math.max(1, Math.round(d));
+  const m = Math.max(1, round(d));
   return m === 1 ? '1 metre' : `${m} metres`;
 }
 
-const cap = (s: string) => s.charAt(0).toUpperCase() + s.slice(1);
+/** The nearest place when it is near enough to name, else null. */
+const nearOf = (a: Pick<Answer, 'nearest'>) => (a.nearest && a.nearest.distance_m <= NEAR_M ? a.nearest : null);
 
-/** The sentence to speak and show for an answer. */
-export function describe(a: Answer, style: Style, floorName?: string): string {
+/** What the sentence is made from: the answer's words, and whether it is sure. */
+export type Said = Pick<Answer, 'floor' | 'area' | 'nearest' | 'facing' | 'low_confidence'>;
+
+/**
+ * The sentence to speak and show for an answer: "You are in the North corridor, near the lifts at
+ * 3 o'clock, 4 metres, facing Room 102." The floor's name comes from the venue.
+ */
+export function describe(a: Said, style: Style, floorName?: string | null): string {
   if (a.low_confidence) return UNSURE;
+  const near = nearOf(a);
   const parts: string[] = [];
-  parts.push(a.area ? `You are in ${withArticle(a.area)}.` : `You are on ${floorName ?? `floor ${a.floor}`}.`);
-  const n = a.nearest;
-  if (n && n.distance_m <= NEAR_M)
-    parts.push(`${cap(n.name)} ${direction(n.bearing_deg, style)}, ${metres(n.distance_m)}.`);
-  if (a.facing && !(n && n.distance_m <= NEAR_M && a.facing === n.name)) parts.push(`Facing ${a.facing}.`);
-  return parts.join(' ');
+  if (a.area) parts.push(`in ${withArticle(a.area)}`);
+  if (near) parts.push(`near ${near.name} ${direction(near.bearing_deg, style)}, ${metres(near.distance_m)}`);
+  if (parts.length === 0) parts.push(`on ${floorName ?? `floor ${a.floor}`}`);
+  if (a.facing && !(near && a.facing === near.name)) parts.push(`facing ${a.facing}`);
+  return `You are ${parts.join(', ')}.`;
 }
 
 /**
  * What a continuous-mode answer is "about": it is spoken only when this changes, so walking down a
  * corridor does not repeat the same sentence every few seconds.
  */
-export function gist(a: Answer, style: Style): string {
+export function gist(a: Said, style: Style): string {
   if (a.low_confidence) return 'unsure';
-  const n = a.nearest && a.nearest.distance_m <= NEAR_M ? a.nearest : null;
+  const n = nearOf(a);
   return [a.floor, a.area, n?.name, n ? direction(n.bearing_deg, style) : '', a.facing].join('|');
 }
