@@ -1,5 +1,14 @@
 import { describe, expect, it } from 'vitest';
-import { encodeRecord, fromHalf, recordFrame, relativeError, toHalf } from '../src/shared/record';
+import {
+  HEADER_AT,
+  HEADER_BYTES,
+  encodeRecord,
+  fromHalf,
+  recordFrame,
+  recordMismatch,
+  relativeError,
+  toHalf,
+} from '../src/shared/record';
 import { harmonics, quantise } from '../src/worker/spectrum';
 import { linspace, interp, polyval } from '../src/shared/lens';
 
@@ -61,6 +70,27 @@ describe('spectrum and record', () => {
     expect(dv.getUint16(20, true)).toBe(0x3c00);
     expect(dv.getInt16(20 + 8 + 2, true)).toBe(-2);
     expect(() => encodeRecord([], s, 1)).toThrow(/at least one frame/);
+  });
+  it('the header layout is the engine struct <3sBHHHII2x: 20 bytes, these offsets', () => {
+    // written out here, not derived: the test holds the layout to the wire format
+    expect(HEADER_BYTES).toBe(20);
+    expect(HEADER_AT).toEqual({
+      magic: 0,
+      version: 3,
+      curves: 4,
+      harmonics: 6,
+      pano_width: 8,
+      frames: 10,
+      settings_id: 14,
+      pad: 18,
+    });
+  });
+  it("a venue document whose record sizes are not this app's is named as a mismatch", () => {
+    const f = { n_curves: 12, n_harmonics: 16, record_header_bytes: 20, record_bytes_per_frame: 768 };
+    const doc = (over: Partial<typeof f>) => ({ settings: {} as never, settings_id: 1, ...f, ...over });
+    expect(recordMismatch(doc({}))).toBeNull();
+    expect(recordMismatch(doc({ record_header_bytes: 24 }))).toMatch(/24-byte record header, this app makes 20/);
+    expect(recordMismatch(doc({ record_bytes_per_frame: 800 }))).toMatch(/800 bytes per frame, this app makes 768/);
   });
 });
 

@@ -2,10 +2,50 @@
  * The compact feature record the phone sends (the engine's spectrum.py, record version 1).
  * Magnitudes travel as float16, phases as int16 steps of 2*pi/65536: 4 bytes per harmonic.
  */
-import type { FeatureSettings } from './settings';
+import { nCurves, type FeatureSettings, type VenueFeatures } from './settings';
 
 export const RECORD_VERSION = 1;
-export const HEADER_BYTES = 20;
+
+/**
+ * The version-1 header, field by field, in the engine's order (spectrum.py's struct `<3sBHHHII2x`,
+ * little-endian): the byte sizes here are the only place its length is written down.
+ */
+const HEADER_FIELDS = [
+  ['magic', 3], // "ONV"
+  ['version', 1],
+  ['curves', 2],
+  ['harmonics', 2],
+  ['pano_width', 2],
+  ['frames', 4],
+  ['settings_id', 4],
+  ['pad', 2], // keeps the body 4-byte aligned
+] as const;
+
+type HeaderField = (typeof HEADER_FIELDS)[number][0];
+
+/** Each header field's byte offset, derived from the layout above. */
+export const HEADER_AT = Object.fromEntries(
+  HEADER_FIELDS.map(([name], i) => [name, HEADER_FIELDS.slice(0, i).reduce((o, [, n]) => o + n, 0)]),
+) as Readonly<Record<HeaderField, number>>;
+
+/** The header's size in bytes (20), derived from the layout above. */
+export const HEADER_BYTES: number = HEADER_FIELDS.reduce((o, [, n]) => o + n, 0);
+
+/** A float16 magnitude and an int16 phase per harmonic. */
+export const BYTES_PER_HARMONIC = 4;
+
+/**
+ * Why records made here would not be the ones the venue's server reads, or null. The venue
+ * document states its record's sizes; an app cached offline may be older than its server.
+ */
+export function recordMismatch(f: VenueFeatures): string | null {
+  if (f.record_header_bytes !== HEADER_BYTES)
+    return `the server expects a ${f.record_header_bytes}-byte record header, this app makes ${HEADER_BYTES}`;
+  const perFrame = BYTES_PER_HARMONIC * f.n_curves * f.n_harmonics;
+  if (f.record_bytes_per_frame !== perFrame)
+    return `the server expects ${f.record_bytes_per_frame} bytes per frame, this app makes ${perFrame}`;
+  return null;
+}
 
 /** One frame's quantised spectrum: C*K float16 magnitude bits and int16 phases, curve-major. */
 export interface FrameSpectrum {
@@ -66,22 +106,19 @@ export function dequantise(s: FrameSpectrum): { re: Float64Array; im: Float64Arr
   return { re, im };
 }
 
-/**
- * Frames -> the version-1 binary record: header `<3sBHHHII2x` (magic "ONV", version, curves,
- * harmonics, panorama width, frames, settings id), then all magnitudes, then all phases.
- */
+/** Frames -> the version-1 binary record: the header (HEADER_FIELDS), then all magnitudes, then all phases. */
 export function encodeRecord(frames: FrameSpectrum[], s: FeatureSettings, settingsId: number): Uint8Array {
   if (!frames.length) throw new Error('a record needs at least one frame');
   const ck = frames[0].mag.length;
-  const out = new Uint8Array(HEADER_BYTES + 4 * ck * frames.length);
+  const out = new Uint8Array(HEADER_BYTES + BYTES_PER_HARMONIC * ck * frames.length);
   const dv = new DataView(out.buffer);
-  out.set([0x4f, 0x4e, 0x56], 0); // "ONV"
-  dv.setUint8(3, RECORD_VERSION);
-  dv.setUint16(4, s.bands.length * s.channels.length, true);
-  dv.setUint16(6, s.n_harmonics, true);
-  dv.setUint16(8, s.pano_width, true);
-  dv.setUint32(10, frames.length, true);
-  dv.setUint32(14, settingsId >>> 0, true);
+  out.set([0x4f, 0x4e, 0x56], HEADER_AT.magic); // "ONV"
+  dv.setUint8(HEADER_AT.version, RECORD_VERSION);
+  dv.setUint16(HEADER_AT.curves, nCurves(s), true);
+  dv.setUint16(HEADER_AT.harmonics, s.n_harmonics, true);
+  dv.setUint16(HEADER_AT.pano_width, s.pano_width, true);
+  dv.setUint32(HEADER_AT.frames, frames.length, true);
+  dv.setUint32(HEADER_AT.settings_id, settingsId >>> 0, true);
   let o = HEADER_BYTES;
   for (const f of frames) for (const m of f.mag) (dv.setUint16(o, m, true), (o += 2));
   for (const f of frames) for (const p of f.phase) (dv.setInt16(o, p, true), (o += 2));
@@ -91,8 +128,8 @@ export function encodeRecord(frames: FrameSpectrum[], s: FeatureSettings, settin
 /** One frame's spectrum out of a binary record (the checks are the server's; this trusts the record). */
 export function recordFrame(rec: Uint8Array, frame = 0): FrameSpectrum {
   const dv = new DataView(rec.buffer, rec.byteOffset, rec.byteLength);
-  const ck = dv.getUint16(4, true) * dv.getUint16(6, true);
-  const nf = dv.getUint32(10, true);
+  const ck = dv.getUint16(HEADER_AT.curves, true) * dv.getUint16(HEADER_AT.harmonics, true);
+  const nf = dv.getUint32(HEADER_AT.frames, true);
   const mag = new Uint16Array(ck);
   const phase = new Int16Array(ck);
   for (let i = 0; i < ck; i++) {

@@ -1,0 +1,28 @@
+/** What the user hears when "Where am I?" cannot answer: what went wrong and what to do about it. */
+import { ApiProblem, Unreachable } from './api';
+import { CameraProblem } from './camera';
+
+export const NO_FRAMES =
+  'This venue has no modelled frames yet, so omninav cannot tell where you are here. Ask the venue’s administrator to upload and model a video of it.';
+export const NO_LENS =
+  'This venue has no lens profile yet. Ask the venue’s administrator to add the lens it was filmed with.';
+
+/** The venue's server reads another record than this app makes (an app cached offline, a server upgraded). */
+export class RecordMismatch extends Error {
+  constructor(why: string) {
+    super(
+      `This copy of omninav makes feature records that the server cannot read (${why}). Close omninav and open it again to update it.`,
+    );
+  }
+}
+
+export function problemText(e: unknown): string {
+  if (e instanceof Unreachable || e instanceof CameraProblem || e instanceof RecordMismatch) return e.message;
+  if (e instanceof ApiProblem) {
+    if (e.status === 409) return NO_FRAMES;
+    if (e.status === 429) return 'Too many questions at once. Wait a moment, then press Where am I? again.';
+    if (e.status === 404) return 'This venue is no longer on the server. Choose another venue in Settings.';
+    return `The server could not answer: ${e.message}`;
+  }
+  return `Something went wrong: ${(e as Error).message ?? e}`;
+}

@@ -1,0 +1,75 @@
+/**
+ * The locate screen: "Where am I?", Repeat, "Keep telling me", the venue line, the last answer as
+ * text and facts, the floor plan, and the details for helpers. It shows what the session reports.
+ */
+import type { Venue } from '../api';
+import type { Answer } from '../directions';
+import { byId, facts } from '../dom';
+import { HEADER_BYTES } from '../../shared/record';
+import type { Session } from '../session';
+import type { Speaker } from '../speech';
+import { PlanView } from '../views/plan';
+
+export function locateScreen(session: Session, speaker: Speaker): void {
+  const where = byId<HTMLButtonElement>('where');
+  const repeat = byId<HTMLButtonElement>('repeat');
+  const continuous = byId<HTMLButtonElement>('continuous');
+  const venueLine = byId('venue-line');
+  const answerText = byId('answer-text');
+  const answerFacts = byId('answer-facts');
+  const debugFacts = byId('debug-facts');
+  const plan = new PlanView(byId<HTMLCanvasElement>('plan'));
+
+  /** An answer as text, facts and on the plan (the sentence the session speaks). */
+  function show(a: Answer, v: Venue): void {
+    const floor = v.floors.find((f) => f.id === a.floor);
+    answerText.textContent = session.sentence(a, v);
+    const rows: [string, string][] = [];
+    if (!a.low_confidence) {
+      if (a.area) rows.push(['In', a.area]);
+      if (a.nearest) rows.push(['Nearest place', `${a.nearest.name}, ${a.nearest.distance_m.toFixed(0)} m`]);
+      if (a.facing) rows.push(['Facing', a.facing]);
+      rows.push(['Floor', floor?.name ?? a.floor]);
+      if (a.accuracy_m) rows.push(['Accuracy', `about ${a.accuracy_m} m`]);
+    }
+    rows.push(['Confidence', `${Math.round(a.confidence * 100)} %`]);
+    facts(answerFacts, rows);
+    repeat.disabled = false;
+    // the plan image may still be loading: speech must not wait for it
+    void plan.show(
+      floor,
+      v.places.filter((p) => p.floor === a.floor),
+      a,
+    );
+  }
+
+  where.addEventListener('click', () => void session.whereAmI());
+  repeat.addEventListener('click', () => speaker.repeat());
+  continuous.addEventListener('click', () => session.toggleContinuous());
+
+  session.on('line', (text) => (venueLine.textContent = text));
+  session.on('venue', (v) => void plan.show(v.floors[0], v.places, null));
+  session.on('busy', (busy) => {
+    if (busy) where.setAttribute('aria-busy', 'true');
+    else where.removeAttribute('aria-busy');
+    where.textContent = busy ? 'Locating…' : 'Where am I?';
+  });
+  session.on('continuous', (on) => continuous.setAttribute('aria-pressed', String(on)));
+  session.on('answer', (r) => {
+    show(r.answer, r.venue);
+    const a = r.answer;
+    facts(debugFacts, [
+      ['Sent', `features only: ${r.recordBytes} bytes for ${r.frames} frames`],
+      ['Bytes per frame', String((r.recordBytes - HEADER_BYTES) / r.frames)],
+      ['Camera', `${r.camera[0]} x ${r.camera[1]}, lens ${r.lens}, ${r.fps.toFixed(1)} frames/s`],
+      ['Extraction', `${r.medianMs.toFixed(1)} ms per frame (median)`],
+      ['Server round trip', `${r.rttMs.toFixed(0)} ms`],
+      ['Position', `x ${a.x.toFixed(2)} m, y ${a.y.toFixed(2)} m, heading ${a.heading_deg.toFixed(1)}°`],
+      ['Confidence', a.confidence.toFixed(3)],
+    ]);
+  });
+  // another direction style rephrases the last answer on screen (it is not spoken again)
+  session.on('pref', (key) => {
+    if (key === 'style' && session.lastAnswer && session.venue) show(session.lastAnswer, session.venue);
+  });
+}

@@ -1,0 +1,270 @@
+/**
+ * The phone's session: the venue in use, the lens, the camera, the feature worker, and the locate
+ * loop ("Where am I?" once, or "Keep telling me" every few seconds). It owns no part of the page:
+ * screens listen to its events and show them; what it says goes through a Voice.
+ */
+import {
+  ApiProblem,
+  UNREACHABLE,
+  Unreachable,
+  locate,
+  venue as fetchVenue,
+  venues as fetchVenues,
+  type Venue,
+} from './api';
+import { CameraProblem, captureClip, lensMismatch, openCamera } from './camera';
+import { describe, gist, type Answer } from './directions';
+import { ExtractorClient } from './bridge';
+import type { Lens } from '../shared/lens';
+import { encodeRecord, recordMismatch } from '../shared/record';
+import type { Prefs } from './prefs';
+import { NO_FRAMES, NO_LENS, RecordMismatch, problemText } from './problems';
+import type { Cue } from './speech';
+
+const CLIP_FRAMES = 10; // ~1 s at 10 fps: enough for the clip to outvote a single wrong frame
+const CLIP_INTERVAL_MS = 100;
+/** The name the user's own lens profile is offered under, beside the venue's. */
+export const MY_LENS = 'my lens';
+
+/** What the session says: the Speaker, or a fake in tests. */
+export interface Voice {
+  say(text: string, cue?: Cue | null, urgent?: boolean): void;
+  cue(kind: Cue): void;
+  /** A sentence is being spoken. */
+  readonly busy: boolean;
+}
+
+export interface SessionOptions {
+  prefs: Prefs;
+  save: (p: Prefs) => void;
+  voice: Voice;
+  /** The camera plays into it and clips are grabbed from it (it is never shown). */
+  video: HTMLVideoElement;
+  /** `?venue=` in the page's address: it wins over the saved choice. */
+  askedVenue: string | null;
+}
+
+/** An answer and how it was made (for the helpers' details). */
+export interface Located {
+  answer: Answer;
+  venue: Venue;
+  recordBytes: number;
+  frames: number;
+  camera: [number, number];
+  lens: string;
+  fps: number;
+  medianMs: number;
+  rttMs: number;
+}
+
+export interface SessionEvents {
+  /** The server's venues, and the one in use. */
+  venues: { list: { id: string; name: string }[]; chosen: string };
+  /** The lens profiles offered for the venue in use, and the chosen one. */
+  lenses: { names: string[]; chosen: string };
+  /** A venue document was loaded. */
+  venue: Venue;
+  /** The venue's name and state, or why it did not load. */
+  line: string;
+  /** A "Where am I?" started (true) or ended (false). */
+  busy: boolean;
+  answer: Located;
+  /** "Keep telling me" is on or off. */
+  continuous: boolean;
+  /** A preference was set. */
+  pref: keyof Prefs;
+}
+
+/** Typed listeners, in the order they were added. */
+class Emitter<E> {
+  private listeners: { [K in keyof E]?: ((v: E[K]) => void)[] } = {};
+
+  on<K extends keyof E>(kind: K, fn: (v: E[K]) => void): void {
+    (this.listeners[kind] ??= []).push(fn);
+  }
+
+  protected emit<K extends keyof E>(kind: K, v: E[K]): void {
+    for (const fn of this.listeners[kind] ?? []) fn(v);
+  }
+}
+
+export class Session extends Emitter<SessionEvents> {
+  readonly prefs: Prefs;
+  /** The venue in use; null until loaded, and again when it must be asked for afresh. */
+  venue: Venue | null = null;
+  lastAnswer: Answer | null = null;
+  /** Its venue line: the reason given when no venue could be loaded. */
+  private line = '';
+  private ext: ExtractorClient | null = null;
+  private stream: MediaStream | null = null;
+  private busy = false;
+  /** What was last said (or would have been): continuous mode speaks only when it changes. */
+  private lastGist = '';
+  /** The running continuous loop; a new object per start, so that a stopped loop cannot revive. */
+  private loop: { timer?: ReturnType<typeof setTimeout> } | null = null;
+
+  constructor(private readonly o: SessionOptions) {
+    super();
+    this.prefs = o.prefs;
+  }
+
+  /** Set and keep one preference; a new venue is loaded at once. */
+  set<K extends keyof Prefs>(key: K, value: Prefs[K]): void {
+    this.prefs[key] = value;
+    this.o.save(this.prefs);
+    this.emit('pref', key);
+    if (key === 'venue') {
+      this.venue = null;
+      void this.loadVenue();
+    }
+  }
+
+  /** The venue's lens profiles, and the user's own one when they loaded it. */
+  lensesOf(v: Venue): Record<string, Lens> {
+    return this.prefs.myLens ? { ...v.lenses, [MY_LENS]: this.prefs.myLens } : v.lenses;
+  }
+
+  chosenLens(v: Venue): [string, Lens] | null {
+    const all = this.lensesOf(v);
+    const names = Object.keys(all);
+    const name = names.includes(this.prefs.lens) ? this.prefs.lens : names[0];
+    return name ? [name, all[name]] : null;
+  }
+
+  /** Offer the user's own (already checked) lens profile and use it from now on. */
+  useMyLens(lens: Lens): void {
+    this.prefs.myLens = lens;
+    this.prefs.lens = MY_LENS;
+    this.o.save(this.prefs);
+    if (this.venue) this.emit('lenses', { names: Object.keys(this.lensesOf(this.venue)), chosen: MY_LENS });
+  }
+
+  /** The sentence for an answer in the user's style, with the floor's name from the venue. */
+  sentence(a: Answer, v: Venue): string {
+    return describe(a, this.prefs.style, v.floors.find((f) => f.id === a.floor)?.name);
+  }
+
+  /** Load the chosen venue (or the first); start the feature worker on its lens meanwhile. */
+  async loadVenue(): Promise<Venue | null> {
+    try {
+      const list = await fetchVenues();
+      if (!list.length) return this.setLine('This server has no venues yet.');
+      const want = this.o.askedVenue || this.prefs.venue;
+      const id = list.some((v) => v.id === want) ? want : list[0].id;
+      this.emit('venues', { list, chosen: id });
+      const v = await fetchVenue(id);
+      this.venue = v;
+      this.prefs.venue = id;
+      const lens = this.chosenLens(v);
+      this.emit('lenses', { names: Object.keys(this.lensesOf(v)), chosen: lens?.[0] ?? '' });
+      const missing = want && want !== id ? `This server has no venue “${want}”; showing ${v.name} instead. ` : '';
+      this.setLine(
+        missing +
+          (v.modelled
+            ? `Venue: ${v.name}. Ready (${v.frames} modelled frames).`
+            : `Venue: ${v.name}. Not modelled yet.`),
+      );
+      if (lens) {
+        this.ext ??= new ExtractorClient();
+        this.ext.configure(lens[1], v.features.settings).catch(() => undefined); // warm up; errors surface on use
+      }
+      this.emit('venue', v);
+      return v;
+    } catch (e) {
+      return this.setLine(e instanceof Unreachable ? UNREACHABLE : `The venue did not load: ${(e as Error).message}`);
+    }
+  }
+
+  private setLine(text: string): null {
+    this.line = text;
+    this.emit('line', text);
+    return null;
+  }
+
+  /** One "Where am I?": capture ~1 s, extract in the worker, send features only, say the answer. */
+  async whereAmI(quietIfSame = false): Promise<void> {
+    if (this.busy) return;
+    this.busy = true;
+    this.emit('busy', true);
+    const { voice, video } = this.o;
+    try {
+      // a venue not modelled yet may have been since: ask the server again rather than the cache
+      const v = this.venue?.modelled ? this.venue : await this.loadVenue();
+      if (!v) throw new Unreachable(this.line || UNREACHABLE);
+      if (!v.modelled) throw new ApiProblem(409, NO_FRAMES);
+      const mismatch = recordMismatch(v.features);
+      if (mismatch) throw new RecordMismatch(mismatch);
+      const lens = this.chosenLens(v);
+      if (!lens) throw new ApiProblem(422, NO_LENS);
+      this.ext ??= new ExtractorClient();
+      const ready = this.ext.configure(lens[1], v.features.settings);
+      // a stream ends when the phone locks or another app takes the camera: open it again
+      if (this.stream?.getVideoTracks().every((t) => t.readyState === 'ended')) this.stream = null;
+      this.stream ??= await openCamera(video, lens[1]);
+      const bad = lensMismatch(video.videoWidth, video.videoHeight, lens[1], lens[0]);
+      if (bad) throw new CameraProblem('lens', bad);
+      await ready;
+      if (!quietIfSame) voice.cue('start');
+      const clip = await captureClip(video, this.ext, CLIP_FRAMES, CLIP_INTERVAL_MS);
+      const record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id);
+      const t0 = performance.now();
+      const a = await locate(v.id, record, clip.fps, `web-${Date.now()}`);
+      const rttMs = performance.now() - t0;
+      this.lastAnswer = a;
+      const ms = clip.frames.map((f) => f.ms).sort((x, y) => x - y);
+      this.emit('answer', {
+        answer: a,
+        venue: v,
+        recordBytes: record.length,
+        frames: clip.frames.length,
+        camera: [video.videoWidth, video.videoHeight],
+        lens: lens[0],
+        fps: clip.fps,
+        medianMs: ms[ms.length >> 1],
+        rttMs,
+      });
+      const g = gist(a, this.prefs.style);
+      if (!quietIfSame || g !== this.lastGist) voice.say(this.sentence(a, v), a.low_confidence ? 'unsure' : 'ok');
+      this.lastGist = g;
+    } catch (e) {
+      // the venue changed under us (re-modelled with other settings, emptied): reload it next time
+      if (e instanceof ApiProblem && (e.status === 400 || e.status === 409)) this.venue = null;
+      const text = problemText(e);
+      if (!quietIfSame || this.lastGist !== text) voice.say(text, 'error', true);
+      this.lastGist = text;
+      if (e instanceof CameraProblem && e.kind !== 'lens') this.stopContinuous();
+    } finally {
+      this.busy = false;
+      this.emit('busy', false);
+    }
+  }
+
+  get continuous(): boolean {
+    return this.loop !== null;
+  }
+
+  /** "Keep telling me": ask every `prefs.interval` seconds, speak only what changed; or stop. */
+  toggleContinuous(): void {
+    if (this.loop) {
+      this.stopContinuous();
+      this.o.voice.say('Stopped telling you.', null);
+      return;
+    }
+    const loop: { timer?: ReturnType<typeof setTimeout> } = {};
+    this.loop = loop;
+    this.emit('continuous', true);
+    this.lastGist = '';
+    const tick = async () => {
+      // never talk over itself: wait while a sentence is still being spoken
+      if (!this.o.voice.busy) await this.whereAmI(true);
+      if (this.loop === loop) loop.timer = setTimeout(tick, this.prefs.interval * 1000);
+    };
+    loop.timer = setTimeout(tick, 0);
+  }
+
+  stopContinuous(): void {
+    clearTimeout(this.loop?.timer);
+    this.loop = null;
+    this.emit('continuous', false);
+  }
+}
