@@ -111,67 +111,48 @@ def main() -> None:
 
 def through_api(root: Path, video: Path, omninav: str) -> dict:
     """Upload and model the video through a running server; time the job as the API reports it."""
-    import os
-    import signal
-    import socket
     import urllib.request
 
+    from omninav.devserver import ServeProcess
     from omninav.synth.scene import floorplan_image
 
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    base = f"http://127.0.0.1:{port}"
     auth = {"Authorization": "Bearer bench"}
 
-    def call(method: str, path: str, body=None, headers=None) -> dict:
-        h = {**auth, **(headers or {})}
-        if isinstance(body, dict):
-            body, h["Content-Type"] = json.dumps(body).encode(), "application/json"
-        with urllib.request.urlopen(urllib.request.Request(base + path, body, h, method=method), timeout=120) as r:
-            return json.loads(r.read())
+    with (
+        tempfile.TemporaryDirectory() as d,
+        ServeProcess(d, "--demo", "none", env={"OMNINAV_ADMIN_TOKEN": "bench"}, executable=omninav) as srv,
+    ):
 
-    with tempfile.TemporaryDirectory() as d:
-        env = {**os.environ, "OMNINAV_DATA": d, "OMNINAV_ADMIN_TOKEN": "bench"}
-        srv = subprocess.Popen(
-            [omninav, "serve", "--demo", "none", "--port", str(port)],
-            env=env,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-            start_new_session=True,
-        )
-        try:
-            for _ in range(150):
-                try:
-                    urllib.request.urlopen(base + "/api/health", timeout=1)
-                    break
-                except OSError:
-                    time.sleep(0.2)
-            call("POST", "/api/admin/venues", {"id": "speed"})
-            plan = cv2.imencode(".png", floorplan_image(build_scene(0, "default"), 20.0))[1].tobytes()
-            call("PUT", "/api/admin/venues/speed/floors/1/plan", plan, {"Content-Type": "image/png"})
-            call("PUT", "/api/admin/venues/speed/floors/1", {"px_per_m": 20.0})
-            call("PUT", "/api/admin/venues/speed/lenses/default", json.loads((root / "lens.json").read_text()))
-            data = video.read_bytes()
-            track = json.loads((root / "track30.json").read_text())
-            v = call("POST", "/api/admin/venues/speed/videos", {"name": video.name, "size": len(data), "track": track})
-            t = time.perf_counter()
-            piece = 8 << 20
-            for a in range(0, len(data), piece):
-                b = min(len(data), a + piece) - 1
-                rng = {"Content-Range": f"bytes {a}-{b}/{len(data)}", "Content-Type": "application/octet-stream"}
-                call("PUT", v["upload_url"], data[a : b + 1], rng)
-            upload_s = time.perf_counter() - t
-            job = call("POST", "/api/admin/venues/speed/jobs")
-            while job["state"] in ("queued", "running"):
-                time.sleep(0.2)
-                job = call("GET", f"/api/admin/jobs/{job['id']}")
-            if job["state"] != "done":
-                raise SystemExit(f"job {job['state']}: {job['error']}")
-            return {"upload_s": upload_s, "job_s": job["finished"] - job["started"], "frames": job["frames_done"]}
-        finally:
-            os.killpg(srv.pid, signal.SIGTERM)
-            srv.wait(20)
+        def call(method: str, path: str, body=None, headers=None) -> dict:
+            h = {**auth, **(headers or {})}
+            if isinstance(body, dict):
+                body, h["Content-Type"] = json.dumps(body).encode(), "application/json"
+            req = urllib.request.Request(srv.base + path, body, h, method=method)
+            with urllib.request.urlopen(req, timeout=120) as r:
+                return json.loads(r.read())
+
+        call("POST", "/api/admin/venues", {"id": "speed"})
+        plan = cv2.imencode(".png", floorplan_image(build_scene(0, "default"), 20.0))[1].tobytes()
+        call("PUT", "/api/admin/venues/speed/floors/1/plan", plan, {"Content-Type": "image/png"})
+        call("PUT", "/api/admin/venues/speed/floors/1", {"px_per_m": 20.0})
+        call("PUT", "/api/admin/venues/speed/lenses/default", json.loads((root / "lens.json").read_text()))
+        data = video.read_bytes()
+        track = json.loads((root / "track30.json").read_text())
+        v = call("POST", "/api/admin/venues/speed/videos", {"name": video.name, "size": len(data), "track": track})
+        t = time.perf_counter()
+        piece = 8 << 20
+        for a in range(0, len(data), piece):
+            b = min(len(data), a + piece) - 1
+            rng = {"Content-Range": f"bytes {a}-{b}/{len(data)}", "Content-Type": "application/octet-stream"}
+            call("PUT", v["upload_url"], data[a : b + 1], rng)
+        upload_s = time.perf_counter() - t
+        job = call("POST", "/api/admin/venues/speed/jobs")
+        while job["state"] in ("queued", "running"):
+            time.sleep(0.2)
+            job = call("GET", f"/api/admin/jobs/{job['id']}")
+        if job["state"] != "done":
+            raise SystemExit(f"job {job['state']}: {job['error']}")
+        return {"upload_s": upload_s, "job_s": job["finished"] - job["started"], "frames": job["frames_done"]}
 
 
 if __name__ == "__main__":

@@ -21,10 +21,6 @@ from __future__ import annotations
 import argparse
 import http.client
 import json
-import os
-import signal
-import socket
-import subprocess
 import sys
 import threading
 import time
@@ -33,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
+from omninav.devserver import ServeProcess  # noqa: E402
 from omninav.extract import Extractor  # noqa: E402
 from omninav.lens import load_lens  # noqa: E402
 from omninav.presets import resolve, settings_id  # noqa: E402
@@ -88,12 +85,6 @@ def build(data: Path) -> bytes:
     return encode_binary(Extractor(load_lens(src / "lens.json"), conf).spectra(frames[:10]), conf)
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def load(port: int, method: str, path: str, body: bytes | None, rate: float, seconds: float, conns: int = 16):
     """Open-loop: request i is due at t0 + i/rate; latency = completion - due time."""
     n = int(rate * seconds)
@@ -142,30 +133,15 @@ def summary(ms: np.ndarray) -> dict:
     }
 
 
-def start_server(data: Path, port: int, workers: int | None = None, threads: int | None = None) -> subprocess.Popen:
+def start_server(data: Path, workers: int | None = None, threads: int | None = None) -> ServeProcess:
     """`omninav serve` as npm start runs it, on `data`, with the per-client locate limit off (all
     load comes from one address) and admin token "bench"; returns once it answers /api/health."""
-    env = {**os.environ, "OMNINAV_DATA": str(data), "OMNINAV_LOCATE_RATE": "0", "OMNINAV_ADMIN_TOKEN": "bench"}
-    cmd = [str(REPO / ".venv" / "bin" / "omninav"), "serve", "--demo", "none", "--port", str(port)]
+    args = ["--demo", "none"]
     if workers:
-        cmd += ["--workers", str(workers)]
+        args += ["--workers", str(workers)]
     if threads:
-        cmd += ["--threads", str(threads)]
-    srv = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-    for _ in range(100):
-        try:
-            c = http.client.HTTPConnection("127.0.0.1", port, timeout=2)
-            c.request("GET", "/api/health")
-            if c.getresponse().status == 200:
-                break
-        except OSError:
-            time.sleep(0.2)
-    return srv
-
-
-def stop_server(srv: subprocess.Popen) -> None:
-    os.killpg(srv.pid, signal.SIGTERM)
-    srv.wait(20)
+        args += ["--threads", str(threads)]
+    return ServeProcess(data, *args, env={"OMNINAV_LOCATE_RATE": "0", "OMNINAV_ADMIN_TOKEN": "bench"})
 
 
 def max_rate(port: int, method: str, path: str, body: bytes | None, seconds: float) -> dict:
@@ -190,8 +166,8 @@ def main() -> None:
     a = ap.parse_args()
     data = REPO / "data" / "bench-server"
     record = build(data)
-    port = free_port()
-    srv = start_server(data, port, a.workers, a.threads)
+    srv = start_server(data, a.workers, a.threads)
+    port = srv.port
     try:
         loc = "/api/venues/bench8k/locate"
         c = http.client.HTTPConnection("127.0.0.1", port)
@@ -220,7 +196,7 @@ def main() -> None:
         share = ml["rate"] / max(mh["rate"], 1)
         print(f"  health {mh['rate']}/s, locate {ml['rate']}/s: locate sustains {share:.2f} of health's rate")
     finally:
-        stop_server(srv)
+        srv.stop()
 
 
 if __name__ == "__main__":

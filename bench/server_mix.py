@@ -42,7 +42,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 from search_speed import machine  # noqa: E402
-from server_load import REPO, build, free_port, load, start_server, stop_server, summary  # noqa: E402
+from server_load import REPO, build, load, start_server, summary  # noqa: E402
 
 LOCATE = "/api/venues/bench8k/locate"
 JOB_VENUE = "mixjob"
@@ -472,8 +472,8 @@ def main() -> None:
     load_before = os.getloadavg()
     record = build(REPO / "data" / "bench-server")
     video = long_video(a.upload_minutes)
-    port = free_port()
-    srv = start_server(REPO / "data" / "bench-server", port, a.workers)
+    srv = start_server(REPO / "data" / "bench-server", a.workers)
+    port = srv.port
     try:
         adm = Admin(port)
         # enough copies of the 1,501-frame walk that the job outlasts the phase at ~150 frames/s
@@ -549,7 +549,7 @@ def main() -> None:
         ]
         print(f"p99 < 50 ms and no failed request: {', '.join(ok)}")
     finally:
-        stop_server(srv)
+        srv.stop()
     print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 

@@ -2,10 +2,11 @@
 // opencv.js WebAssembly -> record) per 960x720 donut frame, against the Python engine's extractor
 // on the same frames in the same run (the baseline). Prints the machine it ran on.
 //   node bench/web_extract.mjs [repeats]
-import { execFileSync, spawn } from 'node:child_process';
+import { execFileSync } from 'node:child_process';
 import { cpus, totalmem } from 'node:os';
 import { resolve } from 'node:path';
 import { chromium } from 'playwright-core';
+import { startServer } from '../e2e/server.cjs';
 
 const ROOT = resolve(import.meta.dirname, '..');
 const WORK = resolve(ROOT, 'data/bench-web');
@@ -42,24 +43,12 @@ print(json.dumps(ms))
 );
 
 // the browser: the server serves web/dist as `npm start` does; the golden files are routed in
-const port = 8700 + Math.floor(Math.random() * 200);
-const srv = spawn(
-  resolve(ROOT, '.venv/bin/omninav'),
-  ['serve', '--port', String(port), '--demo', 'none', '--workers', '1'],
-  {
-    env: { ...process.env, OMNINAV_DATA: resolve(WORK, 'server'), OMNINAV_ADMIN_TOKEN: 'bench-token-0123456789' },
-    stdio: 'ignore',
-    detached: true,
-  },
-);
+const srv = await startServer(resolve(WORK, 'server'), {
+  args: ['--demo', 'none', '--workers', '1'],
+  env: { OMNINAV_ADMIN_TOKEN: 'bench-token-0123456789' },
+});
+const port = srv.port;
 try {
-  for (let i = 0; ; i++) {
-    try {
-      if ((await fetch(`http://127.0.0.1:${port}/api/health`)).ok) break;
-    } catch {}
-    if (i > 300) throw new Error('server did not start');
-    await new Promise((r) => setTimeout(r, 100));
-  }
   const browser = await chromium.launch({
     executablePath: process.env.CHROMIUM ?? '/usr/bin/chromium',
     args: [
@@ -99,5 +88,5 @@ try {
   console.log(`ratio browser / engine (median): ${(r.timing.medianMs / pct(py, 0.5)).toFixed(2)}`);
   console.log(`record: ${rec} bytes per frame + 20-byte header; a 10-frame clip sends ${20 + 10 * rec} bytes`);
 } finally {
-  process.kill(-srv.pid, 'SIGTERM');
+  await srv.stop();
 }

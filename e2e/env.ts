@@ -10,7 +10,6 @@ export const CLIP = resolve(WORK, 'clip/clip.y4m');
 export const ELSEWHERE = resolve(WORK, 'elsewhere/clip.y4m');
 export const TOKEN = 'e2e-admin-token-0123456789';
 export const PYTHON = resolve(ROOT, '.venv/bin/python');
-export const OMNINAV = resolve(ROOT, '.venv/bin/omninav');
 
 export function chromiumPath(): string {
   const p = process.env.CHROMIUM ?? '/usr/bin/chromium';

@@ -2,15 +2,19 @@
 // starts with the quick demo venue and models it through its job queue.
 import { execFileSync } from 'node:child_process';
 import { resolve } from 'node:path';
-import { GOLDEN, PYTHON, ROOT, WORK } from './env';
-import { startServer, waitModelled } from './server';
+import { GOLDEN, PYTHON, ROOT, TOKEN, WORK } from './env';
+import { startServer, waitModelled } from './server.cjs';
 
 export default async function globalSetup(): Promise<() => Promise<void>> {
   const fixtures = resolve(ROOT, 'e2e/fixtures.py');
   execFileSync(PYTHON, [fixtures, 'golden', GOLDEN], { stdio: 'inherit' });
   execFileSync(PYTHON, [fixtures, 'clip', resolve(WORK, 'clip')], { stdio: 'inherit' });
   execFileSync(PYTHON, [fixtures, 'clip', resolve(WORK, 'elsewhere'), '13'], { stdio: 'inherit' });
-  const srv = await startServer(resolve(WORK, 'server'), 'quick');
+  const srv = await startServer(resolve(WORK, 'server'), {
+    args: ['--demo', 'quick', '--workers', '2'],
+    env: { OMNINAV_ADMIN_TOKEN: TOKEN },
+    fresh: true,
+  });
   try {
     await waitModelled(srv.url, 'demo');
   } catch (e) {

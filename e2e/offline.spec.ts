@@ -2,12 +2,16 @@
 // and the app says plainly that the server cannot be reached.
 import { resolve } from 'node:path';
 import { expect, test } from '@playwright/test';
-import { WORK } from './env';
+import { TOKEN, WORK } from './env';
 import { expectNoAxeViolations, spoken, spyOnSpeech } from './helpers';
-import { startServer } from './server';
+import { startServer } from './server.cjs';
 
 test('offline start from the service worker, with a spoken "cannot reach the server"', async ({ page }) => {
-  const srv = await startServer(resolve(WORK, 'server-offline'), 'none');
+  const srv = await startServer(resolve(WORK, 'server-offline'), {
+    args: ['--demo', 'none', '--workers', '2'],
+    env: { OMNINAV_ADMIN_TOKEN: TOKEN },
+    fresh: true,
+  });
   try {
     await spyOnSpeech(page);
     await page.goto(`${srv.url}/`);

@@ -5,6 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 .venv/bin/ruff check backend tests bench e2e
+.venv/bin/ruff format --check backend tests bench e2e
 .venv/bin/mypy backend/omninav
 npx prettier --check --log-level warn web/src web/tests web/*.ts web/compress.mjs e2e bench/*.mjs
 npx tsc -p web --noEmit

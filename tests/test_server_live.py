@@ -7,8 +7,6 @@ from __future__ import annotations
 import http.client
 import json
 import os
-import signal
-import socket
 import ssl
 import subprocess
 import time
@@ -19,46 +17,25 @@ from pathlib import Path
 import pytest
 
 from conftest import OMNINAV
+from omninav.devserver import ServeProcess, free_port
 from omninav.spectrum import encode_binary
 from server_helpers import ADMIN, TOKEN, check_response, clip_spectra, query_clip
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+class Server(ServeProcess):
+    """`omninav serve` as `npm start` runs it (two workers, four threads each, no demo unless asked),
+    with the test admin token and no locate limit; its log in data/../server-PORT.log."""
 
-
-class Server:
     def __init__(self, data: Path, *args: str, token: bool = True, env: dict[str, str] | None = None):
-        self.port = free_port()
-        self.data = data
-        self.https = "--https" in args
-        env = {**os.environ, "OMNINAV_DATA": str(data), "OMNINAV_LOCATE_RATE": "0", **(env or {})}
+        port = free_port()
+        env = {"OMNINAV_LOCATE_RATE": "0", **(env or {})}
         if token:
             env["OMNINAV_ADMIN_TOKEN"] = TOKEN
-        self.log = open(data.parent / f"server-{self.port}.log", "w")  # noqa: SIM115 (lives as long as the server)
         if "--demo" not in args:
             args = ("--demo", "none", *args)
-        cmd = [OMNINAV, "serve", "--port", str(self.port), "--workers", "2", "--threads", "4", *args]
-        self.proc = subprocess.Popen(cmd, env=env, stdout=self.log, stderr=subprocess.STDOUT, start_new_session=True)
-        self.base = f"{'https' if self.https else 'http'}://127.0.0.1:{self.port}"
-        t0 = time.time()
-        while True:
-            try:
-                self.call("GET", "/api/health")
-                return
-            except (OSError, AssertionError):
-                if self.proc.poll() is not None or time.time() - t0 > 60:
-                    raise AssertionError(
-                        f"server did not start: {(data.parent / f'server-{self.port}.log').read_text()}"
-                    ) from None
-                time.sleep(0.2)
-
-    @property
-    def ctx(self) -> ssl.SSLContext | None:
-        """Trust exactly the certificate the server made (it exists once the server listens)."""
-        return ssl.create_default_context(cafile=str(self.data / "tls" / "cert.pem")) if self.https else None
+        super().__init__(
+            data, "--workers", "2", "--threads", "4", *args, env=env, port=port, log=data.parent / f"server-{port}.log"
+        )
 
     def call(self, method: str, path: str, body: bytes | None = None, headers: dict | None = None, admin=False):
         h = {**(headers or {}), **(ADMIN if admin else {})}
@@ -72,12 +49,6 @@ class Server:
             status, ctype, data = e.code, e.headers.get("Content-Type", ""), e.read()
         check_response(method, path, status, ctype, data)
         return status, (json.loads(data) if ctype.startswith("application/json") else data)
-
-    def kill(self) -> None:
-        """kill -9 the whole server, master and workers: no chance to clean up."""
-        os.killpg(self.proc.pid, signal.SIGKILL)
-        self.proc.wait(10)
-        self.log.close()
 
 
 def upload(srv: Server, venue: str, name: str, data: bytes, track: dict, piece: int) -> dict:

@@ -16,10 +16,11 @@ from .errors import OmninavError
 
 def _cupy() -> ModuleType | None:
     try:
-        import cupy  # type: ignore[import-not-found]
+        import cupy
 
         if cupy.cuda.runtime.getDeviceCount() > 0:
-            return cupy
+            cp: ModuleType = cupy  # untyped (mypy.ini): Any until named
+            return cp
     except Exception:  # no CuPy, no driver or no device: the CPU path serves
         return None
     return None
@@ -42,9 +43,10 @@ def namespace_of(x: Any) -> ModuleType:
     """numpy or cupy, whichever owns array x."""
     mod = type(x).__module__.split(".")[0]
     if mod == "cupy":
-        import cupy  # type: ignore[import-not-found]
+        import cupy
 
-        return cupy  # type: ignore[no-any-return]
+        cp: ModuleType = cupy
+        return cp
     return np
 
 

@@ -45,7 +45,8 @@ def gray_world(rgb: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
         mean = rgb.reshape(-1, 3).mean(axis=0, dtype=np.float64)
     else:
         mean = rgb[valid].mean(axis=0, dtype=np.float64) if valid.any() else np.ones(3)
-    return rgb * (0.5 / np.maximum(mean.astype(np.float32), _EPS)).astype(np.float32)
+    out: np.ndarray = rgb * (0.5 / np.maximum(mean.astype(np.float32), _EPS)).astype(np.float32)
+    return out
 
 
 def _hgrad(x: np.ndarray, circular_unit: bool = False) -> np.ndarray:
@@ -53,7 +54,8 @@ def _hgrad(x: np.ndarray, circular_unit: bool = False) -> np.ndarray:
     d = np.roll(x, -1, axis=-1) - np.roll(x, 1, axis=-1)
     if circular_unit:  # hue is an angle in turns: 0.99 and 0.01 are close
         d = (d + 0.5) % 1.0 - 0.5
-    return np.abs(d) * 0.5
+    out: np.ndarray = np.abs(d) * 0.5
+    return out
 
 
 def channel_images(rgb: np.ndarray, channels: list[str] | tuple[str, ...]) -> dict[str, np.ndarray]:
@@ -93,7 +95,8 @@ def normalise(curves: np.ndarray) -> np.ndarray:
     """Zero mean, unit standard deviation per curve (last axis); a flat curve stays zero."""
     c = curves - curves.mean(axis=-1, keepdims=True)
     sd = c.std(axis=-1, keepdims=True)
-    return (c / np.maximum(sd, 1e-4)).astype(np.float32)
+    out: np.ndarray = (c / np.maximum(sd, 1e-4)).astype(np.float32)
+    return out
 
 
 def extract_curves(

@@ -1,4 +1,4 @@
-"""Lens profiles (CONVENTIONS.md `lens.json`): which camera pixel looks in which direction.
+"""Lens profiles (`lens.json`, docs/formats.md): which camera pixel looks in which direction.
 
 Two models: a catadioptric "donut" lens (the paper's Eq. 1 geometry) and an equirectangular
 360-camera frame. Every direction is expressed as (azimuth, elevation) in degrees relative to the
@@ -30,7 +30,8 @@ class Catadioptric:
 
     def elevation(self, r: np.ndarray) -> np.ndarray:
         """Elevation (deg) seen at radius r (px): the profile's polynomial, ascending powers."""
-        return np.polynomial.polynomial.polyval(r, np.asarray(self.elevation_poly, np.float64))
+        elev: np.ndarray = np.polynomial.polynomial.polyval(r, np.asarray(self.elevation_poly, np.float64))
+        return elev
 
     def elevation_range(self) -> tuple[float, float]:
         e = self.elevation(np.array([self.r_inner, self.r_outer]))

@@ -39,7 +39,8 @@ def spectrum(curves: np.ndarray, n_harmonics: int) -> np.ndarray:
         raise ValueError(f"n_harmonics must be in [1, {w // 2}], got {n_harmonics}")
     f = np.fft.rfft(curves.astype(np.float32), axis=-1)[..., 1 : n_harmonics + 1]
     e = np.sqrt((np.abs(f) ** 2).sum(axis=(-2, -1), keepdims=True))
-    return (f / np.maximum(e, 1e-12)).astype(np.complex64)
+    out: np.ndarray = (f / np.maximum(e, 1e-12)).astype(np.complex64)
+    return out
 
 
 def quantise(spec: np.ndarray) -> np.ndarray:
@@ -60,7 +61,8 @@ def _split(spec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _join(mag: np.ndarray, ph: np.ndarray) -> np.ndarray:
     a = ph.astype(np.float32) * np.float32(math.pi / 32768.0)
-    return (mag.astype(np.float32) * np.exp(1j * a)).astype(np.complex64)
+    out: np.ndarray = (mag.astype(np.float32) * np.exp(1j * a)).astype(np.complex64)
+    return out
 
 
 def encode_binary(spec: np.ndarray, conf: dict[str, Any]) -> bytes:
@@ -169,4 +171,4 @@ def _check(mag: np.ndarray, c: int, k: int, w: int, sid: int, expect: dict[str, 
 
 
 def record_bytes_per_frame(conf: dict[str, Any]) -> int:
-    return 4 * n_curves(conf) * conf["n_harmonics"]
+    return 4 * n_curves(conf) * int(conf["n_harmonics"])

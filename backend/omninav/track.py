@@ -1,4 +1,4 @@
-"""Modelling tracks (CONVENTIONS.md `track.json`): where the recorder was at each video frame.
+"""Modelling tracks (`track.json`, docs/formats.md): where the recorder was at each video frame.
 
 Positions between waypoints are linear in time; the heading is the direction of travel plus
 `heading_offset_deg`. Frames outside the first and last waypoint have no pose and are not used.

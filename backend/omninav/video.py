@@ -48,7 +48,7 @@ def iter_video(info: VideoInfo, stride: int = 1, start: int = 0) -> Iterator[tup
     the two cores both work.
     """
     path = info.path
-    q: Queue = Queue(maxsize=32)
+    q: Queue[tuple[int, np.ndarray] | None] = Queue(maxsize=32)
     stop = threading.Event()
 
     def reader() -> None:

@@ -15,7 +15,7 @@ import {
   relativeError,
   type FrameSpectrum,
 } from '../src/shared/record';
-import { GOLDEN } from './global-setup';
+import { makeGoldens } from './global-setup';
 
 interface Case {
   name: string;
@@ -26,6 +26,8 @@ interface Case {
   frames: { stem: string }[];
 }
 
+// made once per run of this file, before its cases are listed (they come from golden.json)
+const GOLDEN = makeGoldens();
 const read = (f: string) => new Uint8Array(readFileSync(resolve(GOLDEN, f)));
 const cases = (): Case[] => JSON.parse(readFileSync(resolve(GOLDEN, 'golden.json'), 'utf8')).cases;
 

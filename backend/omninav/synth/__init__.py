@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 
 from ..lens import Catadioptric, Equirectangular, Lens
-from .scene import Scene, build_scene, floorplan_image
+from .scene import Point, Scene, build_scene, floorplan_image
 from .walks import (
     MODELLING,
     QUERY,
@@ -79,7 +79,7 @@ def make_dataset(
     model_lens: Lens | None = None,
     query_lens: Lens | None = None,
     query_perturb: Perturb = QUERY,
-    query_route: list | None = None,
+    query_route: list[Point] | None = None,
     model_speed: float = 1.2,
     query_speeds: tuple[float, ...] = (1.0, 1.3, 1.1, 0.9),
 ) -> Dataset:

@@ -104,7 +104,8 @@ def world_panorama(
     img *= shade[..., None]
     if people:
         img = _draw_people(img, people, x, y, cam_h, dx, dy, tan_el, np.where(on_wall, tw32, t_plane))
-    return np.clip(img, 0, 255).astype(np.uint8)
+    out: np.ndarray = np.clip(img, 0, 255).astype(np.uint8)
+    return out
 
 
 def _draw_people(
@@ -151,7 +152,8 @@ def tilt_rotation(tilt_deg: float, tilt_dir_deg: float) -> np.ndarray:
     towards camera azimuth tilt_dir_deg: the phone held a few degrees off vertical."""
     a = np.deg2rad(tilt_dir_deg + 90.0)
     axis = np.array([np.cos(a), np.sin(a), 0.0])
-    return cv2.Rodrigues(axis * np.deg2rad(tilt_deg))[0]
+    rot: np.ndarray = cv2.Rodrigues(axis * np.deg2rad(tilt_deg))[0]
+    return rot
 
 
 @dataclass

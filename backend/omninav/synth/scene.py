@@ -10,6 +10,7 @@ corridors have, with the occasional board, window or pillar that makes a place u
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numpy as np
@@ -18,6 +19,10 @@ GRID = 0.1  # m per free-space cell
 TEX_PPM = 40  # texture pixels per metre on walls
 PLAN_PPM = 20  # floor/ceiling texture pixels per metre
 WALL_H = 2.8  # m, ceiling height
+
+Point = tuple[float, float]  # plan metres
+Rect = tuple[float, float, float, float]  # x0, y0, x1, y1 (plan metres)
+Layout = tuple[Point, list[Rect], list[list[Point]]]  # plan size, corridor rectangles, centre lines
 
 
 @dataclass
@@ -30,7 +35,7 @@ class Scene:
     floor: np.ndarray  # (H, W, 3) uint8 RGB, PLAN_PPM
     ceiling: np.ndarray  # (H, W, 3) uint8 RGB, PLAN_PPM
     centerlines: list[list[tuple[float, float]]]  # corridor centre polylines
-    places: list[dict] = field(default_factory=list)  # named places {name, x, y, area}
+    places: list[dict[str, Any]] = field(default_factory=list)  # named places {name, x, y, area}
     corridor_width: float = 2.4
 
 
@@ -47,7 +52,7 @@ class Person:
 # --- layout ---------------------------------------------------------------------------------
 
 
-def default_layout() -> tuple[tuple[float, float], list[tuple[float, float, float, float]], list]:
+def default_layout() -> Layout:
     """A rectangular ring of corridors with a cross corridor: 48 x 20 m between centre lines."""
     w = 2.4
     x0, y0, x1, y1, xm = 3.0, 3.0, 51.0, 23.0, 27.0
@@ -68,7 +73,7 @@ def default_layout() -> tuple[tuple[float, float], list[tuple[float, float, floa
     return (x1 + 3.0, y1 + 3.0), rects, lines
 
 
-def small_layout() -> tuple[tuple[float, float], list[tuple[float, float, float, float]], list]:
+def small_layout() -> Layout:
     """An L of two corridors (18 m and 10 m): small enough for fast unit tests."""
     w = 2.4
     rects = [
@@ -79,7 +84,7 @@ def small_layout() -> tuple[tuple[float, float], list[tuple[float, float, float,
     return (23.0, 15.0), rects, lines
 
 
-def _grid(size_m: tuple[float, float], rects: list) -> np.ndarray:
+def _grid(size_m: Point, rects: list[Rect]) -> np.ndarray:
     rows, cols = int(round(size_m[1] / GRID)), int(round(size_m[0] / GRID))
     free = np.zeros((rows, cols), bool)
     for ax, ay, bx, by in rects:
@@ -110,7 +115,8 @@ def _pillars(free: np.ndarray, rng: np.random.Generator, every_m: float = 9.0) -
             if rng.random() < 0.12 and run[r : r + 5].all():
                 pill[r : r + 4, c : c + 3] = True
                 pos = r * GRID + every_m * rng.uniform(0.6, 1.4)
-    return pill & free
+    out: np.ndarray = pill & free
+    return out
 
 
 def _segments(free: np.ndarray) -> list[tuple[float, float, float, float, int, int]]:
@@ -243,7 +249,9 @@ def _paint_wall(
     return tex
 
 
-def _floor_and_ceiling(free: np.ndarray, rng: np.random.Generator, lines: list) -> tuple[np.ndarray, np.ndarray]:
+def _floor_and_ceiling(
+    free: np.ndarray, rng: np.random.Generator, lines: list[list[Point]]
+) -> tuple[np.ndarray, np.ndarray]:
     h, w = free.shape
     fh, fw = int(h * GRID * PLAN_PPM), int(w * GRID * PLAN_PPM)
     tile = int(0.6 * PLAN_PPM)

@@ -4,21 +4,23 @@ A modelling walk follows the corridor centre lines at a steady pace with the len
 the direction of travel, as a person recording a venue does. A query walk is recorded as a user
 would: off the centre line by up to 0.5 m, the phone at 1.15-1.55 m and tilted up to 5 degrees,
 light x0.6-1.3 with a colour cast, up to three passers-by, the lens re-clipped 2 px off centre,
-sensor noise and video compression. Its track (CONVENTIONS.md) is the ground truth.
+sensor noise and video compression. Its track (docs/formats.md) is the ground truth.
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
 
 from ..lens import Lens
 from .render import CameraModel, PanoGrid, camera_frame, tilt_rotation, world_panorama
-from .scene import GRID, Person, Scene, random_people
+from .scene import GRID, Person, Point, Scene, random_people
 
 
 @dataclass(frozen=True)
@@ -70,7 +72,7 @@ def route_through(scene: Scene, order: list[int], reverse: list[bool] | None = N
     return pts
 
 
-def default_routes(scene: Scene) -> tuple[list, list]:
+def default_routes(scene: Scene) -> tuple[list[Point], list[Point]]:
     """(modelling route, query route) for a built-in layout; the query walks the other way round."""
     n = len(scene.centerlines)
     if n == 5:  # the default ring + middle corridor
@@ -88,7 +90,7 @@ def _is_free(scene: Scene, x: float, y: float) -> bool:
 
 
 def offset_route(
-    scene: Scene, route: list, lateral_m: float, rng: np.random.Generator, step_m: float = 6.0
+    scene: Scene, route: list[Point], lateral_m: float, rng: np.random.Generator, step_m: float = 6.0
 ) -> list[tuple[float, float]]:
     """Resample a route every ~step_m and push each point sideways by up to lateral_m."""
     out: list[tuple[float, float]] = []
@@ -106,8 +108,8 @@ def offset_route(
     return out
 
 
-def track_for(route: list, speeds: list[float], fps: float, heading_offset: float = 0.0) -> dict:
-    """CONVENTIONS.md track: a waypoint (t in seconds) at every route vertex."""
+def track_for(route: list[Point], speeds: list[float], fps: float, heading_offset: float = 0.0) -> dict[str, Any]:
+    """A track (docs/formats.md): a waypoint (t in seconds) at every route vertex."""
     t = 0.0
     wps = [{"t": 0.0, "x": round(route[0][0], 4), "y": round(route[0][1], 4)}]
     for i, ((ax, ay), (bx, by)) in enumerate(zip(route[:-1], route[1:], strict=True)):
@@ -116,7 +118,7 @@ def track_for(route: list, speeds: list[float], fps: float, heading_offset: floa
     return {"fps": fps, "waypoints": wps, "heading_offset_deg": heading_offset}
 
 
-def poses_from_track(track: dict, perturb: Perturb, rng: np.random.Generator) -> list[Pose]:
+def poses_from_track(track: dict[str, Any], perturb: Perturb, rng: np.random.Generator) -> list[Pose]:
     """One pose per video frame, exactly where the track says (its ground truth)."""
     from ..track import parse_track
 
@@ -156,7 +158,9 @@ def grid_for(lens: Lens, width: int = 1440) -> PanoGrid:
     return PanoGrid(width, top, bottom, int(round((top - bottom) / step)) + 1)
 
 
-def render_frames(scene: Scene, lens: Lens, poses: list[Pose], perturb: Perturb, seed: int, pano_width: int = 1440):
+def render_frames(
+    scene: Scene, lens: Lens, poses: list[Pose], perturb: Perturb, seed: int, pano_width: int = 1440
+) -> Iterator[tuple[Pose, np.ndarray]]:
     """Yield (pose, BGR uint8 frame) for each pose, with the perturbations applied."""
     rng = np.random.default_rng(seed)
     grid = grid_for(lens, pano_width)
@@ -185,7 +189,7 @@ def render_frames(scene: Scene, lens: Lens, poses: list[Pose], perturb: Perturb,
         yield p, cv2.cvtColor(frame, cv2.COLOR_RGB2BGR)
 
 
-def write_video(path: Path, frames, fps: float, size: tuple[int, int]) -> int:
+def write_video(path: Path, frames: Iterable[np.ndarray], fps: float, size: tuple[int, int]) -> int:
     """Encode frames (BGR) to an MP4 (MPEG-4 part 2) or, for .avi, Motion-JPEG; returns count."""
     fourcc = cv2.VideoWriter.fourcc(*("MJPG" if path.suffix.lower() == ".avi" else "mp4v"))
     vw = cv2.VideoWriter(str(path), fourcc, fps, size)
@@ -201,5 +205,5 @@ def write_video(path: Path, frames, fps: float, size: tuple[int, int]) -> int:
     return n
 
 
-def write_json(path: Path, obj: dict) -> None:
+def write_json(path: Path, obj: dict[str, Any]) -> None:
     path.write_text(json.dumps(obj, indent=1))
