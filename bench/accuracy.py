@@ -22,6 +22,7 @@ from omninav.evaluate import Evaluation, evaluate, plot
 from omninav.lens import load_lens
 from omninav.locate import Locator
 from omninav.model_venue import model_video
+from omninav.presets import resolve
 from omninav.store import Store
 from omninav.synth import equirect_lens, make_dataset
 from omninav.track import load_track
@@ -54,13 +55,14 @@ def run(root: Path, label: str, preset: str, over: dict, agg: str, tag: str, cli
     st = Store(root / "bench-data")
     key = json.dumps([preset, over], sort_keys=True).encode()
     vid = f"{tag}-{hashlib.sha1(key).hexdigest()[:10]}"
-    if not st.exists(vid):
-        st.create(vid, preset=preset)
-        if over:  # the venue keeps the settings it was modelled with
-            p = st.venue_dir(vid) / "settings.json"
-            p.write_text(json.dumps({**json.loads(p.read_text()), **over}))
+    if st.generation(vid) is None:  # the venue keeps the settings it was modelled with
         model_video(
-            st, vid, root / "model.mp4", load_track(root / "model_track.json"), load_lens(root / "model_lens.json")
+            st,
+            vid,
+            root / "model.mp4",
+            load_track(root / "model_track.json"),
+            load_lens(root / "model_lens.json"),
+            settings={**resolve(preset), **over},
         )
     loc = Locator(st, vid, device="cpu")
     ev = evaluate(

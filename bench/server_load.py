@@ -44,9 +44,9 @@ N_FRAMES = 8000
 
 def build(data: Path) -> bytes:
     """-> the query record; makes the bench venue on first use."""
+    from omninav.catalog.db import Db
+    from omninav.config import DEFAULTS, database_url
     from omninav.server.catalog import Catalog
-    from omninav.server.config import DEFAULTS, database_url
-    from omninav.server.db import Db
     from omninav.synth import make_dataset
 
     src = REPO / "data" / "demo-src"

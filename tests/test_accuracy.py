@@ -12,6 +12,7 @@ from omninav.evaluate import evaluate
 from omninav.lens import Catadioptric, load_lens
 from omninav.locate import Locator
 from omninav.model_venue import model_video
+from omninav.presets import resolve
 from omninav.store import Store
 from omninav.synth import make_dataset
 from omninav.track import load_track
@@ -25,9 +26,13 @@ def test_default_beats_the_papers_method(modelled, small_ds, tmp_path):
     st, vid = modelled
     ours = _eval(st, vid, small_ds).summary()
     st2 = Store(tmp_path / "paper")
-    st2.create("lab", preset="paper")
     model_video(
-        st2, "lab", small_ds.model_video, load_track(small_ds.model_track), load_lens(small_ds.root / "model_lens.json")
+        st2,
+        "lab",
+        small_ds.model_video,
+        load_track(small_ds.model_track),
+        load_lens(small_ds.root / "model_lens.json"),
+        settings=resolve("paper"),
     )
     paper = _eval(st2, "lab", small_ds, "median").summary()
     assert ours["clips"] == paper["clips"] > 20
@@ -51,7 +56,6 @@ def test_confidence_is_calibrated(modelled, small_ds):
 def test_cross_device_equirect_venue_answers_donut_clips(equirect_ds, tmp_path):
     """A venue modelled from a 360-camera video answers clips from the donut lens."""
     st = Store(tmp_path / "d")
-    st.create("eq")
     model_video(
         st,
         "eq",
@@ -83,7 +87,6 @@ def test_another_lens_geometry_end_to_end(tmp_path):
     lens = Catadioptric((480, 360), (238.0, 183.0), 60.0, 170.0, (float(c0), float(c1), float(c2)), 0.0, False)
     ds = make_dataset(tmp_path / "v", seed=11, layout="small", model_lens=lens, query_lens=lens)
     st = Store(tmp_path / "d")
-    st.create("odd")
     model_video(st, "odd", ds.model_video, load_track(ds.model_track), load_lens(ds.root / "model_lens.json"))
     s = _eval(st, "odd", ds).summary()
     assert s["within_2m"] >= 0.9

@@ -17,12 +17,12 @@ from pathlib import Path
 import pytest
 
 from conftest import run_cli
+from omninav.catalog import Catalog
+from omninav.catalog import db as db_mod
+from omninav.catalog.db import SCHEMA_VERSION, Db
 from omninav.errors import OmninavError
 from omninav.server import create_app
-from omninav.server import db as db_mod
 from omninav.server.backup import backup, dump_rows, restore
-from omninav.server.catalog import Catalog
-from omninav.server.db import SCHEMA_VERSION, Db
 from omninav.spectrum import encode_binary
 from omninav.store import Store
 from server_helpers import ADMIN, Api, clip_spectra, query_clip
@@ -75,7 +75,7 @@ def served(small_ds, tmp_path_factory):
     assert wait_job(api, api.post("/api/admin/venues/lab/jobs", headers=ADMIN).json["id"])["state"] == "done"
 
     frames, _ = query_clip(small_ds, CLIP_START)
-    conf = app.extensions["omninav"].catalog.settings("lab")
+    conf = app.extensions["omninav"].catalog.venues.settings("lab")
     body = encode_binary(clip_spectra(small_ds, frames, conf), conf)
     before = {"answer": locate(api, body), "frames": frames_per_video(Store(app.config["DATA"]), "lab")}
     # a second video uploaded; a third half uploaded (its .part is not backed up)
@@ -270,15 +270,15 @@ def test_the_snapshot_is_one_moment_while_a_writer_commits(kind, tmp_path, reque
     db = Db(url)
     db.migrate()
     cat = Catalog(db, tmp_path)
-    cat.create_venue("v", "V")
-    r0 = cat.venue("v")["revision"]
+    cat.venues.create("v", "V")
+    r0 = cat.venues.get("v")["revision"]
     stop = threading.Event()
 
     def write():
         k = 0
         while not stop.is_set():
             k += 1
-            cat.add_places("v", [{"name": f"p{k}", "x": 1.0, "y": float(i)} for i in range(3)], replace=True)
+            cat.places.add("v", [{"name": f"p{k}", "x": 1.0, "y": float(i)} for i in range(3)], replace=True)
 
     t = threading.Thread(target=write)
     t.start()

@@ -34,7 +34,12 @@ def cli_venue(small_ds, tmp_path_factory):
         data=data,
         check=True,
     )
-    assert json.loads(p.stdout)["floorplan"] == "floorplan.png"
+    doc = json.loads(p.stdout)  # the venue's document, as GET /api/venues/lab shows it
+    assert doc["id"] == "lab" and doc["name"] == "Lab" and not doc["modelled"]
+    [floor] = doc["floors"]
+    plan = cv2.imread(str(small_ds.floorplan))
+    assert floor["id"] == "2" and floor["px_per_m"] == 20 and floor["plan_size_px"] == [plan.shape[1], plan.shape[0]]
+    assert {p["name"] for p in doc["places"]} == {p["name"] for p in small_ds.scene.places}
     p = run_cli(
         "model",
         "lab",
@@ -250,3 +255,36 @@ def test_record_and_lens_errors_name_the_file_and_the_problem(cli_venue, clips, 
     assert p.returncode != 0 and str(small_ds.model_track) in p.stderr and "not an omninav feature record" in p.stderr
     p = run_cli("features", "lab", str(d / "q2"), "--lens", str(small_ds.floorplan), data=cli_venue)
     assert p.returncode != 0 and "lens profile is not readable JSON" in p.stderr and "give --lens" not in p.stderr
+
+
+def test_a_venue_made_with_the_cli_is_the_servers_and_back(cli_venue, clips, small_ds, tmp_path):
+    """One catalogue: what the CLI made, the server lists, describes and answers for (its floor
+    and places); what the admin API makes, the CLI lists."""
+    from omninav.server import create_app
+
+    data = tmp_path / "d"
+    shutil.copytree(cli_venue, data)
+    rec = tmp_path / "q2.onv"
+    run_cli(
+        "features", "lab", str(clips[0] / "q2"), "--lens", str(small_ds.lens), "-o", str(rec), data=data, check=True
+    )
+    by_cli = json.loads(run_cli("locate", "lab", str(rec), data=data, check=True).stdout)
+
+    app = create_app({"DATA": str(data), "ADMIN_TOKEN": "t" * 32, "JOB_RUNNER": False, "LOCATE_RATE": 0.0})
+    c = app.test_client()
+    assert [v["id"] for v in c.get("/api/venues").get_json()["venues"]] == ["lab"]
+    doc = c.get("/api/venues/lab").get_json()
+    assert doc["modelled"] and doc["frames"] > 100 and doc["floors"][0]["id"] == "2"
+    assert len(doc["lenses"]) == 1  # the modelling lens, named by its content
+    with c.get("/api/venues/lab/floors/2/plan.png") as r:
+        assert r.status_code == 200 and r.data[:4] == b"\x89PNG"
+    r = c.post("/api/venues/lab/locate", data=rec.read_bytes(), content_type="application/octet-stream")
+    assert r.status_code == 200, r.get_json()
+    by_api = r.get_json()
+    assert by_api["floor"] == by_cli["floor"] == "2"
+    assert (by_api["x"], by_api["y"], by_api["heading_deg"]) == (by_cli["x"], by_cli["y"], by_cli["heading_deg"])
+
+    admin = {"Authorization": "Bearer " + "t" * 32}
+    assert c.post("/api/admin/venues", json={"id": "hall", "name": "Hall"}, headers=admin).status_code == 201
+    ids = [json.loads(line)["id"] for line in run_cli("venue", "list", data=data, check=True).stdout.splitlines()]
+    assert ids == ["hall", "lab"]

@@ -191,7 +191,7 @@ def test_a_real_clip_is_answered_as_the_spec_says(fuzz_app: Any, media_type: str
     the 200 answer (with the annotated plan) passes the same checks as every fuzzed response. It
     runs before the fuzzing, which may delete the modelled video."""
     _restock(fuzz_app)
-    conf = fuzz_app.extensions["omninav"].catalog.settings(VENUE)
+    conf = fuzz_app.extensions["omninav"].catalog.venues.settings(VENUE)
     video = cv2.VideoCapture(str(fuzz_app.config["FUZZ_PATH"]))
     frames = [video.read()[1] for _ in range(10)]
     video.release()

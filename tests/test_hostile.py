@@ -28,6 +28,7 @@ import pytest
 
 from omninav.server import create_app
 from omninav.spectrum import encode_binary
+from omninav.store import Store
 from server_helpers import ADMIN, TOKEN, clip_spectra, query_clip
 
 MAX_EXTRA_MB = 150  # a hostile request may cost this much memory beyond what the worker held
@@ -161,12 +162,12 @@ def build_data(root: Path, modelled: Any, small_ds: Any, plan: bytes) -> Path:
     shutil.copytree(st.root, root)
     app = create_app({"DATA": str(root), "ADMIN_TOKEN": TOKEN, "JOB_RUNNER": False})
     cat = app.extensions["omninav"].catalog
-    cat.create_venue("lab", "Lab")
-    cat.set_plan("lab", "1", plan)
-    cat.put_floor("lab", "1", {"px_per_m": 20.0})
-    cat.put_lens("lab", "donut", json.loads((small_ds.root / "model_lens.json").read_text()))
+    cat.venues.create("lab", "Lab")
+    cat.floors.set_plan("lab", "1", plan)
+    cat.floors.put("lab", "1", {"px_per_m": 20.0})
+    cat.lenses.put("lab", "donut", json.loads((small_ds.root / "model_lens.json").read_text()))
     pano = {"model": "equirectangular", "image_size": list(PANO_WH), "forward_x": PANO_WH[0] / 2, "ccw": False}
-    cat.put_lens("lab", "pano", pano)
+    cat.lenses.put("lab", "pano", pano)
     app.extensions["omninav"].db.engine.dispose()
     return root
 
@@ -177,7 +178,7 @@ def lab(modelled, small_ds, tmp_path_factory) -> dict[str, Any]:
     d = tmp_path_factory.mktemp("hostile")
     data = build_data(d / "data", modelled, small_ds, small_ds.floorplan.read_bytes())
     frames, _ = query_clip(small_ds, 100)
-    conf = json.loads((data / "venues" / "lab" / "settings.json").read_text())
+    conf = Store(data).settings("lab")
     rec = d / "clip.onv"
     rec.write_bytes(encode_binary(clip_spectra(small_ds, frames, conf), conf))
     png = d / "frame.png"
@@ -226,7 +227,7 @@ def test_a_blank_clip_is_not_sure_rather_than_an_error(lab):
     """A lens cap or a dark room: nothing matches above 0, which used to be a 500 (IndexError)."""
     from omninav.spectrum import decode_binary
 
-    conf = json.loads((lab["data"] / "venues" / "lab" / "settings.json").read_text())
+    conf = Store(lab["data"]).settings("lab")
     zeros = np.zeros_like(decode_binary(Path(lab["warmup"][0]["body"]).read_bytes(), conf))
     (lab["dir"] / "zeros.onv").write_bytes(encode_binary(zeros, conf))
     black = lab["dir"] / "black.png"
@@ -369,6 +370,7 @@ def test_deep_json_and_lone_surrogates_are_400_and_leave_nothing_behind(lab):
     d = lab["dir"]
     bodies = {
         "deep.json": b"[" * 1000,
+        "deep5000.json": b"[" * 5000,  # issue 10: RecursionError in the parser itself
         "deep_obj.json": b'{"a":' * 5000 + b"1" + b"}" * 5000,
         "deep100.json": b'{"mag": ' + b"[" * 100 + b"]" * 100 + b"}",  # parses: later code would recurse
         "escaped.json": b'{"id": "x", "name": "\\ud800"}',
@@ -383,6 +385,7 @@ def test_deep_json_and_lone_surrogates_are_400_and_leave_nothing_behind(lab):
         lab["data"],
         [
             req(LOCATE, d / "deep.json", "application/json"),
+            req(LOCATE, d / "deep5000.json", "application/json"),
             req(LOCATE, d / "deep_obj.json", "application/json"),
             req(LOCATE, d / "deep100.json", "application/json"),
             req("/api/admin/venues", d / "escaped.json", "application/json", **post),
@@ -392,19 +395,19 @@ def test_deep_json_and_lone_surrogates_are_400_and_leave_nothing_behind(lab):
         ],
         lab["warmup"],
     )
-    for r in res[:3]:
+    for r in res[:4]:
         assert_bounded(r, 400, "nests too deeply")
-    assert_bounded(res[3], 400, "surrogate")
-    assert_bounded(res[4], 400, "not valid JSON", "utf-8")  # JSON text is UTF-8, and this is not
-    assert_bounded(res[5], 400, "surrogate")
+    assert_bounded(res[4], 400, "surrogate")
+    assert_bounded(res[5], 400, "not valid JSON", "utf-8")  # JSON text is UTF-8, and this is not
+    assert_bounded(res[6], 400, "surrogate")
     # nothing of the refused venue was left: the same id is then created, with its emoji
-    assert res[6]["status"] == 201 and res[6]["json"]["name"] == "\U0001f600 ok", res[6]
+    assert res[7]["status"] == 201 and res[7]["json"]["name"] == "\U0001f600 ok", res[7]
 
 
-def test_a_venue_whose_insert_fails_leaves_no_folder(tmp_path):
+def test_a_venue_whose_insert_fails_leaves_nothing(tmp_path):
     app = create_app({"DATA": str(tmp_path), "ADMIN_TOKEN": TOKEN, "JOB_RUNNER": False})
     cat = app.extensions["omninav"].catalog
     with pytest.raises(Exception):  # noqa: B017 - the database refuses the name; which error is the driver's
-        cat.create_venue("x", "\ud800")
-    assert not (tmp_path / "venues" / "x").exists()
-    assert cat.create_venue("x", "X")["name"] == "X"
+        cat.venues.create("x", "\ud800")
+    assert not (tmp_path / "venues" / "x").exists() and not cat.venues.exists("x")
+    assert cat.venues.create("x", "X")["name"] == "X"

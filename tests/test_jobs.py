@@ -87,7 +87,7 @@ def lab(small_ds, tmp_path_factory):
     first = api.post("/api/admin/venues/lab/jobs", headers=ADMIN).json
     assert runner.run_next() and job(api, first["id"])["state"] == "done"
     frames, _ = query_clip(small_ds, 100)
-    conf = app.extensions["omninav"].catalog.settings("lab")
+    conf = app.extensions["omninav"].catalog.venues.settings("lab")
     record = encode_binary(clip_spectra(small_ds, frames, conf), conf)
     assert api.post("/api/venues/lab/locate", data=record, content_type=OCTET).json["confidence"] > 0.5
     return app, api, record
@@ -152,8 +152,8 @@ def test_a_job_on_bad_input_fails_at_once(lab, small_ds):
 
 CLAIM_AND_DIE = """
 import sys
-from omninav.server.catalog import Catalog
-from omninav.server.db import Db
+from omninav.catalog import Catalog
+from omninav.catalog.db import Db
 from omninav.server.jobs import Jobs
 print(Jobs(Catalog(Db(sys.argv[1]), sys.argv[2])).claim()["id"])
 """

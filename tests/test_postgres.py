@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from omninav.server.db import Db
+from omninav.catalog.db import Db
 from omninav.spectrum import encode_binary
 from server_helpers import clip_spectra, query_clip
 from test_server_live import Server, upload, wait_job
@@ -117,7 +117,7 @@ def test_servers_starting_at_once_migrate_a_new_database_once(pg):
     second failed on 'relation already exists')."""
     import threading
 
-    from omninav.server.db import SCHEMA_VERSION
+    from omninav.catalog.db import SCHEMA_VERSION
 
     url = pg.url("migrate_race")
     dbs = [Db(url) for _ in range(4)]

@@ -2,7 +2,7 @@
 and JSON), lens profiles, modelling tracks and places.
 
 Each decoder either gives back what was encoded (within the record's float16/int16 quantisation) or
-refuses the input with OmninavError (the server's ApiError for places) whose message is one line:
+refuses the input with OmninavError whose message is one line:
 never another exception, which the server would answer with a 500. Inputs are valid values, the same
 values with one field broken, and arbitrary JSON or bytes. Derandomized, so CI runs the same cases.
 """
@@ -23,14 +23,13 @@ from omninav.errors import OmninavError
 from omninav.lens import Catadioptric, Equirectangular, lens_from_dict
 from omninav.presets import n_curves, resolve
 from omninav.server import create_app
-from omninav.server.http import ApiError
 from omninav.spectrum import MAGIC, RECORD_VERSION, decode_binary, decode_json, encode_binary, encode_json, quantise
 from omninav.track import parse_track
 from server_helpers import TOKEN
 
 FAST = settings(max_examples=150, derandomize=True, deadline=None, database=None)
 CONF = resolve("default")
-HEADER = struct.Struct("<3sBHHHII2x")  # the record's header, as CONVENTIONS/spectrum.py define it
+HEADER = struct.Struct("<3sBHHHII2x")  # the record's header, as docs/formats.md and spectrum.py define it
 
 finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False, allow_infinity=False)
 # JSON as a client may send it, with the numbers that break naive float conversion
@@ -55,16 +54,16 @@ json_values = st.recursive(
 
 def refused_in_one_line(err: Exception) -> None:
     """What a user reads: a non-empty message on one line (the CLI prints it, the server sends it)."""
-    msg = err.message if isinstance(err, ApiError) else str(err)
+    msg = str(err)
     assert msg.strip() and "\n" not in msg and "\r" not in msg, repr(msg)
 
 
 def decodes_or_refuses(fn: Any, *args: Any) -> Any:
-    """fn(*args), or None when it refused with a one-line OmninavError/ApiError; any other exception
+    """fn(*args), or None when it refused with a one-line OmninavError; any other exception
     fails the test."""
     try:
         return fn(*args)
-    except (OmninavError, ApiError) as e:
+    except OmninavError as e:
         refused_in_one_line(e)
         return None
 
@@ -270,8 +269,8 @@ def catalog(tmp_path_factory: pytest.TempPathFactory) -> Any:
     data = tmp_path_factory.mktemp("places")
     app = create_app({"DATA": str(data), "ADMIN_TOKEN": TOKEN, "JOB_RUNNER": False})
     cat = app.extensions["omninav"].catalog
-    cat.create_venue("v", "V")
-    cat.put_floor("v", "2", {"name": "Two"})
+    cat.venues.create("v", "V")
+    cat.floors.put("v", "2", {"name": "Two"})
     return cat
 
 
@@ -290,24 +289,25 @@ def places(draw: Any) -> dict[str, Any]:
 
 
 def _key(p: dict[str, Any]) -> tuple:
-    return (p.get("floor", "1"), p["name"].strip(), p["x"], p["y"], p.get("area"))
+    # the area as text: a place without one (None) and one with one must still sort
+    return (p.get("floor", "1"), p["name"].strip(), p["x"], p["y"], json.dumps(p.get("area")))
 
 
 @FAST
 @given(st.lists(places(), max_size=4))
 def test_places_are_stored_as_sent(catalog: Any, items: list[dict[str, Any]]) -> None:
-    stored = catalog.add_places("v", json.loads(json.dumps(items)), replace=True)
+    stored = catalog.places.add("v", json.loads(json.dumps(items)), replace=True)
     assert sorted(map(_key, stored)) == sorted(map(_key, items))
-    assert stored == catalog.places("v")  # what the venue document shows
+    assert stored == catalog.places.all("v")  # what the venue document shows
 
 
 @FAST
 @given(st.lists(json_values | broken(places()), min_size=1, max_size=3) | json_values)
 def test_any_json_is_places_or_one_line_refusal(catalog: Any, items: Any) -> None:
     try:
-        stored = catalog.add_places("v", items, replace=True)
-    except ApiError as e:
-        assert e.status == 400
+        stored = catalog.places.add("v", items, replace=True)
+    except OmninavError as e:
+        assert type(e) is OmninavError  # a 400: bad input, not a missing or busy thing
         refused_in_one_line(e)
     else:
         assert len(stored) == len(items)

@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from omninav.catalog import videos as videos_mod
 from omninav.errors import OmninavError
 from omninav.lens import load_lens
 from omninav.model_venue import model_video, remove_video
-from omninav.server import admin_api
 from omninav.track import load_track
 from server_helpers import ADMIN, Api
 from test_server import make_app
@@ -122,7 +122,7 @@ def test_a_full_disk_during_an_upload_keeps_what_came_and_says_disk_full(venue_a
     data = small_ds.model_video.read_bytes()
     announce(api, small_ds, "walk.mp4", len(data))
     FullDisk.room = len(data) // 3
-    monkeypatch.setattr(admin_api, "open", lambda p, mode: FullDisk(p, mode.replace("b", "")), raising=False)
+    monkeypatch.setattr(videos_mod, "open", lambda p, mode: FullDisk(p, mode.replace("b", "")), raising=False)
     url = "/api/admin/venues/lab/videos/walk.mp4/content"
     r = api.put(url, data=data, headers=ADMIN, content_type="application/octet-stream")
     assert r.status_code == 507 and r.json["error"].startswith("disk full") and "'walk.mp4'" in r.json["error"]

@@ -110,7 +110,7 @@ def built(small_ds, tmp_path_factory):
 @pytest.fixture(scope="module")
 def clip(small_ds, built):
     frames, truth = query_clip(small_ds, CLIP_START)
-    conf = built[0].extensions["omninav"].catalog.settings("lab")
+    conf = built[0].extensions["omninav"].catalog.venues.settings("lab")
     return frames, truth, clip_spectra(small_ds, frames, conf), conf
 
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
+from omninav.catalog.db import SCHEMA_VERSION, Db
+from omninav.config import from_env
 from omninav.errors import OmninavError
-from omninav.server.config import from_env
-from omninav.server.db import SCHEMA_VERSION, Db
 from omninav.server.ratelimit import RateLimiter
 
 
@@ -43,7 +43,8 @@ def test_lens_names_made_from_video_names_are_renamed_by_content(tmp_path):
     lens names, so a video's name leaked; schema 2 names such lenses by their content instead."""
     from sqlalchemy import text
 
-    from omninav.server.db import MIGRATIONS, inline_lens_name
+    from omninav.catalog.db import MIGRATIONS
+    from omninav.catalog.lenses import inline_lens_name
 
     db = Db(f"sqlite:///{tmp_path / 'o.sqlite'}")
     with db.tx() as c:  # a database as schema 1 left it

@@ -15,13 +15,26 @@ from typing import Any
 
 import click
 
+from .catalog import Catalog
 from .errors import OmninavError, read_json
 from .extract import Extractor
-from .store import Store
 
 
-def _store(ctx: click.Context) -> Store:
-    return Store(ctx.obj["data"])
+def _catalog(ctx: click.Context) -> Catalog:
+    """The catalogue the server of this data folder (and its omninav.cfg) uses."""
+    if "catalog" not in ctx.obj:
+        ctx.obj["catalog"] = Catalog.open(_server_conf(ctx))
+    return ctx.obj["catalog"]  # type: ignore[no-any-return]
+
+
+def _locator(ctx: click.Context, venue_id: str, device: str | None = None) -> Any:
+    """A venue's frames loaded for answering, its answers naming its places."""
+    from .locate import Locator
+
+    cat = _catalog(ctx)
+    cat.venues.get(venue_id)
+    floors = cat.floors.all(venue_id)
+    return Locator(cat.store, venue_id, device, cat.places.all(venue_id), floors[0]["id"] if floors else None)
 
 
 class Progress:
@@ -56,16 +69,16 @@ class Progress:
 @click.option(
     "--data",
     type=click.Path(file_okay=False),
-    envvar="OMNINAV_DATA",
-    default="data",
-    show_default=True,
-    help="Data directory (env OMNINAV_DATA).",
+    help="Data folder (default: $OMNINAV_DATA, else ./data; settings: config.py).",
 )
 @click.pass_context
-def cli(ctx: click.Context, data: str) -> None:
+def cli(ctx: click.Context, data: str | None) -> None:
     """omninav: indoor localisation from panoramic vision."""
+    from .config import load_config
+
     ctx.ensure_object(dict)
-    ctx.obj["data"] = Path(data)
+    ctx.obj["overrides"] = {"DATA": data}
+    ctx.obj["load"] = load_config
 
 
 @cli.group()
@@ -76,11 +89,11 @@ def venue() -> None:
 @venue.command("create")
 @click.argument("venue_id", metavar="VENUE")
 @click.option("--name", help="Human name of the venue.")
-@click.option("--floor", default="1", show_default=True, help="Floor label given in answers.")
+@click.option("--floor", default="1", show_default=True, help="Id of its first floor, given in answers.")
 @click.option("--floorplan", type=click.Path(path_type=Path), help="Floor plan image (PNG/JPEG).")
 @click.option("--px-per-m", type=float, help="Floor plan scale, pixels per metre.")
 @click.option("--preset", default="default", show_default=True, help="Feature preset (paper, six, default).")
-@click.option("--places", type=click.Path(path_type=Path), help="JSON list of {name, x, y} in metres.")
+@click.option("--places", type=click.Path(path_type=Path), help="JSON list of {name, x, y[, area]} in metres.")
 @click.pass_context
 def venue_create(
     ctx: click.Context,
@@ -92,37 +105,48 @@ def venue_create(
     preset: str,
     places: Path | None,
 ) -> None:
-    """Create VENUE (an id of letters, digits, '-' and '_')."""
-    pl = _load_places(places) if places else None
-    meta = _store(ctx).create(venue_id, name, floor, floorplan, px_per_m, preset, pl)
-    click.echo(json.dumps(meta))
+    """Create VENUE (an id of letters, digits, '-' and '_') in the catalogue the server serves."""
+    from .catalog.floors import decode_plan
+    from .catalog.places import check_place
+    from .server.venues_api import venue_doc
 
-
-def _load_places(path: Path) -> list[dict[str, Any]]:
-    pl = read_json(path, "places file")
-    ok = isinstance(pl, list) and all(
-        isinstance(p, dict)
-        and isinstance(p.get("name"), str)
-        and all(isinstance(p.get(k), int | float) for k in ("x", "y"))
-        for p in pl
-    )
-    if not ok:
-        raise OmninavError(f'{path}: places must be a list of {{"name", "x", "y"}} objects')
-    return pl
+    # every input is checked before anything is written: a refused venue leaves nothing behind
+    plan = None
+    if floorplan is not None:
+        if not floorplan.is_file():
+            raise OmninavError(f"{floorplan}: floor plan not found")
+        plan = floorplan.read_bytes()
+        try:
+            decode_plan(plan)
+        except OmninavError as e:
+            raise OmninavError(f"{floorplan}: {e}") from None
+        if px_per_m is None:
+            raise OmninavError("a floor plan needs its scale: --px-per-m, a positive number")
+    pl = read_json(places, "places file") if places else None
+    if pl is not None:
+        if not isinstance(pl, list):
+            raise OmninavError(f'{places}: places must be a list of {{"name", "x", "y"}} objects')
+        try:
+            for i, p in enumerate(pl):
+                check_place(p, i, {floor})
+        except OmninavError as e:
+            raise OmninavError(f"{places}: {e}") from None
+    cat = _catalog(ctx)
+    cat.venues.create(venue_id, name, preset, floor, px_per_m=px_per_m)
+    if plan is not None:
+        cat.floors.set_plan(venue_id, floor, plan)
+    if pl:
+        cat.places.add(venue_id, pl)
+    click.echo(json.dumps(venue_doc(cat, venue_id)))
 
 
 @venue.command("list")
 @click.pass_context
 def venue_list(ctx: click.Context) -> None:
     """List venues, one JSON object per line."""
-    st = _store(ctx)
-    for v in st.list():
-        meta = st.meta(v)
-        try:
-            n = int(st.load(v).frames.shape[0])
-        except OmninavError:
-            n = 0
-        click.echo(json.dumps({"id": v, "name": meta["name"], "frames": n}))
+    cat = _catalog(ctx)
+    for v in cat.venues.all():
+        click.echo(json.dumps({"id": v["id"], "name": v["name"], "frames": cat.store.frame_count(v["id"])}))
 
 
 @cli.command()
@@ -137,14 +161,16 @@ def model(ctx: click.Context, venue_id: str, video: Path, track_path: Path, lens
     from .model_venue import model_video
     from .track import load_track
 
-    st = _store(ctx)
-    st.require(venue_id)
+    cat = _catalog(ctx)
+    settings = cat.venues.settings(venue_id)  # (unknown venue: refused here, before any work)
     track, lens = load_track(track_path), load_lens(lens_path)
     bar = Progress(f"modelling {video.name}")
     try:
-        r = model_video(st, venue_id, video, track, lens, progress=bar)
+        r = model_video(cat.store, venue_id, video, track, lens, progress=bar, settings=settings)
     finally:
         bar.close()
+    cat.lenses.put_inline(venue_id, lens.to_dict(), where=str(lens_path))  # the server can name it too
+    cat.venues.touch(venue_id)
     click.echo(
         json.dumps(
             {
@@ -181,10 +207,10 @@ def locate(
 ) -> None:
     """Locate each CLIP (a video, a directory of frames, or a feature record .onv/.json)."""
     from .lens import load_lens
-    from .locate import RECORD_SUFFIXES, Locator, clip_frames, read_record
+    from .locate import RECORD_SUFFIXES, clip_frames, read_record
 
     lens = load_lens(lens_path) if lens_path else None
-    loc = Locator(_store(ctx), venue_id, device)
+    loc = _locator(ctx, venue_id, device)
     for c in clips:  # check every path first: fail before printing half the answers
         if not c.exists():
             raise OmninavError(f"{c}: clip not found")
@@ -209,13 +235,13 @@ def features(venue_id: str, clip: Path, lens_path: Path | None, out: Path | None
     from .spectrum import encode_binary, encode_json
 
     ctx = click.get_current_context()
-    st = _store(ctx)
-    conf = st.settings(venue_id)
+    cat = _catalog(ctx)
+    conf = cat.venues.settings(venue_id)
     if lens_path:
         lens = load_lens(lens_path)  # its own errors name the file and the field
     else:
         try:
-            lens = st.load(venue_id).lens
+            lens = cat.store.load(venue_id).lens
         except OmninavError:
             raise OmninavError("give --lens: the venue has no modelled frames, so no lens of its own") from None
     ext = Extractor(lens, conf)
@@ -255,14 +281,13 @@ def evaluate(
     from .evaluate import evaluate as run
     from .evaluate import plot
     from .lens import load_lens
-    from .locate import Locator
     from .track import load_track
 
     track, lens = load_track(track_path), load_lens(lens_path)
     out = plot_path or video.with_suffix(".eval.png")
     if not out.parent.is_dir():  # fail before the work, not after
         raise OmninavError(f"{out.parent}: folder for the plot does not exist")
-    loc = Locator(_store(ctx), venue_id)
+    loc = _locator(ctx, venue_id)
     ev = run(loc, video, track, lens, aggregate)
     s = ev.summary()
     plot(ev, loc, out)
@@ -306,51 +331,27 @@ def synth(out: Path, seed: int, layout: str, scale: float, fps: float, model_len
 @click.option("--venue", "venue_id", help="Venue id (default: demo, or demo-quick with --quick).")
 @click.pass_context
 def demo(ctx: click.Context, quick: bool, venue_id: str | None) -> None:
-    """Render the built-in synthetic venue, model it, evaluate it, print the table."""
+    """Set up the built-in synthetic venue (as `omninav serve` does), model it, evaluate it, print the table."""
+    from .demo import ensure_demo, model_now, render
     from .evaluate import evaluate as run
     from .evaluate import plot
     from .lens import load_lens
-    from .locate import Locator
-    from .model_venue import model_video
-    from .synth import make_dataset
     from .track import load_track
 
-    st = _store(ctx)
+    cat = _catalog(ctx)
     # the quick and the full demo are different venues: never let one answer for the other
     venue_id = venue_id or ("demo-quick" if quick else "demo")
-    src = st.root / ("demo-src-quick" if quick else "demo-src")
-    if not (src / "query.mp4").exists():
-        click.echo(f"rendering the synthetic venue into {src} ...", err=True)
-        ds = make_dataset(src, seed=0, layout="small" if quick else "default", scale=0.5 if quick else 1.0)
-        (src / "places.json").write_text(json.dumps(ds.scene.places))
-    places = json.loads((src / "places.json").read_text())
+    src = render(cat.data, quick, log=lambda m: click.echo(m, err=True))
     rows = []
     for vid, preset, agg in ((venue_id, "default", "sequence"), (f"{venue_id}-paper", "paper", "median")):
-        if not st.exists(vid):
-            st.create(
-                vid,
-                name="Synthetic demo venue",
-                floorplan=src / "floorplan.png",
-                px_per_m=20.0,
-                preset=preset,
-                places=places,
-            )
-        try:
-            st.load(vid)
-        except OmninavError:
+        ensure_demo(cat, quick, log=lambda m: click.echo(m, err=True), venue_id=vid, preset=preset)
+        if cat.store.generation(vid) is None:
             bar = Progress(f"modelling {vid}")
             try:
-                model_video(
-                    st,
-                    vid,
-                    src / "model.mp4",
-                    load_track(src / "model_track.json"),
-                    load_lens(src / "model_lens.json"),
-                    progress=bar,
-                )
+                model_now(cat, vid, bar)
             finally:
                 bar.close()
-        loc = Locator(st, vid)
+        loc = _locator(ctx, vid)
         ev = run(loc, src / "query.mp4", load_track(src / "query_track.json"), load_lens(src / "lens.json"), agg)
         plot(ev, loc, src / f"{vid}.eval.png")
         label = "omninav (sequence)" if preset == "default" else "paper (I curve, median)"
@@ -359,40 +360,41 @@ def demo(ctx: click.Context, quick: bool, venue_id: str | None) -> None:
     click.echo(f"plots: {src}/*.eval.png")
 
 
-def _server_conf(ctx: click.Context) -> dict[str, Any]:
-    from .server import load_config
-
-    return load_config({"DATA": str(ctx.obj["data"].resolve())})
+def _server_conf(ctx: click.Context, **options: Any) -> dict[str, Any]:
+    """The settings (config.py), with the command line's options over them."""
+    return ctx.obj["load"]({**ctx.obj["overrides"], **options})  # type: ignore[no-any-return]
 
 
 @cli.command()
-@click.option("--host", envvar="OMNINAV_HOST", help="Address to listen on (default 127.0.0.1; 0.0.0.0 with --https).")
-@click.option("--port", envvar="OMNINAV_PORT", type=int, default=8000, show_default=True)
-@click.option(
-    "--https", is_flag=True, envvar="OMNINAV_HTTPS", help="Serve HTTPS on the LAN with a self-signed certificate."
-)
-@click.option(
-    "--workers", envvar="OMNINAV_WORKERS", type=click.IntRange(1, 64), help="Worker processes (default: cores + 1)."
-)
-@click.option("--threads", envvar="OMNINAV_THREADS", type=click.IntRange(1, 256), default=4, show_default=True)
+@click.option("--host", help="Address to listen on (HOST; default 127.0.0.1, every interface with --https).")
+@click.option("--port", type=click.IntRange(1, 65535), help="Port (PORT; default 8000).")
+@click.option("--https", is_flag=True, default=None, help="HTTPS on the LAN, self-signed certificate (HTTPS).")
+@click.option("--workers", type=click.IntRange(1, 64), help="Worker processes (WORKERS; default: cores + 1).")
+@click.option("--threads", type=click.IntRange(1, 256), help="Threads per worker (THREADS; default 4).")
 @click.option(
     "--demo",
-    envvar="OMNINAV_DEMO",
     type=click.Choice(["full", "quick", "none"]),
-    default="full",
-    show_default=True,
-    help="Set up the synthetic demo venue on first start.",
+    help="The synthetic demo venue set up on first start (DEMO; default full).",
 )
 @click.pass_context
 def serve(
-    ctx: click.Context, host: str | None, port: int, https: bool, workers: int | None, threads: int, demo: str
+    ctx: click.Context,
+    host: str | None,
+    port: int | None,
+    https: bool | None,
+    workers: int | None,
+    threads: int | None,
+    demo: str | None,
 ) -> None:
-    """Run the server: the API and the web app (gunicorn, several workers)."""
+    """Run the server: the API and the web app (gunicorn, several workers). Each option overrides
+    its setting (omninav.cfg, OMNINAV_*; README "Settings")."""
     from .server.serve import default_workers
     from .server.serve import serve as run
 
-    host = host or ("0.0.0.0" if https else "127.0.0.1")
-    run(_server_conf(ctx), host, port, https, workers or default_workers(), threads, demo, echo=click.echo)
+    conf = _server_conf(ctx, HOST=host, PORT=port, HTTPS=https, WORKERS=workers, THREADS=threads, DEMO=demo)
+    host = conf["HOST"] or ("0.0.0.0" if conf["HTTPS"] else "127.0.0.1")
+    workers = conf["WORKERS"] or default_workers()
+    run(conf, host, conf["PORT"], conf["HTTPS"], workers, conf["THREADS"], conf["DEMO"], echo=click.echo)
 
 
 @cli.command("admin-token")
@@ -400,9 +402,9 @@ def serve(
 @click.pass_context
 def admin_token(ctx: click.Context, reset: bool) -> None:
     """Make the server's admin token (only its hash is kept, so a lost one is replaced, not shown)."""
+    from .catalog.db import Db
+    from .config import database_url
     from .server.auth import ensure_token, set_token
-    from .server.config import database_url
-    from .server.db import Db
 
     db = Db(database_url(_server_conf(ctx)))
     db.migrate()

@@ -1,7 +1,9 @@
 """User-facing errors, and the two checks every input file needs.
 
-OmninavError is for everything a user can get wrong; the CLI (and later the server) prints its
-message as one line, never a traceback.
+OmninavError is for everything a user can get wrong; the CLI prints its message as one line, never
+a traceback. Its subclasses say what kind of wrong it is (nothing there, in the way, unusable,
+too large, no room), so that the server's blueprints alone turn them into HTTP status codes
+(server/http.py): the catalogue and the engine know nothing of HTTP.
 """
 
 from __future__ import annotations
@@ -15,7 +17,36 @@ from typing import Any
 
 
 class OmninavError(Exception):
-    """Bad input or state that the user can fix: the message says what was wrong."""
+    """Bad input or state that the user can fix: the message says what was wrong. `details` are
+    facts a client can act on (e.g. `received`: where a resumable upload stands)."""
+
+    def __init__(self, message: str, **details: Any):
+        super().__init__(message)
+        self.details = details
+
+
+class NotFound(OmninavError):
+    """What was named does not exist (a venue, floor, place, lens, video, job)."""
+
+
+class Conflict(OmninavError):
+    """The request is sound but the state is in its way (exists already, busy, not uploaded yet)."""
+
+
+class Unusable(OmninavError):
+    """Well-formed but unusable content: a plan that is no image, a track off the plan."""
+
+
+class TooLarge(OmninavError):
+    """More than a limit allows (bytes, frames, seconds)."""
+
+
+class OutOfRange(OmninavError):
+    """A byte range outside what it ranges over."""
+
+
+class NoRoom(OmninavError):
+    """The disk is full: nothing was lost, and the same request succeeds once there is room."""
 
 
 def read_json(path: str | Path, what: str) -> Any:

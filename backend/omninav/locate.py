@@ -1,4 +1,4 @@
-"""Locate a clip in a venue: features -> index search -> aggregation -> the CONVENTIONS.md answer."""
+"""Locate a clip in a venue: features -> index search -> aggregation -> the docs/formats.md answer."""
 
 from __future__ import annotations
 
@@ -20,9 +20,19 @@ DEFAULT_CLIP_FPS = 10.0  # timing assumed for a directory of frames, which carri
 class Locator:
     """One venue's live generation loaded for answering; reuse it across queries."""
 
-    def __init__(self, store: Store, venue_id: str, device: str | None = None):
+    def __init__(
+        self,
+        store: Store,
+        venue_id: str,
+        device: str | None = None,
+        places: list[dict[str, Any]] | None = None,
+        floor: str | None = None,
+    ):
+        """`places` and `floor` (from the catalogue) name the answer's place and floor; the
+        server replaces both with what the matched frame's floor has (server/locate_api.py)."""
         self.venue_id = venue_id
-        self.meta = store.meta(venue_id)
+        self.places = places or []
+        self.floor = floor
         self.generation = store.generation(venue_id)  # read first: a newer load is only ever refreshed again
         self.gen = store.load(venue_id)
         self.conf = self.gen.settings
@@ -65,13 +75,13 @@ class Locator:
             "y": round(e.y, 3),
             "heading_deg": round(e.heading % 360.0, 2),
             "confidence": round(confidence(e, self.conf), 3),
-            "floor": self.meta.get("floor"),
+            "floor": self.floor,
             "place": self.nearest_place(e.x, e.y),
             "frame": int(self.gen.frames["frame"][e.venue_row]),
         }
 
     def nearest_place(self, x: float, y: float) -> str | None:
-        places = self.meta.get("places") or []
+        places = self.places
         if not places:
             return None
         d = [np.hypot(p["x"] - x, p["y"] - y) for p in places]

@@ -13,12 +13,14 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from .errors import OmninavError
 from .extract import Extractor
 from .lens import Lens
+from .presets import resolve
 from .store import FRAME_DTYPE, Generation, Store
 from .track import Track
 from .video import VideoInfo, iter_video
@@ -59,7 +61,7 @@ class _Plan:
     expected: int
 
 
-def _plan(src: VideoSource, settings: dict) -> _Plan:
+def _plan(src: VideoSource, settings: dict[str, Any]) -> _Plan:
     """Check a video against its lens and track before any work: errors come first, not last."""
     info = VideoInfo(src.video, label=src.video.name)
     w, h = src.lens.image_size
@@ -78,7 +80,7 @@ def _plan(src: VideoSource, settings: dict) -> _Plan:
     return _Plan(src, info, vfps, stride, first, last, expected)
 
 
-def _extract(p: _Plan, settings: dict, tick: Callable[[], None]) -> tuple[np.ndarray, np.ndarray]:
+def _extract(p: _Plan, settings: dict[str, Any], tick: Callable[[], None]) -> tuple[np.ndarray, np.ndarray]:
     """One video's sampled frames -> (rows FRAME_DTYPE without `video`, spectra)."""
     ext = Extractor(p.src.lens, settings)
     rows, specs = [], []
@@ -133,13 +135,16 @@ def model_videos(
     sources: list[VideoSource],
     progress: Progress | None = None,
     before_commit: Callable[[], None] | None = None,
+    settings: dict[str, Any] | None = None,
 ) -> list[ModelResult]:
     """Model several videos into one new generation; a video already in the venue is replaced.
 
-    `before_commit` runs under the venue's lock just before the commit; it may raise to commit
-    nothing (a job runner checks there that the job is still its own: see server/jobs.py)."""
-    store.require(venue_id)
-    settings = store.settings(venue_id)
+    The feature settings are the live generation's (frames made with other settings could not be
+    searched together); a venue's first videos use `settings` (the catalogue passes the venue's
+    preset), else the default preset. `before_commit` runs under the venue's lock just before the
+    commit; it may raise to commit nothing (a job runner checks there that the job is still its
+    own: see server/jobs.py)."""
+    settings = store.settings(venue_id) or settings or resolve("default")
     plans = [_plan(s, settings) for s in sources]
     expected = sum(p.expected for p in plans)
     t0 = time.perf_counter()
@@ -163,9 +168,9 @@ def model_videos(
 def _merge_commit(
     store: Store,
     venue_id: str,
-    settings: dict,
+    settings: dict[str, Any],
     lens: Lens,
-    extracted: list,
+    extracted: list[tuple[_Plan, np.ndarray, np.ndarray, float]],
     before_commit: Callable[[], None] | None = None,
 ) -> list[ModelResult]:
     old = _current(store, venue_id)
@@ -197,9 +202,15 @@ def _merge_commit(
 
 
 def model_video(
-    store: Store, venue_id: str, video: Path, track: Track, lens: Lens, progress: Progress | None = None
+    store: Store,
+    venue_id: str,
+    video: Path,
+    track: Track,
+    lens: Lens,
+    progress: Progress | None = None,
+    settings: dict[str, Any] | None = None,
 ) -> ModelResult:
-    return model_videos(store, venue_id, [VideoSource(video, track, lens)], progress)[0]
+    return model_videos(store, venue_id, [VideoSource(video, track, lens)], progress, settings=settings)[0]
 
 
 def remove_video(store: Store, venue_id: str, name: str) -> int:

@@ -1,13 +1,13 @@
-"""Venue storage: one directory per venue, modelled frames in atomically swapped generations.
+"""Frame storage: one directory per venue, modelled frames in atomically swapped generations.
 
-    <data>/venues/<id>/venue.json       name, floor, floor plan scale, places
-    <data>/venues/<id>/floorplan.png
     <data>/venues/<id>/CURRENT          name of the live generation (replaced with os.replace)
     <data>/venues/<id>/gen-000003/      settings.json, lens.json, frames.npy, spectra.npy, videos.json,
                                         keys.npy, keys_t.npy[, basis.npy] (the index's arrays, index.py)
 
 A modelling run writes a complete new generation beside the live one and only then swaps CURRENT,
 so a run that is interrupted (Ctrl-C, crash, power) leaves the venue answering as before.
+Everything else about a venue (name, floors, plans, places, lenses, videos) is in the catalogue
+(catalog/), which the CLI and the server share.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from .errors import OmninavError
+from .errors import Conflict, OmninavError
 from .index import index_arrays
 from .lens import Lens, lens_from_dict
 
@@ -57,10 +57,6 @@ def _write_atomic(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-def _write_json_atomic(path: Path, obj: Any) -> None:
-    _write_atomic(path, json.dumps(obj, indent=1))
-
-
 @dataclass
 class Generation:
     """The frames a venue answers with: poses, spectra, and the settings they were made with."""
@@ -79,6 +75,9 @@ def key_dims_for(settings: dict[str, Any], n_frames: int) -> int:
 
 
 class Store:
+    """The modelled frames of every venue, as generations; what a venue *is* (its name, floors,
+    places, lenses) is the catalogue's (catalog/). A venue's folder appears with its first commit."""
+
     def __init__(self, root: str | Path):
         self.root = Path(root)
         self.venues = self.root / "venues"
@@ -86,69 +85,10 @@ class Store:
     def venue_dir(self, venue_id: str) -> Path:
         return self.venues / check_id(venue_id)
 
-    def exists(self, venue_id: str) -> bool:
-        return (self.venue_dir(venue_id) / "venue.json").is_file()
-
-    def require(self, venue_id: str) -> Path:
-        d = self.venue_dir(venue_id)
-        if not (d / "venue.json").is_file():
-            raise OmninavError(f"unknown venue {venue_id!r} (create it with 'omninav venue create')")
-        return d
-
-    def create(
-        self,
-        venue_id: str,
-        name: str | None = None,
-        floor: str = "1",
-        floorplan: Path | None = None,
-        px_per_m: float | None = None,
-        preset: str = "default",
-        places: list[dict[str, Any]] | None = None,
-    ) -> dict[str, Any]:
-        from .presets import resolve
-
-        d = self.venue_dir(venue_id)
-        if (d / "venue.json").exists():
-            raise OmninavError(f"venue {venue_id!r} already exists")
-        conf = resolve(preset)
-        img = None
-        if floorplan is not None:
-            import cv2
-
-            if not floorplan.is_file():
-                raise OmninavError(f"{floorplan}: floor plan not found")
-            img = cv2.imread(str(floorplan), cv2.IMREAD_COLOR)
-            if img is None:
-                raise OmninavError(f"{floorplan}: floor plan is not a readable PNG/JPEG image")
-            if px_per_m is None or not px_per_m > 0:
-                raise OmninavError("a floor plan needs its scale: --px-per-m, a positive number")
-        d.mkdir(parents=True, exist_ok=True)
-        meta: dict[str, Any] = {
-            "id": venue_id,
-            "name": name or venue_id,
-            "floor": str(floor),
-            "px_per_m": px_per_m,
-            "floorplan": None,
-            "preset": preset,
-            "places": places or [],
-        }
-        if floorplan is not None and img is not None:
-            shutil.copyfile(floorplan, d / "floorplan.png")
-            meta["floorplan"] = "floorplan.png"
-            meta["plan_size_px"] = [int(img.shape[1]), int(img.shape[0])]
-        _write_json_atomic(d / "settings.json", conf)
-        _write_json_atomic(d / "venue.json", meta)
-        return meta
-
-    def meta(self, venue_id: str) -> dict[str, Any]:
-        return json.loads((self.require(venue_id) / "venue.json").read_text())
-
-    def settings(self, venue_id: str) -> dict[str, Any]:
-        """Feature settings: those of the live generation, else those chosen at creation."""
-        d = self.require(venue_id)
-        g = self._current(d)
-        src = (g / "settings.json") if g else (d / "settings.json")
-        return json.loads(src.read_text())
+    def settings(self, venue_id: str) -> dict[str, Any] | None:
+        """The feature settings of the live generation (None: not modelled yet)."""
+        g = self._current(self.venue_dir(venue_id))
+        return json.loads((g / "settings.json").read_text()) if g else None
 
     def _current(self, d: Path) -> Path | None:
         cur = d / "CURRENT"
@@ -158,16 +98,16 @@ class Store:
         return g if g.is_dir() else None
 
     def load(self, venue_id: str, mmap: bool = True) -> Generation:
-        d = self.require(venue_id)
+        d = self.venue_dir(venue_id)
         g = self._current(d)
         if g is None:
-            raise OmninavError(f"venue {venue_id!r} has no modelled frames yet (run 'omninav model')")
+            raise Conflict(f"venue {venue_id!r} has no modelled frames yet (model it: 'omninav model', or a job)")
         mode: Literal["r"] | None = "r" if mmap else None
         settings = json.loads((g / "settings.json").read_text())
         lens = lens_from_dict(json.loads((g / "lens.json").read_text()), where=f"{venue_id} lens")
         frames = np.load(g / "frames.npy", mmap_mode=mode)
         if len(frames) == 0:  # every video was removed
-            raise OmninavError(f"venue {venue_id!r} has no modelled frames (its videos were removed)")
+            raise Conflict(f"venue {venue_id!r} has no modelled frames (its videos were removed)")
         spectra = np.load(g / "spectra.npy", mmap_mode=mode)
         videos = json.loads((g / "videos.json").read_text())
         arrays = {k: np.load(g / f"{k}.npy", mmap_mode=mode) for k in INDEX_ARRAYS if (g / f"{k}.npy").is_file()}
@@ -175,19 +115,20 @@ class Store:
 
     def frame_count(self, venue_id: str) -> int:
         """Frames of the live generation, from the array's header alone (no index, no spectra)."""
-        g = self._current(self.require(venue_id))
+        g = self._current(self.venue_dir(venue_id))
         return len(np.load(g / "frames.npy", mmap_mode="r")) if g else 0
 
     def generation(self, venue_id: str) -> str | None:
         """Name of the live generation (cheap: one small file), to notice a new one."""
-        g = self._current(self.require(venue_id))
+        g = self._current(self.venue_dir(venue_id))
         return g.name if g else None
 
     @contextmanager
     def lock(self, venue_id: str) -> Iterator[None]:
         """Hold the venue's write lock: one reader-modify-commit of its generations at a time,
         across threads, worker processes and server instances on this data directory (flock)."""
-        d = self.require(venue_id)
+        d = self.venue_dir(venue_id)
+        d.mkdir(parents=True, exist_ok=True)
         fd = os.open(d / ".lock", os.O_RDWR | os.O_CREAT, 0o644)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX)
@@ -199,7 +140,7 @@ class Store:
         """Drop what an interrupted commit left: temporary folders, and generations newer than
         CURRENT (written, never made live: a crash between the rename and the switch). Returns
         their names. Call it holding the lock."""
-        d = self.require(venue_id)
+        d = self.venue_dir(venue_id)
         cur = self._current(d)
         live = int(cur.name.split("-")[1]) if cur else 0
         gone = []
@@ -227,7 +168,8 @@ class Store:
         """Write a new generation completely, then make it live in one atomic rename.
 
         Callers that read the live generation to build the next one hold lock() around both."""
-        d = self.require(venue_id)
+        d = self.venue_dir(venue_id)
+        d.mkdir(parents=True, exist_ok=True)
         self.recover(venue_id)  # a crash of an earlier commit must not block this one
         cur = self._current(d)
         n = int(cur.name.split("-")[1]) + 1 if cur else 1
@@ -252,6 +194,7 @@ class Store:
         return d / name
 
     def list(self) -> list[str]:
+        """The venues that have a folder here (modelled, or being modelled)."""
         if not self.venues.is_dir():
             return []
-        return sorted(p.name for p in self.venues.iterdir() if (p / "venue.json").is_file())
+        return sorted(p.name for p in self.venues.iterdir() if p.is_dir() and VENUE_ID.fullmatch(p.name))

@@ -10,15 +10,14 @@ share the database and the memory-mapped feature files (serve.py runs several su
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 from flask import Flask, request
 
+from ..catalog import Catalog
+from ..catalog.db import Db
+from ..config import load_config
 from .auth import set_token
-from .catalog import Catalog
-from .config import DEFAULTS, database_url, from_env
-from .db import Db
 from .http import CSP, ApiError, install_error_handlers
 from .jobs import Jobs
 from .locate_api import Runtimes
@@ -34,32 +33,15 @@ class Services:
     limiter: RateLimiter
 
 
-def load_config(overrides: dict[str, Any] | None = None) -> dict[str, Any]:
-    conf = dict(DEFAULTS)
-    env = from_env()
-    data = Path((overrides or {}).get("DATA") or env.get("DATA") or conf["DATA"])
-    cfg = data / "omninav.cfg"
-    if cfg.is_file():  # the instance file: KEY = value lines in Python syntax
-        scope: dict[str, Any] = {}
-        exec(compile(cfg.read_text(), str(cfg), "exec"), scope)
-        conf.update({k: v for k, v in scope.items() if k in DEFAULTS})
-    conf.update(env)
-    conf.update(overrides or {})
-    return conf
-
-
 def create_app(overrides: dict[str, Any] | None = None) -> Flask:
     conf = load_config(overrides)
     app = Flask(__name__)
     app.config.update(conf)
     app.json.sort_keys = False  # type: ignore[attr-defined]
-    data = Path(conf["DATA"])
-    data.mkdir(parents=True, exist_ok=True)
-    db = Db(database_url(conf))
-    db.migrate()
+    catalog = Catalog.open(conf)  # migrated, and venues of an older omninav imported
+    db = catalog.db
     if conf["ADMIN_TOKEN"]:
         set_token(db, conf["ADMIN_TOKEN"])
-    catalog = Catalog(db, data)
     device = conf["DEVICE"] or None
     jobs = Jobs(catalog, stale_s=conf["JOB_STALE_S"])
     app.extensions["omninav"] = Services(

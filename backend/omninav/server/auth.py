@@ -12,7 +12,7 @@ import secrets
 
 from flask import current_app, request
 
-from .db import Db
+from ..catalog.db import Db
 from .http import ApiError
 
 KEY = "admin_token_sha256"

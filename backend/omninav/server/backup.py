@@ -4,7 +4,7 @@ A backup is a folder:
 
     manifest.json        written last: format, schema version, venues, and size + sha256 of every file
     db.jsonl             every catalogue row, one JSON object a line ({"table": ..., "row": {...}})
-    venues/<id>/         venue.json, settings.json, CURRENT and the live generation (gen-NNNNNN/)
+    venues/<id>/         CURRENT and the live generation (gen-NNNNNN/)
     plans/<id>/<floor>.png
     videos/<id>/<name>   the modelling videos (ready or modelled; none with --no-videos)
 
@@ -41,17 +41,17 @@ from typing import Any
 import numpy as np
 from sqlalchemy import Connection, inspect, text
 
+from ..catalog.db import SCHEMA_VERSION, Db
+from ..config import database_url
 from ..errors import OmninavError
 from ..store import Store, check_id
-from .config import database_url
-from .db import SCHEMA_VERSION, Db
 
 FORMAT = "omninav-backup"
 FORMAT_VERSION = 1
 MANIFEST = "manifest.json"
 ROWS = "db.jsonl"
 # parents before children, so that rows insert in this order and delete in the reverse
-TABLES = ("meta", "venues", "floors", "places", "lenses", "videos", "jobs")
+TABLES = ("meta", "venues", "floors", "places", "lenses", "videos", "jobs", "job_videos")
 TREES = ("venues", "plans", "videos")  # the data folders a backup holds
 JOB_INTERRUPTED = (
     "this job had not finished when the backup was taken; the restored venue has the frames it had "
@@ -165,15 +165,12 @@ def _schema_version(rows: Rows) -> int:
 
 # ---- backup -------------------------------------------------------------------------------------
 def _link_venue(store: Store, venue_id: str, dst: Path) -> str | None:
-    """Link the venue's files and its live generation into dst/venues/<id>; returns the
-    generation's name (None: not modelled). Under the venue's lock: a commit cannot swap CURRENT
+    """Link the venue's live generation into dst/venues/<id>; returns the generation's name
+    (None: not modelled). Under the venue's lock: a commit cannot swap CURRENT
     or delete the generation (commit keeps one step back) between reading and linking it."""
     src = store.venue_dir(venue_id)
     out = dst / "venues" / venue_id
     with store.lock(venue_id):
-        for name in ("venue.json", "settings.json"):
-            if (src / name).is_file():
-                _place(src / name, out / name)
         gen = store.generation(venue_id)
         if gen is not None:
             for f in sorted((src / gen).iterdir()):
@@ -246,7 +243,9 @@ def _file_entry(path: Path) -> dict[str, Any]:
     return {"size": path.stat().st_size, "sha256": _sha256(path)}
 
 
-def _manifest(tmp: Path, rows: Rows, gens: dict[str, str | None], frames: dict[str, int], videos: bool) -> dict:
+def _manifest(
+    tmp: Path, rows: Rows, gens: dict[str, str | None], frames: dict[str, int], videos: bool
+) -> dict[str, Any]:
     files = {str(PurePosixPath(*p.parts)): _file_entry(tmp / p) for p in _files(tmp)}
     return {
         "format": FORMAT,
@@ -281,7 +280,7 @@ def backup(conf: dict[str, Any], dest: Path, videos: bool = True) -> dict[str, A
         rows = _dump(conf)
         store = Store(data)
         ids = sorted({r["id"] for r in rows["venues"]} | set(store.list()))
-        gens = {v: _link_venue(store, v, tmp) if store.exists(v) else None for v in ids}
+        gens = {v: _link_venue(store, v, tmp) for v in ids}
         _agree_with_generations(rows, tmp, gens)
         _stop_active_jobs(rows, time.time())
         _link_plans(data, rows, tmp)

@@ -176,7 +176,7 @@ class Front:
         self.total = 0
         self.buffered = 0  # bytes of request bodies and answers held in memory now, all clients
         self.client_buffered: dict[str, int] = {}  # and per client: no one client may hold the budget
-        self.tasks: set[asyncio.Task] = set()
+        self.tasks: set[asyncio.Task[None]] = set()
 
     # ---- connections ------------------------------------------------------------------------------
     async def handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
@@ -206,7 +206,7 @@ class Front:
             if not self.conns[peer]:
                 del self.conns[peer]
             writer.close()
-            self.tasks.discard(task)  # type: ignore[arg-type]
+            self.tasks.discard(task)
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter, peer: str) -> None:
         conn = h11.Connection(h11.SERVER, max_incomplete_event_size=self.limits.max_head)
@@ -364,7 +364,12 @@ class Front:
             raise
 
     async def _forward(
-        self, conn: h11.Connection, writer: asyncio.StreamWriter, req: h11.Request, fwd: list, body: bytes
+        self,
+        conn: h11.Connection,
+        writer: asyncio.StreamWriter,
+        req: h11.Request,
+        fwd: list[tuple[bytes, bytes]],
+        body: bytes,
     ) -> bool:
         """A complete request to the workers; their answer read whole (memory within the budget,
         else a temporary file) and the worker let go, then written at the client's pace."""
@@ -459,7 +464,7 @@ class Front:
         reader: asyncio.StreamReader,
         writer: asyncio.StreamWriter,
         req: h11.Request,
-        fwd: list,
+        fwd: list[tuple[bytes, bytes]],
         length: int | None,
         chunked: bool,
     ) -> bool:

@@ -10,7 +10,7 @@ from typing import Any
 from flask import Flask, current_app, jsonify, request
 from werkzeug.exceptions import HTTPException, RequestEntityTooLarge
 
-from ..errors import OmninavError
+from ..errors import Conflict, NoRoom, NotFound, OmninavError, OutOfRange, TooLarge, Unusable
 
 log = logging.getLogger("omninav.server")
 
@@ -27,8 +27,24 @@ CSP = (
 WORKER_CSP = "default-src 'self'; script-src 'self' 'wasm-unsafe-eval' 'unsafe-eval'; connect-src 'self'"
 
 
+# What each kind of user error (errors.py) is in HTTP; any other OmninavError is a 400.
+STATUS: dict[type[OmninavError], int] = {
+    NotFound: 404,
+    Conflict: 409,
+    TooLarge: 413,
+    OutOfRange: 416,
+    Unusable: 422,
+    NoRoom: 507,
+}
+
+
+def status_of(e: OmninavError) -> int:
+    return next((code for kind, code in STATUS.items() if isinstance(e, kind)), 400)
+
+
 class ApiError(Exception):
-    """An answer other than success: status and a message that says what was wrong."""
+    """An HTTP-level refusal (authorisation, content type, rate, request shape): status and a
+    message that says what was wrong. What the catalogue or the engine refuses is an OmninavError."""
 
     def __init__(self, status: int, message: str, **extra: Any):
         super().__init__(message)
@@ -54,8 +70,8 @@ def install_error_handlers(app: Flask) -> None:
         return resp
 
     @app.errorhandler(OmninavError)
-    def _engine(e: OmninavError) -> Any:  # the engine's bad-input errors: their message is the answer
-        return error_response(400, str(e))
+    def _engine(e: OmninavError) -> Any:  # the catalogue's and the engine's: their message is the answer
+        return error_response(status_of(e), str(e), **e.details)
 
     @app.errorhandler(RequestEntityTooLarge)
     def _too_large(e: RequestEntityTooLarge) -> Any:

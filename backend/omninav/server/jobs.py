@@ -37,11 +37,10 @@ from typing import Any
 from sqlalchemy import text
 from sqlalchemy.exc import IntegrityError
 
-from ..errors import OmninavError
-from ..model_venue import VideoSource, model_videos
-from ..track import parse_track
-from .catalog import Catalog
-from .http import ApiError
+from ..catalog import Catalog
+from ..catalog.videos import Videos
+from ..errors import Conflict, NotFound, OmninavError
+from ..model_venue import model_videos
 
 log = logging.getLogger("omninav.jobs")
 ACTIVE = ("queued", "running")
@@ -65,7 +64,7 @@ class Lost(Exception):
 
 def backoff_s(attempts: int) -> float:
     """The wait before the next attempt of a job that has been claimed `attempts` times."""
-    return BACKOFF_S * 2 ** max(0, attempts - 1)
+    return float(BACKOFF_S * 2 ** max(0, attempts - 1))
 
 
 def _start_time(pid: int) -> str | None:
@@ -131,9 +130,9 @@ def job_doc(r: dict[str, Any]) -> dict[str, Any]:
 def failure(e: BaseException) -> tuple[str, bool]:
     """A job's error line for an exception, and whether another attempt may succeed.
 
-    Bad input (OmninavError, ApiError) fails at once; a full disk and other faults of the
+    Bad input (OmninavError) fails at once; a full disk and other faults of the
     machine (OSError) are worth another attempt; anything else is a bug, which would only repeat."""
-    if isinstance(e, OmninavError | ApiError):
+    if isinstance(e, OmninavError):
         return str(e), False
     if isinstance(e, OSError) and e.errno in DISK_FULL:
         what = os.strerror(e.errno).lower()
@@ -162,30 +161,29 @@ class Jobs:
         self.reap()
         row = self.db.one("SELECT * FROM jobs WHERE id = :id", id=job_id)
         if row is None:
-            raise ApiError(404, f"unknown job {job_id!r}")
+            raise NotFound(f"unknown job {job_id!r}")
         return row
 
     def for_venue(self, venue_id: str) -> list[dict[str, Any]]:
-        self.cat.venue(venue_id)
+        self.cat.venues.get(venue_id)
         self.reap()
         return self.db.all("SELECT * FROM jobs WHERE venue = :v ORDER BY created DESC", v=venue_id)
 
     def _check_videos(self, venue_id: str, names: Any) -> list[str]:
         """The names of the videos to model (default: every uploaded one not modelled yet)."""
-        vids = self.cat.videos(venue_id)
+        vids = self.cat.videos.all(venue_id)
         if names is None:
             names = [v["name"] for v in vids if v["status"] == "ready"]
             if not names:
-                raise ApiError(409, f"venue {venue_id!r} has no uploaded video waiting to be modelled")
+                raise Conflict(f"venue {venue_id!r} has no uploaded video waiting to be modelled")
         if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
-            raise ApiError(400, "'videos' must be a non-empty list of video names")
+            raise OmninavError("'videos' must be a non-empty list of video names")
         by_name = {v["name"]: v for v in vids}
         for n in names:
             if n not in by_name:
-                raise ApiError(404, f"venue {venue_id!r} has no video {n!r}")
+                raise NotFound(f"venue {venue_id!r} has no video {n!r}")
             if by_name[n]["status"] not in ("ready", "modelled"):
-                raise ApiError(
-                    409,
+                raise Conflict(
                     f"video {n!r} is not completely uploaded ({by_name[n]['received']} of {by_name[n]['size']} bytes)",
                 )
         return list(dict.fromkeys(names))
@@ -193,36 +191,40 @@ class Jobs:
     def submit(self, venue_id: str, names: Any) -> dict[str, Any]:
         """Queue a job. The database's one-active-job-per-venue index decides between simultaneous
         submissions: checking first and inserting after would let two through."""
-        self.cat.venue(venue_id)
+        self.cat.venues.get(venue_id)
         self.reap()
         names = self._check_videos(venue_id, names)
         job_id = uuid.uuid4().hex[:16]
         for _ in range(3):
             try:
-                self.db.run(
-                    "INSERT INTO jobs (id, venue, videos, state, created) VALUES (:id, :v, :vs, 'queued', :t)",
-                    id=job_id,
-                    v=venue_id,
-                    vs=json.dumps(names),
-                    t=time.time(),
-                )
+                with self.db.tx() as c:  # the job and the rows that say which videos it models
+                    c.execute(
+                        text(
+                            "INSERT INTO jobs (id, venue, videos, state, created) VALUES (:id, :v, :vs, 'queued', :t)"
+                        ),
+                        {"id": job_id, "v": venue_id, "vs": json.dumps(names), "t": time.time()},
+                    )
+                    c.execute(
+                        text("INSERT INTO job_videos (job, venue, video) VALUES (:j, :v, :n)"),
+                        [{"j": job_id, "v": venue_id, "n": n} for n in names],
+                    )
                 break
             except IntegrityError:
                 busy = self.db.one(
                     "SELECT id FROM jobs WHERE venue = :v AND state IN ('queued', 'running')", v=venue_id
                 )
                 if busy:
-                    raise ApiError(409, f"venue {venue_id!r} is already being modelled by job {busy['id']}") from None
+                    raise Conflict(f"venue {venue_id!r} is already being modelled by job {busy['id']}") from None
                 # the active job ended between our insert and this look: try again
         else:
-            raise ApiError(409, f"venue {venue_id!r} is busy with other modelling jobs; try again")
+            raise Conflict(f"venue {venue_id!r} is busy with other modelling jobs; try again")
         self.wake.set()
         return self.get(job_id)
 
     def cancel(self, job_id: str) -> dict[str, Any]:
         row = self.get(job_id)
         if row["state"] in FINAL:
-            raise ApiError(409, f"job {job_id} has already ended ({row['state']})")
+            raise Conflict(f"job {job_id} has already ended ({row['state']})")
         now = time.time()
         # a queued job ends here; a running one is stopped by its runner at its next frame
         self.db.run(
@@ -362,18 +364,6 @@ class Jobs:
             beat_stop.set()
         return True
 
-    def _sources(self, job: dict[str, Any]) -> list[VideoSource]:
-        out = []
-        for name in json.loads(job["videos"]):
-            v = self.db.one("SELECT * FROM videos WHERE venue = :v AND name = :n", v=job["venue"], n=name)
-            if v is None:
-                raise OmninavError(f"video {name!r} was deleted before it was modelled")
-            path = self.cat.video_dir(job["venue"]) / name
-            if not path.is_file():
-                raise OmninavError(f"video {name!r} has no uploaded file")
-            out.append(VideoSource(path, parse_track(json.loads(v["track"])), self.cat.lens(job["venue"], v["lens"])))
-        return out
-
     def _run(self, job: dict[str, Any]) -> None:
         jid, venue = job["id"], job["venue"]
         last = 0.0
@@ -407,23 +397,25 @@ class Jobs:
 
         results = None
         try:
-            results = model_videos(self.cat.store, venue, self._sources(job), progress, before_commit=still_mine)
+            sources = self.cat.videos.sources(venue, json.loads(job["videos"]))
+            settings = self.cat.venues.settings(venue)
+            results = model_videos(self.cat.store, venue, sources, progress, still_mine, settings)
             self._done(jid, venue, results)
         except Lost:
             log.warning("job %s was taken over by another runner; this one stops", jid)
             if results is not None:  # lost after its commit: the venue did change, say so to caches
-                self.cat.bump(venue)
+                self.cat.venues.touch(venue)
             return
         except Cancelled:
             self._finish(jid, "cancelled")
         except Exception as e:
             error, retry = failure(e)
-            if not isinstance(e, OmninavError | ApiError):
+            if not isinstance(e, OmninavError):
                 log.exception("job %s", jid)  # a fault or a bug: the admin gets a line, the log the rest
             if isinstance(e, OSError):
                 self._drop_leftovers(venue)
             self._end_attempt(jid, self.me, job["attempts"], error, retry)  # a retry: the loop's poll finds it
-        self.cat.bump(venue)
+        self.cat.venues.touch(venue)
 
     def _done(self, jid: str, venue: str, results: list[Any]) -> None:
         """Record a committed job: the job done and its videos modelled, in one transaction that
@@ -433,11 +425,7 @@ class Jobs:
         with self.db.tx() as c:
             if not c.execute(text(f"UPDATE jobs SET state = 'done', finished = :t WHERE {self._MINE}"), mine).rowcount:
                 raise Lost  # leaving the block this way rolls the transaction back
-            for r in results:
-                c.execute(
-                    text("UPDATE videos SET status = 'modelled', frames = :f WHERE venue = :v AND name = :n"),
-                    {"f": r.frames, "v": venue, "n": r.video},
-                )
+            Videos.mark_modelled(c, venue, results)
         log.info("job %s done", jid)
 
     def _finish(self, jid: str, state: str) -> None:

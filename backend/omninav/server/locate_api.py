@@ -19,15 +19,15 @@ from typing import Any
 import numpy as np
 from flask import Blueprint, current_app, jsonify, request
 
-from ..errors import OmninavError
+from ..catalog import Catalog
+from ..errors import Conflict, OmninavError
 from ..extract import Extractor
 from ..locate import DEFAULT_CLIP_FPS, Locator
+from ..media import decode_image, iter_sampled, probe_image, probe_mp4, same_size, sampled_count
 from ..presets import n_curves
 from ..spectrum import HEADER_BYTES, decode_binary, decode_json, record_bytes_per_frame
-from .catalog import Catalog
 from .describe import describe
 from .http import ApiError, client_address, json_body
-from .media import decode_image, iter_sampled, probe_image, probe_mp4, same_size, sampled_count
 from .plan import annotate
 
 bp = Blueprint("locate", __name__)
@@ -65,10 +65,10 @@ class Runtimes:
         now = time.monotonic()
         if rt is not None and now - rt.checked < self.cache_s:
             return rt
-        v = self.cat.venue(venue_id)  # 404 for an unknown venue
+        v = self.cat.venues.get(venue_id)  # 404 for an unknown venue
         gen = self.cat.store.generation(venue_id)
         if gen is None:
-            raise ApiError(409, f"venue {venue_id!r} has no modelled frames yet; upload a video and model it first")
+            raise Conflict(f"venue {venue_id!r} has no modelled frames yet; upload a video and model it first")
         if rt is not None and rt.revision == v["revision"] and rt.generation == gen:
             rt.checked = now
             return rt
@@ -83,18 +83,12 @@ class Runtimes:
         if old is not None and old.generation == gen:
             loc = old.locator  # only the catalogue changed: keep the loaded index
         else:
-            try:
-                loc = Locator(self.cat.store, venue_id, device=self.device)
-            except OmninavError as e:
-                raise ApiError(409, str(e)) from None
-        floors = {f["id"]: f for f in self.cat.floors(venue_id)}
+            loc = Locator(self.cat.store, venue_id, device=self.device)  # Conflict if no frames
+        floors = {f["id"]: f for f in self.cat.floors.all(venue_id)}
         places: dict[str, list[dict[str, Any]]] = {}
-        for p in self.cat.places(venue_id):
+        for p in self.cat.places.all(venue_id):
             places.setdefault(p["floor"], []).append(p)
-        vf = {
-            r["name"]: r["floor"]
-            for r in self.cat.db.all("SELECT name, floor FROM videos WHERE venue = :v", v=venue_id)
-        }
+        vf = self.cat.videos.floors(venue_id)
         first = min(floors) if floors else "1"
         video_floor = [vf.get(name, first) for name in loc.gen.videos]
         return Runtime(loc, revision, loc.generation, floors, places, video_floor)
@@ -117,7 +111,7 @@ def _clip_lens(cat: Catalog, venue_id: str, loc: Locator) -> tuple[Extractor, st
     """The extractor for the clip's lens (the 'lens' form or query parameter, else the lens the
     venue was modelled with) and how to name that lens in a message."""
     name = request.form.get("lens") or request.args.get("lens")
-    ext = loc.extractor(cat.lens(venue_id, name) if name else None)
+    ext = loc.extractor(cat.lenses.get(venue_id, name) if name else None)
     return ext, (f"lens {name!r}" if name else "the venue's modelling lens")
 
 
@@ -259,7 +253,7 @@ def _video_spectra(
 
 def accuracy_m(confidence: float, low: float) -> float | None:
     """Radius for the accuracy circle. Calibrated only at the top: of answers with confidence >= 0.8,
-    at least 80 % are within 2 m (CONVENTIONS.md); below that the circle widens, and below the
+    at least 80 % are within 2 m (docs/formats.md); below that the circle widens, and below the
     low-confidence line the answer is not shown as a position at all."""
     if confidence >= 0.8:
         return 2.0
@@ -309,7 +303,7 @@ def _plan_png(
     same = (fr["video"] == fr["video"][row]) & (np.abs(fr["t"] - fr["t"][row]) <= PATH_WINDOW_S)
     path = np.stack([fr["x"][same], fr["y"][same]], -1)[np.argsort(fr["t"][same])]
     png = annotate(
-        cat.plan_path(venue_id, fl["id"]),
+        cat.floors.plan_path(venue_id, fl["id"]),
         fl["px_per_m"],
         ans["x"],
         ans["y"],

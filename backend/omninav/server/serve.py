@@ -28,11 +28,12 @@ from typing import Any
 
 from gunicorn.app.base import BaseApplication  # type: ignore[import-untyped]
 
+from ..catalog import Catalog
+from ..catalog.db import Db
+from ..config import database_url
+from ..demo import VENUE as DEMO_VENUE
 from ..errors import OmninavError
 from .auth import KEY, ensure_token
-from .catalog import Catalog
-from .config import database_url
-from .db import Db
 from .front import Front, Limits, run_front
 from .jobs import Jobs
 from .ratelimit import RateLimiter
@@ -60,9 +61,9 @@ class _Gunicorn(BaseApplication):  # type: ignore[misc]
 
 
 def prepare(conf: dict[str, Any], demo: str, echo: Any = print) -> None:
-    db = Db(database_url(conf))
-    db.migrate()
-    for venue, gone in Catalog(db, Path(conf["DATA"])).store.recover_all().items():
+    cat = Catalog.open(conf)  # migrated, and venues of an older omninav imported (catalog/legacy.py)
+    db = cat.db
+    for venue, gone in cat.store.recover_all().items():
         echo(f"venue {venue}: dropped what an interrupted modelling run left ({', '.join(gone)})")
     if not conf["ADMIN_TOKEN"]:
         token = ensure_token(db)
@@ -71,10 +72,11 @@ def prepare(conf: dict[str, Any], demo: str, echo: Any = print) -> None:
             echo(f"  admin token (shown once; 'omninav admin-token --reset' makes a new one): {token}")
             echo("")
     if demo != "none":
-        from .demo import ensure_demo
+        from ..demo import ensure_demo
 
-        cat = Catalog(db, Path(conf["DATA"]))
-        ensure_demo(cat, Jobs(cat), quick=demo == "quick", log=echo)
+        if ensure_demo(cat, quick=demo == "quick", log=echo):
+            job = Jobs(cat).submit(DEMO_VENUE, None)
+            echo(f"demo venue created; modelling job {job['id']} queued")
     db.engine.dispose()  # no connection may cross the fork into the workers
 
 

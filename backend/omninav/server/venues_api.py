@@ -1,4 +1,5 @@
-"""Public read API: health, the OpenAPI document, venues and their floor plans."""
+"""Public read API: health, the OpenAPI document, venues and their floor plans; and the public
+documents of a venue and a floor, which the admin API answers with too."""
 
 from __future__ import annotations
 
@@ -11,15 +12,59 @@ import yaml
 from flask import Blueprint, current_app, jsonify, send_file
 
 from .. import __version__
-from .catalog import valid_floor_id
-from .http import ApiError
+from ..catalog import Catalog
+from ..errors import NotFound
+from ..presets import n_curves, settings_id
+from ..spectrum import HEADER_BYTES, record_bytes_per_frame
 
 bp = Blueprint("venues", __name__)
 
 
 @cache
 def openapi_doc() -> dict[str, Any]:
-    return yaml.safe_load(files("omninav.server").joinpath("openapi.yaml").read_text())
+    doc: dict[str, Any] = yaml.safe_load(files("omninav.server").joinpath("openapi.yaml").read_text())
+    return doc
+
+
+def _cat() -> Catalog:
+    return current_app.extensions["omninav"].catalog  # type: ignore[no-any-return]
+
+
+def floor_doc(venue_id: str, f: dict[str, Any], url_root: str = "") -> dict[str, Any]:
+    has_plan = bool(f["plan_file"])
+    return {
+        "id": f["id"],
+        "name": f["name"],
+        "plan_url": f"{url_root}/api/venues/{venue_id}/floors/{f['id']}/plan.png" if has_plan else None,
+        "plan_size_px": [f["plan_w"], f["plan_h"]] if has_plan else None,
+        "px_per_m": f["px_per_m"],
+    }
+
+
+def venue_doc(cat: Catalog, venue_id: str, url_root: str = "") -> dict[str, Any]:
+    """The public description of a venue: all a client needs to extract matching features."""
+    v = cat.venues.get(venue_id)
+    conf = cat.venues.settings(venue_id)
+    frames = cat.store.frame_count(venue_id)
+    return {
+        "id": v["id"],
+        "name": v["name"],
+        "revision": v["revision"],
+        "modelled": frames > 0,
+        "frames": frames,
+        "floors": [floor_doc(venue_id, f, url_root) for f in cat.floors.all(venue_id)],
+        "places": cat.places.all(venue_id),
+        "lenses": cat.lenses.profiles(venue_id),
+        "features": {
+            "preset": v["preset"],
+            "settings": {k: conf[k] for k in sorted(conf)},
+            "settings_id": settings_id(conf),
+            "n_curves": n_curves(conf),
+            "n_harmonics": conf["n_harmonics"],
+            "record_header_bytes": HEADER_BYTES,
+            "record_bytes_per_frame": record_bytes_per_frame(conf),
+        },
+    }
 
 
 @bp.get("/api/health")
@@ -34,22 +79,21 @@ def openapi() -> Any:
 
 @bp.get("/api/venues")
 def venues() -> Any:
-    cat = current_app.extensions["omninav"].catalog
     return jsonify(
-        {"venues": [{"id": v["id"], "name": v["name"], "url": f"/api/venues/{v['id']}"} for v in cat.venues()]}
+        {"venues": [{"id": v["id"], "name": v["name"], "url": f"/api/venues/{v['id']}"} for v in _cat().venues.all()]}
     )
 
 
 @bp.get("/api/venues/<venue_id>")
 def venue(venue_id: str) -> Any:
-    return jsonify(current_app.extensions["omninav"].catalog.doc(venue_id))
+    return jsonify(venue_doc(_cat(), venue_id))
 
 
 @bp.get("/api/venues/<venue_id>/floors/<floor>/plan.png")
 def plan(venue_id: str, floor: str) -> Any:
-    cat = current_app.extensions["omninav"].catalog
-    f = cat.floor(venue_id, valid_floor_id(floor))
+    cat = _cat()
+    f = cat.floors.get(venue_id, floor)
     if not f["plan_file"]:
-        raise ApiError(404, f"floor {floor!r} of venue {venue_id!r} has no floor plan yet")
-    # streamed from the file, not read whole: a plan may be 40 megapixels (catalog.PLAN_MAX_PX)
-    return send_file(cat.plan_path(venue_id, floor), mimetype="image/png", max_age=60)
+        raise NotFound(f"floor {floor!r} of venue {venue_id!r} has no floor plan yet")
+    # streamed from the file, not read whole: a plan may be 40 megapixels (catalog/floors.py)
+    return send_file(cat.floors.plan_path(venue_id, floor), mimetype="image/png", max_age=60)

@@ -30,7 +30,7 @@ def _send(name: str) -> Any:
 def _file(name: str) -> Any:
     max_age = 0 if name in NO_CACHE else 3600
     gz = _dist() / f"{name}.gz"
-    if "gzip" in request.accept_encodings and gz.is_file() and ".." not in Path(name).parts:
+    if request.accept_encodings["gzip"] > 0 and gz.is_file() and ".." not in Path(name).parts:
         mime = mimetypes.guess_type(name)[0] or "application/octet-stream"
         resp = send_from_directory(_dist(), f"{name}.gz", mimetype=mime, max_age=max_age)
         resp.headers["Content-Encoding"] = "gzip"

@@ -43,7 +43,7 @@ export interface Nearest {
   bearing_deg: number;
 }
 
-/** A localisation answer (CONVENTIONS.md) with the words the server adds. */
+/** A localisation answer (docs/formats.md) with the words the server adds. */
 export interface Answer {
   clip: string;
   x: number;

@@ -1,5 +1,5 @@
 /**
- * Lens profiles (CONVENTIONS.md `lens.json`): which camera pixel looks in which direction, computed
+ * Lens profiles (docs/formats.md `lens.json`): which camera pixel looks in which direction, computed
  * exactly as the engine's lens.py does (NumPy's linspace, interp and polyval included).
  */
 

@@ -11,7 +11,6 @@ guessed at.
 
 from __future__ import annotations
 
-import hashlib
 import json
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -27,6 +26,8 @@ from ..errors import OmninavError
 def _rename_inline_lenses(c: Connection) -> None:
     """Inline lens profiles were named after their video ('video-<name>'), and the public venue
     document lists lens names: name them by their content instead, so no video name leaks."""
+    from .lenses import inline_lens_name
+
     rows = c.execute(text("SELECT venue, name, profile FROM lenses WHERE name LIKE 'video-%'")).all()
     for venue, name, profile in rows:
         p = {"v": venue, "n": inline_lens_name(json.loads(profile)), "o": name}
@@ -37,9 +38,14 @@ def _rename_inline_lenses(c: Connection) -> None:
         c.execute(text("UPDATE videos SET lens = :n WHERE venue = :v AND lens = :o"), p)
 
 
-def inline_lens_name(profile: dict[str, Any]) -> str:
-    """The name of a lens profile sent inline with a video: from its content, never its video."""
-    return "lens-" + hashlib.sha256(json.dumps(profile, sort_keys=True).encode()).hexdigest()[:12]
+def _job_videos(c: Connection) -> None:
+    """Fill job_videos from the jobs' JSON lists of video names."""
+    for job, venue, videos in c.execute(text("SELECT id, venue, videos FROM jobs")).all():
+        for name in dict.fromkeys(json.loads(videos)):
+            c.execute(
+                text("INSERT INTO job_videos (job, venue, video) VALUES (:j, :v, :n)"),
+                {"j": job, "v": venue, "n": name},
+            )
 
 
 Migration = list[str | Callable[[Connection], None]]
@@ -89,6 +95,15 @@ MIGRATIONS: list[Migration] = [
         "ALTER TABLE videos ADD COLUMN writer TEXT",
         "ALTER TABLE videos ADD COLUMN writer_until DOUBLE PRECISION",
         _rename_inline_lenses,
+    ],
+    # 3: which videos each job models, as rows: "is this video being modelled?" is an indexed
+    # lookup, not a LIKE over the jobs' JSON lists
+    [
+        """CREATE TABLE job_videos (
+            job TEXT NOT NULL REFERENCES jobs(id) ON DELETE CASCADE, venue TEXT NOT NULL,
+            video TEXT NOT NULL, PRIMARY KEY (job, video))""",
+        "CREATE INDEX job_videos_video ON job_videos (venue, video)",
+        _job_videos,
     ],
 ]
 SCHEMA_VERSION = len(MIGRATIONS)

@@ -1,7 +1,9 @@
-"""Server settings: defaults, then the instance file `<data>/omninav.cfg`, then `OMNINAV_*` variables.
+"""omninav's settings, one place for the CLI and the server: defaults, then the instance file
+`<data>/omninav.cfg`, then `OMNINAV_*` variables, then command-line options (or a test's overrides).
 
-Every key below can be set from the environment as OMNINAV_<KEY> (e.g. OMNINAV_LOCATE_RATE=20);
-the value is parsed as the type of its default.
+Every key below can be set from the environment as OMNINAV_<KEY> (e.g. OMNINAV_LOCATE_RATE=20) or
+in omninav.cfg as `KEY = value` (Python syntax); an environment value is parsed as the type of its
+default. The README's "Settings" table lists them.
 """
 
 from __future__ import annotations
@@ -10,12 +12,18 @@ import os
 from pathlib import Path
 from typing import Any
 
-from ..errors import OmninavError
+from .errors import OmninavError
 
-REPO = Path(__file__).resolve().parents[3]
+REPO = Path(__file__).resolve().parents[2]
 
 DEFAULTS: dict[str, Any] = {
-    "DATA": str(REPO / "data"),  # feature files, uploads, floor plans, the SQLite database
+    "DATA": "data",  # feature files, uploads, floor plans, the SQLite database (relative: to the working folder)
+    "HOST": "",  # omninav serve's address; empty: 127.0.0.1, or every interface (0.0.0.0) with HTTPS
+    "PORT": 8000,  # and its port
+    "HTTPS": False,  # serve HTTPS on the LAN with a self-signed certificate (phones need it for the camera)
+    "WORKERS": 0,  # worker processes; 0: one per core plus one
+    "THREADS": 4,  # threads per worker process
+    "DEMO": "full",  # the demo venue set up on first start: full, quick or none
     "DATABASE_URL": "",  # empty: sqlite:///<DATA>/omninav.sqlite; postgresql+psycopg://... works too
     "ADMIN_TOKEN": "",  # set: this is the admin token (else one is made at first start)
     "MAX_CONTENT_LENGTH": 32 * 1024 * 1024,  # any request body but a video upload
@@ -28,7 +36,7 @@ DEFAULTS: dict[str, Any] = {
     "LOW_CONFIDENCE": 0.5,  # below it, the spoken answer says 'not sure' instead of a place
     "JOB_RUNNER": True,  # run modelling jobs in this process's background thread
     "JOB_STALE_S": 30.0,  # a running job with no heartbeat for this long died with its server
-    "DEVICE": "cpu",  # array device for the index: cpu, gpu or auto
+    "DEVICE": "auto",  # array device for the search: auto (the GPU when CuPy finds one), cpu or gpu
     "VENUE_CACHE_S": 1.0,  # how long a worker trusts its cached venue before checking for edits
     "WEB_DIST": str(REPO / "web" / "dist"),  # the built web app served at /
 }
@@ -57,6 +65,26 @@ def from_env(environ: dict[str, str] | None = None) -> dict[str, Any]:
         if raw is not None:
             out[key] = _parse(default, raw, key)
     return out
+
+
+def load_config(overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The settings in force: defaults < omninav.cfg < OMNINAV_* < overrides. DATA comes out
+    absolute (the server's processes and the CLI must agree on it whatever their working folder)."""
+    conf = dict(DEFAULTS)
+    env = from_env()
+    over = {k: v for k, v in (overrides or {}).items() if v is not None}
+    data = Path(over.get("DATA") or env.get("DATA") or conf["DATA"])
+    cfg = data / "omninav.cfg"
+    if cfg.is_file():
+        scope: dict[str, Any] = {}
+        exec(compile(cfg.read_text(), str(cfg), "exec"), scope)
+        conf.update({k: v for k, v in scope.items() if k in DEFAULTS})
+    conf.update(env)
+    conf.update(over)
+    conf["DATA"] = str(Path(conf["DATA"]).resolve())
+    if conf["DEMO"] not in ("full", "quick", "none"):
+        raise OmninavError(f"DEMO={conf['DEMO']!r}: expected full, quick or none")
+    return conf
 
 
 def database_url(conf: dict[str, Any]) -> str:
