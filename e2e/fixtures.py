@@ -3,6 +3,8 @@
     python e2e/fixtures.py golden OUT   # frames + the engine's panoramas, curves and records
     python e2e/fixtures.py clip OUT [SCENE]  # a Y4M clip for Chromium's fake camera, at a known pose
                                              # (SCENE: another venue's seed; the demo's is 0)
+    python e2e/fixtures.py admin OUT  # what an admin builds a venue from on the admin page: the
+                                      # plan, the lens, a walk and an evaluation walk, and the truth
 
 Golden files: a few frames of the synthetic venue through the engine's stages, so that the
 TypeScript extractor (in Node and in Chromium) can be checked against them stage by stage.
@@ -100,10 +102,70 @@ def clip(out: Path, scene_seed: int = 0, scale: float = 0.5, frames: int = 20, f
     (out / "clip.json").write_text(json.dumps({**truth, "fps": fps, "frames": frames, "size": list(lens.image_size)}))
 
 
+# the admin's building (the quick demo's scene, so that the fake camera's clip is in it): the walk
+# leaves the far end of the second corridor unfilmed, where the admin draws "the stairwell"
+ADMIN_WALK = [(2.0, 2.0), (20.0, 2.0), (20.0, 6.5)]
+ADMIN_EVAL = [(20.0, 6.0), (20.0, 2.0), (3.0, 2.0)]
+ADMIN_PLACES = [
+    {"name": "Corridor 1", "area": [0.8, 0.8, 21.2, 3.2]},
+    {"name": "Corridor 2", "area": [18.8, 3.2, 21.2, 8.0]},
+    {"name": "the stairwell", "area": [18.8, 9.5, 21.2, 13.2]},  # never walked: grey
+    {"name": "the entrance", "x": 2.0, "y": 2.0},
+    {"name": "Room 1", "x": 11.0, "y": 2.0},
+]
+
+
+def admin(out: Path) -> None:
+    """The admin page's inputs (plan.png, lens.json, walk.mp4, eval.mp4) and admin.json: the truth
+    (each walk's track, corners and duration), the places to draw and the scale's two plan pixels.
+    Deterministic, and small: two walks of about 20 s at 480 x 360."""
+    from omninav.synth.scene import floorplan_image
+    from omninav.synth.walks import MODELLING, poses_from_track, track_for, write_video
+
+    out.mkdir(parents=True, exist_ok=True)
+    # rendered once (about 25 s on two cores), again when what it is made from changes
+    recipe = json.dumps([ADMIN_WALK, ADMIN_EVAL, ADMIN_PLACES, 1])
+    if (out / "admin.json").exists() and json.loads((out / "admin.json").read_text()).get("recipe") == recipe:
+        return
+    scene = build_scene(0, "small")
+    lens = donut_lens(0.5)
+    px_per_m, fps = 20.0, 10.0
+    plan = floorplan_image(scene, px_per_m)
+    cv2.imwrite(str(out / "plan.png"), cv2.cvtColor(plan, cv2.COLOR_RGB2BGR))
+    (out / "lens.json").write_text(json.dumps(lens.to_dict(), indent=1))
+    look = Perturb(height_m=(1.25, 1.45), light=(0.85, 1.1), cast=0.05, lens_shift_px=1.0, noise=2.0)
+    walks = {}
+    for name, route, speed, perturb, seed in (
+        ("walk.mp4", ADMIN_WALK, 1.2, MODELLING, 21),
+        ("eval.mp4", ADMIN_EVAL, 1.0, look, 31),
+    ):
+        track = track_for(route, [speed], fps)
+        poses = poses_from_track(track, perturb, np.random.default_rng(seed), turn_s=1.5)
+        frames = (f for _, f in render_frames(scene, lens, poses, perturb, seed + 1))
+        n = write_video(out / name, frames, fps, lens.image_size)
+        walks[name] = {"track": track, "frames": n, "duration_s": (n - 1) / fps}
+    (out / "admin.json").write_text(
+        json.dumps(
+            {
+                "recipe": recipe,
+                "plan": {"size_px": [plan.shape[1], plan.shape[0]], "px_per_m": px_per_m},
+                # two plan pixels 18 m apart along the first corridor's centre line
+                "scale": {"a_px": [40, 40], "b_px": [400, 40], "distance_m": 18.0},
+                "places": ADMIN_PLACES,
+                "walk": walks["walk.mp4"],
+                "eval": walks["eval.mp4"],
+            },
+            indent=1,
+        )
+    )
+
+
 if __name__ == "__main__":
-    if len(sys.argv) not in (3, 4) or sys.argv[1] not in ("golden", "clip"):
+    if len(sys.argv) not in (3, 4) or sys.argv[1] not in ("golden", "clip", "admin"):
         sys.exit(__doc__)
     if sys.argv[1] == "golden":
         golden(Path(sys.argv[2]))
+    elif sys.argv[1] == "admin":
+        admin(Path(sys.argv[2]))
     else:
         clip(Path(sys.argv[2]), int(sys.argv[3]) if len(sys.argv) == 4 else 0)

@@ -10,6 +10,7 @@ export default async function globalSetup(): Promise<() => Promise<void>> {
   execFileSync(PYTHON, [fixtures, 'golden', GOLDEN], { stdio: 'inherit' });
   execFileSync(PYTHON, [fixtures, 'clip', resolve(WORK, 'clip')], { stdio: 'inherit' });
   execFileSync(PYTHON, [fixtures, 'clip', resolve(WORK, 'elsewhere'), '13'], { stdio: 'inherit' });
+  execFileSync(PYTHON, [fixtures, 'admin', resolve(WORK, 'admin')], { stdio: 'inherit' });
   const srv = await startServer(resolve(WORK, 'server'), {
     args: ['--demo', 'quick', '--workers', '2'],
     env: { OMNINAV_ADMIN_TOKEN: TOKEN },

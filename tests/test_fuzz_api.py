@@ -95,6 +95,9 @@ def _restock(app: Any) -> None:
     the same venue: floors 1 (plan, 20 px/m) and 2, two places, the lens, and videos in each state
     (walk.mp4 ready or modelled, b.mp4 half uploaded)."""
     c, base = app.test_client(), f"/api/admin/venues/{VENUE}"
+    for vid in (VENUE, "empty"):  # the fuzzer may have deleted a venue: it comes back (unmodelled)
+        if c.get(f"/api/venues/{vid}").status_code == 404:
+            _ok(c.post("/api/admin/venues", json={"id": vid}, headers=ADMIN), 201)
     png = cv2.imencode(".png", np.full((PLAN_PX[1], PLAN_PX[0], 3), 255, np.uint8))[1].tobytes()
     _ok(c.put(f"{base}/floors/1/plan", data=png, headers=ADMIN, content_type="image/png"))
     _ok(c.put(f"{base}/floors/1", json={"name": "Ground", "px_per_m": 20}, headers=ADMIN))

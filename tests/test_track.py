@@ -56,3 +56,27 @@ def test_load_track_file(tmp_path):
     assert load_track(p).fps == 30
     with pytest.raises(OmninavError, match="not found"):
         load_track(tmp_path / "missing.json")
+
+
+def test_a_stop_keeps_the_heading_it_arrived_with():
+    # walk east, stand still 3 s (the same point tagged twice), then walk south
+    tr = parse_track(
+        {
+            "fps": 10,
+            "waypoints": [
+                {"t": 0, "x": 0, "y": 0},
+                {"t": 5, "x": 5, "y": 0},
+                {"t": 8, "x": 5, "y": 0},
+                {"t": 12, "x": 5, "y": 4},
+            ],
+        }
+    )
+    _, h, ok = tr.pose_at(np.array([1.0, 6.0, 7.9, 9.0]))
+    assert ok.all()
+    np.testing.assert_allclose(h, [90.0, 90.0, 90.0, 180.0])
+
+
+def test_a_track_that_starts_standing_faces_its_first_move():
+    tr = parse_track({"waypoints": [{"t": 0, "x": 2, "y": 2}, {"t": 2, "x": 2, "y": 2}, {"t": 4, "x": 0, "y": 2}]})
+    _, h, _ = tr.pose_at(np.array([1.0, 3.0]))
+    np.testing.assert_allclose(h, [270.0, 270.0])

@@ -8,7 +8,8 @@ export default defineConfig({
     target: 'es2022',
     // opencv.js is one 13 MB module (WASM inlined); it loads in the worker only, off the main thread
     chunkSizeWarningLimit: 16_000,
-    rollupOptions: { input: { main: 'index.html', selftest: 'selftest.html' } },
+    // admin.html: the admin page (/admin, served by omninav serve), a second entry sharing src/shared
+    rollupOptions: { input: { main: 'index.html', selftest: 'selftest.html', admin: 'admin.html' } },
   },
   worker: { format: 'es' },
   server: { proxy: { '/api': 'http://127.0.0.1:8000' } },
@@ -39,9 +40,12 @@ export default defineConfig({
       workbox: {
         // the shell, the worker and opencv.js (WASM inside) are precached: the app opens offline
         globPatterns: ['**/*.{js,css,html,svg,png,webmanifest}'],
+        // not the admin page (its entry and CSS, Leaflet's images inlined): no phone opens it, and
+        // its 185 kB would be downloaded again by every phone on each change of the admin page
+        globIgnores: ['admin.html', 'assets/admin-*'],
         maximumFileSizeToCacheInBytes: 20 * 1024 * 1024,
         navigateFallback: '/index.html',
-        navigateFallbackDenylist: [/^\/api\//],
+        navigateFallbackDenylist: [/^\/api\//, /^\/admin(\/|$)/],
         cleanupOutdatedCaches: true,
         // the first visit's page is controlled at once, so it opens offline next time without a reload
         clientsClaim: true,

@@ -149,6 +149,25 @@ def venue_list(ctx: click.Context) -> None:
         click.echo(json.dumps({"id": v["id"], "name": v["name"], "frames": cat.store.frame_count(v["id"])}))
 
 
+@venue.command("delete")
+@click.argument("venue_id", metavar="VENUE")
+@click.option("--yes", is_flag=True, help="Do not ask for confirmation.")
+@click.pass_context
+def venue_delete(ctx: click.Context, venue_id: str, yes: bool) -> None:
+    """Delete a venue and everything of it: its jobs (cancelled), modelled frames, floor plans,
+    places, lenses, videos and job results. Prints what went, as JSON."""
+    cat = _catalog(ctx)
+    v = cat.venues.get(venue_id)  # (unknown venue: refused before the question)
+    if not yes:
+        n = len(cat.videos.all(venue_id))
+        click.confirm(
+            f"Delete venue {venue_id!r} ({v['name']}): {cat.store.frame_count(venue_id)} modelled frames, "
+            f"{n} videos, its plans and places?",
+            abort=True,
+        )
+    click.echo(json.dumps(cat.venues.delete(venue_id)))
+
+
 @cli.command()
 @click.argument("venue_id", metavar="VENUE")
 @click.argument("video", type=click.Path(path_type=Path))
@@ -266,6 +285,7 @@ def features(venue_id: str, clip: Path, lens_path: Path | None, out: Path | None
 @click.option("--aggregate", type=click.Choice(["median", "sequence"]))
 @click.option("--plot", "plot_path", type=click.Path(path_type=Path), help="PNG (default: VIDEO.eval.png).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+@click.option("--clips", is_flag=True, help="Print every clip's truth and answer as JSON (what the admin page shows).")
 @click.pass_context
 def evaluate(
     ctx: click.Context,
@@ -276,10 +296,11 @@ def evaluate(
     aggregate: str | None,
     plot_path: Path | None,
     as_json: bool,
+    clips: bool,
 ) -> None:
     """Cut a second walk into 1 s clips, locate each, report accuracy against its TRACK."""
     from .evaluate import evaluate as run
-    from .evaluate import plot
+    from .evaluate import plot, walk_result
     from .lens import load_lens
     from .track import load_track
 
@@ -292,10 +313,63 @@ def evaluate(
     s = ev.summary()
     plot(ev, loc, out)
     s["plot"] = str(out)
-    if as_json:
+    if clips:
+        click.echo(json.dumps(walk_result(ev)))
+    elif as_json:
         click.echo(json.dumps(s))
     else:
         click.echo(_table([(aggregate or loc.conf["aggregate"], s)]))
+
+
+@cli.command()
+@click.argument("venue_id", metavar="VENUE")
+@click.option("-o", "--out", type=click.Path(path_type=Path), help="Write the quality map's JSON here.")
+@click.option("--png", "png_path", type=click.Path(path_type=Path), help="Draw it on a floor's plan, as a PNG.")
+@click.option("--floor", help="The floor to draw (default: the venue's first).")
+@click.option("--device", type=click.Choice(["auto", "cpu", "gpu"]), help="Search device.")
+@click.pass_context
+def quality(
+    ctx: click.Context, venue_id: str, out: Path | None, png_path: Path | None, floor: str | None, device: str | None
+) -> None:
+    """Where would VENUE answer right? Locate every second of its modelling walks without itself,
+    colour the walk and the corridors, print the summary sentence."""
+    import cv2
+
+    from .catalog.floors import decode_plan
+    from .quality import quality_map, quality_png
+
+    cat = _catalog(ctx)
+    cat.venues.get(venue_id)
+    floors = {f["id"]: f for f in cat.floors.all(venue_id)}
+    first = min(floors) if floors else "1"
+    floor = floor or first
+    plan = cat.floors.plan_path(venue_id, floor)
+    for path in (out, png_path):  # fail before the work, not after
+        if path is not None and not path.parent.is_dir():
+            raise OmninavError(f"{path.parent}: folder does not exist")
+    if png_path is not None and (floor not in floors or not plan.is_file()):
+        raise OmninavError(f"floor {floor!r} of {venue_id} has no plan to draw on")
+    live = cat.store.generation(venue_id)  # read first: a newer load is only ever refreshed again
+    gen = cat.store.load(venue_id)
+    vf = cat.videos.floors(venue_id)
+    bar = Progress(f"quality map of {venue_id}")
+    try:
+        result = quality_map(
+            gen,
+            cat.places.all(venue_id),
+            {name: vf.get(name, first) for name in gen.videos},
+            device or os.environ.get("OMNINAV_DEVICE") or "auto",
+            progress=bar,
+        )
+    finally:
+        bar.close()
+    result["generation"] = int(live.split("-")[1]) if live else None
+    if out is not None:
+        out.write_text(json.dumps(result))
+    if png_path is not None:
+        rgb = cv2.cvtColor(decode_plan(plan.read_bytes()), cv2.COLOR_BGR2RGB)
+        png_path.write_bytes(quality_png(result, rgb, floors[floor]["px_per_m"] or 1.0, floor))
+    click.echo(result["sentence"])
 
 
 def _table(rows: list[tuple[str, dict[str, Any]]]) -> str:
@@ -309,10 +383,50 @@ def _table(rows: list[tuple[str, dict[str, Any]]]) -> str:
     return "\n".join(lines)
 
 
+@cli.command("suggest-waypoints")
+@click.argument("video", type=click.Path(path_type=Path))
+@click.option("--lens", "lens_path", required=True, type=click.Path(path_type=Path), help="lens.json")
+@click.option("-o", "--out", type=click.Path(path_type=Path), help="Write the suggestions here as JSON.")
+def suggest_waypoints_cmd(video: Path, lens_path: Path, out: Path | None) -> None:
+    """Find where the walk in VIDEO turned and stopped: the moments worth a waypoint."""
+    from .lens import load_lens
+    from .suggest import suggest_waypoints
+
+    lens = load_lens(lens_path)
+    if out is not None and not out.parent.is_dir():  # fail before the work, not after
+        raise OmninavError(f"{out.parent}: folder for the suggestions does not exist")
+    bar = Progress(f"reading {video.name}")
+    try:
+        r = suggest_waypoints(video, lens, progress=bar)
+    finally:
+        bar.close()
+    if out is not None:
+        out.write_text(json.dumps(r))
+    click.echo(_suggestion_table(r))
+
+
+def _suggestion_table(r: dict[str, Any]) -> str:
+    """The suggestions as a table a person reads: time (m:ss.s), what happened, how much."""
+    lines = [f"{'time':>8}  {'what':<6}{'':>14}", "-" * 30]
+    for s in r["suggestions"]:
+        t = s["t"]
+        what = ""
+        if s["kind"] == "turn":
+            what = f"{abs(s['turn_deg']):.0f}° {'right' if s['turn_deg'] > 0 else 'left'}"
+        elif s["kind"] == "stop":
+            what = f"{s['duration_s']:.1f} s"
+        stamp = f"{int(t // 60)}:{t % 60:04.1f}"
+        lines.append(f"{stamp:>8}  {s['kind']:<6}{what:>14}")
+    turns = sum(s["kind"] == "turn" for s in r["suggestions"])
+    stops = sum(s["kind"] == "stop" for s in r["suggestions"])
+    lines.append(f"{turns} turn(s) and {stops} stop(s) in {r['duration_s']:.1f} s of video")
+    return "\n".join(lines)
+
+
 @cli.command()
 @click.argument("out", type=click.Path(path_type=Path))
 @click.option("--seed", default=0, show_default=True)
-@click.option("--layout", type=click.Choice(["default", "small"]), default="default", show_default=True)
+@click.option("--layout", type=click.Choice(["default", "small", "twin"]), default="default", show_default=True)
 @click.option("--scale", default=1.0, show_default=True, help="Donut image scale (1 = 960x720).")
 @click.option("--fps", default=10.0, show_default=True)
 @click.option("--model-lens", type=click.Choice(["donut", "equirect"]), default="donut", show_default=True)

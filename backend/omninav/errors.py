@@ -2,7 +2,7 @@
 
 OmninavError is for everything a user can get wrong; the CLI prints its message as one line, never
 a traceback. Its subclasses say what kind of wrong it is (nothing there, in the way, unusable,
-too large, no room), so that the server's blueprints alone turn them into HTTP status codes
+too large, changed meanwhile, no room), so that the server's blueprints alone turn them into HTTP status codes
 (server/http.py): the catalogue and the engine know nothing of HTTP.
 """
 
@@ -43,6 +43,11 @@ class TooLarge(OmninavError):
 
 class OutOfRange(OmninavError):
     """A byte range outside what it ranges over."""
+
+
+class Stale(OmninavError):
+    """The writer read an older revision of what it writes (another tab or client changed it
+    since): nothing was written; it reloads and tries again."""
 
 
 class NoRoom(OmninavError):

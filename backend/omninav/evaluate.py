@@ -7,6 +7,8 @@ venue frame, with the ground truth and the band of venue frames within 2 m of it
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,8 +20,11 @@ from .errors import OmninavError
 from .heading import wrap_deg
 from .lens import Lens
 from .locate import Locator
+from .quality import AMBIGUOUS_MARGIN, RADIUS_M
 from .track import Track
 from .video import VideoInfo, iter_video
+
+Progress = Callable[[int, int, float], None]  # frames done, frames expected, seconds elapsed
 
 
 @dataclass
@@ -46,7 +51,7 @@ class Evaluation:
 
 
 def query_spectra(
-    loc: Locator, video: Path, track: Track, lens: Lens | None
+    loc: Locator, video: Path, track: Track, lens: Lens | None, progress: Progress | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Sampled frames of a walk -> spectra (F, C, K), times, true xy, true heading, frame index."""
     info = VideoInfo(video)
@@ -55,11 +60,15 @@ def query_spectra(
     ext = loc.extractor(lens)
     specs: list[np.ndarray] = []
     idx: list[int] = []
+    total = max(1, -(-info.frames // stride))
+    t0 = time.perf_counter()
     for i, frame in iter_video(info, stride=stride):
         if not specs:
             ext.check_frame(frame, str(video))
         specs.append(ext.spectrum(frame))
         idx.append(i)
+        if progress:
+            progress(len(idx), max(total, len(idx)), time.perf_counter() - t0)
     t = np.array(idx) / track.fps
     xy, hd, ok = track.pose_at(t)
     if not ok.any():
@@ -68,9 +77,15 @@ def query_spectra(
 
 
 def evaluate(
-    loc: Locator, video: Path, track: Track, lens: Lens | None = None, aggregate: str | None = None, clip_s: float = 1.0
+    loc: Locator,
+    video: Path,
+    track: Track,
+    lens: Lens | None = None,
+    aggregate: str | None = None,
+    clip_s: float = 1.0,
+    progress: Progress | None = None,
 ) -> Evaluation:
-    spec, t, xy, hd, idx = query_spectra(loc, video, track, lens)
+    spec, t, xy, hd, idx = query_spectra(loc, video, track, lens, progress)
     n = max(1, int(round(clip_s * loc.conf["model_fps"])))
     ev = Evaluation()
     for s in range(0, len(t) - n + 1, n):
@@ -80,6 +95,7 @@ def evaluate(
         ev.rows.append(
             {
                 "frame": int(idx[s + n - 1]),
+                "t": float(t[s + n - 1]),
                 "x": e.x,
                 "y": e.y,
                 "heading": e.heading,
@@ -96,6 +112,67 @@ def evaluate(
             }
         )
     return ev
+
+
+LOW_CONFIDENCE = 0.5  # config.py's default: below it the app says "not sure"
+
+
+def evaluate_walk(
+    loc: Locator,
+    video: Path,
+    track: Track,
+    lens: Lens,
+    progress: Progress | None = None,
+    low_confidence: float = LOW_CONFIDENCE,
+) -> dict[str, Any]:
+    """An evaluation walk for the admin page: every 1 s clip's truth and answer, and the summary.
+
+    A clip's truth and answer are at its last frame; `heading_error_deg` is absolute, in [0, 180].
+    Each answer also carries `margin` ((support - rival) / support, as the quality map's), and the
+    summary `share_green`: the share of clips within 2 m with a margin of at least
+    AMBIGUOUS_MARGIN, the quality map's green measured on an independent walk."""
+    return walk_result(evaluate(loc, video, track, lens, progress=progress), low_confidence)
+
+
+def walk_result(ev: Evaluation, low_confidence: float = LOW_CONFIDENCE) -> dict[str, Any]:
+    """evaluate()'s rows -> evaluate_walk's document."""
+    clips = []
+    for r in ev.rows:
+        margin = (r["support"] - r["rival"]) / r["support"] if r["support"] > 0 else 0.0
+        clips.append(
+            {
+                "t": round(r["t"], 3),
+                "truth": {
+                    "x": round(r["true_x"], 3),
+                    "y": round(r["true_y"], 3),
+                    "heading_deg": round(r["true_heading"] % 360.0, 2),
+                },
+                "answer": {
+                    "x": round(r["x"], 3),
+                    "y": round(r["y"], 3),
+                    "heading_deg": round(r["heading"] % 360.0, 2),
+                    "confidence": round(r["confidence"], 3),
+                    "low_confidence": bool(r["confidence"] < low_confidence),
+                    "margin": round(margin, 3),
+                },
+                "error_m": round(r["err_m"], 3),
+                "heading_error_deg": round(abs(r["heading_err_deg"]), 2),
+            }
+        )
+    err = np.array([c["error_m"] for c in clips])
+    herr = np.array([c["heading_error_deg"] for c in clips])
+    n = len(clips)
+    green = sum(c["error_m"] <= RADIUS_M and c["answer"]["margin"] >= AMBIGUOUS_MARGIN for c in clips)
+    summary = {
+        "clips": n,
+        "within_1m": round(float(np.mean(err <= 1.0)), 4) if n else 0.0,
+        "within_2m": round(float(np.mean(err <= 2.0)), 4) if n else 0.0,
+        "median_error_m": round(float(np.median(err)), 3) if n else 0.0,
+        "median_heading_error_deg": round(float(np.median(herr)), 2) if n else 0.0,
+        "not_sure": sum(c["answer"]["low_confidence"] for c in clips),
+        "share_green": round(green / n, 4) if n else 0.0,
+    }
+    return {"clips": clips, "summary": summary}
 
 
 def plot(ev: Evaluation, loc: Locator, path: Path, title: str = "") -> None:

@@ -142,20 +142,40 @@ class Index:
         self.heading = self.xp.asarray(np.asarray(headings, np.float32))
         self.n = int(spectra.shape[0])
 
-    def coarse(self, q_spec: Any, k: int) -> tuple[Any, Any]:
+    def coarse(self, q_spec: Any, k: int, exclude: tuple[Any, Any] | None = None) -> tuple[Any, Any]:
         """Stage 1: (Q, C, K) -> (Q, k) candidate rows and magnitude scores, on the device.
 
         With projected keys, the projection shortlists PREFILTER*k frames per query frame and
         the full magnitude inner product re-ranks them: the memory traffic of d dims, the ranking
-        of all C*K.
+        of all C*K. `exclude`: per query frame, a range [lo, hi) of venue rows it may not match
+        ((Q,) arrays; leave-one-out, quality.py); such a row comes back only if nothing else is
+        left, with score -inf.
         """
         kq = magnitude_keys(self.xp.asarray(q_spec))
         if self.basis is None:
-            return top_k(kq @ self.keys_t, k)
-        short, _ = top_k((kq @ self.basis) @ self.keys_t, PREFILTER * k, ordered=False)
+            return top_k(self._masked(kq @ self.keys_t, exclude), k)
+        first = self._masked((kq @ self.basis) @ self.keys_t, exclude)
+        short, first_v = top_k(first, PREFILTER * k, ordered=False)
         exact = (self.keys[short] @ kq[:, :, None])[..., 0]  # (Q, s, D) @ (Q, D, 1): batched GEMV
+        if exclude is not None:
+            exact = self.xp.where(self.xp.isfinite(first_v), exact, -self.xp.inf)
         best, val = top_k(exact, k)
         return self.xp.take_along_axis(short, best, axis=1), val
+
+    def _masked(self, scores: Any, exclude: tuple[Any, Any] | None) -> Any:
+        """Scores (Q, N), fresh from a product: the excluded ranges set to -inf, in place (they
+        are narrow: O(Q x width), not a pass over the whole matrix)."""
+        if exclude is None:
+            return scores
+        xp = self.xp
+        lo, hi = (xp.asarray(v) for v in exclude)
+        width = int((hi - lo).max()) if lo.shape[0] else 0
+        if width > 0:
+            cols = lo[:, None] + xp.arange(width)[None, :]
+            keep = cols < hi[:, None]
+            rows = xp.broadcast_to(xp.arange(scores.shape[0])[:, None], cols.shape)
+            scores[rows[keep], cols[keep]] = -xp.inf
+        return scores
 
     def verify(self, q_spec: Any, idx: Any) -> tuple[Any, Any]:
         """Stage 2: phase correlation of each query frame with its candidates -> score, heading."""
@@ -165,9 +185,11 @@ class Index:
         rel, score = relative_heading(q[:, None], self.spec[idx], n_shifts=n)
         return score, (self.heading[idx] + rel) % 360.0
 
-    def search(self, q_spec: np.ndarray, k: int) -> Matches:
-        idx, coarse = self.coarse(q_spec, k)
+    def search(self, q_spec: np.ndarray, k: int, exclude: tuple[Any, Any] | None = None) -> Matches:
+        idx, coarse = self.coarse(q_spec, k, exclude)
         score, heading = self.verify(q_spec, idx)
+        if exclude is not None:  # an excluded row kept for want of others supports nothing
+            score = self.xp.where(self.xp.isfinite(coarse), score, -1.0)
         return Matches(to_numpy(idx), to_numpy(coarse), to_numpy(score), to_numpy(heading))
 
 

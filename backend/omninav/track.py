@@ -33,9 +33,24 @@ class Track:
         x = np.interp(t, self.times, self.xy[:, 0])
         y = np.interp(t, self.times, self.xy[:, 1])
         leg = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 2)
-        d = self.xy[leg + 1] - self.xy[leg]
+        return np.stack([x, y], -1), np.mod(self.leg_headings()[leg] + self.heading_offset, 360.0), ok
+
+    def leg_headings(self) -> np.ndarray:
+        """(N-1,) the direction of travel of each leg, degrees clockwise from up.
+
+        A leg that goes nowhere (the same point tagged twice: the recorder stood still) keeps the
+        heading of the leg before it (or, at the start, of the first leg that moves): standing
+        still does not turn anyone round, while atan2(0, -0) would say 180.
+        """
+        d = np.diff(self.xy, axis=0)
         h = np.degrees(np.arctan2(d[:, 0], -d[:, 1]))  # heading h points along (sin h, -cos h)
-        return np.stack([x, y], -1), np.mod(h + self.heading_offset, 360.0), ok
+        moving = np.hypot(d[:, 0], d[:, 1]) > 1e-6
+        if not moving.any():
+            return np.zeros(len(d))
+        idx = np.where(moving, np.arange(len(d)), -1)
+        idx = np.maximum.accumulate(idx)  # the last moving leg at or before each leg
+        idx[idx < 0] = int(np.argmax(moving))  # before the first move: the first moving leg
+        return h[idx]
 
 
 def parse_track(d: Any, where: str = "track") -> Track:

@@ -105,6 +105,29 @@ MIGRATIONS: list[Migration] = [
         "CREATE INDEX job_videos_video ON job_videos (venue, video)",
         _job_videos,
     ],
+    # 4: the admin page. Videos have a role (modelling or evaluation walk), may be registered
+    # before their track (track is the JSON `null` until then), keep what the upload check read
+    # of them (or why it refused them) and the latest waypoint suggestions; jobs have a kind, a
+    # target video (suggest, evaluate) and the path of their result JSON (relative to DATA). One
+    # active job per venue, kind and target: a venue can be modelled while a video's waypoints
+    # are suggested. Places keep their kind and the sentence to say on arrival (docs/formats.md).
+    [
+        "ALTER TABLE places ADD COLUMN kind TEXT",
+        "ALTER TABLE places ADD COLUMN say TEXT",
+        "ALTER TABLE videos ADD COLUMN role TEXT NOT NULL DEFAULT 'model'",
+        "ALTER TABLE videos ADD COLUMN duration_s DOUBLE PRECISION",
+        "ALTER TABLE videos ADD COLUMN fps DOUBLE PRECISION",
+        "ALTER TABLE videos ADD COLUMN width INTEGER",
+        "ALTER TABLE videos ADD COLUMN height INTEGER",
+        "ALTER TABLE videos ADD COLUMN error TEXT",
+        "ALTER TABLE videos ADD COLUMN suggestions TEXT",
+        "ALTER TABLE jobs ADD COLUMN kind TEXT NOT NULL DEFAULT 'model'",
+        "ALTER TABLE jobs ADD COLUMN target TEXT",
+        "ALTER TABLE jobs ADD COLUMN result TEXT",
+        "DROP INDEX jobs_one_active",
+        "CREATE UNIQUE INDEX jobs_one_active ON jobs (venue, kind, (COALESCE(target, ''))) "
+        "WHERE state IN ('queued', 'running')",
+    ],
 ]
 SCHEMA_VERSION = len(MIGRATIONS)
 MIGRATION_LOCK = 0x6F6D6E69  # 'omni': the advisory lock id migrations hold on PostgreSQL

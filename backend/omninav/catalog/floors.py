@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import re
 import reprlib
+import uuid
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -138,21 +139,26 @@ class Floors:
         return self.cat.data / "plans" / venue_id / f"{floor}.png"
 
     def set_plan(self, venue_id: str, floor: str, data: bytes) -> dict[str, Any]:
-        """Store a floor's plan (PNG or JPEG bytes) as PNG; the file first, the row second."""
+        """Store a floor's plan (PNG or JPEG bytes) as PNG: written beside, then, inside the row's
+        transaction and after its bump (which refuses a writer's stale revision), renamed over the
+        old plan; so a refused write leaves the old plan."""
         self.get(venue_id, floor)
         img = decode_plan(data)
         h, w = img.shape[:2]
         p = self.plan_path(venue_id, floor)
         p.parent.mkdir(parents=True, exist_ok=True)
-        tmp = p.with_suffix(".tmp.png")
+        tmp = p.with_name(f".{p.stem}.{uuid.uuid4().hex[:8]}.tmp.png")
         cv2.imwrite(str(tmp), img)
-        tmp.replace(p)
-        with self.db.tx() as c:
-            c.execute(
-                text("UPDATE floors SET plan_file = :p, plan_w = :w, plan_h = :h WHERE venue = :v AND id = :f"),
-                {"p": p.name, "w": w, "h": h, "v": venue_id, "f": floor},
-            )
-            bump(c, venue_id)
+        try:
+            with self.db.tx() as c:
+                bump(c, venue_id)
+                c.execute(
+                    text("UPDATE floors SET plan_file = :p, plan_w = :w, plan_h = :h WHERE venue = :v AND id = :f"),
+                    {"p": p.name, "w": w, "h": h, "v": venue_id, "f": floor},
+                )
+                tmp.replace(p)
+        finally:
+            tmp.unlink(missing_ok=True)
         return self.get(venue_id, floor)
 
     @staticmethod

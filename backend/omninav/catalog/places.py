@@ -15,6 +15,8 @@ from .venues import bump
 if TYPE_CHECKING:
     from . import Catalog
 
+KINDS = ("room", "door", "lift", "stairs", "exit", "toilet", "desk", "other")  # docs/formats.md
+
 
 def check_place(p: Any, i: int, floors: set[str]) -> dict[str, Any]:
     """One place as sent -> its row's fields (without id and venue), or an error naming it."""
@@ -35,7 +37,21 @@ def check_place(p: Any, i: int, floors: set[str]) -> dict[str, Any]:
         area = [number(v, f"{where} 'area'") for v in area]
         if area[2] <= area[0] or area[3] <= area[1]:
             raise OmninavError(f"{where}: 'area' needs x0 < x1 and y0 < y1")
-    return {"floor": floor, "name": name.strip(), "x": x, "y": y, "area": json.dumps(area) if area else None}
+    kind = p.get("kind")
+    if kind is not None and kind not in KINDS:
+        raise OmninavError(f"{where} ({name}): 'kind' must be one of {', '.join(KINDS)}")
+    say = p.get("say")
+    if say is not None and (not isinstance(say, str) or len(say) > 500):
+        raise OmninavError(f"{where} ({name}): 'say' must be a sentence of at most 500 characters")
+    return {
+        "floor": floor,
+        "name": name.strip(),
+        "x": x,
+        "y": y,
+        "area": json.dumps(area) if area else None,
+        "kind": kind,
+        "say": say.strip() or None if say else None,
+    }
 
 
 class Places:
@@ -49,6 +65,9 @@ class Places:
             p = {"id": r["id"], "floor": r["floor"], "name": r["name"], "x": r["x"], "y": r["y"]}
             if r["area"]:
                 p["area"] = json.loads(r["area"])
+            for k in ("kind", "say"):
+                if r[k]:
+                    p[k] = r[k]
             out.append(p)
         return out
 
@@ -56,7 +75,7 @@ class Places:
         """Add places (or replace them all); every one is checked before any is written."""
         self.cat.venues.get(venue_id)
         if not isinstance(items, list):
-            raise OmninavError("places must be a JSON list of {name, floor, x, y[, area]}")
+            raise OmninavError("places must be a JSON list of {name, floor, x, y[, area, kind, say]}")
         floors = {f["id"] for f in self.cat.floors.all(venue_id)}
         rows = [
             {**check_place(p, i, floors), "id": uuid.uuid4().hex[:12], "venue": venue_id} for i, p in enumerate(items)
@@ -67,8 +86,8 @@ class Places:
             for r in rows:
                 c.execute(
                     text(
-                        "INSERT INTO places (id, venue, floor, name, x, y, area) "
-                        "VALUES (:id, :venue, :floor, :name, :x, :y, :area)"
+                        "INSERT INTO places (id, venue, floor, name, x, y, area, kind, say) "
+                        "VALUES (:id, :venue, :floor, :name, :x, :y, :area, :kind, :say)"
                     ),
                     r,
                 )

@@ -1,5 +1,11 @@
-"""Modelling videos: registered with their floor, lens and track, uploaded in resumable pieces,
-checked when the last byte is in, modelled by jobs (server/jobs.py), deleted with their frames.
+"""Modelling videos: registered with their floor, lens, role and (now or later) track, uploaded
+in resumable pieces, checked when the last byte is in, modelled by jobs (server/jobs.py), deleted
+with their frames.
+
+A video's role is 'model' (a walk the venue is modelled from) or 'evaluation' (a walk that checks
+the modelled venue, never modelled itself). Its track may come after its bytes: the admin tags it
+on the plan, helped by the waypoints a suggest job found (`suggestions`); until then it is
+untracked (its track column holds the JSON null) and is not modelled.
 
 The only module that writes the `videos` table. An upload has one writer at a time: a request
 claims the video (a lease in its row, renewed while bytes flow, lapsing if its process dies), and
@@ -25,6 +31,7 @@ from sqlalchemy import Connection, text
 
 from ..errors import Conflict, NoRoom, NotFound, OmninavError, TooLarge, Unusable
 from ..model_venue import ModelResult, VideoSource
+from ..preview import frame_jpeg
 from ..track import Track, parse_track
 from ..video import VideoInfo
 from .lenses import DEFAULT_LENS
@@ -37,6 +44,7 @@ VIDEO_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]*(\.[A-Za-z0-9_-]+)*$")
 CHUNK = 1 << 20
 WRITER_LEASE_S = 60.0  # an upload whose request died frees the video for another after this long
 ACTIVE_JOB = "('queued', 'running')"
+ROLES = ("model", "evaluation")
 
 
 def check_video_name(name: Any) -> str:
@@ -45,6 +53,12 @@ def check_video_name(name: Any) -> str:
             f"invalid video name {name!r}: use up to 128 letters, digits, '-', '_' and dots between them"
         )
     return name
+
+
+def check_role(role: Any) -> str:
+    if role not in ROLES:
+        raise OmninavError(f"'role' must be one of {', '.join(ROLES)}, got {role!r}")
+    return str(role)
 
 
 def check_size(size: Any, max_bytes: int) -> int:
@@ -116,8 +130,12 @@ class Videos:
         name = check_video_name(body.get("name"))
         floor = str(body.get("floor", "1"))
         size = check_size(body.get("size"), max_bytes)
+        role = check_role(body.get("role", "model"))
         track = body.get("track")
-        self.check_track(venue_id, floor, track)
+        if track is None:  # untracked: tagged later (PUT .../track)
+            self.cat.floors.get(venue_id, floor)
+        else:
+            self.check_track(venue_id, floor, track)
         lens = body.get("lens", DEFAULT_LENS)
         if isinstance(lens, dict):  # an inline profile becomes a lens named by its content
             lens = self.cat.lenses.put_inline(venue_id, lens)
@@ -130,13 +148,13 @@ class Videos:
             raise Conflict(
                 f"video {name!r} is being uploaded right now; wait for that upload to end, then send it again"
             )
-        (self.dir(venue_id) / f"{name}.part").unlink(missing_ok=True)
         with self.db.tx() as c:
+            bump(c, venue_id)  # first: a writer's stale revision refuses before anything changes
             c.execute(text("DELETE FROM videos WHERE venue = :v AND name = :n"), {"v": venue_id, "n": name})
             c.execute(
                 text(
-                    "INSERT INTO videos (venue, name, floor, lens, track, size, received, status, frames, created) "
-                    "VALUES (:v, :n, :f, :l, :t, :s, 0, 'uploading', :fr, :c)"
+                    "INSERT INTO videos (venue, name, floor, lens, track, size, received, status, frames, created, "
+                    "role) VALUES (:v, :n, :f, :l, :t, :s, 0, 'uploading', :fr, :c, :r)"
                 ),
                 {
                     "v": venue_id,
@@ -147,15 +165,21 @@ class Videos:
                     "s": size,
                     "fr": old["frames"] if old else 0,
                     "c": time.time(),
+                    "r": role,
                 },
             )
+        (self.dir(venue_id) / f"{name}.part").unlink(missing_ok=True)
         return self.get(venue_id, name)
 
-    def add_file(self, venue_id: str, path: Path, floor: str, lens: str, track: Any) -> dict[str, Any]:
+    def add_file(
+        self, venue_id: str, path: Path, floor: str, lens: str, track: Any, role: str = "model"
+    ) -> dict[str, Any]:
         """Register a video file that is already on this machine (the demo): linked, not copied
         where the file system allows, and ready to model."""
         size = path.stat().st_size
-        self.create(venue_id, {"name": path.name, "floor": floor, "size": size, "track": track, "lens": lens}, size)
+        info = VideoInfo(path)
+        body = {"name": path.name, "floor": floor, "size": size, "track": track, "lens": lens, "role": role}
+        self.create(venue_id, body, size)
         d = self.dir(venue_id)
         d.mkdir(parents=True, exist_ok=True)
         (d / path.name).unlink(missing_ok=True)
@@ -166,9 +190,10 @@ class Videos:
 
             shutil.copyfile(path, d / path.name)
         self.db.run(
-            "UPDATE videos SET received = size, status = 'ready' WHERE venue = :v AND name = :n",
+            "UPDATE videos SET received = size, status = 'ready', " + _INFO + " WHERE venue = :v AND name = :n",
             v=venue_id,
             n=path.name,
+            **_info(info),
         )
         return self.get(venue_id, path.name)
 
@@ -179,6 +204,7 @@ class Videos:
 
         v = self.get(venue_id, name)
         self._check_not_modelling(venue_id, v["name"])
+        self.cat.venues.touch(venue_id)  # a writer's stale revision refuses here, before any frame goes
         removed = remove_video(self.cat.store, venue_id, v["name"])
         d = self.dir(venue_id)
         for p in (d / v["name"], d / f"{v['name']}.part"):
@@ -199,7 +225,10 @@ class Videos:
             path = self.dir(venue_id) / name
             if not path.is_file():
                 raise OmninavError(f"video {name!r} has no uploaded file")
-            out.append(VideoSource(path, parse_track(json.loads(v["track"])), self.cat.lenses.get(venue_id, v["lens"])))
+            track = json.loads(v["track"])
+            if track is None:
+                raise OmninavError(f"video {name!r} has no track yet")
+            out.append(VideoSource(path, parse_track(track), self.cat.lenses.get(venue_id, v["lens"])))
         return out
 
     @staticmethod
@@ -210,6 +239,65 @@ class Videos:
                 text("UPDATE videos SET status = 'modelled', frames = :f WHERE venue = :v AND name = :n"),
                 {"f": r.frames, "v": venue_id, "n": r.video},
             )
+
+    # ---- tracks, suggestions, frames ----------------------------------------------------------
+    def track(self, venue_id: str, name: str) -> dict[str, Any]:
+        """The video's track as stored (track.json), NotFound while it has none."""
+        track = json.loads(self.get(venue_id, name)["track"])
+        if track is None:
+            raise NotFound(f"video {name!r} has no track yet")
+        return dict(track)
+
+    def set_track(self, venue_id: str, name: str, track: Any) -> dict[str, Any]:
+        """Give a video its track (or a new one). A modelled video is ready to be modelled again:
+        its frames in the venue have the poses of its old track until then."""
+        v = self.get(venue_id, name)
+        try:
+            self.check_track(venue_id, v["floor"], track)
+        except (Unusable, NotFound, Conflict):
+            raise
+        except OmninavError as e:  # the track as sent is unusable: 422 like one off the plan
+            raise Unusable(str(e)) from None
+        self._check_not_modelling(venue_id, v["name"])
+        with self.db.tx() as c:
+            bump(c, venue_id)
+            c.execute(
+                text(
+                    "UPDATE videos SET track = :t, status = CASE WHEN status = 'modelled' THEN 'ready' ELSE status END "
+                    "WHERE venue = :v AND name = :n"
+                ),
+                {"t": json.dumps(track), "v": venue_id, "n": v["name"]},
+            )
+        return self.get(venue_id, v["name"])
+
+    def set_suggestions(self, venue_id: str, name: str, result: dict[str, Any] | None) -> None:
+        """Keep the latest waypoint suggestions of a video (a suggest job's result), shown with it.
+        Not an edit of the venue: no revision bump. A video deleted meanwhile is left alone."""
+        self.db.run(
+            "UPDATE videos SET suggestions = :s WHERE venue = :v AND name = :n",
+            s=json.dumps(result) if result is not None else None,
+            v=venue_id,
+            n=name,
+        )
+
+    def frame(self, venue_id: str, name: str, t: float, view: str, width: int | None) -> bytes:
+        """The video's frame at t seconds as a JPEG: as filmed ('raw') or unwrapped with the
+        video's lens ('panorama'). Conflict while the video is not uploaded."""
+        v = self.get(venue_id, name)
+        path = self.dir(venue_id) / v["name"]
+        if v["status"] == "uploading" or not path.is_file():
+            raise Conflict(f"video {name!r} is not uploaded yet ({v['received']} of {v['size']} bytes)")
+        fps, frames = v["fps"], None
+        if not fps or v["duration_s"] is None:  # uploaded before its facts were kept: read them now
+            info = VideoInfo(path, label=v["name"])
+            fps, frames = info.fps, info.frames
+            self.db.run(
+                "UPDATE videos SET " + _INFO + " WHERE venue = :v AND name = :n", v=venue_id, n=v["name"], **_info(info)
+            )
+        else:
+            frames = round(float(v["duration_s"]) * float(fps))
+        lens = self.cat.lenses.get(venue_id, v["lens"])
+        return frame_jpeg(str(path), lens, t, float(fps or 0.0), int(frames), view, width)
 
     # ---- the upload ---------------------------------------------------------------------------
     def upload(self, venue_id: str, name: str, body: IO[bytes], start: int, end: int | None) -> dict[str, Any]:
@@ -262,10 +350,11 @@ class Videos:
                 raise OmninavError(f"frames are {info.width}x{info.height} but lens {v['lens']!r} is for {w}x{h}")
         except OmninavError as e:
             part.unlink(missing_ok=True)
-            lease.update("received = 0")
-            raise Unusable(f"video {name!r} was not accepted: {e}; upload it again", received=0) from None
+            why = f"video {name!r} was not accepted: {e}; upload it again"
+            lease.update("received = 0, error = :e", e=why)
+            raise Unusable(why, received=0) from None
         part.replace(part.with_name(name))
-        lease.update("status = 'ready'")
+        lease.update("status = 'ready', " + _INFO, **_info(info))
         return self.get(venue_id, name)
 
 
@@ -363,3 +452,12 @@ def _keep_written(f: Any, start: int) -> int:
     with suppress(OSError):
         f.truncate(on_disk)
     return on_disk - start
+
+
+_INFO = "duration_s = :dur, fps = :fps, width = :width, height = :height, error = NULL"
+
+
+def _info(info: VideoInfo) -> dict[str, Any]:
+    """What the upload check read of a video, as _INFO's parameters."""
+    dur = info.frames / info.fps if info.fps > 0 and info.frames > 0 else None
+    return {"dur": dur, "fps": info.fps or None, "width": info.width or None, "height": info.height or None}

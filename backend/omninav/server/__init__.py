@@ -43,7 +43,7 @@ def create_app(overrides: dict[str, Any] | None = None) -> Flask:
     if conf["ADMIN_TOKEN"]:
         set_token(db, conf["ADMIN_TOKEN"])
     device = conf["DEVICE"] or None
-    jobs = Jobs(catalog, stale_s=conf["JOB_STALE_S"])
+    jobs = Jobs(catalog, stale_s=conf["JOB_STALE_S"], device=device)
     app.extensions["omninav"] = Services(
         db,
         catalog,
@@ -73,9 +73,9 @@ def create_app(overrides: dict[str, Any] | None = None) -> Flask:
             h.setdefault("Strict-Transport-Security", "max-age=31536000")
         return resp
 
-    from . import admin_api, locate_api, venues_api, web
+    from . import admin_api, analysis_api, locate_api, venues_api, web
 
-    for mod in (venues_api, locate_api, admin_api, web):
+    for mod in (venues_api, locate_api, admin_api, analysis_api, web):
         app.register_blueprint(mod.bp)
     if conf["JOB_RUNNER"]:
         jobs.start()

@@ -2,18 +2,25 @@
 
 Every call needs the admin token (auth.py). Video uploads are streamed to disk in pieces and can
 be resumed: PUT the bytes from where GET says the upload stands, with a Content-Range header.
+
+Every write on a venue answers the venue's new revision as its ETag, and honours If-Match: a write
+that names the revision it read is refused with 412 if the venue changed since (another tab saved
+first). The check is the catalogue's (catalog/venues.py `bump`), in the write's own transaction.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import re
 import time
 from typing import Any
 
-from flask import Blueprint, Response, current_app, jsonify, request
+from flask import Blueprint, Response, current_app, g, jsonify, request
 
 from ..catalog import Catalog
+from ..catalog.venues import begin_write, end_write
+from ..errors import is_finite_number
 from .auth import require_admin
 from .http import ApiError, json_body, str_field
 from .jobs import FINAL, job_doc
@@ -22,6 +29,8 @@ from .venues_api import floor_doc, venue_doc
 bp = Blueprint("admin", __name__, url_prefix="/api/admin")
 bp.before_request(require_admin)
 CONTENT_RANGE = re.compile(r"^bytes (\d+)-(\d+)/(\d+)$")
+IF_MATCH = re.compile(r'^(?:W/)?"?(\d{1,15})"?$')
+WRITES = ("POST", "PUT", "PATCH", "DELETE")
 
 
 def _svc() -> Any:
@@ -30,6 +39,46 @@ def _svc() -> Any:
 
 def _cat() -> Catalog:
     return _svc().catalog  # type: ignore[no-any-return]
+
+
+def if_match() -> int | None:
+    """The revision the client read (If-Match: "7"), or None: no header, or '*'."""
+    raw = request.headers.get("If-Match")
+    if raw is None or raw.strip() == "*":
+        return None
+    m = IF_MATCH.match(raw.strip())
+    if not m:
+        raise ApiError(400, f'If-Match must be the venue\'s revision as its ETag gives it (e.g. "7"), got {raw!r}')
+    return int(m.group(1))
+
+
+@bp.before_request
+def _begin_write() -> None:
+    """A write on a venue: note the revision the client read, for the catalogue's check."""
+    venue_id = (request.view_args or {}).get("venue_id")
+    if request.method in WRITES and venue_id is not None:
+        g.omninav_write, g.omninav_write_token = begin_write(venue_id, if_match())
+
+
+@bp.after_request
+def _etag(resp: Response) -> Response:
+    """A write on a venue (and a read of it) answers the venue's revision as its ETag."""
+    w = g.get("omninav_write")
+    if w is not None and resp.status_code < 400 and request.endpoint != "admin.delete_venue":
+        revision = w.revision
+        if revision is None:  # a write that did not change the venue (an upload's bytes, a job)
+            row = _cat().db.one("SELECT revision FROM venues WHERE id = :id", id=w.venue)
+            revision = row["revision"] if row else None
+        if revision is not None:
+            resp.headers["ETag"] = f'"{revision}"'
+    return resp
+
+
+@bp.teardown_request
+def _end_write(_exc: BaseException | None) -> None:
+    token = g.pop("omninav_write_token", None)
+    if token is not None:
+        end_write(token)
 
 
 def _created(body: Any, location: str) -> Any:
@@ -49,6 +98,26 @@ def create_venue() -> Any:
     cat = _cat()
     cat.venues.create(vid, name, preset)
     return _created(venue_doc(cat, vid), f"/api/venues/{vid}")
+
+
+def admin_venue_doc(cat: Catalog, venue_id: str) -> dict[str, Any]:
+    """The public venue document and what only the admin sees: which generation is live, since when."""
+    generation, at = cat.venues.modelled(venue_id)
+    return {**venue_doc(cat, venue_id), "generation": generation, "modelled_at": at}
+
+
+@bp.get("/venues/<venue_id>")
+def get_venue(venue_id: str) -> Any:
+    doc = admin_venue_doc(_cat(), venue_id)
+    resp = jsonify(doc)
+    resp.headers["ETag"] = f'"{doc["revision"]}"'
+    return resp
+
+
+@bp.delete("/venues/<venue_id>")
+def delete_venue(venue_id: str) -> Any:
+    """The venue and everything of it: jobs (cancelled), frames, plans, videos, places, results."""
+    return jsonify(_cat().venues.delete(venue_id))
 
 
 @bp.patch("/venues/<venue_id>")
@@ -96,15 +165,24 @@ def put_lens(venue_id: str, name: str) -> Any:
 
 # ---- videos -------------------------------------------------------------------------------------
 def video_doc(r: dict[str, Any]) -> dict[str, Any]:
+    track = json.loads(r["track"])
     return {
         "name": r["name"],
         "floor": r["floor"],
         "lens": r["lens"],
+        "role": r["role"],
         "size": r["size"],
         "received": r["received"],
         "status": r["status"],
         "frames": r["frames"],
-        "track": json.loads(r["track"]),
+        "tracked": track is not None,
+        "track": track,
+        "duration_s": r["duration_s"],
+        "fps": r["fps"],
+        "width": r["width"],
+        "height": r["height"],
+        "error": r["error"],
+        "suggestions": json.loads(r["suggestions"]) if r["suggestions"] else None,
         "upload_url": f"/api/admin/venues/{r['venue']}/videos/{r['name']}/content",
     }
 
@@ -129,6 +207,45 @@ def get_video(venue_id: str, name: str) -> Any:
 def delete_video(venue_id: str, name: str) -> Any:
     removed = _cat().videos.delete(venue_id, name)
     return jsonify({"deleted": name, "frames_removed": removed})
+
+
+@bp.put("/venues/<venue_id>/videos/<name>/track")
+def put_track(venue_id: str, name: str) -> Any:
+    return jsonify(video_doc(_cat().videos.set_track(venue_id, name, json_body())))
+
+
+@bp.get("/venues/<venue_id>/videos/<name>/track")
+def get_track(venue_id: str, name: str) -> Any:
+    resp = jsonify(_cat().videos.track(venue_id, name))
+    resp.headers["Content-Disposition"] = f'attachment; filename="{name}.track.json"'
+    return resp
+
+
+def _number_arg(key: str, required: bool) -> float | None:
+    raw = request.args.get(key)
+    if raw is None:
+        if required:
+            raise ApiError(400, f"query parameter '{key}' is required")
+        return None
+    try:
+        v = float(raw)
+    except ValueError:
+        v = math.nan
+    if not is_finite_number(v):
+        raise ApiError(400, f"query parameter '{key}' must be a finite number, got {raw!r}")
+    return v
+
+
+@bp.get("/venues/<venue_id>/videos/<name>/frame")
+def video_frame(venue_id: str, name: str) -> Any:
+    """The video's frame at ?t= seconds, as filmed (view=raw) or unwrapped (view=panorama)."""
+    t = _number_arg("t", required=True)
+    width = _number_arg("width", required=False)
+    if width is not None and not width.is_integer():
+        raise ApiError(400, f"query parameter 'width' must be a whole number of pixels, got {request.args['width']!r}")
+    view = request.args.get("view", "raw")
+    jpeg = _cat().videos.frame(venue_id, name, float(t or 0.0), view, int(width) if width is not None else None)
+    return Response(jpeg, mimetype="image/jpeg", headers={"Cache-Control": "no-cache"})
 
 
 def _content_range(size: int) -> tuple[int, int | None]:

@@ -7,6 +7,7 @@ A backup is a folder:
     venues/<id>/         CURRENT and the live generation (gen-NNNNNN/)
     plans/<id>/<floor>.png
     videos/<id>/<name>   the modelling videos (ready or modelled; none with --no-videos)
+    results/<id>/<job>.json  what the venue's done analysis jobs found (jobs.result)
 
 It does not depend on the database: the rows are read through SQLAlchemy in one snapshot
 transaction (REPEATABLE READ on PostgreSQL, one read transaction on SQLite's WAL) and restored into
@@ -52,7 +53,7 @@ MANIFEST = "manifest.json"
 ROWS = "db.jsonl"
 # parents before children, so that rows insert in this order and delete in the reverse
 TABLES = ("meta", "venues", "floors", "places", "lenses", "videos", "jobs", "job_videos")
-TREES = ("venues", "plans", "videos")  # the data folders a backup holds
+TREES = ("venues", "plans", "videos", "results")  # the data folders a backup holds
 JOB_INTERRUPTED = (
     "this job had not finished when the backup was taken; the restored venue has the frames it had "
     "then. Start the job again."
@@ -234,6 +235,20 @@ def _link_videos(data: Path, rows: Rows, dst: Path, videos: bool) -> None:
             r.update(status="uploading", received=0, writer=None, writer_until=None)
 
 
+def _link_results(data: Path, rows: Rows, dst: Path) -> None:
+    """Link each job's result file (written once, renamed into place); a job whose file is gone
+    (its venue or video deleted meanwhile) keeps no result."""
+    for r in rows["jobs"]:
+        if not r.get("result"):
+            continue
+        rel = PurePosixPath(r["result"])
+        src = data / rel
+        if rel.is_absolute() or ".." in rel.parts or rel.parts[0] != "results" or not src.is_file():
+            r["result"] = None
+            continue
+        _place(src, dst / rel)
+
+
 def _write_rows(rows: Rows, path: Path) -> None:
     lines = [json.dumps({"table": t, "row": r}, separators=(",", ":")) for t in TABLES for r in rows[t]]
     _write(path, ("\n".join(lines) + "\n").encode())
@@ -285,6 +300,7 @@ def backup(conf: dict[str, Any], dest: Path, videos: bool = True) -> dict[str, A
         _stop_active_jobs(rows, time.time())
         _link_plans(data, rows, tmp)
         _link_videos(data, rows, tmp, videos)
+        _link_results(data, rows, tmp)
         _write_rows(rows, tmp / ROWS)
         frames = {v: _gen_frames(tmp / "venues" / v, g) for v, g in gens.items()}
         man = _manifest(tmp, rows, gens, frames, videos)

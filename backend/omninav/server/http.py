@@ -10,7 +10,7 @@ from typing import Any
 from flask import Flask, current_app, jsonify, request
 from werkzeug.exceptions import HTTPException, RequestEntityTooLarge
 
-from ..errors import Conflict, NoRoom, NotFound, OmninavError, OutOfRange, TooLarge, Unusable
+from ..errors import Conflict, NoRoom, NotFound, OmninavError, OutOfRange, Stale, TooLarge, Unusable
 
 log = logging.getLogger("omninav.server")
 
@@ -31,6 +31,7 @@ WORKER_CSP = "default-src 'self'; script-src 'self' 'wasm-unsafe-eval' 'unsafe-e
 STATUS: dict[type[OmninavError], int] = {
     NotFound: 404,
     Conflict: 409,
+    Stale: 412,
     TooLarge: 413,
     OutOfRange: 416,
     Unusable: 422,

@@ -1,11 +1,20 @@
-"""Modelling jobs: queued in the database, run by a job runner (a background thread of a server
-process, or a dedicated process that calls `run_forever`).
+"""Background jobs: queued in the database, run by a job runner (a background thread of a server
+process, or a dedicated process that calls `run_forever`). Each job has a kind:
 
-One active job per venue is a database constraint (the partial unique index `jobs_one_active`):
-`submit` inserts and turns the constraint's refusal into a 409, so two simultaneous requests
-cannot both create one. Any runner may claim a queued job (one atomic UPDATE decides who); its
-progress, heartbeat and cancel flag live in the job's row, so every process can report on it and
-cancel it.
+    model      model videos into the venue's next generation (model_venue.py)
+    suggest    suggested waypoints of one video: where the walker turned or stopped (suggest.py)
+    quality    the quality map of the venue's live generation (quality.py)
+    evaluate   an evaluation walk located against the live generation (evaluate.py)
+
+A modelling job commits a generation; the others write a result, one JSON file per job
+(DATA/results/<venue>/<job id>.json, named in jobs.result), renamed into place in the job's final
+transaction, so that only the runner that owns the job publishes it.
+
+One active job per venue, kind and target (one modelling job per venue; one suggest job per
+video...) is a database constraint (the partial unique index `jobs_one_active`): `submit` inserts
+and turns the constraint's refusal into a 409, so two simultaneous requests cannot both create
+one. Any runner may claim a queued job (one atomic UPDATE decides who); its progress, heartbeat
+and cancel flag live in the job's row, so every process can report on it and cancel it.
 
 Jobs recover by themselves. A job whose runner died (the server was killed: a dead pid on this
 host, a stale heartbeat from another) is queued again with a backoff, and so is one that met a
@@ -18,7 +27,7 @@ A runner can be taken over while it still runs (its heartbeat stopped reaching t
 stale_s: a paused machine, a network cut). So every write a runner makes to its job names it as
 the owner (`Jobs._MINE`), and it checks again under the venue's lock just before its commit; where
 a write finds the job no longer its own, it stops (Lost) and writes nothing more: the job, its
-progress and the venue's next generation are the new owner's.
+progress and the venue's next generation (or the job's result) are the new owner's.
 """
 
 from __future__ import annotations
@@ -26,11 +35,14 @@ from __future__ import annotations
 import errno
 import json
 import logging
+import math
 import os
 import socket
+import tempfile
 import threading
 import time
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +53,7 @@ from ..catalog import Catalog
 from ..catalog.videos import Videos
 from ..errors import Conflict, NotFound, OmninavError
 from ..model_venue import model_videos
+from ..track import parse_track
 
 log = logging.getLogger("omninav.jobs")
 ACTIVE = ("queued", "running")
@@ -52,6 +65,8 @@ MAX_ATTEMPTS = 3  # a job is claimed at most this often
 BACKOFF_S = 2.0  # wait before attempt n+1: BACKOFF_S * 2**(n-1), i.e. 2 s, 4 s, 8 s...
 DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
 STOPPED = "the server stopped while this job ran; the venue kept its previous frames"
+KINDS = ("model", "suggest", "quality", "evaluate")
+RESULTS = "results"  # DATA/results/<venue>/<job id>.json: what an analysis job found
 
 
 class Cancelled(Exception):
@@ -104,6 +119,21 @@ def owner_alive(owner: str) -> bool | None:
     return now_start == start
 
 
+def result_file(venue_id: str, job_id: str) -> str:
+    """Where a job's result lies, relative to the data folder (jobs.result)."""
+    return f"{RESULTS}/{venue_id}/{job_id}.json"
+
+
+def doing(kind: str, target: str | None) -> str:
+    """What a job of this kind does, for the messages that name a busy job."""
+    return {
+        "model": "modelling",
+        "suggest": f"suggesting waypoints for video {target!r}",
+        "quality": "making the quality map",
+        "evaluate": f"evaluating video {target!r}",
+    }.get(kind, kind)
+
+
 def job_doc(r: dict[str, Any]) -> dict[str, Any]:
     done, total, fps = r["frames_done"], r["frames_total"], r["fps"]
     eta = (total - done) / fps if r["state"] == "running" and fps > 0 and total >= done else None
@@ -111,6 +141,8 @@ def job_doc(r: dict[str, Any]) -> dict[str, Any]:
     return {
         "id": r["id"],
         "venue": r["venue"],
+        "kind": r["kind"],
+        "target": r["target"],  # the video of a suggest or evaluate job
         "videos": json.loads(r["videos"]),
         "state": r["state"],
         "frames_done": done,
@@ -124,10 +156,45 @@ def job_doc(r: dict[str, Any]) -> dict[str, Any]:
         "max_attempts": MAX_ATTEMPTS,
         "retry_at": retry_at,
         "error": r["error"],  # the last error: on a job queued again, why its last attempt ended
+        "result_url": f"/api/admin/jobs/{r['id']}/result" if r["state"] == "done" and r["result"] else None,
     }
 
 
-def failure(e: BaseException) -> tuple[str, bool]:
+def _tracked(v: dict[str, Any]) -> bool:
+    return json.loads(v["track"]) is not None
+
+
+def _check_uploaded(v: dict[str, Any]) -> None:
+    if v["status"] not in ("ready", "modelled"):
+        raise Conflict(f"video {v['name']!r} is not completely uploaded ({v['received']} of {v['size']} bytes)")
+
+
+def _plain(x: Any) -> Any:
+    """The engine's result as plain JSON values: NumPy scalars and arrays as numbers and lists,
+    a number that is not finite (no JSON number) as null."""
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if hasattr(x, "tolist"):  # a NumPy array or scalar
+        return _plain(x.tolist())
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+def _write_beside(path: Path, text: str) -> Path:
+    """Write `text` to a new file beside `path` (fsynced): renamed over `path`, it appears whole."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+    return Path(tmp)
+
+
+def failure(e: BaseException, kind: str = "model") -> tuple[str, bool]:
     """A job's error line for an exception, and whether another attempt may succeed.
 
     Bad input (OmninavError) fails at once; a full disk and other faults of the
@@ -136,6 +203,8 @@ def failure(e: BaseException) -> tuple[str, bool]:
         return str(e), False
     if isinstance(e, OSError) and e.errno in DISK_FULL:
         what = os.strerror(e.errno).lower()
+        if kind != "model":
+            return f"disk full ({what}) while writing the job's result", True
         return f"disk full ({what}) while writing the venue's new frames; the venue kept its previous frames", True
     # the admin sees the kind of fault, never a path on the server (the log has the whole exception)
     if isinstance(e, OSError):
@@ -147,10 +216,11 @@ class Jobs:
     # the WHERE of every write a runner makes to its job: 0 rows means it was taken over (Lost)
     _MINE = "id = :id AND owner = :o AND state = 'running'"
 
-    def __init__(self, catalog: Catalog, stale_s: float = 30.0):
+    def __init__(self, catalog: Catalog, stale_s: float = 30.0, device: str | None = None):
         self.cat = catalog
         self.db = catalog.db
         self.stale_s = stale_s
+        self.device = device  # the search's array device for quality and evaluate jobs (config DEVICE)
         self.me = this_process()
         self.wake = threading.Event()
         self._stop = threading.Event()
@@ -170,22 +240,27 @@ class Jobs:
         return self.db.all("SELECT * FROM jobs WHERE venue = :v ORDER BY created DESC", v=venue_id)
 
     def _check_videos(self, venue_id: str, names: Any) -> list[str]:
-        """The names of the videos to model (default: every uploaded one not modelled yet)."""
+        """The names of the videos to model (default: every uploaded modelling walk with a track,
+        not modelled yet)."""
         vids = self.cat.videos.all(venue_id)
         if names is None:
-            names = [v["name"] for v in vids if v["status"] == "ready"]
+            ready = [v for v in vids if v["status"] == "ready" and v["role"] == "model"]
+            names = [v["name"] for v in ready if _tracked(v)]
             if not names:
-                raise Conflict(f"venue {venue_id!r} has no uploaded video waiting to be modelled")
+                untagged = [v["name"] for v in ready if not _tracked(v)]
+                why = f" (video {untagged[0]!r} has no track yet)" if untagged else ""
+                raise Conflict(f"venue {venue_id!r} has no uploaded video waiting to be modelled{why}")
         if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
             raise OmninavError("'videos' must be a non-empty list of video names")
         by_name = {v["name"]: v for v in vids}
         for n in names:
             if n not in by_name:
                 raise NotFound(f"venue {venue_id!r} has no video {n!r}")
-            if by_name[n]["status"] not in ("ready", "modelled"):
-                raise Conflict(
-                    f"video {n!r} is not completely uploaded ({by_name[n]['received']} of {by_name[n]['size']} bytes)",
-                )
+            _check_uploaded(by_name[n])
+            if by_name[n]["role"] != "model":
+                raise Conflict(f"video {n!r} is an evaluation walk: it is evaluated, not modelled")
+            if not _tracked(by_name[n]):
+                raise Conflict(f"video {n!r} has no track yet")
         return list(dict.fromkeys(names))
 
     def submit(self, venue_id: str, names: Any) -> dict[str, Any]:
@@ -210,16 +285,78 @@ class Jobs:
                     )
                 break
             except IntegrityError:
-                busy = self.db.one(
-                    "SELECT id FROM jobs WHERE venue = :v AND state IN ('queued', 'running')", v=venue_id
-                )
-                if busy:
-                    raise Conflict(f"venue {venue_id!r} is already being modelled by job {busy['id']}") from None
+                self._busy(venue_id, "model", None)
                 # the active job ended between our insert and this look: try again
         else:
             raise Conflict(f"venue {venue_id!r} is busy with other modelling jobs; try again")
         self.wake.set()
         return self.get(job_id)
+
+    def submit_analysis(self, venue_id: str, kind: str, target: str | None = None) -> dict[str, Any]:
+        """Queue a suggest, quality or evaluate job (on video `target` for suggest and evaluate),
+        once what it needs is there: the video uploaded (and, to evaluate, an evaluation walk with
+        a track), the venue modelled (quality, evaluate)."""
+        self.cat.venues.get(venue_id)
+        self.reap()
+        self._check_analysis(venue_id, kind, target)
+        job_id = uuid.uuid4().hex[:16]
+        row = {
+            "id": job_id,
+            "v": venue_id,
+            "vs": json.dumps([target] if target else []),
+            "t": time.time(),
+            "k": kind,
+            "g": target,
+        }
+        for _ in range(3):
+            try:
+                self.db.run(
+                    "INSERT INTO jobs (id, venue, videos, state, created, kind, target) "
+                    "VALUES (:id, :v, :vs, 'queued', :t, :k, :g)",
+                    **row,
+                )
+                break
+            except IntegrityError:
+                self._busy(venue_id, kind, target)
+        else:
+            raise Conflict(f"venue {venue_id!r} is busy with other jobs; try again")
+        self.wake.set()
+        return self.get(job_id)
+
+    def _check_analysis(self, venue_id: str, kind: str, target: str | None) -> None:
+        if kind not in KINDS or kind == "model":
+            raise OmninavError(f"unknown kind of analysis job {kind!r}")
+        if kind in ("suggest", "evaluate"):
+            if target is None:
+                raise OmninavError(f"a {kind} job needs a video")
+            v = self.cat.videos.get(venue_id, target)
+            _check_uploaded(v)
+            if kind == "evaluate":
+                if v["role"] != "evaluation":
+                    raise Conflict(
+                        f"video {target!r} is a modelling walk; evaluate a walk uploaded with role 'evaluation'"
+                    )
+                if not _tracked(v):
+                    raise Conflict(f"video {target!r} has no track yet: tag its waypoints first")
+        if kind in ("quality", "evaluate") and self.cat.store.generation(venue_id) is None:
+            raise Conflict(f"venue {venue_id!r} has no modelled frames yet: model the venue first")
+
+    def _busy(self, venue_id: str, kind: str, target: str | None) -> None:
+        """After the one-active-job indexes refused an insert: say which job is in the way (the
+        same kind on the same target first). Returns when it has ended meanwhile."""
+        rows = self.db.all(
+            "SELECT id, kind, target FROM jobs WHERE venue = :v AND state IN ('queued', 'running') ORDER BY created",
+            v=venue_id,
+        )
+        same = [r for r in rows if r["kind"] == kind and (kind == "model" or r["target"] == target)]
+        for r in same or rows:
+            if r["kind"] == "model" and kind == "model":
+                raise Conflict(f"venue {venue_id!r} is already being modelled by job {r['id']}")
+            raise Conflict(
+                f"venue {venue_id!r} is busy {doing(r['kind'], r['target'])} (job {r['id']}); "
+                "try again when that job has ended",
+                job=r["id"],
+            )
 
     def cancel(self, job_id: str) -> dict[str, Any]:
         row = self.get(job_id)
@@ -235,13 +372,37 @@ class Jobs:
         self.db.run("UPDATE jobs SET cancel = 1 WHERE id = :id AND state = 'running'", id=job_id)
         return self.get(job_id)
 
+    def latest_done(self, venue_id: str, kind: str, target: str | None = None) -> dict[str, Any] | None:
+        """The venue's most recently finished job of `kind` (on video `target`) that has a result."""
+        self.cat.venues.get(venue_id)
+        on = "AND target = :g" if target is not None else ""
+        return self.db.one(
+            f"SELECT * FROM jobs WHERE venue = :v AND kind = :k {on} AND state = 'done' AND result IS NOT NULL "
+            "ORDER BY finished DESC, created DESC LIMIT 1",
+            v=venue_id,
+            k=kind,
+            g=target,
+        )
+
+    def result_path(self, row: dict[str, Any]) -> Path:
+        """The result file of a job: NotFound for a modelling job (its result is the venue's
+        frames) and where it is gone, Conflict while the job has not ended well."""
+        if row["kind"] == "model":
+            raise NotFound(f"job {row['id']} is a modelling job: its result is the venue's frames, not a file")
+        if row["state"] != "done":
+            raise Conflict(f"job {row['id']} is {row['state']}: a result comes once it is done")
+        path = self.cat.data / (row["result"] or "")
+        if not row["result"] or not path.is_file():
+            raise NotFound(f"the result of job {row['id']} is gone (its venue or video was deleted)")
+        return path
+
     def reap(self) -> int:
         """Take back the jobs whose runner died: queue them again (after a backoff) or, after
         MAX_ATTEMPTS, fail them. Returns how many. Safe to run in many processes at once: each
         update names the owner it saw, so a job another runner has claimed since is left alone."""
         n = 0
         now = time.time()
-        for r in self.db.all("SELECT id, owner, heartbeat, attempts, cancel FROM jobs WHERE state = 'running'"):
+        for r in self.db.all("SELECT id, kind, owner, heartbeat, attempts, cancel FROM jobs WHERE state = 'running'"):
             alive = owner_alive(r["owner"] or "")
             if alive is None:
                 alive = (r["heartbeat"] or 0) > now - self.stale_s
@@ -256,7 +417,8 @@ class Jobs:
                     o=r["owner"],
                 )
             else:
-                n += self._end_attempt(r["id"], r["owner"], r["attempts"], STOPPED, retry=True)
+                why = STOPPED if r["kind"] == "model" else "the server stopped while this job ran"
+                n += self._end_attempt(r["id"], r["owner"], r["attempts"], why, retry=True)
         return n
 
     def _end_attempt(self, job_id: str, owner: str | None, attempts: int, error: str, retry: bool) -> int:
@@ -364,8 +526,10 @@ class Jobs:
             beat_stop.set()
         return True
 
-    def _run(self, job: dict[str, Any]) -> None:
-        jid, venue = job["id"], job["venue"]
+    def _progress(self, jid: str) -> Callable[[int, int, float], None]:
+        """The engine's progress callback for job `jid`: writes frames done/total and the rate
+        (at most every PROGRESS_EVERY_S), and stops the work where the job was cancelled
+        (Cancelled) or taken over by another runner (Lost)."""
         last = 0.0
 
         def progress(done: int, total: int, elapsed: float) -> None:
@@ -385,11 +549,26 @@ class Jobs:
             )
             if not got:  # taken over: the row and its heartbeat are the new owner's now
                 raise Lost
-            row = self.db.one("SELECT cancel FROM jobs WHERE id = :id", id=jid)
-            if row is None:
-                raise Lost
-            if row["cancel"]:
-                raise Cancelled
+            self._check_cancel(jid)
+
+        return progress
+
+    def _check_cancel(self, jid: str) -> None:
+        row = self.db.one("SELECT cancel FROM jobs WHERE id = :id", id=jid)
+        if row is None:
+            raise Lost
+        if row["cancel"]:
+            raise Cancelled
+
+    def _run(self, job: dict[str, Any]) -> None:
+        if job["kind"] == "model":
+            self._run_model(job)
+        else:
+            self._run_analysis(job)
+
+    def _run_model(self, job: dict[str, Any]) -> None:
+        jid, venue = job["id"], job["venue"]
+        progress = self._progress(jid)
 
         def still_mine() -> None:  # under the venue's lock, just before the commit
             if self.db.one(f"SELECT id FROM jobs WHERE {self._MINE}", id=jid, o=self.me) is None:
@@ -416,6 +595,87 @@ class Jobs:
                 self._drop_leftovers(venue)
             self._end_attempt(jid, self.me, job["attempts"], error, retry)  # a retry: the loop's poll finds it
         self.cat.venues.touch(venue)
+
+    def _run_analysis(self, job: dict[str, Any]) -> None:
+        """A suggest, quality or evaluate job: the engine's function, then its result written
+        beside its final place and renamed there in the transaction that marks the job done."""
+        jid, venue, kind = job["id"], job["venue"], job["kind"]
+        tmp: Path | None = None
+        try:
+            result = self._analyse(job, self._progress(jid))
+            self._check_cancel(jid)  # a cancel that came after the engine's last progress call
+            rel = result_file(venue, jid)
+            result = _plain(result)
+            tmp = _write_beside(self.cat.data / rel, json.dumps(result, allow_nan=False))
+            self._done_analysis(job, rel, tmp, result)
+        except Lost:
+            log.warning("job %s was taken over by another runner; this one stops", jid)
+        except Cancelled:
+            self._finish(jid, "cancelled")
+        except Exception as e:
+            error, retry = failure(e, kind)
+            if not isinstance(e, OmninavError):
+                log.exception("job %s", jid)
+            self._end_attempt(jid, self.me, job["attempts"], error, retry)
+        finally:
+            if tmp is not None:  # not renamed into place: this attempt publishes nothing
+                tmp.unlink(missing_ok=True)
+
+    def _analyse(self, job: dict[str, Any], progress: Callable[[int, int, float], None]) -> dict[str, Any]:
+        """Run the engine's function of the job's kind; its result (JSON-able)."""
+        cat, venue, target = self.cat, job["venue"], job["target"]
+        if job["kind"] == "quality":
+            from ..quality import quality_map
+
+            number, _ = cat.venues.modelled(venue)  # read first: a newer load is only ever refreshed again
+            gen = cat.store.load(venue)  # the live generation (Conflict: not modelled)
+            q = quality_map(
+                gen, cat.places.all(venue), cat.videos.floors(venue), device=self.device or "cpu", progress=progress
+            )
+            if q.get("generation") is None:  # the engine sees frames, not which generation they are
+                q["generation"] = number
+            return q
+        v = cat.videos.get(venue, target)
+        path = cat.videos.dir(venue) / v["name"]
+        if v["status"] not in ("ready", "modelled") or not path.is_file():
+            raise OmninavError(f"video {target!r} has no uploaded file")
+        lens = cat.lenses.get(venue, v["lens"])
+        if job["kind"] == "suggest":
+            from ..suggest import suggest_waypoints
+
+            return suggest_waypoints(path, lens, progress=progress)
+        if job["kind"] == "evaluate":
+            from ..evaluate import evaluate_walk
+            from ..locate import Locator
+
+            if not _tracked(v):
+                raise OmninavError(f"video {target!r} has no track")
+            places = [p for p in cat.places.all(venue) if p["floor"] == v["floor"]]
+            loc = Locator(cat.store, venue, device=self.device, places=places, floor=v["floor"])
+            return evaluate_walk(loc, path, parse_track(json.loads(v["track"])), lens, progress=progress)
+        raise OmninavError(f"job {job['id']} is of an unknown kind {job['kind']!r}")
+
+    def _done_analysis(self, job: dict[str, Any], rel: str, tmp: Path, result: dict[str, Any]) -> None:
+        """The job done with its result, in one transaction that is also the last ownership check:
+        the file is renamed into place only while this runner still owns the job (a takeover's
+        UPDATE waits for this transaction), so a runner taken over publishes nothing."""
+        mine = {"t": time.time(), "id": job["id"], "o": self.me, "r": rel}
+        if job["kind"] == "suggest":
+            # on the video before the job is seen done (a page reloads the video on 'done'); a
+            # runner taken over just after this check writes what the new owner will write again
+            if self.db.one(f"SELECT id FROM jobs WHERE {self._MINE}", id=job["id"], o=self.me) is None:
+                raise Lost
+            self.cat.videos.set_suggestions(job["venue"], job["target"], result)
+        with self.db.tx() as c:
+            # done is all of it, whether or not the engine's last progress call said so
+            sql = (
+                "UPDATE jobs SET state = 'done', finished = :t, result = :r, frames_done = frames_total "
+                f"WHERE {self._MINE}"
+            )
+            if not c.execute(text(sql), mine).rowcount:
+                raise Lost  # leaving the block this way rolls the transaction back
+            os.replace(tmp, self.cat.data / rel)
+        log.info("job %s done", job["id"])
 
     def _done(self, jid: str, venue: str, results: list[Any]) -> None:
         """Record a committed job: the job done and its videos modelled, in one transaction that

@@ -246,7 +246,7 @@ def _run_jobs(conf: dict[str, Any]) -> None:
     _die_with_parent()
     os.nice(10)
     db = Db(database_url(conf))
-    jobs = Jobs(Catalog(db, Path(conf["DATA"])), stale_s=conf["JOB_STALE_S"])
+    jobs = Jobs(Catalog(db, Path(conf["DATA"])), stale_s=conf["JOB_STALE_S"], device=conf["DEVICE"] or None)
     # SIGTERM (the server stopping) ends the process at once: a job it was running wrote nothing
     # live, and the next runner takes it up again (its owner is gone: Jobs.reap)
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))

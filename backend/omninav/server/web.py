@@ -1,4 +1,5 @@
-"""The web app at /: the built PWA (web/dist) when there is one, else a page that says how to build it."""
+"""The web app at / (the built PWA, web/dist, when there is one, else a page that says how to build it)
+and the admin page at /admin (admin.html of the same build; linked from nowhere in the phone app)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,14 @@ from flask import Blueprint, Response, current_app, request, send_from_directory
 from .http import WORKER_CSP
 
 bp = Blueprint("web", __name__)
-NO_CACHE = ("sw.js", "index.html", "manifest.webmanifest")  # must update as soon as the app does
+# The admin page runs no WebAssembly and needs no camera; Leaflet styles its elements through the
+# CSSOM (element.style), which a policy without 'unsafe-inline' allows: no inline style or script.
+ADMIN_CSP = (
+    "default-src 'self'; script-src 'self'; worker-src 'self'; connect-src 'self'; "
+    "img-src 'self' data: blob:; media-src 'self' blob:; style-src 'self'; object-src 'none'; "
+    "base-uri 'none'; form-action 'self'; frame-ancestors 'none'"
+)
+NO_CACHE = ("sw.js", "index.html", "admin.html", "manifest.webmanifest")  # must update as soon as the app does
 
 
 def _dist() -> Path:
@@ -48,6 +56,18 @@ def index() -> Any:
         return _send("index.html")
     page = files("omninav.server").joinpath("placeholder.html").read_text()
     return Response(page, mimetype="text/html")
+
+
+@bp.get("/admin")
+@bp.get("/admin/")
+def admin() -> Any:
+    if not (_dist() / "admin.html").is_file():
+        page = files("omninav.server").joinpath("placeholder.html").read_text()
+        return Response(page, mimetype="text/html")
+    resp = _send("admin.html")
+    resp.headers["Content-Security-Policy"] = ADMIN_CSP
+    resp.headers["Permissions-Policy"] = "camera=(), microphone=(), geolocation=()"
+    return resp
 
 
 @bp.get("/<path:asset>")

@@ -37,6 +37,8 @@ class Scene:
     centerlines: list[list[tuple[float, float]]]  # corridor centre polylines
     places: list[dict[str, Any]] = field(default_factory=list)  # named places {name, x, y, area}
     corridor_width: float = 2.4
+    # the layout's own (modelling, query) routes, where the default ones of walks.py do not fit
+    routes: tuple[list[Point], list[Point]] | None = None
 
 
 @dataclass
@@ -82,6 +84,91 @@ def small_layout() -> Layout:
     ]
     lines = [[(2.0, 2.0), (20.0, 2.0)], [(20.0, 2.0), (20.0, 12.0)]]
     return (23.0, 15.0), rects, lines
+
+
+# The twin layout: a ring of corridors whose west and east sides are twins (the east side is the
+# west side turned half round about the ring's centre: the same walls, doors, boards and floor),
+# a unique middle corridor, and a dead-end stairwell off the north corridor that no route enters.
+TWIN_RING = (3.0, 8.0, 27.0, 20.0)  # x0, y0, x1, y1 of the ring's centre lines
+TWIN_MIDDLE_X = 15.0
+TWIN_STAIRS = ((9.0, 8.0), (9.0, 2.0))
+TWINS = (2, 3)  # rectangles: the original, and its copy turned half round
+
+
+def twin_layout() -> Layout:
+    """A 24 x 12 m ring whose west and east corridors are identical, a middle corridor and a
+    6 m stairwell: the venue of the quality map's tests (a deliberately repeated stretch)."""
+    w = 2.4
+    x0, y0, x1, y1 = TWIN_RING
+    xm = TWIN_MIDDLE_X
+    (sx, sy0), (_, sy1) = TWIN_STAIRS
+    rects = [
+        (x0 - w / 2, y0 - w / 2, x1 + w / 2, y0 + w / 2),  # north
+        (x0 - w / 2, y1 - w / 2, x1 + w / 2, y1 + w / 2),  # south
+        (x0 - w / 2, y0 - w / 2, x0 + w / 2, y1 + w / 2),  # west
+        (x1 - w / 2, y0 - w / 2, x1 + w / 2, y1 + w / 2),  # east: the west one turned half round
+        (xm - w / 2, y0 - w / 2, xm + w / 2, y1 + w / 2),  # middle
+        (sx - w / 2, sy1 - w / 2, sx + w / 2, sy0 - w / 2),  # stairwell, ending at the north corridor
+    ]
+    lines = [
+        [(x0, y0), (x1, y0)],
+        [(x0, y1), (x1, y1)],
+        [(x0, y0), (x0, y1)],
+        [(x1, y0), (x1, y1)],
+        [(xm, y0), (xm, y1)],
+        [TWIN_STAIRS[0], TWIN_STAIRS[1]],
+    ]
+    return (x1 + 3.0, y1 + 3.0), rects, lines
+
+
+def twin_routes() -> tuple[list[Point], list[Point]]:
+    """Each corridor of the ring and the middle one walked once, the stairwell never: the
+    modelling walk goes east along the north corridor, south along the east twin, west, north
+    along the west twin and down the middle; the query walk is the same the other way round."""
+    x0, y0, x1, y1 = TWIN_RING
+    xm = TWIN_MIDDLE_X
+    model = [(xm, y0), (x1, y0), (x1, y1), (xm, y1), (x0, y1), (x0, y0), (xm, y0), (xm, y1)]
+    return model, model[::-1]
+
+
+def _half_turn(x: float, y: float) -> Point:
+    """The twin layout's symmetry: half a turn about the ring's centre."""
+    x0, y0, x1, y1 = TWIN_RING
+    return x0 + x1 - x, y0 + y1 - y
+
+
+def _copy_twin(
+    rects: list[Rect],
+    segs: list[tuple[float, float, float, float]],
+    offs: list[int],
+    floor: np.ndarray,
+) -> int:
+    """Make the second twin show the first one's walls and floor: every wall segment of the copy
+    takes the atlas strip of the segment it is the half turn of (a segment runs with free space on
+    its left, which a turn keeps). Returns how many segments were shared."""
+    a, b = rects[TWINS[0]], rects[TWINS[1]]
+    src = {
+        tuple(round(v, 3) for v in (*_half_turn(x0, y0), *_half_turn(x1, y1))): i
+        for i, (x0, y0, x1, y1) in enumerate(segs)
+    }
+    shared = 0
+    for i, (x0, y0, x1, y1) in enumerate(segs):
+        mx, my = (x0 + x1) / 2, (y0 + y1) / 2
+        if b[0] - 0.05 <= mx <= b[2] + 0.05 and b[1] - 0.05 <= my <= b[3] + 0.05:
+            j = src.get(tuple(round(v, 3) for v in (x0, y0, x1, y1)))
+            if j is not None and j != i:
+                offs[i] = offs[j]
+                shared += 1
+    # the floor tiles too (the ceiling's lights are symmetric already)
+    ra = [int(round(v * PLAN_PPM)) for v in a]
+    rb = [int(round(v * PLAN_PPM)) for v in b]
+    floor[rb[1] : rb[3], rb[0] : rb[2]] = floor[ra[1] : ra[3], ra[0] : ra[2]][::-1, ::-1]
+    return shared
+
+
+LAYOUTS = {"default": default_layout, "small": small_layout, "twin": twin_layout}
+_RING = ["North corridor", "South corridor", "West corridor", "East corridor", "Middle corridor"]
+NAMES = {"default": _RING, "twin": [*_RING, "Stairwell"]}  # of the layouts' corridors (else numbered)
 
 
 def _grid(size_m: Point, rects: list[Rect]) -> np.ndarray:
@@ -282,9 +369,13 @@ def _floor_and_ceiling(
 def build_scene(seed: int = 0, layout: str = "default") -> Scene:
     """The synthetic venue for a seed: geometry, textures and named places."""
     rng = np.random.default_rng(seed)
-    size, rects, lines = (default_layout if layout == "default" else small_layout)()
+    if layout not in LAYOUTS:
+        raise ValueError(f"unknown layout {layout!r} (known: {', '.join(LAYOUTS)})")
+    size, rects, lines = LAYOUTS[layout]()
     free = _grid(size, rects)
     pill = _pillars(free, rng)
+    if layout == "twin":  # no pillar in either twin: the same walls, run for run
+        pill &= ~_grid(size, [rects[i] for i in TWINS])
     free_final = free & ~pill
     raw = _segments(free_final)
     segs, offs, strips = [], [], []
@@ -316,20 +407,33 @@ def build_scene(seed: int = 0, layout: str = "default") -> Scene:
         off += tex.shape[1]
     atlas = np.concatenate(strips, axis=1)
     floor, ceiling = _floor_and_ceiling(free_final, rng, lines)
+    routes = None
+    if layout == "twin":
+        _copy_twin(rects, segs, offs, floor)
+        routes = twin_routes()
     places = []
     for i, line in enumerate(lines):
         (ax, ay), (bx, by) = line
-        names = ["North corridor", "South corridor", "West corridor", "East corridor", "Middle corridor"]
+        names = NAMES.get(layout)
         places.append(
             {
-                "name": names[i] if layout == "default" else f"Corridor {i + 1}",
+                "name": names[i] if names else f"Corridor {i + 1}",
                 "x": (ax + bx) / 2,
                 "y": (ay + by) / 2,
                 "area": [round(float(v), 3) for v in rects[i]],  # the corridor's floor: x0, y0, x1, y1
             }
         )
     return Scene(
-        size, free_final, np.array(segs, np.float64), np.array(offs, np.int64), atlas, floor, ceiling, lines, places
+        size,
+        free_final,
+        np.array(segs, np.float64),
+        np.array(offs, np.int64),
+        atlas,
+        floor,
+        ceiling,
+        lines,
+        places,
+        routes=routes,
     )
 
 

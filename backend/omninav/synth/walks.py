@@ -33,6 +33,7 @@ class Perturb:
     people: int = 0
     lens_shift_px: float = 0.0
     noise: float = 1.0  # sensor noise sigma, grey levels
+    sway_deg: float = 0.0  # the yaw swinging +- this at 0.9 Hz (once a stride), walking or standing
 
 
 MODELLING = Perturb(noise=1.5)
@@ -74,6 +75,8 @@ def route_through(scene: Scene, order: list[int], reverse: list[bool] | None = N
 
 def default_routes(scene: Scene) -> tuple[list[Point], list[Point]]:
     """(modelling route, query route) for a built-in layout; the query walks the other way round."""
+    if scene.routes is not None:  # the layout's own (scene.py: twin)
+        return scene.routes
     n = len(scene.centerlines)
     if n == 5:  # the default ring + middle corridor
         a, b, c, d, m = (3.0, 3.0), (51.0, 3.0), (51.0, 23.0), (3.0, 23.0), (27.0, 3.0)
@@ -108,24 +111,111 @@ def offset_route(
     return out
 
 
-def track_for(route: list[Point], speeds: list[float], fps: float, heading_offset: float = 0.0) -> dict[str, Any]:
-    """A track (docs/formats.md): a waypoint (t in seconds) at every route vertex."""
+def track_for(
+    route: list[Point],
+    speeds: list[float],
+    fps: float,
+    heading_offset: float = 0.0,
+    stops: dict[int, float] | None = None,
+) -> dict[str, Any]:
+    """A track (docs/formats.md): a waypoint (t in seconds) at every route vertex.
+
+    `stops` maps a route vertex index to seconds stood still there: the vertex is repeated at the
+    later time, which the track's linear interpolation reads as standing still.
+    """
+    stops = stops or {}
     t = 0.0
     wps = [{"t": 0.0, "x": round(route[0][0], 4), "y": round(route[0][1], 4)}]
+
+    def stand(i: int) -> None:
+        nonlocal t
+        if stops.get(i, 0.0) > 0:
+            t += stops[i]
+            wps.append({"t": round(t, 4), "x": round(route[i][0], 4), "y": round(route[i][1], 4)})
+
+    stand(0)
     for i, ((ax, ay), (bx, by)) in enumerate(zip(route[:-1], route[1:], strict=True)):
         t += np.hypot(bx - ax, by - ay) / speeds[i % len(speeds)]
         wps.append({"t": round(t, 4), "x": round(bx, 4), "y": round(by, 4)})
+        stand(i + 1)
     return {"fps": fps, "waypoints": wps, "heading_offset_deg": heading_offset}
 
 
-def poses_from_track(track: dict[str, Any], perturb: Perturb, rng: np.random.Generator) -> list[Pose]:
-    """One pose per video frame, exactly where the track says (its ground truth)."""
+def _leg_headings(times: np.ndarray, xy: np.ndarray, min_leg_m: float = 1e-6) -> np.ndarray:
+    """(N,) waypoint times, (N, 2) positions -> (N-1,) heading of each leg (deg, in (-180, 180]).
+
+    A leg that does not move (a stop) keeps the heading of the leg before it (the first legs, of
+    the first leg that moves): standing still is not turning round.
+    """
+    d = np.diff(xy, axis=0)
+    moving = np.hypot(d[:, 0], d[:, 1]) > min_leg_m
+    h = np.degrees(np.arctan2(d[:, 0], -d[:, 1]))  # heading h points along (sin h, -cos h)
+    if not moving.any():
+        return np.zeros(len(d))
+    idx = np.where(moving, np.arange(len(d)), -1)
+    idx = np.maximum.accumulate(idx)
+    idx[idx < 0] = int(np.flatnonzero(moving)[0])
+    out: np.ndarray = h[idx]
+    return out
+
+
+def walk_events(
+    track: dict[str, Any], min_turn_deg: float = 30.0
+) -> tuple[list[tuple[float, float]], list[tuple[float, float]]]:
+    """The ground truth of a synthetic walk: (turns [(t, signed deg, + clockwise)], stops [(t, s)]).
+
+    A turn is a waypoint where the leg heading changes by at least `min_turn_deg` (after a stop,
+    at the end of the stop, where the walker sets off the new way); a stop is a waypoint repeated.
+    """
+    from ..track import parse_track
+
+    tr = parse_track(track)
+    legs = np.unwrap(_leg_headings(tr.times, tr.xy), period=360.0)
+    turns = [
+        (float(tr.times[i + 1]), float(legs[i + 1] - legs[i]))
+        for i in range(len(legs) - 1)
+        if abs(legs[i + 1] - legs[i]) >= min_turn_deg
+    ]
+    d = np.hypot(*np.diff(tr.xy, axis=0).T)
+    stops = [(float(tr.times[i]), float(tr.times[i + 1] - tr.times[i])) for i in np.flatnonzero(d <= 1e-6)]
+    return turns, stops
+
+
+def poses_from_track(
+    track: dict[str, Any], perturb: Perturb, rng: np.random.Generator, turn_s: float = 0.0
+) -> list[Pose]:
+    """One pose per video frame, exactly where the track says (its ground truth).
+
+    The heading is the direction of the leg plus the track's heading offset, turning at once at a
+    waypoint (as docs/formats.md has it) or, with `turn_s` > 0, turning steadily over `turn_s`
+    seconds centred on the waypoint, as a person walks round a corner. A stop (a waypoint repeated
+    at a later time) keeps the heading it arrived with.
+    """
     from ..track import parse_track
 
     tr = parse_track(track)
     n = int(np.floor(tr.times[-1] * tr.fps)) + 1
     ts = np.arange(n) / tr.fps
-    xy, hd, ok = tr.pose_at(ts)
+    xy, _, ok = tr.pose_at(ts)
+    legs = _leg_headings(tr.times, tr.xy)
+    if turn_s > 0 and len(legs) > 1:
+        legs = np.unwrap(legs, period=360.0)
+        # the heading ramps from one leg's to the next over turn_s around each inner waypoint
+        kt, kh = [tr.times[0]], [legs[0]]
+        for i in range(1, len(legs)):
+            if legs[i] != legs[i - 1]:
+                half = min(turn_s / 2, (tr.times[i] - tr.times[i - 1]) / 2, (tr.times[i + 1] - tr.times[i]) / 2)
+                kt += [tr.times[i] - half, tr.times[i] + half]
+                kh += [legs[i - 1], legs[i]]
+        kt.append(tr.times[-1])
+        kh.append(legs[-1])
+        hd = np.interp(ts, kt, kh)
+    else:
+        leg = np.clip(np.searchsorted(tr.times, ts, side="right") - 1, 0, len(legs) - 1)
+        hd = legs[leg]
+    if perturb.sway_deg:
+        hd = hd + perturb.sway_deg * np.sin(2 * np.pi * 0.9 * ts)
+    hd = np.mod(hd + tr.heading_offset, 360.0)
     h0 = rng.uniform(*perturb.height_m)
     # slowly varying tilt: a smoothed random walk within +-tilt_deg
     tilt = np.zeros(n)
@@ -203,6 +293,23 @@ def write_video(path: Path, frames: Iterable[np.ndarray], fps: float, size: tupl
     finally:
         vw.release()
     return n
+
+
+def render_walk(
+    path: Path,
+    scene: Scene,
+    lens: Lens,
+    track: dict[str, Any],
+    perturb: Perturb = MODELLING,
+    seed: int = 0,
+    turn_s: float = 0.0,
+    pano_width: int = 1440,
+) -> int:
+    """Render the walk `track` describes (its corners turned over `turn_s`) into a video at the
+    track's fps; returns the number of frames. A smaller `pano_width` renders faster, coarser."""
+    poses = poses_from_track(track, perturb, np.random.default_rng(seed), turn_s=turn_s)
+    frames = (f for _, f in render_frames(scene, lens, poses, perturb, seed + 1, pano_width))
+    return write_video(path, frames, float(track["fps"]), lens.image_size)
 
 
 def write_json(path: Path, obj: dict[str, Any]) -> None:

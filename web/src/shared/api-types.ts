@@ -14,6 +14,10 @@ export interface Place {
   y: number;
   /** A region one can be in, [x0, y0, x1, y1] in metres. */
   area?: [number, number, number, number];
+  /** What it is (docs/formats.md); a lift or stairs of one name on two floors joins them. */
+  kind?: 'room' | 'door' | 'lift' | 'stairs' | 'exit' | 'toilet' | 'desk' | 'other';
+  /** A sentence to speak on arrival. */
+  say?: string;
 }
 
 export interface Floor {

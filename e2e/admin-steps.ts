@@ -1,0 +1,173 @@
+// Steps of the admin page that several specs take (admin-videos.spec.ts, admin-build.spec.ts): the
+// admin API called directly for set-up, and the page driven as an admin drives it. The walk's truth
+// comes from e2e/fixtures.py `admin` (data/e2e/admin/admin.json), rendered by global-setup.ts.
+import { readFileSync } from 'node:fs';
+import { resolve } from 'node:path';
+import { expect, type Page } from '@playwright/test';
+import { TOKEN, WORK, base } from './env';
+
+/** What fixtures.py `admin` renders: plan.png, lens.json, walk.mp4, eval.mp4 and admin.json. */
+export const ADMIN_DIR = resolve(WORK, 'admin');
+export const adminFile = (name: string): string => resolve(ADMIN_DIR, name);
+
+export interface TruthWaypoint {
+  t?: number;
+  frame?: number;
+  x: number;
+  y: number;
+}
+export interface TruthTrack {
+  fps?: number;
+  waypoints: TruthWaypoint[];
+}
+export interface AdminTruth {
+  plan: { size_px: [number, number]; px_per_m: number };
+  scale: { a_px: [number, number]; b_px: [number, number]; distance_m: number };
+  places: { name: string; x?: number; y?: number; area?: [number, number, number, number] }[];
+  walk: { track: TruthTrack; frames: number; duration_s: number };
+  eval: { track: TruthTrack; frames: number; duration_s: number };
+}
+
+export const adminTruth = (): AdminTruth => JSON.parse(readFileSync(adminFile('admin.json'), 'utf8')) as AdminTruth;
+
+/** An admin API call with the token (no If-Match: the last write wins, as for API clients). */
+export async function adminApi<T = unknown>(method: string, path: string, body?: unknown): Promise<T> {
+  const headers: Record<string, string> = { Authorization: `Bearer ${TOKEN}` };
+  let data: BodyInit | undefined;
+  if (body instanceof Uint8Array) {
+    headers['Content-Type'] = 'image/png';
+    data = body as unknown as BodyInit;
+  } else if (body !== undefined) {
+    headers['Content-Type'] = 'application/json';
+    data = JSON.stringify(body);
+  }
+  const r = await fetch(`${base()}${path}`, { method, headers, body: data });
+  if (!r.ok) throw new Error(`${method} ${path}: ${r.status} ${await r.text()}`);
+  return (r.status === 204 ? null : await r.json()) as T;
+}
+
+/**
+ * A venue with the admin fixture's plan (scaled), places and lens `donut`, made through the API
+ * (for specs that start after the steps the page's other screens test). A venue of that id goes first.
+ */
+export async function venueByApi(id: string, name = `Admin test ${id}`): Promise<void> {
+  const truth = adminTruth();
+  await fetch(`${base()}/api/admin/venues/${id}`, { method: 'DELETE', headers: { Authorization: `Bearer ${TOKEN}` } });
+  await adminApi('POST', '/api/admin/venues', { id, name });
+  await adminApi('PUT', `/api/admin/venues/${id}/floors/1`, { name: 'Ground floor' });
+  await adminApi('PUT', `/api/admin/venues/${id}/floors/1/plan`, new Uint8Array(readFileSync(adminFile('plan.png'))));
+  await adminApi('PUT', `/api/admin/venues/${id}/floors/1`, { px_per_m: truth.plan.px_per_m });
+  await adminApi(
+    'PUT',
+    `/api/admin/venues/${id}/places`,
+    truth.places.map((p) => ({
+      floor: '1',
+      x: p.x ?? (p.area ? (p.area[0] + p.area[2]) / 2 : 0),
+      y: p.y ?? (p.area ? (p.area[1] + p.area[3]) / 2 : 0),
+      ...p,
+    })),
+  );
+  await adminApi(
+    'PUT',
+    `/api/admin/venues/${id}/lenses/donut`,
+    JSON.parse(readFileSync(adminFile('lens.json'), 'utf8')),
+  );
+}
+
+/** Open the admin page and sign in with the suite's token. */
+export async function signIn(page: Page): Promise<void> {
+  await page.goto(`${base()}/admin`);
+  await page.getByLabel('Admin token').fill(TOKEN);
+  await page.getByRole('button', { name: 'Sign in' }).click();
+  await expect(page.getByRole('button', { name: 'Sign out' })).toBeVisible();
+}
+
+/** Go to a screen of a venue (the page is signed in). */
+export async function openScreen(page: Page, venue: string, screen: string, params = ''): Promise<void> {
+  await page.evaluate((h) => (location.hash = h), `#/v/${venue}/${screen}${params ? `?${params}` : ''}`);
+  await expect(page.locator('main h2').first()).toBeVisible();
+}
+
+/** Choose videos on the videos screen with a floor, lens and role. */
+export async function chooseVideos(
+  page: Page,
+  files: string[],
+  opts: { lens?: string; role?: 'model' | 'evaluation'; floor?: string } = {},
+): Promise<void> {
+  if (opts.floor) await page.getByLabel('Floor', { exact: true }).selectOption(opts.floor);
+  if (opts.lens) await page.getByLabel('Lens', { exact: true }).selectOption(opts.lens);
+  if (opts.role) await page.getByLabel('Role', { exact: true }).selectOption(opts.role);
+  await page.getByLabel('Walk video files').setInputFiles(files);
+}
+
+/** The upload's progress bar on the videos screen. */
+export const uploadBar = (page: Page, name: string) => page.getByRole('progressbar', { name: `Upload of ${name}` });
+
+/** Wait until the videos screen says `name` is uploaded and its turns and stops are found. */
+export async function waitUploadedAndSuggested(page: Page, name: string, timeout = 120_000): Promise<void> {
+  const row = page.locator(`li.upload[data-name="${name}"]`);
+  await expect(row.locator('.upload-status')).toHaveText(/uploaded/, { timeout });
+  await expect(row).toContainText('suggested waypoints', { timeout });
+}
+
+/** Where a truth track has the walker at `t` (linear between waypoints, clamped to its ends). */
+export function truthAt(track: TruthTrack, t: number): { x: number; y: number } {
+  const fps = track.fps ?? 30;
+  const w = track.waypoints.map((p) => ({ t: p.t ?? (p.frame ?? 0) / fps, x: p.x, y: p.y }));
+  if (t <= w[0].t) return w[0];
+  for (let i = 1; i < w.length; i++)
+    if (t <= w[i].t) {
+      const k = (t - w[i - 1].t) / (w[i].t - w[i - 1].t);
+      return { x: w[i - 1].x + k * (w[i].x - w[i - 1].x), y: w[i - 1].y + k * (w[i].y - w[i - 1].y) };
+    }
+  return w[w.length - 1];
+}
+
+/** Click the plan (the Leaflet map inside `container`) at (x, y) metres of a plan w_m x h_m metres. */
+export async function clickPlanAt(page: Page, container: string, x: number, y: number, sizeM: [number, number]) {
+  const img = page.locator(`${container} img.pm-plan`);
+  await expect(img).toBeVisible();
+  const box = await img.boundingBox();
+  if (!box) throw new Error('the plan image has no box');
+  await page.mouse.click(box.x + (x / sizeM[0]) * box.width, box.y + (y / sizeM[1]) * box.height);
+}
+
+/** The plan's size in metres, from the fixture's truth. */
+export function planSizeM(truth = adminTruth()): [number, number] {
+  return [truth.plan.size_px[0] / truth.plan.px_per_m, truth.plan.size_px[1] / truth.plan.px_per_m];
+}
+
+/**
+ * On the track screen of a video: accept the suggestions in order, clicking the plan where the
+ * walker truly was at each suggested moment; -> how many plan clicks it took.
+ */
+export async function tagBySuggestions(page: Page, track: TruthTrack, sizeM = planSizeM()): Promise<number> {
+  await page.getByRole('button', { name: 'Tag the suggestions in order' }).click();
+  let clicks = 0;
+  for (; clicks < 50; clicks++) {
+    const current = page.locator('#suggestions button[aria-current="true"]');
+    if ((await current.count()) === 0) break;
+    const t = Number(await current.getAttribute('data-t'));
+    const at = truthAt(track, t);
+    await clickPlanAt(page, '#track-plan', at.x, at.y, sizeM);
+    // the click is taken: that suggestion is tagged (and the next one, if any, is current)
+    await expect(page.locator(`#suggestions li.tagged button[data-t="${t}"]`)).toHaveCount(1);
+  }
+  return clicks;
+}
+
+/** Save the track on the track screen and wait for the server's yes. */
+export async function saveTrack(page: Page, name: string): Promise<void> {
+  await page.getByRole('button', { name: 'Save the track' }).click();
+  await expect(page.locator('#track-status')).toContainText(`Track of ${name} saved`);
+}
+
+/** On the modelling screen: model the waiting videos and watch the progress bar reach 100 %. */
+export async function modelAndWait(page: Page, timeout = 300_000): Promise<void> {
+  await page.locator('#model-start').click();
+  const bar = page.getByRole('progressbar', { name: 'Modelling progress' });
+  await expect(bar).toBeVisible();
+  await expect(bar).toHaveAttribute('aria-valuetext', '100 %', { timeout });
+  await expect(page.locator('#model-outcome')).toContainText('Modelling done', { timeout: 30_000 });
+  await expect(page.locator('#live-generation')).toContainText(/generation \d+/);
+}

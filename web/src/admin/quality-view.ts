@@ -1,0 +1,105 @@
+/**
+ * The quality map in words and colours, without Leaflet or the DOM (so it is unit-tested in Node):
+ * what each verdict looks like on the plan and how each stretch and corridor is said in the text
+ * alternative. The result's format is omninav.quality.quality_map's (types.ts, Quality).
+ */
+import type { Quality, QualityCorridor, QualitySegment, Verdict } from './types';
+
+export type CorridorVerdict = Verdict | 'grey';
+
+/** Plan colours, dark enough on the white plan for the 3:1 that WCAG asks of graphics. */
+export const VERDICT_COLOUR: Record<CorridorVerdict, string> = {
+  green: '#1b7a34',
+  amber: '#b35c00',
+  red: '#c5221f',
+  grey: '#6b6b6b',
+};
+
+/** What a verdict means, as the legend and the text alternative say it. */
+export const VERDICT_MEANING: Record<CorridorVerdict, string> = {
+  green: 'answers within 2 m',
+  amber: 'right, but a look-alike place scored close',
+  red: 'answers the wrong place',
+  grey: 'no video covers it',
+};
+
+/** "12.0 s" below a minute, "1:05.0" above (the time in a walk video). */
+export function clock(t: number): string {
+  if (t < 60) return `${t.toFixed(1)} s`;
+  const m = Math.floor(t / 60);
+  const s = t - 60 * m;
+  return `${m}:${s.toFixed(1).padStart(4, '0')}`;
+}
+
+/** "(14.0, 2.3) m" */
+export const at = (x: number, y: number): string => `(${x.toFixed(1)}, ${y.toFixed(1)}) m`;
+
+/** "92 %" (a 0..1 share). */
+export const percent = (share: number): string => `${Math.round(share * 100)} %`;
+
+/** The middle point of a stretch's polyline (where it is said to be). */
+export function middle(seg: QualitySegment): [number, number] {
+  const p = seg.points;
+  if (p.length === 0) return [seg.match.x, seg.match.y];
+  return p[Math.floor((p.length - 1) / 2)];
+}
+
+/** "red stretch: model.mp4 12.0 s to 13.0 s, near (14.0, 2.0) m" */
+export function stretchTitle(seg: QualitySegment): string {
+  const [x, y] = middle(seg);
+  return `${seg.verdict} stretch: ${seg.video} ${clock(seg.t0)} to ${clock(seg.t1)}, near ${at(x, y)}`;
+}
+
+/** Why a stretch has its verdict: how far the answer was and which look-alike it was taken for. */
+export function stretchReason(seg: QualitySegment): string {
+  const m = seg.match;
+  const where = `${m.video} at ${clock(m.t)}, ${at(m.x, m.y)}`;
+  if (seg.verdict === 'green') return `answered within ${seg.error_m.toFixed(1)} m`;
+  if (seg.verdict === 'amber')
+    return `answered ${seg.error_m.toFixed(1)} m away, but ${where} scored close (margin ${seg.margin.toFixed(2)})`;
+  return `answered ${seg.error_m.toFixed(1)} m away: taken for ${where}`;
+}
+
+/** "both walking directions filmed" / "only one walking direction filmed" / "not filmed" */
+export function directionsText(c: QualityCorridor): string {
+  const { forward, backward } = c.directions;
+  if (forward && backward) return 'both walking directions filmed';
+  if (forward || backward) return `filmed one way only (${forward ? 'forward' : 'backward'}); film the other way too`;
+  return 'not filmed in either direction';
+}
+
+/** One corridor in the text alternative. */
+export function corridorText(c: QualityCorridor): string {
+  if (c.verdict === 'grey') return `${c.place}: grey, ${VERDICT_MEANING.grey}`;
+  const parts = [`${c.place}: ${c.verdict}`, `${percent(c.covered)} covered`];
+  if (c.share_green !== null) parts.push(`${percent(c.share_green)} of it answers within 2 m`);
+  parts.push(directionsText(c));
+  return parts.join(', ');
+}
+
+/** The stretches an admin should look at (red first, then amber, each in walk order) on a floor. */
+export function problemStretches(q: Quality, floor: string): QualitySegment[] {
+  const rank = (s: QualitySegment) => (s.verdict === 'red' ? 0 : 1);
+  return q.segments
+    .filter((s) => s.floor === floor && s.verdict !== 'green')
+    .sort((a, b) => rank(a) - rank(b) || a.video.localeCompare(b.video) || a.t0 - b.t0);
+}
+
+/** How many stretches of each verdict are on a floor. */
+export function verdictCounts(q: Quality, floor: string): Record<Verdict, number> {
+  const n: Record<Verdict, number> = { green: 0, amber: 0, red: 0 };
+  for (const s of q.segments) if (s.floor === floor) n[s.verdict]++;
+  return n;
+}
+
+/** The plan's accessible name: the summary and the counts, then where the full lists are. */
+export function mapLabel(q: Quality, floor: string): string {
+  const n = verdictCounts(q, floor);
+  const corridors = q.corridors.filter((c) => c.floor === floor);
+  const grey = corridors.filter((c) => c.verdict === 'grey').map((c) => c.place);
+  return (
+    `Quality map of floor ${floor}: ${n.green} green, ${n.amber} amber and ${n.red} red stretches` +
+    (grey.length ? `; not covered: ${grey.join(', ')}` : '') +
+    '. The lists below say the same.'
+  );
+}

@@ -1,0 +1,244 @@
+/**
+ * Step 10, the evaluation walk: a second walk, tagged with a few waypoints and marked as
+ * evaluation, is cut into 1 s clips that the venue locates (`omninav evaluate`, as a job); the
+ * plan draws each answer as an arrow from the truth to the answer, with the within-1 m and
+ * within-2 m shares, the heading error and the answers that were spoken as "not sure". The table
+ * below the plan says every clip in words.
+ */
+import { AdminError, venuePath } from '../api';
+import type { AdminContext } from '../context';
+import { el } from '../dom';
+import '../analysis.css';
+import {
+  CLIP_COLOUR,
+  CLIP_COLUMNS,
+  arrow,
+  clipRow,
+  clipVerdict,
+  evaluationVideos,
+  notReady,
+  summaryText,
+} from '../evaluation-view';
+import { JobProgress } from '../jobprogress';
+import { percent } from '../quality-view';
+import type { Evaluation, Job, Video } from '../types';
+
+export function mount(root: HTMLElement, ctx: AdminContext): () => void {
+  const abort = new AbortController();
+  const venueId = ctx.venue().id;
+  let videos: Video[] = [];
+
+  const heading = el('h2', { id: 'evaluation-title', textContent: 'Evaluation walk' });
+  const intro = el('p', {
+    textContent:
+      'Film a second walk, upload it on the Videos screen as an evaluation walk and tag a few of its ' +
+      'waypoints on the Track screen; here the venue locates each second of it, as a phone would, and ' +
+      'the plan shows each answer as an arrow from where the walker was to where the venue said.',
+  });
+  const pick = el('select', { id: 'evaluation-video' });
+  const pickLabel = el('label', { htmlFor: 'evaluation-video', textContent: 'Evaluation video' });
+  const run = el('button', { type: 'button', textContent: 'Run the evaluation' });
+  const upload = el('button', { type: 'button', textContent: 'Upload an evaluation walk' });
+  upload.addEventListener('click', () => ctx.go('videos', { role: 'evaluation' }));
+  const tag = el('button', { type: 'button', textContent: 'Tag its track' });
+  tag.addEventListener('click', () => ctx.go('track', { video: pick.value }));
+  const why = el('p', { id: 'evaluation-why' });
+  const status = el('p', { className: 'status', id: 'evaluation-status' });
+  const progress = new JobProgress(ctx.api, 'Evaluation progress');
+  const result = el('section', { className: 'evaluation-result' });
+  result.setAttribute('aria-labelledby', 'evaluation-title');
+  root.replaceChildren(
+    heading,
+    intro,
+    el('p', {}, pickLabel, ' ', pick, ' ', run, ' ', tag),
+    why,
+    el('p', {}, upload),
+    progress.el,
+    status,
+    result,
+  );
+
+  const say = (text: string, assertive = false) => {
+    status.textContent = text;
+    ctx.announce(text, assertive);
+  };
+  // the shell says it (an alert; on a stale venue, a banner with "Reload the venue"); the status line keeps it
+  const fail = (e: unknown, doing?: string) => {
+    if (abort.signal.aborted) return;
+    status.textContent = e instanceof Error ? e.message : String(e);
+    ctx.fail(e, doing);
+  };
+
+  let map: ReturnType<AdminContext['planMap']> | null = null;
+  const dropMap = () => {
+    map?.remove();
+    map = null;
+  };
+
+  const chosen = (): Video | undefined => videos.find((v) => v.name === pick.value);
+  const refreshButtons = () => {
+    const v = chosen();
+    const reason = v ? notReady(v) : 'no evaluation walk yet: upload one first';
+    run.disabled = reason !== null || progress.busy;
+    tag.disabled = !v || !!v.error || v.status === 'uploading';
+    why.textContent = reason ? `Cannot run it yet: ${reason}.` : '';
+  };
+
+  const show = (e: Evaluation, name: string) => {
+    dropMap();
+    const summary = el('p', { id: 'evaluation-summary', className: 'summary', textContent: summaryText(e) });
+    const s = e.summary;
+    const figures = el('dl', { className: 'figures', id: 'evaluation-figures' });
+    const fig = (dt: string, dd: string, id: string) =>
+      figures.append(el('dt', { textContent: dt }), el('dd', { id, textContent: dd }));
+    fig('Within 1 m', percent(s.within_1m), 'evaluation-within-1m');
+    fig('Within 2 m', percent(s.within_2m), 'evaluation-within-2m');
+    fig('Median error', `${s.median_error_m.toFixed(1)} m`, 'evaluation-median');
+    fig('Median heading error', `${Math.round(s.median_heading_error_deg)}°`, 'evaluation-heading');
+    fig('Spoken as "not sure"', `${s.not_sure} of ${s.clips}`, 'evaluation-not-sure');
+
+    const legend = el('ul', { className: 'legend' });
+    legend.setAttribute('aria-label', 'Legend');
+    for (const [k, c] of Object.entries(CLIP_COLOUR)) {
+      const sw = el('span', { className: 'swatch' });
+      sw.style.background = c;
+      sw.setAttribute('aria-hidden', 'true');
+      legend.append(el('li', {}, sw, ` ${k}`));
+    }
+    legend.append(el('li', { textContent: 'each arrow runs from where the walker was to where the venue said' }));
+
+    const planEl = el('div', { className: 'plan', id: 'evaluation-plan' });
+
+    const table = el('table', { id: 'evaluation-clips' });
+    table.append(
+      el('caption', { textContent: `Every 1 s clip of ${name}` }),
+      el('thead', {}, el('tr', {}, ...CLIP_COLUMNS.map((h) => el('th', { scope: 'col', textContent: h })))),
+    );
+    const body = el('tbody');
+    for (const c of e.clips)
+      body.append(
+        el(
+          'tr',
+          { className: clipVerdict(c).replace(/ /g, '-') },
+          ...clipRow(c).map((t) => el('td', { textContent: t })),
+        ),
+      );
+    table.append(body);
+
+    result.replaceChildren(summary, figures, legend, planEl, table);
+    map = ctx.planMap(planEl);
+    planEl.setAttribute(
+      'aria-label',
+      `Answers of ${name} on the plan: ${summaryText(e)}. The table below lists every clip.`,
+    );
+    for (const c of e.clips) {
+      const v = clipVerdict(c);
+      // the truth a hollow dot, the answer a dot of its verdict's colour, an arrow between them
+      map.addCircle(c.truth.x, c.truth.y, 0.15, { color: '#000', weight: 1, fillOpacity: 0, interactive: false });
+      if (c.answer)
+        map.addCircle(c.answer.x, c.answer.y, 0.12, {
+          color: CLIP_COLOUR[v],
+          weight: 1,
+          fillColor: CLIP_COLOUR[v],
+          fillOpacity: 0.9,
+          interactive: false,
+          className: `answer answer-${v.replace(/ /g, '-')}`,
+        });
+      const a = arrow(c);
+      if (!a) continue;
+      const style = {
+        color: CLIP_COLOUR[v],
+        weight: 2,
+        dashArray: v === 'not sure' ? '3 3' : undefined,
+        interactive: false,
+      };
+      map.addPolyline(a.shaft, style);
+      if (a.barbs.length) map.addPolyline(a.barbs, style);
+    }
+    ctx.announce(summaryText(e));
+  };
+
+  const load = async () => {
+    const v = chosen();
+    dropMap();
+    result.replaceChildren();
+    refreshButtons();
+    if (!v) return;
+    try {
+      show(
+        await ctx.api.get<Evaluation>(
+          venuePath(venueId, `/videos/${encodeURIComponent(v.name)}/evaluation`),
+          abort.signal,
+        ),
+        v.name,
+      );
+    } catch (e) {
+      if (e instanceof AdminError && e.status === 404)
+        result.replaceChildren(
+          el('p', { id: 'evaluation-none', textContent: `${v.name} has not been evaluated yet.` }),
+        );
+      else fail(e);
+    }
+  };
+
+  const follow = async (job: Job) => {
+    progress.busy = true;
+    refreshButtons();
+    try {
+      const end = await progress.follow(job, abort.signal);
+      if (abort.signal.aborted) return;
+      if (end.state === 'done') {
+        say('The evaluation is done.');
+        if (job.target) pick.value = job.target;
+        await load();
+      } else if (end.state === 'failed') say(`The evaluation failed: ${end.error ?? 'no reason given'}`, true);
+      else say('The evaluation was cancelled.');
+    } finally {
+      progress.busy = false;
+      refreshButtons();
+    }
+  };
+
+  run.addEventListener('click', async () => {
+    const v = chosen();
+    if (!v) return;
+    try {
+      say(`Evaluating ${v.name}…`);
+      await follow(await ctx.api.post<Job>(venuePath(venueId, `/videos/${encodeURIComponent(v.name)}/evaluate`)));
+    } catch (e) {
+      fail(e, `Evaluating ${v.name}`);
+    }
+  });
+  pick.addEventListener('change', () => void load());
+
+  void (async () => {
+    try {
+      const list = await ctx.api.get<{ videos: Video[] }>(venuePath(venueId, '/videos'), abort.signal);
+      videos = evaluationVideos(list.videos);
+      pick.replaceChildren(
+        ...videos.map((v) =>
+          el('option', { value: v.name, textContent: notReady(v) ? `${v.name} (${notReady(v)})` : v.name }),
+        ),
+      );
+      pick.disabled = videos.length === 0;
+      const want = ctx.params().get('video');
+      const ready = videos.find((v) => !notReady(v));
+      if (want && videos.some((v) => v.name === want)) pick.value = want;
+      else if (ready) pick.value = ready.name;
+      await load();
+      const { jobs } = await ctx.api.get<{ jobs: Job[] }>(venuePath(venueId, '/jobs'), abort.signal);
+      const running = jobs.find((j) => j.kind === 'evaluate' && (j.state === 'queued' || j.state === 'running'));
+      if (running) {
+        if (running.target) pick.value = running.target;
+        await follow(running);
+      }
+    } catch (e) {
+      fail(e);
+    }
+  })();
+
+  return () => {
+    abort.abort();
+    dropMap();
+  };
+}

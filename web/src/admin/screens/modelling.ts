@@ -1,0 +1,191 @@
+/**
+ * Step 8, modelling: one button models every modelling video whose track is tagged and which is not
+ * modelled yet (POST .../jobs); the job's progress (frames done, frames per second, time left) is
+ * read from its event stream; it can be cancelled, and a failed job says why. The page says which
+ * generation of frames is live: the venue keeps answering from it until the new one is complete.
+ */
+import { AdminError, venuePath } from '../api';
+import type { AdminContext } from '../context';
+import { button, el } from '../dom';
+import { JobProgress } from '../jobprogress';
+import '../media.css';
+import type { AdminVenue, Job, Video } from '../types';
+
+const ACTIVE = new Set<Job['state']>(['queued', 'running']);
+
+/** Whether a video goes into the next modelling, and if not, why not. */
+export function modelVerdict(v: Video): { goes: boolean; why: string } {
+  if (v.role === 'evaluation')
+    return { goes: false, why: 'an evaluation walk: it checks the map, it is not part of it' };
+  if (v.status === 'uploading') return { goes: false, why: 'still uploading' };
+  if (!v.tracked) return { goes: false, why: 'no track yet: tag it first' };
+  if (v.status === 'modelled') return { goes: false, why: `already modelled (${v.frames} frames)` };
+  return { goes: true, why: 'will be modelled' };
+}
+
+const when = (epochS: number | null): string =>
+  epochS ? new Date(epochS * 1000).toLocaleString('en-GB', { dateStyle: 'medium', timeStyle: 'short' }) : '';
+
+export function mount(root: HTMLElement, ctx: AdminContext): () => void {
+  const abort = new AbortController();
+  const venueId = ctx.venue().id;
+  let videos: Video[] = [];
+  let running: Job | null = null;
+
+  const live = el('p', { className: 'live-generation', id: 'live-generation' });
+  const meanwhile = el('p', {
+    className: 'hint',
+    textContent:
+      'While a modelling runs, the venue keeps answering from the live generation; the new generation ' +
+      'goes live only when it is complete, so a cancelled or failed run changes nothing.',
+  });
+  const start = button('Model the venue', () => void startJob());
+  start.id = 'model-start';
+  const why = el('p', { className: 'hint', id: 'model-why' });
+  const progress = new JobProgress(ctx.api, 'Modelling progress');
+  progress.el.classList.add('job-bar');
+  progress.el.id = 'model-progress';
+  const outcome = el('p', { id: 'model-outcome' });
+  const tbody = el('tbody');
+  const table = el(
+    'table',
+    { id: 'model-videos' },
+    el('caption', { textContent: 'What the next modelling takes' }),
+    el(
+      'thead',
+      {},
+      el('tr', {}, ...['Video', 'Track', 'Next modelling'].map((h) => el('th', { scope: 'col', textContent: h }))),
+    ),
+    tbody,
+  );
+  root.replaceChildren(
+    el('h2', { textContent: 'Modelling' }),
+    live,
+    meanwhile,
+    el('div', { className: 'row' }, start),
+    why,
+    progress.el,
+    outcome,
+    table,
+  );
+
+  const drawLive = () => {
+    const v = ctx.venue() as AdminVenue;
+    if (v.generation !== null && v.generation !== undefined)
+      live.textContent = `Live now: generation ${v.generation}${v.modelled_at ? `, modelled ${when(v.modelled_at)}` : ''}, ${v.frames} frames.`;
+    else if (v.modelled) live.textContent = `Live now: the modelled frames (${v.frames}).`;
+    else live.textContent = 'Not modelled yet: the venue answers nobody until its first modelling is complete.';
+  };
+
+  const drawVideos = () => {
+    const goes = videos.filter((v) => modelVerdict(v).goes);
+    tbody.replaceChildren(
+      ...videos.map((v) => {
+        const verdict = modelVerdict(v);
+        const cell = el('td', { textContent: verdict.why });
+        if (!v.tracked && v.status !== 'uploading' && v.role === 'model')
+          cell.append(
+            ' (',
+            el('a', {
+              href: `#/v/${encodeURIComponent(venueId)}/track?video=${encodeURIComponent(v.name)}`,
+              textContent: `tag ${v.name}`,
+            }),
+            ')',
+          );
+        return el(
+          'tr',
+          { className: verdict.goes ? 'goes' : '' },
+          el('th', { scope: 'row', textContent: v.name }),
+          el('td', { textContent: v.tracked ? `${v.track?.waypoints.length ?? 0} waypoints` : 'none' }),
+          cell,
+        );
+      }),
+    );
+    table.hidden = videos.length === 0;
+    const busy = running !== null && ACTIVE.has(running.state);
+    start.textContent = goes.length ? `Model ${goes.length} video${goes.length === 1 ? '' : 's'}` : 'Model the venue';
+    start.disabled = busy || goes.length === 0;
+    why.textContent = busy
+      ? 'A modelling is running.'
+      : goes.length
+        ? `Models ${goes.map((v) => v.name).join(', ')}.`
+        : videos.length
+          ? 'Nothing to model: every modelling video with a track is modelled already, or none has a track yet.'
+          : 'Nothing to model: upload a walk video and tag its track first.';
+  };
+
+  const load = async () => {
+    try {
+      const [, vids, jobs] = await Promise.all([
+        ctx.refresh(),
+        ctx.api.get<{ videos: Video[] }>(venuePath(venueId, '/videos'), abort.signal),
+        ctx.api.get<{ jobs: Job[] }>(venuePath(venueId, '/jobs'), abort.signal),
+      ]);
+      videos = vids.videos;
+      drawLive();
+      const model = jobs.jobs.filter((j) => (j.kind ?? 'model') === 'model').sort((a, b) => b.created - a.created);
+      const active = model.find((j) => ACTIVE.has(j.state));
+      if (active && !running) void follow(active);
+      else if (!active && model[0] && !running) {
+        const last = model[0];
+        if (last.state === 'failed')
+          outcome.textContent = `The last modelling (${when(last.finished)}) failed: ${last.error ?? 'no reason given'}.`;
+        else if (last.state === 'cancelled')
+          outcome.textContent = `The last modelling (${when(last.finished)}) was cancelled.`;
+      }
+      drawVideos();
+    } catch (e) {
+      if (!abort.signal.aborted) ctx.fail(e, 'Reading the venue');
+    }
+  };
+
+  const follow = async (job: Job) => {
+    running = job;
+    outcome.textContent = '';
+    drawVideos();
+    let last = job;
+    try {
+      last = await progress.follow(job, abort.signal);
+    } catch (e) {
+      if (abort.signal.aborted) return;
+      ctx.fail(e, 'Following the modelling');
+    }
+    if (abort.signal.aborted) return;
+    running = last;
+    await load();
+    const v = ctx.venue() as AdminVenue;
+    if (last.state === 'done') {
+      const msg = `Modelling done: ${last.frames_total} frames; generation ${v.generation ?? '?'} is live now.`;
+      outcome.textContent = msg;
+      ctx.announce(msg);
+    } else if (last.state === 'failed') {
+      const msg = `Modelling failed: ${last.error ?? 'no reason given'}. The venue still answers from what was live.`;
+      outcome.textContent = msg;
+      ctx.announce(msg, true);
+    } else if (last.state === 'cancelled') {
+      const msg = 'Modelling cancelled. The venue still answers from what was live.';
+      outcome.textContent = msg;
+      ctx.announce(msg);
+    }
+    running = null;
+    drawVideos();
+  };
+
+  const startJob = async () => {
+    start.disabled = true;
+    try {
+      const job = await ctx.api.post<Job>(venuePath(venueId, '/jobs'));
+      ctx.announce(`Modelling started: ${job.videos.join(', ')}.`);
+      await follow(job);
+    } catch (e) {
+      if (e instanceof AdminError && e.status === 409) outcome.textContent = e.message;
+      ctx.fail(e, 'Starting the modelling');
+      drawVideos();
+    }
+  };
+
+  drawLive();
+  drawVideos();
+  void load();
+  return () => abort.abort();
+}

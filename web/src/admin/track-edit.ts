@@ -1,0 +1,205 @@
+/**
+ * The track being tagged, without the DOM (unit-tested in Node): waypoints kept in time order,
+ * snapping to corridor lines, the words for a suggested waypoint, and the track.json written from
+ * them (docs/formats.md "Modelling track"). Times in seconds of the video, positions in metres.
+ */
+import type { Place } from '../shared/api-types';
+import { formatDuration, formatTime } from './format';
+import type { Suggestion, Track, Waypoint } from './types';
+
+/** A waypoint as the editor holds it: always a time (a `frame` is turned into seconds on load). */
+export interface Point {
+  t: number;
+  x: number;
+  y: number;
+}
+
+/** Two waypoints closer in time than this are one moment (one is replaced, not added). */
+export const SAME_MOMENT_S = 0.05;
+
+/** Waypoints of a track.json as editor points, in time order (`t` wins over `frame`). */
+export function fromTrack(track: Track | null, defaultFps = 30): Point[] {
+  if (!track) return [];
+  const fps = track.fps ?? defaultFps;
+  return track.waypoints
+    .map((w: Waypoint) => ({ t: w.t ?? (w.frame ?? 0) / fps, x: w.x, y: w.y }))
+    .sort((a, b) => a.t - b.t);
+}
+
+/** The track.json of the editor's points: times in seconds (ms precision), positions to the cm. */
+export function toTrack(points: readonly Point[], headingOffsetDeg = 0): Track {
+  const r = (v: number, k: number): number => Math.round(v * k) / k;
+  const track: Track = { waypoints: points.map((p) => ({ t: r(p.t, 1000), x: r(p.x, 100), y: r(p.y, 100) })) };
+  if (headingOffsetDeg) track.heading_offset_deg = r(headingOffsetDeg, 10);
+  return track;
+}
+
+/** Add a waypoint (or move the one at the same moment); -> the new list, in time order. */
+export function putPoint(points: readonly Point[], p: Point): Point[] {
+  const rest = points.filter((q) => Math.abs(q.t - p.t) >= SAME_MOMENT_S);
+  return [...rest, p].sort((a, b) => a.t - b.t);
+}
+
+/** What is wrong with the points as a track, in words, or null when it can be saved. */
+export function trackProblem(points: readonly Point[], duration: number | null): string | null {
+  if (points.length < 2) return 'A track needs at least two waypoints: where the walk starts and where it ends.';
+  for (let i = 0; i < points.length; i++) {
+    const p = points[i];
+    if (![p.t, p.x, p.y].every(Number.isFinite)) return `Waypoint ${i + 1} has a value that is not a number.`;
+    if (p.t < 0) return `Waypoint ${i + 1} is before the video starts.`;
+    if (duration !== null && p.t > duration + 0.5)
+      return `Waypoint ${i + 1} (${formatTime(p.t)}) is after the video ends (${formatTime(duration)}).`;
+    if (i > 0 && !(p.t > points[i - 1].t))
+      return `Waypoint ${i + 1} (${formatTime(p.t)}) is not after waypoint ${i} (${formatTime(points[i - 1].t)}).`;
+  }
+  return null;
+}
+
+/** Where the walker was at `t` (linear between waypoints), or null outside the tagged span. */
+export function positionAt(points: readonly Point[], t: number): { x: number; y: number } | null {
+  if (points.length === 0 || t < points[0].t || t > points[points.length - 1].t) return null;
+  for (let i = 1; i < points.length; i++) {
+    const a = points[i - 1];
+    const b = points[i];
+    if (t <= b.t) {
+      const k = b.t > a.t ? (t - a.t) / (b.t - a.t) : 0;
+      return { x: a.x + k * (b.x - a.x), y: a.y + k * (b.y - a.y) };
+    }
+  }
+  return { x: points[0].x, y: points[0].y };
+}
+
+// ---- corridor lines -------------------------------------------------------------------------------
+
+/** A corridor's centre line: from (x0, y0) to (x1, y1) along the long axis of its area. */
+export interface Line {
+  place: string;
+  x0: number;
+  y0: number;
+  x1: number;
+  y1: number;
+}
+
+/** The centre lines of the floor's places that have an area, along each area's long axis. */
+export function corridorLines(places: readonly Place[], floor: string): Line[] {
+  return places
+    .filter((p) => p.floor === floor && p.area)
+    .map((p) => {
+      const [x0, y0, x1, y1] = p.area as [number, number, number, number];
+      const cx = (x0 + x1) / 2;
+      const cy = (y0 + y1) / 2;
+      return Math.abs(x1 - x0) >= Math.abs(y1 - y0)
+        ? { place: p.name, x0, y0: cy, x1, y1: cy }
+        : { place: p.name, x0: cx, y0, x1: cx, y1 };
+    });
+}
+
+/** The point of segment `l` nearest to (x, y), and its distance. */
+export function nearestOn(l: Line, x: number, y: number): { x: number; y: number; d: number } {
+  const dx = l.x1 - l.x0;
+  const dy = l.y1 - l.y0;
+  const len2 = dx * dx + dy * dy;
+  const k = len2 > 0 ? Math.min(1, Math.max(0, ((x - l.x0) * dx + (y - l.y0) * dy) / len2)) : 0;
+  const px = l.x0 + k * dx;
+  const py = l.y0 + k * dy;
+  return { x: px, y: py, d: Math.hypot(x - px, y - py) };
+}
+
+/** Where the (infinite) lines through two segments cross, or null when they are parallel. */
+function crossing(a: Line, b: Line): { x: number; y: number } | null {
+  const d1x = a.x1 - a.x0;
+  const d1y = a.y1 - a.y0;
+  const d2x = b.x1 - b.x0;
+  const d2y = b.y1 - b.y0;
+  const den = d1x * d2y - d1y * d2x;
+  if (Math.abs(den) < 1e-9) return null;
+  const k = ((b.x0 - a.x0) * d2y - (b.y0 - a.y0) * d2x) / den;
+  return { x: a.x0 + k * d1x, y: a.y0 + k * d1y };
+}
+
+/**
+ * A clicked point snapped to the corridor lines within `maxM` metres: to the crossing of two lines
+ * when both are that close and so is their crossing (a corner, where a turn's waypoint belongs),
+ * else onto the nearest line; unchanged when no line is that close. `line` names where it went.
+ */
+export function snapToLines(
+  p: { x: number; y: number },
+  lines: readonly Line[],
+  maxM = 3,
+): { x: number; y: number; line: string | null } {
+  const near = lines
+    .map((l) => ({ l, n: nearestOn(l, p.x, p.y) }))
+    .filter((c) => c.n.d <= maxM)
+    .sort((a, b) => a.n.d - b.n.d);
+  if (!near.length) return { x: p.x, y: p.y, line: null };
+  let best: { x: number; y: number; line: string; d: number } | null = null;
+  for (let i = 0; i < near.length; i++) {
+    for (let j = i + 1; j < near.length; j++) {
+      const c = crossing(near[i].l, near[j].l);
+      if (!c) continue;
+      // the crossing must lie on (or within maxM of) both segments: two corridors that meet
+      if (nearestOn(near[i].l, c.x, c.y).d > maxM || nearestOn(near[j].l, c.x, c.y).d > maxM) continue;
+      const d = Math.hypot(c.x - p.x, c.y - p.y);
+      if (d <= maxM && (!best || d < best.d)) best = { ...c, line: `${near[i].l.place} × ${near[j].l.place}`, d };
+    }
+  }
+  if (best) return { x: best.x, y: best.y, line: best.line };
+  return { x: near[0].n.x, y: near[0].n.y, line: near[0].l.place };
+}
+
+// ---- suggestions ----------------------------------------------------------------------------------
+
+/** "turn right 90°", "turn left 45°", "turn around", "stop 4 s", "start", "end". */
+export function suggestionLabel(s: Suggestion): string {
+  switch (s.kind) {
+    case 'start':
+      return 'start';
+    case 'end':
+      return 'end';
+    case 'stop':
+      return s.duration_s !== null ? `stop ${formatDuration(Math.max(1, s.duration_s))}` : 'stop';
+    case 'turn': {
+      const d = s.turn_deg ?? 0;
+      const deg = Math.round(Math.abs(d) / 5) * 5;
+      if (deg >= 160) return 'turn around';
+      return `turn ${d >= 0 ? 'right' : 'left'} ${deg}°`;
+    }
+  }
+}
+
+/** "0:12.4, turn right 90°": a suggestion as a list item or a button names it. */
+export const suggestionText = (s: Suggestion): string => `${formatTime(s.t)}, ${suggestionLabel(s)}`;
+
+/** The times a suggestion wants tagged: a stop has two (it starts and it ends; the walker stays put). */
+export function suggestionTimes(s: Suggestion): number[] {
+  if (s.kind === 'stop' && s.duration_s !== null && s.duration_s > SAME_MOMENT_S) return [s.t, s.t + s.duration_s];
+  return [s.t];
+}
+
+/** Whether the points already have a waypoint at the suggestion's (first) time. */
+export function isTagged(s: Suggestion, points: readonly Point[], tolerance = 0.25): boolean {
+  return points.some((p) => Math.abs(p.t - s.t) <= tolerance);
+}
+
+/** Index of the first suggestion at or after `from` in `suggestions` that has no waypoint yet, or -1. */
+export function nextUntagged(suggestions: readonly Suggestion[], points: readonly Point[], from = 0): number {
+  for (let i = Math.max(0, from); i < suggestions.length; i++) if (!isTagged(suggestions[i], points)) return i;
+  return -1;
+}
+
+/**
+ * Accept a suggestion at a plan position: a waypoint at its time (and one at the end of a stop, at
+ * the same place); -> the new points.
+ */
+export function acceptSuggestion(points: readonly Point[], s: Suggestion, at: { x: number; y: number }): Point[] {
+  let out = [...points];
+  for (const t of suggestionTimes(s)) out = putPoint(out, { t, x: at.x, y: at.y });
+  return out;
+}
+
+/** Panorama column (0..1 of its width) of the walking direction: forward is the centre, and the
+ * lens looks `headingOffsetDeg` clockwise of where the walker goes, so the walk is that far left. */
+export function walkColumn(headingOffsetDeg: number): number {
+  const f = 0.5 - headingOffsetDeg / 360;
+  return f - Math.floor(f);
+}

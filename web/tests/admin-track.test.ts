@@ -1,0 +1,188 @@
+// The track editor's logic: corridor lines and snapping, suggestions in words, the one-click flow.
+import { describe, expect, it } from 'vitest';
+import type { Place } from '../src/shared/api-types';
+import {
+  acceptSuggestion,
+  corridorLines,
+  fromTrack,
+  nextUntagged,
+  positionAt,
+  putPoint,
+  snapToLines,
+  suggestionLabel,
+  suggestionText,
+  toTrack,
+  trackProblem,
+  walkColumn,
+  type Point,
+} from '../src/admin/track-edit';
+import type { Suggestion } from '../src/admin/types';
+
+// an L of two corridors (the quick demo's shape): one along x at y = 2, one along y at x = 20
+const places: Place[] = [
+  { id: 'a', floor: '1', name: 'Corridor 1', x: 11, y: 2, area: [0, 0.5, 21.5, 3.5] },
+  { id: 'b', floor: '1', name: 'Corridor 2', x: 20, y: 8, area: [18.5, 0.5, 21.5, 14] },
+  { id: 'c', floor: '1', name: 'the lifts', x: 20, y: 2 },
+  { id: 'd', floor: '2', name: 'Upstairs', x: 5, y: 5, area: [0, 0, 10, 2] },
+];
+const s = (t: number, kind: Suggestion['kind'], turn_deg: number | null = null, duration_s: number | null = null) => ({
+  t,
+  kind,
+  turn_deg,
+  duration_s,
+});
+
+describe('corridor lines', () => {
+  it('run along the long axis of each area, through its middle, on the floor asked for', () => {
+    expect(corridorLines(places, '1')).toEqual([
+      { place: 'Corridor 1', x0: 0, y0: 2, x1: 21.5, y1: 2 },
+      { place: 'Corridor 2', x0: 20, y0: 0.5, x1: 20, y1: 14 },
+    ]);
+    expect(corridorLines(places, '2').map((l) => l.place)).toEqual(['Upstairs']);
+  });
+  it('a click near one line lands on it; far from all stays where it was', () => {
+    const lines = corridorLines(places, '1');
+    expect(snapToLines({ x: 8, y: 3.1 }, lines)).toEqual({ x: 8, y: 2, line: 'Corridor 1' });
+    expect(snapToLines({ x: 19, y: 9 }, lines)).toEqual({ x: 20, y: 9, line: 'Corridor 2' });
+    expect(snapToLines({ x: 8, y: 9 }, lines)).toEqual({ x: 8, y: 9, line: null });
+  });
+  it('a click near a corner lands on the crossing of the two lines', () => {
+    const lines = corridorLines(places, '1');
+    expect(snapToLines({ x: 19.2, y: 3 }, lines)).toEqual({ x: 20, y: 2, line: 'Corridor 2 × Corridor 1' }); // the nearer line first
+  });
+  it('parallel corridors side by side: the nearer one', () => {
+    const two: Place[] = [
+      { id: 'a', floor: '1', name: 'A', x: 0, y: 0, area: [0, 0, 20, 2] },
+      { id: 'b', floor: '1', name: 'B', x: 0, y: 0, area: [0, 3, 20, 5] },
+    ];
+    expect(snapToLines({ x: 5, y: 2.2 }, corridorLines(two, '1'))).toEqual({ x: 5, y: 1, line: 'A' });
+  });
+  it('within a custom distance only', () => {
+    expect(snapToLines({ x: 8, y: 3.1 }, corridorLines(places, '1'), 1).line).toBeNull();
+  });
+});
+
+describe('suggestions', () => {
+  it('in words', () => {
+    expect(suggestionLabel(s(12.4, 'turn', 88))).toBe('turn right 90°');
+    expect(suggestionLabel(s(12.4, 'turn', -44))).toBe('turn left 45°');
+    expect(suggestionLabel(s(12.4, 'turn', 178))).toBe('turn around');
+    expect(suggestionLabel(s(30, 'stop', null, 4.2))).toBe('stop 4 s');
+    expect(suggestionLabel(s(30, 'stop', null, 0.3))).toBe('stop 1 s');
+    expect(suggestionLabel(s(0, 'start'))).toBe('start');
+    expect(suggestionLabel(s(80, 'end'))).toBe('end');
+    expect(suggestionText(s(62.46, 'turn', 90))).toBe('1:02.5, turn right 90°');
+  });
+  it('one click per corner: each accepted suggestion is tagged and the next untagged one comes up', () => {
+    const sugg = [s(0, 'start'), s(10, 'turn', 90), s(15, 'stop', null, 4), s(30, 'end')];
+    let pts: Point[] = [];
+    const clicks = [
+      { x: 1, y: 2 },
+      { x: 20, y: 2 },
+      { x: 20, y: 6 },
+      { x: 20, y: 12 },
+    ];
+    let i = nextUntagged(sugg, pts);
+    for (const at of clicks) {
+      pts = acceptSuggestion(pts, sugg[i], at);
+      i = nextUntagged(sugg, pts, i + 1);
+    }
+    expect(i).toBe(-1);
+    // the stop holds still from 15 s to 19 s
+    expect(pts).toEqual([
+      { t: 0, x: 1, y: 2 },
+      { t: 10, x: 20, y: 2 },
+      { t: 15, x: 20, y: 6 },
+      { t: 19, x: 20, y: 6 },
+      { t: 30, x: 20, y: 12 },
+    ]);
+    expect(trackProblem(pts, 30)).toBeNull();
+  });
+  it('a suggestion already tagged (a waypoint within a quarter second) is skipped', () => {
+    const sugg = [s(0, 'start'), s(10, 'turn', 90), s(30, 'end')];
+    expect(nextUntagged(sugg, [{ t: 0.1, x: 0, y: 0 }])).toBe(1);
+    expect(nextUntagged(sugg, [{ t: 9.8, x: 0, y: 0 }], 1)).toBe(2);
+  });
+});
+
+describe('waypoints', () => {
+  it('stay in time order; a second click at the same moment moves the waypoint', () => {
+    let pts: Point[] = [];
+    pts = putPoint(pts, { t: 5, x: 1, y: 1 });
+    pts = putPoint(pts, { t: 1, x: 0, y: 0 });
+    pts = putPoint(pts, { t: 5.01, x: 2, y: 2 });
+    expect(pts).toEqual([
+      { t: 1, x: 0, y: 0 },
+      { t: 5.01, x: 2, y: 2 },
+    ]);
+  });
+  it('say what keeps a track from being saved', () => {
+    expect(trackProblem([{ t: 0, x: 0, y: 0 }], 10)).toMatch(/at least two/);
+    expect(
+      trackProblem(
+        [
+          { t: 2, x: 0, y: 0 },
+          { t: 2, x: 1, y: 0 },
+        ],
+        10,
+      ),
+    ).toBe('Waypoint 2 (0:02.0) is not after waypoint 1 (0:02.0).');
+    expect(
+      trackProblem(
+        [
+          { t: 0, x: 0, y: 0 },
+          { t: 12, x: 1, y: 0 },
+        ],
+        10,
+      ),
+    ).toMatch(/after the video ends/);
+    expect(
+      trackProblem(
+        [
+          { t: 0, x: NaN, y: 0 },
+          { t: 1, x: 1, y: 0 },
+        ],
+        null,
+      ),
+    ).toMatch(/not a number/);
+  });
+  it("round-trip through track.json: seconds (frames read at the track's fps), cm, the heading offset", () => {
+    const pts = fromTrack({
+      fps: 25,
+      heading_offset_deg: 90,
+      waypoints: [
+        { t: 4.5, x: 3, y: 4 },
+        { frame: 50, x: 1.234567, y: 2 },
+      ],
+    });
+    expect(pts).toEqual([
+      { t: 2, x: 1.234567, y: 2 },
+      { t: 4.5, x: 3, y: 4 },
+    ]);
+    expect(toTrack(pts, 90)).toEqual({
+      heading_offset_deg: 90,
+      waypoints: [
+        { t: 2, x: 1.23, y: 2 },
+        { t: 4.5, x: 3, y: 4 },
+      ],
+    });
+    expect(toTrack(pts).heading_offset_deg).toBeUndefined();
+    expect(fromTrack(null)).toEqual([]);
+  });
+  it("the walker's position between waypoints, none outside them", () => {
+    const pts = [
+      { t: 0, x: 0, y: 0 },
+      { t: 10, x: 10, y: 0 },
+      { t: 20, x: 10, y: 5 },
+    ];
+    expect(positionAt(pts, 5)).toEqual({ x: 5, y: 0 });
+    expect(positionAt(pts, 15)).toEqual({ x: 10, y: 2.5 });
+    expect(positionAt(pts, 21)).toBeNull();
+  });
+  it('the walking direction on the panorama: the centre, shifted left by the heading offset', () => {
+    expect(walkColumn(0)).toBe(0.5);
+    expect(walkColumn(90)).toBe(0.25);
+    expect(walkColumn(-90)).toBe(0.75);
+    expect(walkColumn(270)).toBe(0.75);
+  });
+});

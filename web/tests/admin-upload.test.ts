@@ -1,0 +1,162 @@
+// The arithmetic of the admin page's resumable upload and of its speed and time left.
+import { describe, expect, it } from 'vitest';
+import { formatBytes, formatDuration, formatTime } from '../src/admin/format';
+import type { Video } from '../src/admin/types';
+import {
+  MAX_PIECE,
+  MIN_PIECE,
+  RateMeter,
+  contentRange,
+  lensMismatch,
+  matchUpload,
+  nextPiece,
+  pieceSize,
+  rangeStart,
+  videoName,
+} from '../src/admin/upload';
+
+const MB = 1024 * 1024;
+
+/** Every piece an upload sends from `received` on, as the server's `received` moves. */
+function plan(received: number, size: number): [number, number][] {
+  const out: [number, number][] = [];
+  const piece = pieceSize(size);
+  for (let p = nextPiece(received, size, piece); p; p = nextPiece(p.end, size, piece)) out.push([p.start, p.end]);
+  return out;
+}
+
+const video = (over: Partial<Video>): Video => ({
+  name: 'walk.mp4',
+  floor: '1',
+  lens: 'donut',
+  role: 'model',
+  size: 1000,
+  received: 0,
+  status: 'uploading',
+  frames: 0,
+  tracked: false,
+  track: null,
+  duration_s: null,
+  fps: null,
+  width: null,
+  height: null,
+  error: null,
+  suggestions: null,
+  upload_url: '',
+  ...over,
+});
+
+describe('pieces', () => {
+  it('cover the file once, in order, each within 256 KiB..8 MiB', () => {
+    for (const size of [1, 1000, MIN_PIECE, 3 * MB + 17, 100 * MB, 3000 * MB]) {
+      const ps = plan(0, size);
+      expect(ps[0][0]).toBe(0);
+      expect(ps[ps.length - 1][1]).toBe(size);
+      for (let i = 1; i < ps.length; i++) expect(ps[i][0]).toBe(ps[i - 1][1]);
+      for (const [a, b] of ps.slice(0, -1)) expect(b - a).toBeGreaterThanOrEqual(MIN_PIECE);
+      for (const [a, b] of ps) expect(b - a).toBeLessThanOrEqual(MAX_PIECE);
+    }
+  });
+  it('are about 16 for a middling file, 8 MiB for a big one', () => {
+    expect(plan(0, 64 * MB).length).toBe(16);
+    expect(pieceSize(4000 * MB)).toBe(MAX_PIECE);
+    expect(pieceSize(10 * 1024)).toBe(MIN_PIECE);
+  });
+  it("resume at the server's `received`: no byte before it is sent again, none is skipped", () => {
+    const size = 10 * MB + 3;
+    const received = 3 * MB + 12345; // a piece cut in the middle: the server kept what arrived
+    const ps = plan(received, size);
+    expect(ps[0][0]).toBe(received);
+    expect(ps[ps.length - 1][1]).toBe(size);
+    const sent = ps.reduce((n, [a, b]) => n + (b - a), 0);
+    expect(sent).toBe(size - received);
+  });
+  it('nothing to send once all bytes are in', () => {
+    expect(nextPiece(500, 500, MIN_PIECE)).toBeNull();
+  });
+  it('name their bytes as HTTP counts them (last byte inclusive)', () => {
+    expect(contentRange({ start: 0, end: 262144 }, 1000000)).toBe('bytes 0-262143/1000000');
+    expect(contentRange({ start: 999999, end: 1000000 }, 1000000)).toBe('bytes 999999-999999/1000000');
+    expect(rangeStart('bytes 262144-524287/1000000')).toBe(262144);
+    expect(rangeStart('nonsense')).toBeNull();
+  });
+});
+
+describe('a re-selected file', () => {
+  it('gets the name the server allows, the same every time', () => {
+    expect(videoName('Walk 1 (north).MP4')).toBe('Walk-1-north.MP4');
+    expect(videoName('walk.mp4')).toBe('walk.mp4');
+    expect(videoName('Café été.mov')).toBe('Cafe-ete.mov');
+    expect(videoName('.hidden..mp4')).toBe('hidden.mp4');
+    expect(videoName('x.part')).toBe('x.part.video');
+    expect(videoName('???')).toBe('video');
+    expect(videoName('a'.repeat(300) + '.mp4').length).toBeLessThanOrEqual(128);
+    expect(videoName('_walk.mp4')).toBe('walk.mp4');
+  });
+  it('finds its unfinished upload by name and size, not a finished one or another size', () => {
+    const vids = [
+      video({ name: 'walk.mp4', size: 999, received: 10 }),
+      video({ name: 'walk.mp4', size: 1000, received: 400 }),
+      video({ name: 'other.mp4', size: 1000, status: 'ready', received: 1000 }),
+    ];
+    expect(matchUpload({ name: 'walk.mp4', size: 1000 }, vids)?.received).toBe(400);
+    expect(matchUpload({ name: 'other.mp4', size: 1000 }, vids)).toBeUndefined();
+    expect(matchUpload({ name: 'walk.mp4', size: 5 }, vids)).toBeUndefined();
+  });
+});
+
+describe('speed and time left', () => {
+  it('are unknown for the first second, then bytes over the window', () => {
+    const m = new RateMeter(5000);
+    m.add(0, 0);
+    m.add(500_000, 500);
+    expect(m.speed()).toBeNull();
+    expect(m.eta(1000)).toBeNull();
+    m.add(2_000_000, 2000);
+    expect(m.speed()).toBe(1_000_000);
+    expect(m.eta(3_000_000)).toBe(3);
+  });
+  it('follow a change of speed within the window', () => {
+    const m = new RateMeter(5000);
+    for (let t = 0; t <= 10_000; t += 500) m.add(t * 1000, t); // 1 MB/s for 10 s
+    for (let t = 10_500; t <= 20_000; t += 500) m.add(10_000_000 + (t - 10_000) * 100, t); // then 100 kB/s
+    expect(m.speed()).toBeCloseTo(100_000, -3);
+  });
+  it('start again when the count goes back (a refused file starts from 0)', () => {
+    const m = new RateMeter(5000);
+    m.add(0, 0);
+    m.add(5_000_000, 2000);
+    m.add(0, 2500);
+    expect(m.speed()).toBeNull();
+  });
+  it('a stalled upload has no time left to give; a finished one has none left', () => {
+    const m = new RateMeter(5000);
+    m.add(100, 0);
+    m.add(100, 3000);
+    expect(m.speed()).toBe(0);
+    expect(m.eta(50)).toBeNull();
+    expect(m.eta(0)).toBe(0);
+  });
+});
+
+describe('words', () => {
+  it('sizes, durations and video times', () => {
+    expect(formatBytes(999)).toBe('999 B');
+    expect(formatBytes(1_234_567)).toBe('1.2 MB');
+    expect(formatBytes(250_000_000)).toBe('250 MB');
+    expect(formatDuration(44.6)).toBe('45 s');
+    expect(formatDuration(200)).toBe('3 min 20 s');
+    expect(formatDuration(120)).toBe('2 min');
+    expect(formatDuration(7500)).toBe('2 h 5 min');
+    expect(formatTime(62.46)).toBe('1:02.5');
+    expect(formatTime(0)).toBe('0:00.0');
+    expect(formatTime(59.96)).toBe('1:00.0');
+  });
+  it('a file that does not fit the lens says both sizes; an unknown size is left to the server', () => {
+    expect(lensMismatch({ width: 640, height: 480 }, [960, 960], 'donut')).toBe(
+      'its frames are 640x480 but lens donut is for 960x960',
+    );
+    expect(lensMismatch({ width: 960, height: 960 }, [960, 960], 'donut')).toBeNull();
+    expect(lensMismatch(null, [960, 960], 'donut')).toBeNull();
+  });
+});
