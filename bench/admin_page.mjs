@@ -2,6 +2,9 @@
 // headless Chromium) against curl's one PUT of the same file to the same server, both ending when
 // the server has checked the whole file. The file is a real walk video (the admin e2e fixture's
 // walk, its frames repeated up to the size asked), since the server refuses what does not decode.
+// The page's pieces are sent at its own size (about 4 pieces) and, in turn, at the size it used
+// before (about 16 pieces: the page's ?piece= for tests and benchmarks), for a before and after on
+// one machine at one time; the same pieces from Node's fetch separate their cost from the browser's.
 // Prints the machine it ran on. (ES module, like bench/web_extract.mjs: Node 20 runs no .ts.)
 //   node bench/admin_page.mjs [MB] [repeats] [LINK_MB_S]
 // LINK_MB_S: a link of that many MB/s for both (curl --limit-rate; Chromium's network emulation),
@@ -64,17 +67,42 @@ const call = async (method, path, body) => {
   return r.json();
 };
 const V = '/api/admin/venues/bench';
-const out = { curl: [], pieces: [], page: [] };
-// the page's piece size (web/src/admin/upload.ts pieceSize): about 16 pieces, 256 KiB to 8 MiB
-const piece = Math.min(8 << 20, Math.max(256 << 10, Math.ceil(size / 16 / 65536) * 65536));
+// the page's piece size (web/src/admin/upload.ts pieceSize): about 4 pieces, 1 MiB to 64 MiB; and
+// the one it had before (about 16 pieces, 256 KiB to 8 MiB), sent by the same page with ?piece=
+const piece = Math.min(64 << 20, Math.max(1 << 20, Math.ceil(size / 4 / 65536) * 65536));
+const oldPiece = Math.min(8 << 20, Math.max(256 << 10, Math.ceil(size / 16 / 65536) * 65536));
+const kinds = [
+  ['old', oldPiece],
+  ['new', piece],
+];
+const out = { curl: [], pieces: { old: [], new: [] }, page: { old: [], new: [] } };
 let browser;
 try {
   await call('POST', '/api/admin/venues', { id: 'bench', name: 'Upload bench' });
   const lens = JSON.parse(readFileSync(resolve(FIX, 'lens.json'), 'utf8'));
   await call('PUT', `${V}/lenses/donut`, lens);
+  const bytes = readFileSync(big);
+  browser = await chromium.launch({
+    executablePath: process.env.CHROMIUM ?? '/usr/bin/chromium',
+    args: ['--disable-gpu'],
+  });
+
+  // after each upload: no job left running (the page starts one to find the turns and stops, which
+  // reads the whole video), the video deleted and the disk synced: no upload pays for the one before
+  const quiet = async (name) => {
+    for (let t = 0; t < 600; t++) {
+      const { jobs } = await call('GET', `${V}/jobs`);
+      const active = jobs.filter((j) => j.state === 'queued' || j.state === 'running');
+      if (!active.length) break;
+      for (const j of active) await call('POST', `/api/admin/jobs/${j.id}/cancel`).catch(() => {});
+      await new Promise((r) => setTimeout(r, 100));
+    }
+    await call('DELETE', `${V}/videos/${name}`);
+    execFileSync('sync');
+  };
 
   // curl: one PUT of the whole file, as the README's API example does
-  for (let i = 0; i < repeats; i++) {
+  const curl = async (i) => {
     const name = `curl-${i}.mp4`;
     await call('POST', `${V}/videos`, { name, size, lens: 'donut' });
     const t = execFileSync('curl', [
@@ -84,13 +112,13 @@ try {
       ...['-H', `Content-Range: bytes 0-${size - 1}/${size}`, `${srv.url}${V}/videos/${name}/content`],
     ]);
     out.curl.push(Number(String(t)));
-  }
+    await quiet(name);
+  };
 
-  // the same pieces from Node's fetch (loopback only: fetch has no rate limit) (one keep-alive connection, no browser): what the pieces
-  // themselves cost, apart from the page
-  const bytes = readFileSync(big);
-  for (let i = 0; i < (link ? 0 : repeats); i++) {
-    const name = `pieces-${i}.mp4`;
+  // the same pieces from Node's fetch (one keep-alive connection, no browser; loopback only: fetch
+  // has no rate limit): what the pieces themselves cost, apart from the browser
+  const pieces = async (i, kind, piece) => {
+    const name = `pieces-${kind}-${i}.mp4`;
     await call('POST', `${V}/videos`, { name, size, lens: 'donut' });
     const t0 = performance.now();
     for (let start = 0; start < size; start += piece) {
@@ -107,16 +135,13 @@ try {
       if (!r.ok) throw new Error(`piece at ${start}: ${r.status} ${await r.text()}`);
       await r.arrayBuffer();
     }
-    out.pieces.push((performance.now() - t0) / 1000);
-  }
+    out.pieces[kind].push((performance.now() - t0) / 1000);
+    await quiet(name);
+  };
 
   // the page: sign in (the token in sessionStorage, as the sign-in screen keeps it), the videos
   // screen, the file chosen; from the first piece sent to the answer to the last
-  browser = await chromium.launch({
-    executablePath: process.env.CHROMIUM ?? '/usr/bin/chromium',
-    args: ['--disable-gpu'],
-  });
-  for (let i = 0; i < repeats; i++) {
+  const viaPage = async (i, kind, piece) => {
     const ctx = await browser.newContext();
     await ctx.addInitScript((t) => sessionStorage.setItem('omninav-admin-token', t), TOKEN);
     const page = await ctx.newPage();
@@ -131,7 +156,6 @@ try {
       });
     }
     let first = 0;
-    let last = 0;
     page.on('request', (r) => {
       if (r.method() === 'PUT' && r.url().endsWith('/content') && !first) first = performance.now();
     });
@@ -142,18 +166,30 @@ try {
         (r.request().headers()['content-range'] ?? '').endsWith(`-${size - 1}/${size}`),
       { timeout: 600_000 },
     );
-    await page.goto(`${srv.url}/admin#/v/bench/videos`);
+    await page.goto(`${srv.url}/admin${kind === 'old' ? `?piece=${piece}` : ''}#/v/bench/videos`);
     const input = page.getByLabel('Walk video files');
     await input.waitFor();
-    // a distinct name per repeat: the page names the video after the file
-    const named = resolve(WORK, `page-${i}.mp4`);
+    // a distinct name per upload: the page names the video after the file
+    const named = resolve(WORK, `page-${kind}-${i}.mp4`);
     execFileSync('ln', ['-sf', big, named]);
     await input.setInputFiles(named);
     const res = await done;
-    last = performance.now();
+    const last = performance.now();
     if (!res.ok()) throw new Error(`the page's last piece: ${res.status()} ${await res.text()}`);
-    out.page.push((last - first) / 1000);
+    out.page[kind].push((last - first) / 1000);
     await ctx.close();
+    await quiet(`page-${kind}-${i}.mp4`);
+  };
+
+  // in turn, repeat after repeat: a machine that slows down as the run goes on (another process)
+  // weighs on every kind alike
+  execFileSync('sync');
+  for (let i = 0; i < repeats; i++) {
+    await curl(i);
+    for (const [kind, piece] of kinds) {
+      if (!link) await pieces(i, kind, piece);
+      await viaPage(i, kind, piece);
+    }
   }
 } finally {
   await browser?.close();
@@ -162,8 +198,9 @@ try {
 
 const mbps = (s) => size / 1e6 / s;
 const c = median(out.curl);
-const k = out.pieces.length ? median(out.pieces) : NaN;
-const p = median(out.page);
+const list = (xs) => `[${xs.map((s) => s.toFixed(2)).join(', ')}]`;
+const line = (what, xs) =>
+  console.log(`${what.padEnd(40)} median ${median(xs).toFixed(2)} s, ${mbps(median(xs)).toFixed(0)} MB/s  ${list(xs)}`);
 console.log(
   `machine: ${cpus().length} x ${cpus()[0].model}, ${(totalmem() / 2 ** 30).toFixed(0)} GiB, node ${process.version}`,
 );
@@ -171,14 +208,13 @@ console.log(
   `file: ${(size / 1e6).toFixed(1)} MB walk video, ${repeats} uploads each, to one omninav serve over ` +
     (link ? `a ${link} MB/s link (emulated)` : 'loopback'),
 );
-console.log(
-  `curl (one PUT):        median ${c.toFixed(2)} s, ${mbps(c).toFixed(0)} MB/s  [${out.curl.map((s) => s.toFixed(2)).join(', ')}]`,
-);
-if (out.pieces.length)
+line('curl (one PUT):', out.curl);
+for (const [kind, piece] of kinds) {
+  const n = `${Math.ceil(size / piece)} PUTs of ${(piece / 2 ** 20).toFixed(2)} MiB`;
+  if (out.pieces[kind].length) line(`fetch (${n}):`, out.pieces[kind]);
+  line(`page, ${kind === 'old' ? 'before (?piece=)' : 'now'} (${n}):`, out.page[kind]);
+}
+for (const [kind] of kinds)
   console.log(
-    `fetch (${Math.ceil(size / piece)} PUTs of ${(piece / 2 ** 20).toFixed(2)} MiB): median ${k.toFixed(2)} s, ${mbps(k).toFixed(0)} MB/s  [${out.pieces.map((s) => s.toFixed(2)).join(', ')}]`,
+    `page / curl throughput, ${kind === 'old' ? 'before' : 'now'}: ${((100 * c) / median(out.page[kind])).toFixed(0)} % (target: at least 80 %)`,
   );
-console.log(
-  `page (pieces, resumable): median ${p.toFixed(2)} s, ${mbps(p).toFixed(0)} MB/s  [${out.page.map((s) => s.toFixed(2)).join(', ')}]`,
-);
-console.log(`page / curl throughput: ${((100 * mbps(p)) / mbps(c)).toFixed(0)} % (target: at least 80 %)`);

@@ -20,6 +20,7 @@ import {
   tagBySuggestions,
   waitUploadedAndSuggested,
 } from './admin-steps';
+import { pieceSize } from '../web/src/admin/upload';
 import { TOKEN, WORK, base } from './env';
 import { expectNoAxeViolations, spyOnSpeech } from './helpers';
 
@@ -171,6 +172,9 @@ test('an admin builds a venue entirely through the page; the phone app answers t
   await test.step('the walk video, resumably: cut off mid-upload, the page reloaded, resumed from received', async () => {
     await a.click(nav(page, 'Videos'));
     const content = '**/videos/walk.mp4/content';
+    // two pieces of the page's own size must leave some of the walk to send
+    const size = statSync(adminFile('walk.mp4')).size;
+    expect(Math.ceil(size / pieceSize(size)), 'pieces of the fixture walk').toBeGreaterThanOrEqual(3);
     let pieces = 0;
     await page.route(content, async (route) => {
       // two pieces arrive, then the connection goes (this piece and every retry)

@@ -75,8 +75,8 @@ export async function venueByApi(id: string, name = `Admin test ${id}`): Promise
 }
 
 /** Open the admin page and sign in with the suite's token. */
-export async function signIn(page: Page): Promise<void> {
-  await page.goto(`${base()}/admin`);
+export async function signIn(page: Page, query = ''): Promise<void> {
+  await page.goto(`${base()}/admin${query}`);
   await page.getByLabel('Admin token').fill(TOKEN);
   await page.getByRole('button', { name: 'Sign in' }).click();
   await expect(page.getByRole('button', { name: 'Sign out' })).toBeVisible();
@@ -127,9 +127,24 @@ export function truthAt(track: TruthTrack, t: number): { x: number; y: number } 
 export async function clickPlanAt(page: Page, container: string, x: number, y: number, sizeM: [number, number]) {
   const img = page.locator(`${container} img.pm-plan`);
   await expect(img).toBeVisible();
-  const box = await img.boundingBox();
-  if (!box) throw new Error('the plan image has no box');
-  await page.mouse.click(box.x + (x / sizeM[0]) * box.width, box.y + (y / sizeM[1]) * box.height);
+  // the map may sit partly below the fold: bring the point itself into the viewport, then check
+  // that it lies on the map (a click outside the window or the map's box would go elsewhere)
+  const at = async () => {
+    const box = await img.boundingBox();
+    if (!box) throw new Error('the plan image has no box');
+    return { px: box.x + (x / sizeM[0]) * box.width, py: box.y + (y / sizeM[1]) * box.height };
+  };
+  const view = page.viewportSize()!;
+  const first = await at();
+  if (first.py < 40 || first.py > view.height - 40)
+    await page.evaluate((dy) => window.scrollBy(0, dy), first.py - view.height / 2);
+  const { px, py } = await at();
+  const map = await page.locator(container).boundingBox();
+  if (!map || px < map.x || px > map.x + map.width || py < map.y || py > map.y + map.height)
+    throw new Error(`(${x}, ${y}) m is not on the visible map of ${container}`);
+  if (px < 0 || px > view.width || py < 0 || py > view.height)
+    throw new Error(`(${x}, ${y}) m is outside the window even after scrolling`);
+  await page.mouse.click(px, py);
 }
 
 /** The plan's size in metres, from the fixture's truth. */

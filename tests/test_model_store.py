@@ -1,5 +1,7 @@
 """Modelling and venue storage: frames placed by the track, atomic generations, interruptions."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -8,7 +10,7 @@ from omninav.lens import load_lens
 from omninav.model_venue import model_video
 from omninav.presets import n_curves, resolve
 from omninav.store import Store, check_id
-from omninav.track import load_track
+from omninav.track import load_track, parse_track
 
 
 def test_modelled_frames_follow_the_track(modelled, small_ds):
@@ -24,6 +26,24 @@ def test_modelled_frames_follow_the_track(modelled, small_ds):
     # sampled at the preset's 10 fps from a 10 fps video: every frame, in order
     assert np.all(np.diff(g.frames["frame"]) == 1)
     assert g.videos == ["model.mp4"]
+
+
+def test_a_track_in_seconds_is_timed_by_the_videos_own_rate(copy_store, modelled, small_ds):
+    # the admin page tags waypoints in seconds and sends no fps (docs/formats.md: fps only counts
+    # `frame` numbers); a frame's time is its number over the VIDEO's rate (10 fps here), never the
+    # track's default 30, which would put every frame a third of the way along the walk
+    reference = modelled[0].load(modelled[1]).frames
+    st, vid = copy_store
+    d = json.loads(small_ds.model_track.read_text())
+    assert d["fps"] == 10 and all("t" in w for w in d["waypoints"])
+    del d["fps"]
+    model_video(st, vid, small_ds.model_video, parse_track(d), load_lens(small_ds.root / "model_lens.json"))
+    got = st.load(vid).frames
+    assert len(got) == len(reference)
+    np.testing.assert_array_equal(got["frame"], reference["frame"])
+    np.testing.assert_allclose(got["t"], reference["t"], atol=1e-5)
+    np.testing.assert_allclose(got["x"], reference["x"], atol=1e-3)
+    np.testing.assert_allclose(got["y"], reference["y"], atol=1e-3)
 
 
 def test_remodelling_a_video_replaces_its_frames(copy_store, small_ds):

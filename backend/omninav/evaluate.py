@@ -69,7 +69,7 @@ def query_spectra(
         idx.append(i)
         if progress:
             progress(len(idx), max(total, len(idx)), time.perf_counter() - t0)
-    t = np.array(idx) / track.fps
+    t = np.array(idx) / vfps  # the video's rate: a track's fps only counts its own frame numbers
     xy, hd, ok = track.pose_at(t)
     if not ok.any():
         raise OmninavError(f"{video}: no frame lies within the track's waypoints")

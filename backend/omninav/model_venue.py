@@ -70,10 +70,12 @@ def _plan(src: VideoSource, settings: dict[str, Any]) -> _Plan:
             f"{src.video.name}: frames are {info.width}x{info.height} but the lens profile is for {w}x{h}"
         )
     track = src.track
+    # a frame's time is its number over the VIDEO's rate: a track's `fps` only says what its own
+    # `frame` numbers count in (docs/formats.md), and a track tagged in seconds may not give one
     vfps = info.fps if info.fps > 0 else track.fps
     stride = max(1, int(round(vfps / settings["model_fps"])))
-    first = max(0, int(np.ceil(track.times[0] * track.fps - 1e-6)))
-    last = int(np.floor(track.times[-1] * track.fps + 1e-6))
+    first = max(0, int(np.ceil(track.times[0] * vfps - 1e-6)))
+    last = int(np.floor(track.times[-1] * vfps + 1e-6))
     if info.frames and first >= info.frames:
         raise OmninavError(f"{src.video.name}: the track starts after the video ends ({info.frames} frames)")
     expected = (min(last, info.frames - 1 if info.frames else last) - first) // stride + 1
@@ -90,7 +92,7 @@ def _extract(p: _Plan, settings: dict[str, Any], tick: Callable[[], None]) -> tu
         if i > p.last:
             break
         seen = i
-        t = i / track.fps
+        t = i / p.vfps
         xy, hd, ok = track.pose_at(np.array([t]))
         if not ok[0]:
             continue

@@ -33,7 +33,9 @@ class Track:
         x = np.interp(t, self.times, self.xy[:, 0])
         y = np.interp(t, self.times, self.xy[:, 1])
         leg = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, len(self.times) - 2)
-        return np.stack([x, y], -1), np.mod(self.leg_headings()[leg] + self.heading_offset, 360.0), ok
+        h = np.mod(self.leg_headings()[leg] + self.heading_offset, 360.0)
+        h[h >= 360.0] = 0.0  # mod of a tiny negative number rounds to 360.0
+        return np.stack([x, y], -1), h, ok
 
     def leg_headings(self) -> np.ndarray:
         """(N-1,) the direction of travel of each leg, degrees clockwise from up.

@@ -5,11 +5,13 @@ import type { Video } from '../src/admin/types';
 import {
   MAX_PIECE,
   MIN_PIECE,
+  MIN_PIECE_OVERRIDE,
   RateMeter,
   contentRange,
   lensMismatch,
   matchUpload,
   nextPiece,
+  pieceOverride,
   pieceSize,
   rangeStart,
   videoName,
@@ -47,7 +49,7 @@ const video = (over: Partial<Video>): Video => ({
 });
 
 describe('pieces', () => {
-  it('cover the file once, in order, each within 256 KiB..8 MiB', () => {
+  it('cover the file once, in order, each within 1 MiB..64 MiB', () => {
     for (const size of [1, 1000, MIN_PIECE, 3 * MB + 17, 100 * MB, 3000 * MB]) {
       const ps = plan(0, size);
       expect(ps[0][0]).toBe(0);
@@ -55,12 +57,30 @@ describe('pieces', () => {
       for (let i = 1; i < ps.length; i++) expect(ps[i][0]).toBe(ps[i - 1][1]);
       for (const [a, b] of ps.slice(0, -1)) expect(b - a).toBeGreaterThanOrEqual(MIN_PIECE);
       for (const [a, b] of ps) expect(b - a).toBeLessThanOrEqual(MAX_PIECE);
+      for (const [a, b] of ps.slice(0, -1)) expect((b - a) % (64 * 1024)).toBe(0);
     }
   });
-  it('are about 16 for a middling file, 8 MiB for a big one', () => {
-    expect(plan(0, 64 * MB).length).toBe(16);
+  it('are about 4 for a middling file, 64 MiB for a big one, 1 MiB for a small one', () => {
+    expect(MIN_PIECE).toBe(MB);
+    expect(MAX_PIECE).toBe(64 * MB);
+    expect(plan(0, 64 * MB).length).toBe(4);
+    expect(plan(0, 95_252_897).length).toBe(4); // the benchmark's walk (docs/benchmarks.md)
+    expect(plan(0, 256 * MB).length).toBe(4);
+    expect(plan(0, 1000 * MB).length).toBe(16);
     expect(pieceSize(4000 * MB)).toBe(MAX_PIECE);
     expect(pieceSize(10 * 1024)).toBe(MIN_PIECE);
+    expect(plan(0, 2_250_000).length).toBe(3); // the e2e walk: cut after two pieces, one is left
+  });
+  it('may be set by ?piece=BYTES (tests and benchmarks), within 64 KiB..64 MiB', () => {
+    expect(pieceOverride('')).toBeNull();
+    expect(pieceOverride('?other=1')).toBeNull();
+    expect(pieceOverride('?piece=')).toBeNull();
+    expect(pieceOverride('?piece=lots')).toBeNull();
+    expect(pieceOverride('?piece=-5')).toBeNull();
+    expect(pieceOverride('?piece=5963776')).toBe(5963776);
+    expect(pieceOverride('?x=1&piece=300000')).toBe(300000);
+    expect(pieceOverride('?piece=1')).toBe(MIN_PIECE_OVERRIDE);
+    expect(pieceOverride(`?piece=${2 ** 40}`)).toBe(MAX_PIECE);
   });
   it("resume at the server's `received`: no byte before it is sent again, none is skipped", () => {
     const size = 10 * MB + 3;

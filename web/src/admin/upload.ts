@@ -6,18 +6,37 @@
  */
 import type { Video } from './types';
 
-export const MIN_PIECE = 256 * 1024;
-export const MAX_PIECE = 8 * 1024 * 1024;
+export const MIN_PIECE = 1024 * 1024;
+export const MAX_PIECE = 64 * 1024 * 1024;
+/** The smallest piece size `?piece=` may ask for. */
+export const MIN_PIECE_OVERRIDE = 64 * 1024;
 
 /**
- * Bytes per piece for a file of `size`: about 16 pieces (a dropped connection loses at most one
- * piece's worth of waiting, and progress moves), never under 256 KiB (request overhead) nor over
- * 8 MiB (what one request risks). A multiple of 64 KiB.
+ * Bytes per piece for a file of `size`: about 4 pieces, never under 1 MiB nor over 64 MiB, a
+ * multiple of 64 KiB. Few pieces because each one costs a request (a few milliseconds of the
+ * server's bookkeeping, the browser's setting up of a new upload, the pipe from the browser to the
+ * workers drained and refilled): 16 pieces made the page's upload half as fast as curl's one PUT
+ * on loopback (docs/benchmarks.md, issue 11). Large pieces lose nothing: the server keeps every
+ * byte of a piece that arrived, even when its request is cut off (pause, a dropped connection),
+ * and the upload resumes from there; progress within a piece comes from the request's own upload
+ * events. Over 64 MiB the pieces get more numerous (a 1 GB walk: 16), which costs little at that
+ * size and keeps the server's `received` (what a reload or another tab sees) moving.
  */
 export function pieceSize(size: number): number {
   const step = 64 * 1024;
-  const want = Math.ceil(size / 16 / step) * step;
+  const want = Math.ceil(size / 4 / step) * step;
   return Math.min(MAX_PIECE, Math.max(MIN_PIECE, want));
+}
+
+/**
+ * The piece size the page's address asks for with `?piece=BYTES` (before the '#'), for tests and
+ * benchmarks only: to cut a small file into many pieces, or to compare piece sizes on one build.
+ * Kept within 64 KiB..64 MiB; null (use pieceSize) when absent or not a number.
+ */
+export function pieceOverride(search: string): number | null {
+  const v = new URLSearchParams(search).get('piece');
+  if (v === null || !/^\d+$/.test(v.trim())) return null;
+  return Math.min(MAX_PIECE, Math.max(MIN_PIECE_OVERRIDE, Number(v)));
 }
 
 /** Bytes [start, end) of the file. */

@@ -10,7 +10,7 @@ import { AdminError, UNREACHABLE, venuePath, type AdminApi } from './api';
 import { formatBytes, formatDuration } from './format';
 import { probeFile, type VideoProbe } from './probe';
 import type { Job, Video } from './types';
-import { RateMeter, contentRange, lensMismatch, nextPiece, pieceSize, videoName } from './upload';
+import { RateMeter, contentRange, lensMismatch, nextPiece, pieceOverride, pieceSize, videoName } from './upload';
 
 export type UploadState =
   | 'checking' // probing the file here
@@ -181,7 +181,7 @@ export class Upload {
   }
 
   private async send(): Promise<void> {
-    const piece = pieceSize(this.size);
+    const piece = pieceOverride(location.search) ?? pieceSize(this.size);
     this.meter.reset();
     this.meter.add(this.received, performance.now());
     for (let p = nextPiece(this.received, this.size, piece); p; p = nextPiece(this.received, this.size, piece)) {
