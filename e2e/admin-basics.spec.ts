@@ -21,7 +21,7 @@ interface Facts {
 interface PublicVenue {
   revision: number;
   floors: { id: string; px_per_m: number | null; plan_size_px: [number, number] | null }[];
-  places: { id: string; name: string; x: number; y: number; area?: number[] }[];
+  places: { id: string; name: string; x: number; y: number; area?: number[]; kind?: string }[];
 }
 
 async function venueDoc(page: Page): Promise<PublicVenue> {
@@ -162,6 +162,7 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     await page.getByRole('button', { name: 'Add the place' }).click();
     await expect(page.getByRole('status')).toContainText('Added Room 1');
     let room = (await venueDoc(page)).places.find((q) => q.name === 'Room 1')!;
+    expect(room.kind).toBe('room');
     expect(Math.abs(room.x - 11)).toBeLessThan(0.3);
     expect(Math.abs(room.y - 2)).toBeLessThan(0.3);
     await expectNoAxeViolations(page, 'the places screen with the editor open');
@@ -328,6 +329,25 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     await expect(tab.locator('#banner')).toBeHidden();
     await expect(tab.locator('#place-list')).toContainText('the lifts — 20.0 m, 2.5 m');
     await other.close();
+  });
+
+  await test.step('floor: another floor of the building, with its own plan to come', async () => {
+    await nav(page, 'Floor plan').click();
+    await expect(page.getByRole('heading', { name: 'Floor plan', level: 2 })).toBeVisible();
+    await page.getByLabel('New floor id').fill('2/3');
+    await page.getByRole('button', { name: 'Add the floor' }).click();
+    await expect(page.locator('#alert')).toContainText('A floor id is 1 to 32 letters');
+    await page.getByLabel('New floor id').fill('2');
+    await page.getByLabel('New floor name').fill('Second floor');
+    await page.getByRole('button', { name: 'Add the floor' }).click();
+    await expect(page.getByRole('status')).toContainText('Floor Second floor added');
+    await expect(page).toHaveURL(/floor=2/);
+    await expect(page.locator('#floor-facts')).toContainText('no plan yet');
+    await expect(page.getByLabel('Floor', { exact: true })).toHaveValue('2');
+    const floors = (await venueDoc(page)).floors;
+    expect(floors.map((f) => f.id)).toEqual(['1', '2']);
+    expect(floors[1].plan_size_px).toBeNull();
+    await expectNoAxeViolations(page, 'the floor screen of a floor without a plan');
   });
 
   await test.step('venues: rename, then delete after a confirmation naming what is lost', async () => {

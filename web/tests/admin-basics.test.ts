@@ -107,7 +107,8 @@ describe('place files', () => {
       [{ name: 'a', x: 1, y: 1, floor: '2' }, 'no floor "2"'],
       [{ name: 'a', x: 1, y: 1, area: [0, 0, 1] }, '"area" must be'],
       [{ name: 'a', x: 1, y: 1, area: [5, 0, 1, 1] }, 'x0 < x1'],
-      [{ name: 'a', x: 1, y: 1, say: 'x'.repeat(301) }, '"say"'],
+      [{ name: 'a', x: 1, y: 1, say: 'x'.repeat(501) }, '"say"'],
+      [{ name: 'a', x: 1, y: 1, kind: 'lobby' }, '"kind" must be one of room, door, lift'],
       [[1], 'is not an object'],
     ];
     for (const [p, msg] of cases) expect(() => checkPlace(p, 0, floors), msg).toThrow(msg);

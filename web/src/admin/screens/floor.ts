@@ -14,6 +14,8 @@ import type { Floor } from '../../shared/api-types';
 import type { Video } from '../types';
 import type * as L from 'leaflet';
 
+/** A floor id as the API takes it (openapi.yaml FloorId). */
+const FLOOR_ID = /^[A-Za-z0-9][A-Za-z0-9_-]{0,31}$/;
 const KEPT =
   'Places, areas and tracks are stored in metres: replacing the plan or changing its scale keeps ' +
   'them where they are in the building. They are drawn on the plan below: check that they still ' +
@@ -47,6 +49,17 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     { noValidate: true, className: 'row' },
     field('Floor name', nameIn).wrap,
     el('button', { type: 'submit', textContent: 'Save the name' }),
+  );
+
+  // ---- another floor of the building (each has its own plan, scale, places and walks)
+  const newId = el('input', { maxLength: 32, autocomplete: 'off' });
+  const newName = el('input', { maxLength: 200, autocomplete: 'off' });
+  const addFloorForm = el(
+    'form',
+    { noValidate: true, className: 'row' },
+    field('New floor id', newId, 'As answers name it, e.g. 2, B1 or mezzanine.').wrap,
+    field('New floor name', newName, 'e.g. Second floor.').wrap,
+    el('button', { type: 'submit', textContent: 'Add the floor' }),
   );
 
   // ---- the scale: two points (plan pixels) and their distance
@@ -98,6 +111,8 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     scaleForm,
     el('h3', { textContent: 'Name' }),
     nameForm,
+    el('h3', { textContent: 'Another floor' }),
+    addFloorForm,
   );
   root.append(
     el('h2', { textContent: 'Floor plan' }),
@@ -295,6 +310,23 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       .finally(() => {
         saveScale.disabled = false;
       });
+  });
+
+  addFloorForm.addEventListener('submit', (e) => {
+    e.preventDefault();
+    const id = newId.value.trim();
+    const name = newName.value.trim() || `Floor ${id}`;
+    if (!FLOOR_ID.test(id))
+      return ctx.announce('A floor id is 1 to 32 letters, digits, "-" or "_", starting with a letter or digit.', true);
+    if (ctx.venue().floors.some((f) => f.id === id)) return ctx.announce(`The venue already has floor ${id}.`, true);
+    ctx.api
+      .put<Floor>(venuePath(venueId, `/floors/${encodeURIComponent(id)}`), { name })
+      .then(async () => {
+        await ctx.refresh();
+        ctx.announce(`Floor ${name} added: upload its plan.`);
+        ctx.go('floor', { floor: id });
+      })
+      .catch((err: unknown) => ctx.fail(err, 'Adding the floor'));
   });
 
   nameForm.addEventListener('submit', (e) => {
