@@ -366,6 +366,25 @@ def test_every_write_with_a_stale_revision_is_refused_and_changes_nothing(
     assert api.patch("/api/admin/venues/v", json={"name": "Y"}, headers=ADMIN).status_code == 200
 
 
+def test_a_write_that_changes_nothing_answers_no_etag(fresh: Any, small_ds: Any) -> None:
+    # tab A read revision N; tab B then saved (N+1). A's upload piece changes nothing: if it answered
+    # the venue's current revision, A would take N+1 as its own and its next save would undo B's
+    app, api = fresh
+    data = small_ds.model_video.read_bytes()
+    assert post_video(api, "v", "walk.mp4", len(data)).status_code == 201
+    stale = revision(api, "v")
+    assert api.patch("/api/admin/venues/v", json={"name": "B's"}, headers=ADMIN).status_code == 200
+    r = api.put(
+        "/api/admin/venues/v/videos/walk.mp4/content",
+        data=data[:1000],
+        headers={**ADMIN, "Content-Range": f"bytes 0-999/{len(data)}"},
+        content_type="application/octet-stream",
+    )
+    assert r.status_code == 202 and "ETag" not in r.headers
+    r = api.patch("/api/admin/venues/v", json={"name": "A's"}, headers={**ADMIN, "If-Match": f'"{stale}"'})
+    assert r.status_code == 412 and api.get("/api/venues/v").json["name"] == "B's"
+
+
 @pytest.mark.parametrize("value", ["7", 'W/"7"', "*"])
 def test_if_match_forms(fresh: Any, value: str) -> None:
     app, api = fresh

@@ -174,6 +174,15 @@ def test_evaluate_job_locates_the_evaluation_walk(lab):
     assert ev.status_code == 200 and ev.json == api.get(d["result_url"], headers=ADMIN).json
     s = ev.json["summary"]
     assert s["clips"] == len(ev.json["clips"]) >= 15 and s["within_2m"] >= 0.7, s
+    # a video registered again under this name (another walk) is not shown the old walk's result
+    db = app.extensions["omninav"].db
+    was = db.one("SELECT created FROM videos WHERE venue = 'lab' AND name = 'eval.mp4'")["created"]
+    db.run("UPDATE videos SET created = :t WHERE venue = 'lab' AND name = 'eval.mp4'", t=time.time() + 60)
+    try:
+        assert api.get(f"{V}/videos/eval.mp4/evaluation", headers=ADMIN).status_code == 404
+    finally:
+        db.run("UPDATE videos SET created = :t WHERE venue = 'lab' AND name = 'eval.mp4'", t=was)
+    assert api.get(f"{V}/videos/eval.mp4/evaluation", headers=ADMIN).status_code == 200
 
 
 def test_a_running_analysis_job_is_cancelled_and_publishes_nothing(lab):
@@ -215,6 +224,27 @@ def test_an_analysis_job_taken_over_by_another_runner_publishes_nothing(lab):
         t.join(60)
     row = svc.db.one("SELECT * FROM jobs WHERE id = :id", id=j["id"])
     assert row["owner"] == "another-host:4242:1" and row["state"] == "running" and row["result"] is None
+    assert not result_file(app, j["id"]).exists() and not list(result_file(app, j["id"]).parent.glob(".*"))
+    assert api.get(f"{V}/videos/untagged.mp4", headers=ADMIN).json["suggestions"] == before
+
+
+def test_a_cancel_after_the_engine_finished_still_wins(lab, monkeypatch):
+    # the admin presses Cancel just as the engine returns, after the runner's last look at the
+    # flag: the cancel was answered 202, so the job ends cancelled and publishes nothing
+    app, api = lab
+    svc = app.extensions["omninav"]
+    before = api.get(f"{V}/videos/untagged.mp4", headers=ADMIN).json["suggestions"]
+    j = api.post(f"{V}/videos/untagged.mp4/suggest", headers=ADMIN).json
+    real = jobs_mod._write_beside
+
+    def cancel_then_write(path, text):
+        assert api.post(f"/api/admin/jobs/{j['id']}/cancel", headers=ADMIN).status_code == 202
+        return real(path, text)
+
+    monkeypatch.setattr(jobs_mod, "_write_beside", cancel_then_write)
+    assert svc.jobs.run_next()
+    d = job(api, j["id"])
+    assert d["state"] == "cancelled" and d["result_url"] is None, d
     assert not result_file(app, j["id"]).exists() and not list(result_file(app, j["id"]).parent.glob(".*"))
     assert api.get(f"{V}/videos/untagged.mp4", headers=ADMIN).json["suggestions"] == before
 

@@ -270,15 +270,18 @@ class Videos:
             )
         return self.get(venue_id, v["name"])
 
-    def set_suggestions(self, venue_id: str, name: str, result: dict[str, Any] | None) -> None:
+    def set_suggestions(
+        self, venue_id: str, name: str, result: dict[str, Any] | None, c: Connection | None = None
+    ) -> None:
         """Keep the latest waypoint suggestions of a video (a suggest job's result), shown with it.
-        Not an edit of the venue: no revision bump. A video deleted meanwhile is left alone."""
-        self.db.run(
-            "UPDATE videos SET suggestions = :s WHERE venue = :v AND name = :n",
-            s=json.dumps(result) if result is not None else None,
-            v=venue_id,
-            n=name,
-        )
+        Not an edit of the venue: no revision bump. A video deleted meanwhile is left alone. With
+        `c`, inside that transaction (the job's own "done", so a job that is not done writes none)."""
+        sql = "UPDATE videos SET suggestions = :s WHERE venue = :v AND name = :n"
+        params = {"s": json.dumps(result) if result is not None else None, "v": venue_id, "n": name}
+        if c is not None:
+            c.execute(text(sql), params)
+        else:
+            self.db.run(sql, **params)
 
     def frame(self, venue_id: str, name: str, t: float, view: str, width: int | None) -> bytes:
         """The video's frame at t seconds as a JPEG: as filmed ('raw') or unwrapped with the

@@ -62,15 +62,16 @@ def _begin_write() -> None:
 
 @bp.after_request
 def _etag(resp: Response) -> Response:
-    """A write on a venue (and a read of it) answers the venue's revision as its ETag."""
+    """A write that changed a venue answers the revision it made as its ETag.
+
+    A write that changed nothing (an upload's bytes, a job started) answers none: the venue's
+    current revision there would tell a stale tab it is up to date with edits it never read,
+    and its next save (If-Match that revision) would silently undo another tab's work.
+    """
     w = g.get("omninav_write")
     if w is not None and resp.status_code < 400 and request.endpoint != "admin.delete_venue":
-        revision = w.revision
-        if revision is None:  # a write that did not change the venue (an upload's bytes, a job)
-            row = _cat().db.one("SELECT revision FROM venues WHERE id = :id", id=w.venue)
-            revision = row["revision"] if row else None
-        if revision is not None:
-            resp.headers["ETag"] = f'"{revision}"'
+        if w.revision is not None:
+            resp.headers["ETag"] = f'"{w.revision}"'
     return resp
 
 

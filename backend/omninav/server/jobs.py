@@ -373,9 +373,15 @@ class Jobs:
         return self.get(job_id)
 
     def latest_done(self, venue_id: str, kind: str, target: str | None = None) -> dict[str, Any] | None:
-        """The venue's most recently finished job of `kind` (on video `target`) that has a result."""
+        """The venue's most recently finished job of `kind` (on video `target`) that has a result.
+        On a video: only a job started since the video was registered (a video deleted and
+        registered again under its name is another walk, and the old one's results are not its)."""
         self.cat.venues.get(venue_id)
-        on = "AND target = :g" if target is not None else ""
+        on = (
+            "AND target = :g AND created >= (SELECT created FROM videos WHERE venue = :v AND name = :g)"
+            if target is not None
+            else ""
+        )
         return self.db.one(
             f"SELECT * FROM jobs WHERE venue = :v AND kind = :k {on} AND state = 'done' AND result IS NOT NULL "
             "ORDER BY finished DESC, created DESC LIMIT 1",
@@ -660,20 +666,19 @@ class Jobs:
         the file is renamed into place only while this runner still owns the job (a takeover's
         UPDATE waits for this transaction), so a runner taken over publishes nothing."""
         mine = {"t": time.time(), "id": job["id"], "o": self.me, "r": rel}
-        if job["kind"] == "suggest":
-            # on the video before the job is seen done (a page reloads the video on 'done'); a
-            # runner taken over just after this check writes what the new owner will write again
-            if self.db.one(f"SELECT id FROM jobs WHERE {self._MINE}", id=job["id"], o=self.me) is None:
-                raise Lost
-            self.cat.videos.set_suggestions(job["venue"], job["target"], result)
         with self.db.tx() as c:
-            # done is all of it, whether or not the engine's last progress call said so
+            # done is all of it, whether or not the engine's last progress call said so; a cancel
+            # that came after the engine's last progress call still wins (the admin was told 202)
             sql = (
                 "UPDATE jobs SET state = 'done', finished = :t, result = :r, frames_done = frames_total "
-                f"WHERE {self._MINE}"
+                f"WHERE {self._MINE} AND cancel = 0"
             )
             if not c.execute(text(sql), mine).rowcount:
-                raise Lost  # leaving the block this way rolls the transaction back
+                # leaving the block this way rolls the transaction back
+                owned = c.execute(text(f"SELECT id FROM jobs WHERE {self._MINE}"), mine).first()
+                raise Cancelled if owned is not None else Lost
+            if job["kind"] == "suggest":  # on the video in the same transaction as "done"
+                self.cat.videos.set_suggestions(job["venue"], job["target"], result, c)
             os.replace(tmp, self.cat.data / rel)
         log.info("job %s done", job["id"])
 

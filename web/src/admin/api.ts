@@ -88,7 +88,9 @@ export class AdminApi {
       throw new AdminError(UNREACHABLE, 0);
     }
     if (!res.ok) throw await this.refusal(res);
-    const etag = res.headers.get('ETag');
+    // only a write's ETag is the revision this tab now holds; a read's (the venue as listed) comes
+    // without the contents this tab shows, and taking it would hide another tab's edits
+    const etag = write ? res.headers.get('ETag') : null;
     if (venue && etag) {
       const rev = Number(etag.replace(/^W\//, '').replace(/"/g, ''));
       if (Number.isInteger(rev)) this.onRevision(decodeURIComponent(venue), rev);

@@ -17,13 +17,17 @@ export function notReady(v: Video): string | null {
   return null;
 }
 
+/** A median, or what to say when no clip was answered (the server sends null then). */
+export const metres = (v: number | null): string => (v === null ? 'none' : `${v.toFixed(1)} m`);
+export const degrees = (v: number | null): string => (v === null ? 'none' : `${Math.round(v)}°`);
+
 /** The summary, as shown and announced. */
 export function summaryText(e: Evaluation): string {
   const s = e.summary;
   const answered = e.clips.filter((c) => c.answer !== null).length;
   return (
     `${s.clips} clips: ${percent(s.within_1m)} within 1 m, ${percent(s.within_2m)} within 2 m; ` +
-    `median error ${s.median_error_m.toFixed(1)} m, median heading error ${Math.round(s.median_heading_error_deg)}°; ` +
+    `median error ${metres(s.median_error_m)}, median heading error ${degrees(s.median_heading_error_deg)}; ` +
     `${s.not_sure} spoken as "not sure"` +
     (answered < s.clips ? `; ${s.clips - answered} without an answer` : '')
   );

@@ -54,10 +54,11 @@ export function stretchTitle(seg: QualitySegment): string {
 export function stretchReason(seg: QualitySegment): string {
   const m = seg.match;
   const where = `${m.video} at ${clock(m.t)}, ${at(m.x, m.y)}`;
-  if (seg.verdict === 'green') return `answered within ${seg.error_m.toFixed(1)} m`;
+  const off = seg.error_m === null ? 'an unknown distance' : `${seg.error_m.toFixed(1)} m`;
+  if (seg.verdict === 'green') return `answered within ${off}`;
   if (seg.verdict === 'amber')
-    return `answered ${seg.error_m.toFixed(1)} m away, but ${where} scored close (margin ${seg.margin.toFixed(2)})`;
-  return `answered ${seg.error_m.toFixed(1)} m away: taken for ${where}`;
+    return `answered ${off} away, but ${where} scored close${seg.margin === null ? '' : ` (margin ${seg.margin.toFixed(2)})`}`;
+  return `answered ${off} away: taken for ${where}`;
 }
 
 /** "both walking directions filmed" / "only one walking direction filmed" / "not filmed" */

@@ -114,8 +114,8 @@ export interface QualitySegment {
   t1: number;
   points: [number, number][];
   verdict: Verdict;
-  error_m: number;
-  margin: number;
+  error_m: number | null;
+  margin: number | null;
   query: { video: string; t: number };
   match: { video: string; t: number; x: number; y: number };
 }
@@ -160,8 +160,8 @@ export interface Evaluation {
     clips: number;
     within_1m: number;
     within_2m: number;
-    median_error_m: number;
-    median_heading_error_deg: number;
+    median_error_m: number | null;
+    median_heading_error_deg: number | null;
     not_sure: number;
   };
 }

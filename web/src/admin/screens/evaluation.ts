@@ -13,6 +13,8 @@ import {
   CLIP_COLOUR,
   CLIP_COLUMNS,
   arrow,
+  degrees,
+  metres,
   clipRow,
   clipVerdict,
   evaluationVideos,
@@ -93,8 +95,8 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       figures.append(el('dt', { textContent: dt }), el('dd', { id, textContent: dd }));
     fig('Within 1 m', percent(s.within_1m), 'evaluation-within-1m');
     fig('Within 2 m', percent(s.within_2m), 'evaluation-within-2m');
-    fig('Median error', `${s.median_error_m.toFixed(1)} m`, 'evaluation-median');
-    fig('Median heading error', `${Math.round(s.median_heading_error_deg)}°`, 'evaluation-heading');
+    fig('Median error', metres(s.median_error_m), 'evaluation-median');
+    fig('Median heading error', degrees(s.median_heading_error_deg), 'evaluation-heading');
     fig('Spoken as "not sure"', `${s.not_sure} of ${s.clips}`, 'evaluation-not-sure');
 
     const legend = el('ul', { className: 'legend' });

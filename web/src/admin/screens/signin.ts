@@ -72,7 +72,10 @@ export function mountSignIn(root: HTMLElement, opts: SignInOptions): () => void 
     problem.textContent = msg;
     problem.hidden = false;
     input.setAttribute('aria-invalid', 'true');
-    input.setAttribute('aria-describedby', `${problem.id} ${input.getAttribute('aria-describedby') ?? ''}`.trim());
+    const described = (input.getAttribute('aria-describedby') ?? '')
+      .split(/\s+/)
+      .filter((id) => id && id !== problem.id);
+    input.setAttribute('aria-describedby', [problem.id, ...described].join(' '));
     opts.announce(msg, true);
     input.focus();
     input.select();

@@ -151,7 +151,6 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     const clock = el('output', { textContent: formatTime(0) });
     clock.setAttribute('aria-hidden', 'true');
     const play = button('Play', () => (playing ? stopPlay() : startPlay()));
-    play.setAttribute('aria-pressed', 'false');
     const back = button('Back 1 s', () => seek(t - 1), 'secondary');
     const fwd = button('Forward 1 s', () => seek(t + 1), 'secondary');
     const prevFrame = button('Previous frame', () => seek(t - step), 'secondary');
@@ -372,7 +371,6 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     const startPlay = () => {
       playing = true;
       play.textContent = 'Pause';
-      play.setAttribute('aria-pressed', 'true');
       void (async () => {
         let last = performance.now();
         while (playing && !abort.signal.aborted) {
@@ -396,7 +394,6 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       if (!playing) return;
       playing = false;
       play.textContent = 'Play';
-      play.setAttribute('aria-pressed', 'false');
     };
 
     // ---- the plan ----------------------------------------------------------------------------
