@@ -67,6 +67,13 @@ def run_cli(*args: str, data: Path | None = None, check: bool = False) -> subpro
     return p
 
 
+def cli_model(ds: Dataset, venue_id: str, data: Path) -> subprocess.CompletedProcess:
+    """`omninav model` of a synthetic dataset's modelling walk into a venue, as a user would."""
+    model_lens = ds.root / "model_lens.json"
+    args = ["model", venue_id, str(ds.model_video), "--track", str(ds.model_track), "--lens", str(model_lens)]
+    return run_cli(*args, data=data, check=True)
+
+
 @pytest.fixture
 def copy_store(modelled: tuple[Store, str], tmp_path: Path) -> tuple[Store, str]:
     """A private copy of the modelled store, for tests that change it."""

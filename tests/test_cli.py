@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import run_cli
+from conftest import cli_model, run_cli
 from omninav.track import load_track
 
 
@@ -40,17 +40,7 @@ def cli_venue(small_ds, tmp_path_factory):
     plan = cv2.imread(str(small_ds.floorplan))
     assert floor["id"] == "2" and floor["px_per_m"] == 20 and floor["plan_size_px"] == [plan.shape[1], plan.shape[0]]
     assert {p["name"] for p in doc["places"]} == {p["name"] for p in small_ds.scene.places}
-    p = run_cli(
-        "model",
-        "lab",
-        str(small_ds.model_video),
-        "--track",
-        str(small_ds.model_track),
-        "--lens",
-        str(small_ds.root / "model_lens.json"),
-        data=data,
-        check=True,
-    )
+    p = cli_model(small_ds, "lab", data)
     out = json.loads(p.stdout)
     assert out["frames_added"] > 100 and out["x_realtime"] > 1
     return data

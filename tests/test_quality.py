@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import run_cli
+from conftest import cli_model, run_cli
 from omninav.arrays import device_namespace
 from omninav.evaluate import evaluate_walk
 from omninav.index import Index
@@ -208,17 +208,7 @@ def test_cli_quality(twin: tuple[Dataset, Store], tmp_path: Path) -> None:
         data=data,
         check=True,
     )
-    run_cli(
-        "model",
-        "tw",
-        str(ds.model_video),
-        "--track",
-        str(ds.model_track),
-        "--lens",
-        str(ds.root / "model_lens.json"),
-        data=data,
-        check=True,
-    )
+    cli_model(ds, "tw", data)
     p = run_cli("quality", "tw", "-o", str(tmp_path / "q.json"), "--png", str(tmp_path / "q.png"), data=data)
     assert p.returncode == 0, p.stderr
     r = json.loads((tmp_path / "q.json").read_text())

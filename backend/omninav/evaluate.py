@@ -8,7 +8,6 @@ venue frame, with the ground truth and the band of venue frames within 2 m of it
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -20,11 +19,10 @@ from .errors import OmninavError
 from .heading import wrap_deg
 from .lens import Lens
 from .locate import Locator
+from .model_venue import Progress
 from .quality import AMBIGUOUS_MARGIN, RADIUS_M
 from .track import Track
 from .video import VideoInfo, iter_video
-
-Progress = Callable[[int, int, float], None]  # frames done, frames expected, seconds elapsed
 
 
 @dataclass

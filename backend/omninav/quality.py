@@ -30,7 +30,6 @@ index is; only the per-clip aggregation is a loop.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from typing import Any
 
 import cv2
@@ -38,9 +37,8 @@ import numpy as np
 
 from .aggregate import AGGREGATORS
 from .index import Index, Matches
+from .model_venue import Progress
 from .store import Generation, key_dims_for
-
-Progress = Callable[[int, int, float], None]
 
 RADIUS_M = 2.0  # an answer this close to the walk is right
 CLIP_S = 1.0  # a segment: the frames of 1 s of the walk, located as one clip

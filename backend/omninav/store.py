@@ -47,14 +47,20 @@ def check_id(venue_id: str) -> str:
     return venue_id
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    """Write beside, fsync, rename over: readers see the old file or the new one, never half."""
+def write_beside(path: Path, text: str) -> Path:
+    """Write `text` to a new hidden file beside `path`, fsynced; renamed over `path`, it appears
+    whole. -> the new file (the caller renames it, or deletes it if it must not appear)."""
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
     with os.fdopen(fd, "w") as f:
         f.write(text)
         f.flush()
         os.fsync(f.fileno())
-    os.replace(tmp, path)
+    return Path(tmp)
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    """Write beside, fsync, rename over: readers see the old file or the new one, never half."""
+    os.replace(write_beside(path, text), path)
 
 
 @dataclass

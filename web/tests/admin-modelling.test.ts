@@ -2,27 +2,21 @@
 import { describe, expect, it } from 'vitest';
 import { modelVerdict } from '../src/admin/screens/modelling';
 import type { Video } from '../src/admin/types';
+import { videoDoc } from './admin-video';
 
-const video = (over: Partial<Video>): Video => ({
-  name: 'walk.mp4',
-  floor: '1',
-  lens: 'donut',
-  role: 'model',
-  size: 1000,
-  received: 1000,
-  status: 'ready',
-  frames: 0,
-  tracked: true,
-  track: { waypoints: [] },
-  duration_s: 20,
-  fps: 10,
-  width: 480,
-  height: 360,
-  error: null,
-  suggestions: null,
-  upload_url: '',
-  ...over,
-});
+/** An uploaded, tagged modelling walk, unless `over` says otherwise. */
+const video = (over: Partial<Video>): Video =>
+  videoDoc({
+    received: 1000,
+    status: 'ready',
+    tracked: true,
+    track: { waypoints: [] },
+    duration_s: 20,
+    fps: 10,
+    width: 480,
+    height: 360,
+    ...over,
+  });
 
 describe('the next modelling', () => {
   it('takes a tagged, uploaded modelling walk', () => {

@@ -1,7 +1,7 @@
 // The arithmetic of the admin page's resumable upload and of its speed and time left.
 import { describe, expect, it } from 'vitest';
 import { formatBytes, formatDuration, formatTime } from '../src/admin/format';
-import type { Video } from '../src/admin/types';
+import { videoDoc } from './admin-video';
 import {
   MAX_PIECE,
   MIN_PIECE,
@@ -27,26 +27,7 @@ function plan(received: number, size: number): [number, number][] {
   return out;
 }
 
-const video = (over: Partial<Video>): Video => ({
-  name: 'walk.mp4',
-  floor: '1',
-  lens: 'donut',
-  role: 'model',
-  size: 1000,
-  received: 0,
-  status: 'uploading',
-  frames: 0,
-  tracked: false,
-  track: null,
-  duration_s: null,
-  fps: null,
-  width: null,
-  height: null,
-  error: null,
-  suggestions: null,
-  upload_url: '',
-  ...over,
-});
+const video = videoDoc;
 
 describe('pieces', () => {
   it('cover the file once, in order, each within 1 MiB..64 MiB', () => {

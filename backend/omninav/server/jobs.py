@@ -38,11 +38,9 @@ import logging
 import math
 import os
 import socket
-import tempfile
 import threading
 import time
 import uuid
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -50,9 +48,11 @@ from sqlalchemy import text
 from sqlalchemy.exc import IntegrityError
 
 from ..catalog import Catalog
+from ..catalog.venues import RESULTS
 from ..catalog.videos import Videos
 from ..errors import Conflict, NotFound, OmninavError
-from ..model_venue import model_videos
+from ..model_venue import Progress, model_videos
+from ..store import write_beside
 from ..track import parse_track
 
 log = logging.getLogger("omninav.jobs")
@@ -66,7 +66,6 @@ BACKOFF_S = 2.0  # wait before attempt n+1: BACKOFF_S * 2**(n-1), i.e. 2 s, 4 s,
 DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
 STOPPED = "the server stopped while this job ran; the venue kept its previous frames"
 KINDS = ("model", "suggest", "quality", "evaluate")
-RESULTS = "results"  # DATA/results/<venue>/<job id>.json: what an analysis job found
 
 
 class Cancelled(Exception):
@@ -184,14 +183,9 @@ def _plain(x: Any) -> Any:
 
 
 def _write_beside(path: Path, text: str) -> Path:
-    """Write `text` to a new file beside `path` (fsynced): renamed over `path`, it appears whole."""
+    """A job's result written beside its place (store.write_beside), its folder made first."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-        f.flush()
-        os.fsync(f.fileno())
-    return Path(tmp)
+    return write_beside(path, text)
 
 
 def failure(e: BaseException, kind: str = "model") -> tuple[str, bool]:
@@ -532,7 +526,7 @@ class Jobs:
             beat_stop.set()
         return True
 
-    def _progress(self, jid: str) -> Callable[[int, int, float], None]:
+    def _progress(self, jid: str) -> Progress:
         """The engine's progress callback for job `jid`: writes frames done/total and the rate
         (at most every PROGRESS_EVERY_S), and stops the work where the job was cancelled
         (Cancelled) or taken over by another runner (Lost)."""
@@ -627,7 +621,7 @@ class Jobs:
             if tmp is not None:  # not renamed into place: this attempt publishes nothing
                 tmp.unlink(missing_ok=True)
 
-    def _analyse(self, job: dict[str, Any], progress: Callable[[int, int, float], None]) -> dict[str, Any]:
+    def _analyse(self, job: dict[str, Any], progress: Progress) -> dict[str, Any]:
         """Run the engine's function of the job's kind; its result (JSON-able)."""
         cat, venue, target = self.cat, job["venue"], job["target"]
         if job["kind"] == "quality":

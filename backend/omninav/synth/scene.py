@@ -54,10 +54,9 @@ class Person:
 # --- layout ---------------------------------------------------------------------------------
 
 
-def default_layout() -> Layout:
-    """A rectangular ring of corridors with a cross corridor: 48 x 20 m between centre lines."""
-    w = 2.4
-    x0, y0, x1, y1, xm = 3.0, 3.0, 51.0, 23.0, 27.0
+def _ring(x0: float, y0: float, x1: float, y1: float, xm: float, w: float) -> tuple[list[Rect], list[list[Point]]]:
+    """A rectangular ring of corridors w wide with a north-south cross corridor at x = xm:
+    rectangles (north, south, west, east, middle) and their centre lines."""
     rects = [
         (x0 - w / 2, y0 - w / 2, x1 + w / 2, y0 + w / 2),  # north
         (x0 - w / 2, y1 - w / 2, x1 + w / 2, y1 + w / 2),  # south
@@ -72,6 +71,13 @@ def default_layout() -> Layout:
         [(x1, y0), (x1, y1)],
         [(xm, y0), (xm, y1)],
     ]
+    return rects, lines
+
+
+def default_layout() -> Layout:
+    """A rectangular ring of corridors with a cross corridor: 48 x 20 m between centre lines."""
+    x0, y0, x1, y1, xm = 3.0, 3.0, 51.0, 23.0, 27.0
+    rects, lines = _ring(x0, y0, x1, y1, xm, 2.4)
     return (x1 + 3.0, y1 + 3.0), rects, lines
 
 
@@ -102,22 +108,9 @@ def twin_layout() -> Layout:
     x0, y0, x1, y1 = TWIN_RING
     xm = TWIN_MIDDLE_X
     (sx, sy0), (_, sy1) = TWIN_STAIRS
-    rects = [
-        (x0 - w / 2, y0 - w / 2, x1 + w / 2, y0 + w / 2),  # north
-        (x0 - w / 2, y1 - w / 2, x1 + w / 2, y1 + w / 2),  # south
-        (x0 - w / 2, y0 - w / 2, x0 + w / 2, y1 + w / 2),  # west
-        (x1 - w / 2, y0 - w / 2, x1 + w / 2, y1 + w / 2),  # east: the west one turned half round
-        (xm - w / 2, y0 - w / 2, xm + w / 2, y1 + w / 2),  # middle
-        (sx - w / 2, sy1 - w / 2, sx + w / 2, sy0 - w / 2),  # stairwell, ending at the north corridor
-    ]
-    lines = [
-        [(x0, y0), (x1, y0)],
-        [(x0, y1), (x1, y1)],
-        [(x0, y0), (x0, y1)],
-        [(x1, y0), (x1, y1)],
-        [(xm, y0), (xm, y1)],
-        [TWIN_STAIRS[0], TWIN_STAIRS[1]],
-    ]
+    rects, lines = _ring(x0, y0, x1, y1, xm, w)  # the east corridor: the west one turned half round
+    rects.append((sx - w / 2, sy1 - w / 2, sx + w / 2, sy0 - w / 2))  # stairwell, ending at the north corridor
+    lines.append([TWIN_STAIRS[0], TWIN_STAIRS[1]])
     return (x1 + 3.0, y1 + 3.0), rects, lines
 
 

@@ -141,24 +141,6 @@ def track_for(
     return {"fps": fps, "waypoints": wps, "heading_offset_deg": heading_offset}
 
 
-def _leg_headings(times: np.ndarray, xy: np.ndarray, min_leg_m: float = 1e-6) -> np.ndarray:
-    """(N,) waypoint times, (N, 2) positions -> (N-1,) heading of each leg (deg, in (-180, 180]).
-
-    A leg that does not move (a stop) keeps the heading of the leg before it (the first legs, of
-    the first leg that moves): standing still is not turning round.
-    """
-    d = np.diff(xy, axis=0)
-    moving = np.hypot(d[:, 0], d[:, 1]) > min_leg_m
-    h = np.degrees(np.arctan2(d[:, 0], -d[:, 1]))  # heading h points along (sin h, -cos h)
-    if not moving.any():
-        return np.zeros(len(d))
-    idx = np.where(moving, np.arange(len(d)), -1)
-    idx = np.maximum.accumulate(idx)
-    idx[idx < 0] = int(np.flatnonzero(moving)[0])
-    out: np.ndarray = h[idx]
-    return out
-
-
 def walk_events(
     track: dict[str, Any], min_turn_deg: float = 30.0
 ) -> tuple[list[tuple[float, float]], list[tuple[float, float]]]:
@@ -170,7 +152,7 @@ def walk_events(
     from ..track import parse_track
 
     tr = parse_track(track)
-    legs = np.unwrap(_leg_headings(tr.times, tr.xy), period=360.0)
+    legs = np.unwrap(tr.leg_headings(), period=360.0)
     turns = [
         (float(tr.times[i + 1]), float(legs[i + 1] - legs[i]))
         for i in range(len(legs) - 1)
@@ -197,7 +179,7 @@ def poses_from_track(
     n = int(np.floor(tr.times[-1] * tr.fps)) + 1
     ts = np.arange(n) / tr.fps
     xy, _, ok = tr.pose_at(ts)
-    legs = _leg_headings(tr.times, tr.xy)
+    legs = tr.leg_headings()
     if turn_s > 0 and len(legs) > 1:
         legs = np.unwrap(legs, period=360.0)
         # the heading ramps from one leg's to the next over turn_s around each inner waypoint

@@ -1,4 +1,5 @@
 /** Small DOM helpers the admin screens share. */
+import type { AdminContext } from './context';
 
 /** An element with properties and children: el('button', { type: 'button' }, 'Save'). */
 export function el<K extends keyof HTMLElementTagNameMap>(
@@ -54,3 +55,43 @@ export function button(text: string, onClick: (e: MouseEvent) => void, className
 
 /** A number parsed from an input; NaN when empty or not a number. */
 export const num = (i: HTMLInputElement): number => (i.value.trim() === '' ? NaN : Number(i.value));
+
+/** A data table with a caption and column headings; its rows go into `body`. */
+export function dataTable(
+  caption: string,
+  columns: readonly string[],
+  props: { id?: string; className?: string } = {},
+): { table: HTMLTableElement; body: HTMLTableSectionElement } {
+  const body = el('tbody');
+  const table = el(
+    'table',
+    props,
+    el('caption', { textContent: caption }),
+    el('thead', {}, el('tr', {}, ...columns.map((h) => el('th', { scope: 'col', textContent: h })))),
+    body,
+  );
+  return { table, body };
+}
+
+/**
+ * A screen's status line: `say` shows a message and announces it; `fail` keeps a failure's
+ * message there while the shell says it (an alert; on a stale venue, a banner with "Reload the
+ * venue"). Nothing is said once the screen has gone (`signal` aborted).
+ */
+export function statusLine(
+  ctx: AdminContext,
+  status: HTMLElement,
+  signal: AbortSignal,
+): { say: (text: string, assertive?: boolean) => void; fail: (e: unknown, doing?: string) => void } {
+  return {
+    say: (text, assertive = false) => {
+      status.textContent = text;
+      ctx.announce(text, assertive);
+    },
+    fail: (e, doing) => {
+      if (signal.aborted) return;
+      status.textContent = e instanceof Error ? e.message : String(e);
+      ctx.fail(e, doing);
+    },
+  };
+}

@@ -7,7 +7,7 @@
  */
 import { AdminError, venuePath } from '../api';
 import type { AdminContext } from '../context';
-import { el } from '../dom';
+import { dataTable, el, statusLine } from '../dom';
 import '../analysis.css';
 import {
   CLIP_COLOUR,
@@ -60,16 +60,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     result,
   );
 
-  const say = (text: string, assertive = false) => {
-    status.textContent = text;
-    ctx.announce(text, assertive);
-  };
-  // the shell says it (an alert; on a stale venue, a banner with "Reload the venue"); the status line keeps it
-  const fail = (e: unknown, doing?: string) => {
-    if (abort.signal.aborted) return;
-    status.textContent = e instanceof Error ? e.message : String(e);
-    ctx.fail(e, doing);
-  };
+  const { say, fail } = statusLine(ctx, status, abort.signal);
 
   let map: ReturnType<AdminContext['planMap']> | null = null;
   const dropMap = () => {
@@ -111,12 +102,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
 
     const planEl = el('div', { className: 'plan', id: 'evaluation-plan' });
 
-    const table = el('table', { id: 'evaluation-clips' });
-    table.append(
-      el('caption', { textContent: `Every 1 s clip of ${name}` }),
-      el('thead', {}, el('tr', {}, ...CLIP_COLUMNS.map((h) => el('th', { scope: 'col', textContent: h })))),
-    );
-    const body = el('tbody');
+    const { table, body } = dataTable(`Every 1 s clip of ${name}`, CLIP_COLUMNS, { id: 'evaluation-clips' });
     for (const c of e.clips)
       body.append(
         el(
@@ -125,7 +111,6 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
           ...clipRow(c).map((t) => el('td', { textContent: t })),
         ),
       );
-    table.append(body);
 
     result.replaceChildren(summary, figures, legend, planEl, table);
     map = ctx.planMap(planEl);

@@ -6,7 +6,7 @@
  */
 import { AdminError, venuePath } from '../api';
 import type { AdminContext } from '../context';
-import { button, el } from '../dom';
+import { button, dataTable, el } from '../dom';
 import { JobProgress } from '../jobprogress';
 import '../media.css';
 import type { AdminVenue, Job, Video } from '../types';
@@ -46,18 +46,9 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   progress.el.classList.add('job-bar');
   progress.el.id = 'model-progress';
   const outcome = el('p', { id: 'model-outcome' });
-  const tbody = el('tbody');
-  const table = el(
-    'table',
-    { id: 'model-videos' },
-    el('caption', { textContent: 'What the next modelling takes' }),
-    el(
-      'thead',
-      {},
-      el('tr', {}, ...['Video', 'Track', 'Next modelling'].map((h) => el('th', { scope: 'col', textContent: h }))),
-    ),
-    tbody,
-  );
+  const { table, body: tbody } = dataTable('What the next modelling takes', ['Video', 'Track', 'Next modelling'], {
+    id: 'model-videos',
+  });
   root.replaceChildren(
     el('h2', { textContent: 'Modelling' }),
     live,

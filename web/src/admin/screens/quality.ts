@@ -7,7 +7,7 @@
  */
 import { AdminError, venuePath } from '../api';
 import type { AdminContext } from '../context';
-import { el } from '../dom';
+import { dataTable, el, statusLine } from '../dom';
 import '../analysis.css';
 import { JobProgress } from '../jobprogress';
 import {
@@ -45,16 +45,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   result.setAttribute('aria-labelledby', 'quality-title');
   root.replaceChildren(heading, intro, el('p', {}, compute), progress.el, status, result);
 
-  const say = (text: string, assertive = false) => {
-    status.textContent = text;
-    ctx.announce(text, assertive);
-  };
-  // the shell says it (an alert; on a stale venue, a banner with "Reload the venue"); the status line keeps it
-  const fail = (e: unknown, doing?: string) => {
-    if (abort.signal.aborted) return;
-    status.textContent = e instanceof Error ? e.message : String(e);
-    ctx.fail(e, doing);
-  };
+  const { say, fail } = statusLine(ctx, status, abort.signal);
 
   let map: ReturnType<AdminContext['planMap']> | null = null;
   const dropMap = () => {
@@ -102,20 +93,11 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     const corridors = el('ul', { id: 'quality-corridors' });
     for (const c of q.corridors.filter((c) => c.floor === floor))
       corridors.append(el('li', { className: `corridor ${c.verdict}`, textContent: corridorText(c) }));
-    const table = el('table', { id: 'quality-stretches' });
-    table.append(
-      el('caption', { textContent: 'Every stretch of the modelling walks' }),
-      el(
-        'thead',
-        {},
-        el(
-          'tr',
-          {},
-          ...['Video', 'From', 'To', 'Where', 'Verdict', 'Why'].map((h) => el('th', { scope: 'col', textContent: h })),
-        ),
-      ),
+    const { table, body } = dataTable(
+      'Every stretch of the modelling walks',
+      ['Video', 'From', 'To', 'Where', 'Verdict', 'Why'],
+      { id: 'quality-stretches' },
     );
-    const body = el('tbody');
     for (const s of q.segments.filter((s) => s.floor === floor)) {
       const mid = s.points[Math.floor((s.points.length - 1) / 2)] ?? [s.match.x, s.match.y];
       body.append(
@@ -128,7 +110,6 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
         ),
       );
     }
-    table.append(body);
     const all = el('details', {}, el('summary', { textContent: 'Every stretch, as a table' }), table);
 
     result.replaceChildren(

@@ -10,7 +10,7 @@
 import type * as L from 'leaflet';
 import { AdminError, venuePath } from '../api';
 import type { AdminContext } from '../context';
-import { button, el, field, uid } from '../dom';
+import { button, dataTable, el, field, uid } from '../dom';
 import { formatTime } from '../format';
 import '../media.css';
 import type { PlanMap } from '../planmap';
@@ -200,22 +200,10 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
           : 'Snap to the corridor lines (no place has an area on this floor)',
       }),
     );
-    const wpBody = el('tbody');
-    const wpTable = el(
-      'table',
-      { className: 'waypoints', id: 'waypoints' },
-      el('caption', { textContent: 'Waypoints' }),
-      el(
-        'thead',
-        {},
-        el(
-          'tr',
-          {},
-          ...['#', 'Time (s)', 'x (m)', 'y (m)', 'Actions'].map((h) => el('th', { scope: 'col', textContent: h })),
-        ),
-      ),
-      wpBody,
-    );
+    const { table: wpTable, body: wpBody } = dataTable('Waypoints', ['#', 'Time (s)', 'x (m)', 'y (m)', 'Actions'], {
+      id: 'waypoints',
+      className: 'waypoints',
+    });
     const addHere = button(
       'Add a waypoint at the current time',
       () => {

@@ -7,7 +7,7 @@
  */
 import { venuePath } from '../api';
 import type { AdminContext } from '../context';
-import { button, el, field, uid } from '../dom';
+import { button, dataTable, el, field, uid } from '../dom';
 import { formatBytes, formatTime } from '../format';
 import '../media.css';
 import type { Video } from '../types';
@@ -83,23 +83,10 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   uploadList.setAttribute('aria-labelledby', uploadTitle.id);
   const uploadSection = el('section', { hidden: true }, uploadTitle, uploadList);
 
-  const tableBody = el('tbody');
-  const table = el(
-    'table',
+  const { table, body: tableBody } = dataTable(
+    'Videos of this venue',
+    ['Video', 'Floor and lens', 'Role', 'Status', 'Track', 'Actions'],
     { id: 'video-table', className: 'videos' },
-    el('caption', { textContent: 'Videos of this venue' }),
-    el(
-      'thead',
-      {},
-      el(
-        'tr',
-        {},
-        ...['Video', 'Floor and lens', 'Role', 'Status', 'Track', 'Actions'].map((h) =>
-          el('th', { scope: 'col', textContent: h }),
-        ),
-      ),
-    ),
-    tableBody,
   );
   const noVideos = el('p', { id: 'no-videos', textContent: 'No videos yet.', hidden: true });
 
