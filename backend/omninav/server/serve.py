@@ -132,6 +132,7 @@ def serve(
         _wait_for_socket(sock, children[0])
         for u in urls:
             echo(f"omninav: {u}")
+        echo(f"admin page (the admin token signs in): {urls[0]}admin")
         sys.stdout.flush()
         t = conf["FRONT_TIMEOUT_S"]
         fds = _raise_fd_limit()

@@ -223,6 +223,9 @@ function focusScreen(section: HTMLElement): void {
 
 /** Mount the screen the route names, with the venue re-read. */
 async function show(reload = false): Promise<void> {
+  // an error belongs to the screen it was met on: a new screen starts without it (the status line
+  // keeps what a step just said, as "Created venue …" before its floor screen opens)
+  alertEl.textContent = '';
   const mine = ++mounting;
   route = parseRoute(location.hash);
   hideBanner();

@@ -71,7 +71,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   const chosen = (): Video | undefined => videos.find((v) => v.name === pick.value);
   const refreshButtons = () => {
     const v = chosen();
-    const reason = v ? notReady(v) : 'no evaluation walk yet: upload one first';
+    const reason = v ? notReady(v) : 'there is no evaluation walk; upload one first';
     run.disabled = reason !== null || progress.busy;
     tag.disabled = !v || !!v.error || v.status === 'uploading';
     why.textContent = reason ? `Cannot run it yet: ${reason}.` : '';

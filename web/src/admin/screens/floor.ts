@@ -149,14 +149,15 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   /** Draw the facts, the places (in metres, on the current scale) and the scale points. */
   const draw = (): void => {
     const f = floorOf();
-    if (!f?.plan_url || !f.plan_size_px) facts.textContent = `Floor ${f?.name ?? floorId}: no plan yet. Upload one.`;
+    if (!f?.plan_url || !f.plan_size_px)
+      facts.textContent = `${f?.name ?? `Floor ${floorId}`}: no plan yet. Upload one.`;
     else if (!f.px_per_m)
       facts.textContent =
-        `Floor ${f.name}: plan ${f.plan_size_px[0]} × ${f.plan_size_px[1]} pixels; the scale is not set ` +
+        `${f.name}: plan ${f.plan_size_px[0]} × ${f.plan_size_px[1]} pixels; the scale is not set ` +
         '(distances are in plan pixels until it is).';
     else
       facts.textContent =
-        `Floor ${f.name}: plan ${f.plan_size_px[0]} × ${f.plan_size_px[1]} pixels, ` +
+        `${f.name}: plan ${f.plan_size_px[0]} × ${f.plan_size_px[1]} pixels, ` +
         `${f.px_per_m.toFixed(2)} pixels per metre, so ${metresLabel(cm(f.plan_size_px[0] / f.px_per_m))} × ` +
         `${metresLabel(cm(f.plan_size_px[1] / f.px_per_m))}.`;
     map.clear();
@@ -268,11 +269,13 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     if (f.type !== 'image/png' && f.type !== 'image/jpeg')
       return ctx.announce(`${f.name} is not a PNG or JPEG image: the plan must be one.`, true);
     const had = !!floorOf()?.plan_url;
-    uploadBtn.disabled = true;
+    uploadBtn.disabled = true; // which drops the keyboard focus: it is put back where the next step is
+    let next: HTMLElement = file;
     ctx.api
       .upload<Floor>('PUT', `${floorPath}/plan`, f, f.type)
       .then(async (fl) => {
         await reload(true);
+        next = fl.px_per_m ? uploadBtn : pick;
         ctx.announce(
           `Plan uploaded: ${fl.plan_size_px?.[0]} × ${fl.plan_size_px?.[1]} pixels.` +
             (had ? ' Places and tracks kept their metres; check them on the new plan.' : '') +
@@ -282,6 +285,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       .catch((err: unknown) => ctx.fail(err, 'Uploading the plan'))
       .finally(() => {
         uploadBtn.disabled = false;
+        if (!document.activeElement || document.activeElement === document.body) next.focus();
       });
   });
 

@@ -177,6 +177,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
 
   /** After a write: the venue re-read, the place found again by name (ids change on a PUT). */
   async function settle(said: string, name: string | null): Promise<void> {
+    const typing = editor.contains(document.activeElement); // a form sent by keyboard, not a drag
     await ctx.refresh();
     const p = name ? mine().find((q) => q.name === name) : undefined;
     selected = p?.id ?? null;
@@ -184,6 +185,11 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     if (p) edit(p, undefined, undefined, false);
     else editor.replaceChildren();
     ctx.announce(`${said}.`);
+    // the form that had the focus was redrawn: a keyboard user goes on from the place in the list
+    if (typing && (!document.activeElement || document.activeElement === document.body)) {
+      const b = p ? list.querySelector<HTMLElement>(`button[data-place="${CSS.escape(p.id)}"]`) : null;
+      (b ?? root.querySelector<HTMLElement>('button'))?.focus();
+    }
   }
 
   async function move(p: EditablePlace, m: Metres): Promise<void> {
