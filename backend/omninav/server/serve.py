@@ -132,7 +132,7 @@ def serve(
         _wait_for_socket(sock, children[0])
         for u in urls:
             echo(f"omninav: {u}")
-        echo(f"admin page (the admin token signs in): {urls[0]}admin")
+        echo(f"admin page: {urls[0]}admin (sign in with the token printed on the first start)")
         sys.stdout.flush()
         t = conf["FRONT_TIMEOUT_S"]
         fds = _raise_fd_limit()
