@@ -142,6 +142,10 @@ test('a walk uploads in pieces; paused, cut off and reloaded, it resumes from th
   expect((await videoDoc('walk.mp4')).status).toBe('ready');
   await expect(uploadBar(page, 'walk.mp4')).toHaveAttribute('aria-valuetext', '100 %');
   await expect(page.locator('#video-table tr[data-name="walk.mp4"]')).toContainText('suggested waypoints');
+  // the server checked the walk against its lens on the way (the walk was filmed with the lens in place)
+  await expect(page.locator('#video-table tr[data-name="walk.mp4"] .video-status')).toContainText(
+    'The lens sits where its profile says',
+  );
   await expectNoAxeViolations(page, 'the videos screen with uploads');
 });
 

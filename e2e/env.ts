@@ -8,6 +8,9 @@ export const GOLDEN = resolve(WORK, 'golden');
 export const CLIP = resolve(WORK, 'clip/clip.y4m');
 /** A clip filmed in another building, which the demo venue has never seen. */
 export const ELSEWHERE = resolve(WORK, 'elsewhere/clip.y4m');
+/** The lens check's clips (e2e/fixtures.py `lens`): the lens 6 px off, no lens, the ring cut by the edge. */
+export const LENS_KINDS = ['shifted', 'nolens', 'cut'] as const;
+export const lensClip = (kind: (typeof LENS_KINDS)[number]): string => resolve(WORK, `lens-${kind}/lens.y4m`);
 export const TOKEN = 'e2e-admin-token-0123456789';
 export const PYTHON = resolve(ROOT, '.venv/bin/python');
 

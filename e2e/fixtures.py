@@ -1,13 +1,19 @@
 """Test data for the web app, made by the Python engine at test time (nothing binary is committed).
 
     python e2e/fixtures.py golden OUT   # frames + the engine's panoramas, curves and records
+    python e2e/fixtures.py ring OUT     # only the ring frames and the engine's rings (ring.json)
     python e2e/fixtures.py clip OUT [SCENE]  # a Y4M clip for Chromium's fake camera, at a known pose
                                              # (SCENE: another venue's seed; the demo's is 0)
     python e2e/fixtures.py admin OUT  # what an admin builds a venue from on the admin page: the
                                       # plan, the lens, a walk and an evaluation walk, and the truth
+    python e2e/fixtures.py lens OUT KIND  # a Y4M clip for the phone's lens check: KIND is shifted
+                                          # (the clip's lens clipped on 6 px off), nolens (a plain
+                                          # picture, no ring) or cut (the ring cut by the edge)
 
 Golden files: a few frames of the synthetic venue through the engine's stages, so that the
-TypeScript extractor (in Node and in Chromium) can be checked against them stage by stage.
+TypeScript extractor (in Node and in Chromium) can be checked against them stage by stage; and
+(ring.json) frames with known lens shifts and the ring the engine's `find_ring_frame` finds in
+each, for the phone's ring finder (web/src/worker/ring.ts).
 """
 
 from __future__ import annotations
@@ -21,6 +27,7 @@ import cv2
 import numpy as np
 
 from omninav.extract import Extractor
+from omninav.lens import Catadioptric
 from omninav.presets import FEATURE_KEYS, resolve, settings_id
 from omninav.spectrum import encode_binary
 from omninav.synth import QUERY, donut_lens, equirect_lens
@@ -61,20 +68,109 @@ def _case(out: Path, name: str, lens, preset: str, frames: list[np.ndarray]) -> 
     }
 
 
+LOOK = replace(QUERY, people=0, lateral_m=0.0)  # a colour cast, gain, tilt and noise, as a phone sees
+
+
+def golden_frames() -> list[np.ndarray]:
+    """The golden donut frames: the small venue at POSES, as a phone sees it."""
+    return [f for _, f in render_frames(build_scene(0, "small"), donut_lens(1.0), POSES, LOOK, seed=7)]
+
+
 def golden(out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
     scene = build_scene(0, "small")
     donut = donut_lens(1.0)
-    look = replace(QUERY, people=0, lateral_m=0.0)  # a colour cast, gain, tilt and noise, as a phone sees
-    dframes = [f for _, f in render_frames(scene, donut, POSES, look, seed=7)]
+    dframes = golden_frames()
     eq = equirect_lens(1440)
-    eframes = [f for _, f in render_frames(scene, eq, POSES[:1], look, seed=8)]
+    eframes = [f for _, f in render_frames(scene, eq, POSES[:1], LOOK, seed=8)]
     cases = [
         _case(out, "donut-default", donut, "default", dframes),
         _case(out, "donut-six", donut, "six", dframes[:1]),
         _case(out, "equirect-default", eq, "default", eframes),
     ]
     (out / "golden.json").write_text(json.dumps({"cases": cases}, indent=1))
+    ring_golden(out, dframes)
+
+
+def hd_lens() -> Catadioptric:
+    """The synthetic donut on a 1920x1080 (16:9) sensor: ring 157.5-510 px, a little off centre."""
+    return replace(donut_lens(1.5), image_size=(1920, 1080), center=(962.0, 534.0))
+
+
+# (stem, lens, shift px, scale, seed): clip-ons of the synthetic lens as a phone films them
+RING_CASES = [
+    ("ring-donut-still", "donut", (0.0, 0.0), 1.0, 1),
+    ("ring-donut-shift", "donut", (6.0, -4.0), 1.01, 2),
+    ("ring-donut-far", "donut", (-9.5, 3.0), 0.99, 3),
+    ("ring-wide", "wide", (4.0, 2.5), 1.0, 4),
+    ("ring-hd", "hd", (5.0, 3.0), 1.0, 5),
+    ("ring-cut", "donut", (3.0, -30.0), 1.0, 6),  # off the top of the picture: "cut"
+]
+
+
+def _rgba(out: Path, stem: str, bgr: np.ndarray) -> None:
+    cv2.imwrite(str(out / f"{stem}.png"), bgr)
+    rgb = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+    (out / f"{stem}.rgba").write_bytes(np.dstack([rgb, np.full(rgb.shape[:2], 255, np.uint8)]).tobytes())
+
+
+def ring_golden(out: Path, rendered: list[np.ndarray] | None = None) -> None:
+    """ring.json: frames (.png, .rgba), the engine's `find_ring_frame` on each (null: no ring) and
+    its `fit_lens` of the frame's lens profile (as it was before the lens was clipped on again).
+    The clip-ons' frames (rendered once, kept while their recipe holds: the 1920x1080 one takes a
+    few seconds) wear a real lens's surround; the golden donut frames above are bare renders."""
+    from omninav.calib.ring import find_ring_frame, fit_lens
+    from omninav.synth.clipon import Surround, covered_lens, plain_photo, reclip, ring_frames, wide_lens
+
+    out.mkdir(parents=True, exist_ok=True)
+    if rendered is None:
+        rendered = golden_frames()
+        for i, bgr in enumerate(rendered):
+            _rgba(out, f"donut-default-{i}", bgr)
+
+    lenses = {"donut": donut_lens(1.0), "wide": wide_lens(), "hd": hd_lens()}
+    recipe = json.dumps([RING_CASES, [lens.to_dict() for lens in lenses.values()], 1, "dim"])
+    old = out / "ring.json"
+    cached = old.exists() and json.loads(old.read_text()).get("recipe") == recipe
+    items = []
+    Frame = tuple[str, np.ndarray, Catadioptric, tuple[float, float, float, float] | None]
+    frames: list[Frame] = []
+    for stem, name, shift, scale, seed in RING_CASES:
+        true = reclip(lenses[name], shift, scale)
+        if cached:
+            bgr = cv2.imread(str(out / f"{stem}.png"))
+        else:
+            bgr = ring_frames(true, 1, seed=seed)[0]
+            _rgba(out, stem, bgr)
+        frames.append((stem, bgr, lenses[name], (true.center[0], true.center[1], true.r_inner, true.r_outer)))
+    for i, bgr in enumerate(rendered):
+        frames.append((f"donut-default-{i}", bgr, lenses["donut"], None))  # the golden frames (.rgba above)
+    if not cached:
+        _rgba(out, "ring-plain", plain_photo((960, 720), seed=6))
+        _rgba(out, "ring-covered", covered_lens((960, 720), seed=6))
+    # a dim room (a third of the light): the inner edge is found only by A8's second, fainter look
+    dim = reclip(lenses["donut"], (2.0, 1.0), 1.0)
+    if not cached:
+        _rgba(out, "ring-dim", ring_frames(dim, 1, seed=9, sur=Surround(light=0.35))[0])
+    frames.append(
+        ("ring-dim", cv2.imread(str(out / "ring-dim.png")), lenses["donut"], (*dim.center, dim.r_inner, dim.r_outer))
+    )
+    for stem in ("ring-plain", "ring-covered"):
+        frames.append((stem, cv2.imread(str(out / f"{stem}.png")), lenses["donut"], None))
+    for stem, bgr, lens, truth in frames:
+        ring = find_ring_frame(bgr)
+        fit = fit_lens(lens, ring)
+        items.append(
+            {
+                "stem": stem,
+                "size": [int(bgr.shape[1]), int(bgr.shape[0])],
+                "truth": list(truth) if truth else None,
+                "engine": ring.to_dict() if ring else None,
+                "lens": lens.to_dict(),
+                "fit": {k: v for k, v in fit.to_dict().items() if k != "lens"} | {"lens": fit.lens.to_dict()},
+            }
+        )
+    old.write_text(json.dumps({"recipe": recipe, "frames": items}, indent=1))
 
 
 def write_y4m(path: Path, frames: list[np.ndarray], fps: int) -> None:
@@ -160,12 +256,49 @@ def admin(out: Path) -> None:
     )
 
 
+# the lens check's clips: the demo venue at clip()'s pose through a lens clipped on off centre
+LENS_SHIFT = {"shifted": (5.0, -3.3), "cut": (2.0, -15.0)}
+
+
+def lens_clip(out: Path, kind: str, frames: int = 20, fps: int = 10) -> None:
+    """lens.y4m and lens.json (the truth, the shift) for the phone's lens check. "shifted": the
+    lens clipped on 6 px off its profile's centre (the app corrects it and answers); "cut": 15 px
+    up, so the ring leaves the picture at the top; "nolens": a plain picture, no ring at all."""
+    from omninav.synth.clipon import plain_photo
+    from omninav.synth.render import CameraModel, camera_frame, world_panorama
+    from omninav.synth.walks import grid_for
+
+    out.mkdir(parents=True, exist_ok=True)
+    lens = donut_lens(0.5)
+    truth = {"x": 14.0, "y": 2.3, "heading_deg": 250.0}
+    rng = np.random.default_rng(17)
+    if kind == "nolens":
+        still = plain_photo(lens.image_size, seed=3, noise=0.0).astype(np.float32)
+        shots = [still + rng.normal(0.0, 2.0, still.shape).astype(np.float32) for _ in range(frames)]
+        shift = None
+    else:
+        shift = LENS_SHIFT[kind]
+        scene = build_scene(0, "small")
+        grid = grid_for(lens)
+        cam = CameraModel.create(lens, shift)
+        pano = world_panorama(scene, truth["x"], truth["y"], 1.3, grid)
+        rgb = camera_frame(cam, pano, grid, truth["heading_deg"]).astype(np.float32) * 0.9
+        shots = [rgb + rng.normal(0.0, 2.0, rgb.shape).astype(np.float32) for _ in range(frames)]
+        shots = [cv2.cvtColor(np.clip(f, 0, 255).astype(np.uint8), cv2.COLOR_RGB2BGR) for f in shots]
+    write_y4m(out / "lens.y4m", [np.clip(f, 0, 255).astype(np.uint8) for f in shots], fps)
+    (out / "lens.json").write_text(json.dumps({**truth, "kind": kind, "shift_px": shift, "fps": fps}))
+
+
 if __name__ == "__main__":
-    if len(sys.argv) not in (3, 4) or sys.argv[1] not in ("golden", "clip", "admin"):
+    if len(sys.argv) not in (3, 4) or sys.argv[1] not in ("golden", "ring", "clip", "admin", "lens"):
         sys.exit(__doc__)
     if sys.argv[1] == "golden":
         golden(Path(sys.argv[2]))
+    elif sys.argv[1] == "ring":
+        ring_golden(Path(sys.argv[2]))
     elif sys.argv[1] == "admin":
         admin(Path(sys.argv[2]))
+    elif sys.argv[1] == "lens":
+        lens_clip(Path(sys.argv[2]), sys.argv[3] if len(sys.argv) == 4 else "shifted")
     else:
         clip(Path(sys.argv[2]), int(sys.argv[3]) if len(sys.argv) == 4 else 0)

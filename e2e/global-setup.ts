@@ -2,7 +2,7 @@
 // starts with the quick demo venue and models it through its job queue.
 import { execFileSync } from 'node:child_process';
 import { resolve } from 'node:path';
-import { GOLDEN, PYTHON, ROOT, TOKEN, WORK } from './env';
+import { GOLDEN, LENS_KINDS, PYTHON, ROOT, TOKEN, WORK, lensClip } from './env';
 import { startServer, waitModelled } from './server.cjs';
 
 export default async function globalSetup(): Promise<() => Promise<void>> {
@@ -11,6 +11,8 @@ export default async function globalSetup(): Promise<() => Promise<void>> {
   execFileSync(PYTHON, [fixtures, 'clip', resolve(WORK, 'clip')], { stdio: 'inherit' });
   execFileSync(PYTHON, [fixtures, 'clip', resolve(WORK, 'elsewhere'), '13'], { stdio: 'inherit' });
   execFileSync(PYTHON, [fixtures, 'admin', resolve(WORK, 'admin')], { stdio: 'inherit' });
+  for (const kind of LENS_KINDS)
+    execFileSync(PYTHON, [fixtures, 'lens', resolve(lensClip(kind), '..'), kind], { stdio: 'inherit' });
   const srv = await startServer(resolve(WORK, 'server'), {
     args: ['--demo', 'quick', '--workers', '2'],
     env: { OMNINAV_ADMIN_TOKEN: TOKEN },

@@ -12,6 +12,7 @@ from jsonschema import Draft202012Validator
 from referencing import Registry, Resource
 from referencing.jsonschema import DRAFT202012
 
+from omninav.calib.correct import clip_spectra as clip_lens_spectra
 from omninav.extract import Extractor
 from omninav.lens import load_lens
 from omninav.server.venues_api import openapi_doc
@@ -92,7 +93,9 @@ def query_clip(ds: Any, start: int, n: int = 10) -> tuple[list[np.ndarray], tupl
 
 
 def clip_spectra(ds: Any, frames: list[np.ndarray], conf: dict) -> np.ndarray:
-    return Extractor(load_lens(ds.lens), conf).spectra(frames)
+    """The feature record a phone makes of these frames: through the lens corrected for where its
+    ring sits in them, as the phone's worker (and every engine path) does."""
+    return clip_lens_spectra(load_lens(ds.lens), frames, lambda lz: Extractor(lz, conf).spectrum)[0]
 
 
 def heading_error(a: float, b: float) -> float:

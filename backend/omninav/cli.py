@@ -7,14 +7,18 @@ a traceback (OmninavError carries the message).
 from __future__ import annotations
 
 import json
+import logging
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import click
+import numpy as np
 
+from .calib.commands import calib
 from .catalog import Catalog
 from .errors import OmninavError, read_json
 from .extract import Extractor
@@ -249,7 +253,8 @@ def locate(
 @click.option("-o", "--out", type=click.Path(path_type=Path), help="Write here; .onv is binary, else JSON.")
 def features(venue_id: str, clip: Path, lens_path: Path | None, out: Path | None) -> None:
     """Extract CLIP's feature record with VENUE's settings: what a phone sends instead of images."""
-    from .lens import load_lens
+    from .calib.correct import clip_spectra
+    from .lens import Lens, load_lens
     from .locate import clip_frames
     from .spectrum import encode_binary, encode_json
 
@@ -263,10 +268,16 @@ def features(venue_id: str, clip: Path, lens_path: Path | None, out: Path | None
             lens = cat.store.load(venue_id).lens
         except OmninavError:
             raise OmninavError("give --lens: the venue has no modelled frames, so no lens of its own") from None
-    ext = Extractor(lens, conf)
+    exts: dict[str, Extractor] = {}
+
+    def extract(lz: Lens) -> Callable[[np.ndarray], np.ndarray]:
+        if repr(lz) not in exts:
+            exts[repr(lz)] = Extractor(lz, conf)
+        return exts[repr(lz)].spectrum
+
     frames, _ = clip_frames(clip, conf["model_fps"])
-    ext.check_frame(frames[0], str(clip))
-    spec = ext.spectra(frames)
+    Extractor(lens, conf).check_frame(frames[0], str(clip))
+    spec, _ = clip_spectra(lens, frames, extract, clip=str(clip))
     if out is not None and out.suffix.lower() == ".onv":
         out.write_bytes(encode_binary(spec, conf))
     else:
@@ -550,7 +561,20 @@ def restore_cmd(ctx: click.Context, src: Path, force: bool) -> None:
     click.echo(json.dumps(restore(_server_conf(ctx), src, force=force)))
 
 
+cli.add_command(calib)
+
+
+def _say_warnings() -> None:
+    """The engine's warnings (a clip whose lens ring was unusable) as one line each on stderr."""
+    h = logging.StreamHandler(sys.stderr)
+    h.setFormatter(logging.Formatter("omninav: warning: %(message)s"))
+    lg = logging.getLogger("omninav.calib")
+    lg.addHandler(h)
+    lg.propagate = False
+
+
 def main() -> None:
+    _say_warnings()
     try:
         cli.main(standalone_mode=False, prog_name="omninav")
     except OmninavError as e:

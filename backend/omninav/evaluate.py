@@ -56,17 +56,18 @@ def query_spectra(
     vfps = info.fps if info.fps > 0 else track.fps
     stride = max(1, int(round(vfps / loc.conf["model_fps"])))
     ext = loc.extractor(lens)
+    # the walk's lens as it sits in this walk: the ring is measured on its first frames
+    clip = loc.clip_lens(lens, lambda f: ext.check_frame(f, str(video)))
     specs: list[np.ndarray] = []
     idx: list[int] = []
     total = max(1, -(-info.frames // stride))
     t0 = time.perf_counter()
     for i, frame in iter_video(info, stride=stride):
-        if not specs:
-            ext.check_frame(frame, str(video))
-        specs.append(ext.spectrum(frame))
+        specs.extend(clip.feed(frame))
         idx.append(i)
         if progress:
             progress(len(idx), max(total, len(idx)), time.perf_counter() - t0)
+    specs.extend(clip.flush())
     t = np.array(idx) / vfps  # the video's rate: a track's fps only counts its own frame numbers
     xy, hd, ok = track.pose_at(t)
     if not ok.any():

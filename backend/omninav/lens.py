@@ -26,6 +26,11 @@ class Catadioptric:
     elevation_poly: tuple[float, ...]
     forward_deg: float = 0.0
     ccw: bool = True
+    # The ring's visible edges (cx, cy, r_inner, r_outer) as `omninav calib` measured them when the
+    # profile was made. A re-clipped lens is corrected by how far the ring moved from *these*, not
+    # from `center`: the optical centre a board fit finds may sit a few pixels off the ring's.
+    # None (hand-typed and rendered profiles): the ring is `center`, `r_inner`, `r_outer`.
+    ring: tuple[float, float, float, float] | None = None
     model: str = field(default="catadioptric", init=False)
 
     def elevation(self, r: np.ndarray) -> np.ndarray:
@@ -49,8 +54,12 @@ class Catadioptric:
         out = np.interp(np.asarray(elev_deg, np.float64), e, r, left=np.nan, right=np.nan)
         return out
 
+    def reference_ring(self) -> tuple[float, float, float, float]:
+        """(cx, cy, r_inner, r_outer) of the ring this profile was made with (see `ring`)."""
+        return self.ring or (self.center[0], self.center[1], self.r_inner, self.r_outer)
+
     def to_dict(self) -> dict[str, Any]:
-        return {
+        d: dict[str, Any] = {
             "model": "catadioptric",
             "image_size": list(self.image_size),
             "center": list(self.center),
@@ -60,6 +69,10 @@ class Catadioptric:
             "forward_deg": self.forward_deg,
             "ccw": self.ccw,
         }
+        if self.ring is not None:
+            cx, cy, ri, ro = self.ring
+            d["ring"] = {"center": [cx, cy], "r_inner": ri, "r_outer": ro}
+        return d
 
 
 @dataclass(frozen=True)
@@ -113,6 +126,19 @@ def _size(v: Any, where: str) -> tuple[int, int]:
     return int(v[0]), int(v[1])
 
 
+def _ring(v: Any, where: str) -> tuple[float, float, float, float] | None:
+    """The optional measured ring: {"center": [x, y], "r_inner": r, "r_outer": R}."""
+    if v is None:
+        return None
+    if not isinstance(v, dict) or not isinstance(v.get("center"), list | tuple) or len(v["center"]) != 2:
+        raise OmninavError(f'{where}: lens field \'ring\' must be {{"center": [x, y], "r_inner": r, "r_outer": R}}')
+    cx, cy = (_num(c, "ring", where) for c in v["center"])
+    ri, ro = _num(v.get("r_inner"), "ring", where), _num(v.get("r_outer"), "ring", where)
+    if not 0 <= ri < ro:
+        raise OmninavError(f"{where}: lens field 'ring' needs 0 <= r_inner < r_outer, got {ri}, {ro}")
+    return cx, cy, ri, ro
+
+
 def lens_from_dict(d: Any, where: str = "lens") -> Lens:
     """Validate a parsed `lens.json` and build the profile; every problem names its field."""
     if not isinstance(d, dict):
@@ -140,6 +166,7 @@ def lens_from_dict(d: Any, where: str = "lens") -> Lens:
             elevation_poly=coeffs,
             forward_deg=_num(d.get("forward_deg", 0.0), "forward_deg", where),
             ccw=_flag(d, "ccw", True, where),
+            ring=_ring(d.get("ring"), where),
         )
         with np.errstate(all="ignore"):  # huge coefficients or radii overflow: refused below, not raised
             e = lens.elevation(np.linspace(r_in, r_out, 512))

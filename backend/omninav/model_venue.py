@@ -9,6 +9,7 @@ the venue exactly as it was.
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -17,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from .calib.correct import ClipLens
 from .errors import OmninavError
 from .extract import Extractor
 from .lens import Lens
@@ -24,6 +26,8 @@ from .presets import resolve
 from .store import FRAME_DTYPE, Generation, Store
 from .track import Track
 from .video import VideoInfo, iter_video
+
+log = logging.getLogger("omninav.calib")
 
 # frames done, frames expected, seconds elapsed; it may raise to stop the run (nothing is written)
 Progress = Callable[[int, int, float], None]
@@ -84,7 +88,16 @@ def _plan(src: VideoSource, settings: dict[str, Any]) -> _Plan:
 
 def _extract(p: _Plan, settings: dict[str, Any], tick: Callable[[], None]) -> tuple[np.ndarray, np.ndarray]:
     """One video's sampled frames -> (rows FRAME_DTYPE without `video`, spectra)."""
-    ext = Extractor(p.src.lens, settings)
+    exts: dict[str, Extractor] = {}
+
+    def extract(lens: Lens) -> Callable[[np.ndarray], np.ndarray]:
+        if repr(lens) not in exts:
+            exts[repr(lens)] = Extractor(lens, settings)
+        return exts[repr(lens)].spectrum
+
+    # the lens as it sat in this video: a walk filmed after the lens was clipped on again is
+    # extracted through the profile moved to its ring, as every query clip is (calib/correct.py)
+    clip = ClipLens(p.src.lens, extract)
     rows, specs = [], []
     track = p.src.track
     seen = -1
@@ -96,9 +109,12 @@ def _extract(p: _Plan, settings: dict[str, Any], tick: Callable[[], None]) -> tu
         xy, hd, ok = track.pose_at(np.array([t]))
         if not ok[0]:
             continue
-        specs.append(ext.spectrum(frame))
+        specs.extend(clip.feed(frame))
         rows.append((xy[0, 0], xy[0, 1], hd[0], t, i))
         tick()
+    specs.extend(clip.flush())
+    if (w := clip.warning(p.src.video.name)) is not None:
+        log.warning(w)
     _check_complete(p, seen)
     if not rows:
         raise OmninavError(

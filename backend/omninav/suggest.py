@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from .calib.correct import FIRST, lens_check
 from .errors import OmninavError
 from .extract import Extractor
 from .heading import correlation, peak, wrap_deg
@@ -348,7 +349,10 @@ def suggest_waypoints(
     prev: np.ndarray | None = None
     t0 = time.perf_counter()
     last = 0
+    held: list[np.ndarray] = []  # the first frames: does the video fit the lens? (calib/correct.py)
     for i, frame in iter_video(info, stride=stride):
+        if len(held) < FIRST:
+            held.append(frame)
         cur = ext.curves(frame)
         spec = spectrum(cur, conf["n_harmonics"])
         if prev is not None:
@@ -372,5 +376,6 @@ def suggest_waypoints(
         "fps": vfps,
         "frames": frames,
         "sample_fps": round(vfps / stride, 3),
+        "lens_check": lens_check(lens, held),
         **out,
     }

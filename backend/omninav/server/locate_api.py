@@ -9,6 +9,7 @@ loaded (a memory map of one shared copy) and checks for edits at most every VENU
 from __future__ import annotations
 
 import base64
+import logging
 import tempfile
 import threading
 import time
@@ -19,6 +20,7 @@ from typing import Any
 import numpy as np
 from flask import Blueprint, current_app, jsonify, request
 
+from ..calib.correct import ClipLens
 from ..catalog import Catalog
 from ..errors import Conflict, OmninavError
 from ..extract import Extractor
@@ -29,6 +31,8 @@ from ..spectrum import HEADER_BYTES, decode_binary, decode_json, record_bytes_pe
 from .describe import describe
 from .http import ApiError, client_address, json_body
 from .plan import annotate
+
+log = logging.getLogger("omninav.calib")
 
 bp = Blueprint("locate", __name__)
 RECORD_TYPES = ("application/octet-stream", "application/vnd.omninav.record")
@@ -147,9 +151,9 @@ def _read_clip(cat: Catalog, venue_id: str, rt: Runtime, max_frames: int) -> tup
         if len(files) > max_frames:
             raise ApiError(413, f"too many frames: {len(files)} (a clip may have at most {max_frames})")
         images = [(f.read(), f"frame {i} ({f.filename})") for i, f in enumerate(files)]
-        return _image_spectra(images, *_clip_lens(cat, venue_id, loc)), None, "frames"
+        return _image_spectra(images, *_clip_lens(cat, venue_id, loc), loc), None, "frames"
     if ct in ("image/jpeg", "image/png"):
-        return _image_spectra([(request.get_data(), "the frame")], *_clip_lens(cat, venue_id, loc)), None, "frames"
+        return _image_spectra([(request.get_data(), "the frame")], *_clip_lens(cat, venue_id, loc), loc), None, "frames"
     if ct.startswith("video/"):
         return (*_video_spectra(request.get_data(), *_clip_lens(cat, venue_id, loc), loc, max_frames), "frames")
     raise ApiError(
@@ -176,7 +180,7 @@ def _check_record_size(conf: dict[str, Any], max_frames: int, as_json: bool) -> 
         )
 
 
-def _image_spectra(images: list[tuple[bytes, str]], ext: Extractor, lens_name: str) -> np.ndarray:
+def _image_spectra(images: list[tuple[bytes, str]], ext: Extractor, lens_name: str, loc: Locator) -> np.ndarray:
     """JPEG/PNG frames -> (F, C, K) spectra. Every header is checked against the lens's frame size
     before any frame is decoded, and each frame becomes its spectrum before the next is decoded:
     the request holds one decoded frame, of the size the lens allows, whatever it sent."""
@@ -191,21 +195,29 @@ def _image_spectra(images: list[tuple[bytes, str]], ext: Extractor, lens_name: s
                 f"{what} is {head.width}x{head.height} but {lens_name} is for {want[0]}x{want[1]} images; "
                 "name the clip's lens profile with 'lens'",
             )
+    clip = loc.clip_lens(ext.lens)  # corrected for where the ring sits in this clip
     out = []
     for data, what in images:
         img = decode_image(data)
         if img is None:
             raise ApiError(422, f"{what} is not a readable JPEG or PNG image")
-        out.append(_frame_spectrum(ext, img, what))
+        _check_frame(ext, img, what)
+        out.extend(clip.feed(img))
+    out.extend(clip.flush())
+    _log_lens(clip)
     return np.stack(out)
 
 
-def _frame_spectrum(ext: Extractor, frame: np.ndarray, what: str) -> np.ndarray:
+def _check_frame(ext: Extractor, frame: np.ndarray, what: str) -> None:
     try:
         ext.check_frame(frame, what)  # exact, once decoded (a rotated frame may come either way round)
     except OmninavError as e:
         raise ApiError(422, f"{e}; name the clip's lens profile with 'lens'") from None
-    return ext.spectrum(frame)
+
+
+def _log_lens(clip: ClipLens) -> None:
+    if (w := clip.warning("a locate request")) is not None:
+        log.warning(w)
 
 
 def _video_spectra(
@@ -237,6 +249,7 @@ def _video_spectra(
             f"too many frames: {sampled_count(v.frames, stride)} after sampling (a clip may have at most {max_frames})",
         )
     spectra: list[np.ndarray] = []
+    clip = loc.clip_lens(ext.lens)  # corrected for where the ring sits in this clip
     with tempfile.TemporaryDirectory(prefix="omninav-clip-") as d:
         p = Path(d) / "clip.mp4"
         p.write_bytes(data)
@@ -245,7 +258,10 @@ def _video_spectra(
                 raise ApiError(
                     413, f"too many frames: over {max_frames} after sampling (a clip may have at most {max_frames})"
                 )
-            spectra.append(_frame_spectrum(ext, frame, f"the video's sampled frame {i}"))
+            _check_frame(ext, frame, f"the video's sampled frame {i}")
+            spectra.extend(clip.feed(frame))
+    spectra.extend(clip.flush())
+    _log_lens(clip)
     if not spectra:
         raise ApiError(422, "the video does not decode (no readable frames)")
     return np.stack(spectra), (v.fps or DEFAULT_CLIP_FPS) / stride

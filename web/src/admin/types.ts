@@ -57,6 +57,18 @@ export interface Suggestions {
   suggestions: Suggestion[];
   /** [t, cumulative relative heading in degrees], about two samples a second. */
   heading: [number, number][];
+  /** Does the video fit its lens profile (on its first frames)? null: no ring to check, or older. */
+  lens_check?: LensCheck | null;
+}
+
+export interface LensCheck {
+  verdict: 'same' | 'corrected' | 'too_far' | 'cut' | 'no_ring';
+  fits: boolean;
+  message: string;
+  moved_px: number;
+  dx: number;
+  dy: number;
+  scale: number;
 }
 
 /** GET .../videos/{name}/frame?t=&view=&width= (image/jpeg). */

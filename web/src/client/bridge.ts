@@ -2,22 +2,23 @@
 import type { Lens } from '../shared/lens';
 import type { FeatureSettings } from '../shared/settings';
 import type { FrameSpectrum } from '../shared/record';
-import type { FromWorker, ToWorker } from '../shared/protocol';
+import type { FromWorker, LensCheck, Look, ToWorker } from '../shared/protocol';
 
 export interface FrameResult extends FrameSpectrum {
   ms: number;
+  /** The frame's look (mean grey, step across the ring's edge): tells an abrupt change. */
+  look?: Look;
   pano?: Uint8Array;
   curves?: Float32Array;
 }
 
+type Reply = Exclude<FromWorker, { type: 'error' }>;
+
 export class ExtractorClient {
   private worker: Worker;
   private nextId = 1;
-  // inits and frames share one id space: each reply settles exactly the request it answers
-  private pending = new Map<
-    number,
-    { resolve: (r: FrameResult & { loadMs?: number }) => void; reject: (e: Error) => void }
-  >();
+  // inits, frames and lens checks share one id space: each reply settles exactly the request it answers
+  private pending = new Map<number, { resolve: (r: Reply) => void; reject: (e: Error) => void }>();
   private key: string | null = null;
   private ready: Promise<number> | null = null;
 
@@ -27,22 +28,21 @@ export class ExtractorClient {
     this.worker.onerror = (ev) => this.failAll(new Error(`the feature worker failed: ${ev.message}`));
   }
 
-  private settle(
-    id: number | undefined,
-  ): { resolve: (r: FrameResult & { loadMs?: number }) => void; reject: (e: Error) => void } | undefined {
-    if (id === undefined) return undefined;
-    const p = this.pending.get(id);
-    this.pending.delete(id);
-    return p;
+  /** The lens and settings the worker was last asked to use (a new one drops any lens correction). */
+  get configured(): string | null {
+    return this.key;
   }
 
   private receive(m: FromWorker): void {
-    if (m.type === 'ready')
-      this.settle(m.id)?.resolve({ mag: new Uint16Array(), phase: new Int16Array(), ms: 0, loadMs: m.loadMs });
-    else if (m.type === 'features')
-      this.settle(m.id)?.resolve({ mag: m.mag, phase: m.phase, ms: m.ms, pano: m.pano, curves: m.curves });
-    else if (m.id !== undefined) this.settle(m.id)?.reject(new Error(m.message));
-    else this.failAll(new Error(m.message));
+    if (m.type !== 'error') {
+      const p = this.pending.get(m.id);
+      this.pending.delete(m.id);
+      p?.resolve(m);
+    } else if (m.id !== undefined) {
+      const p = this.pending.get(m.id);
+      this.pending.delete(m.id);
+      p?.reject(new Error(m.message));
+    } else this.failAll(new Error(m.message));
   }
 
   private failAll(e: Error): void {
@@ -52,9 +52,19 @@ export class ExtractorClient {
     this.ready = null;
   }
 
-  private request(m: ToWorker, transfer: Transferable[] = []): Promise<FrameResult & { loadMs?: number }> {
+  private request<T extends Reply['type']>(
+    m: ToWorker,
+    want: T,
+    transfer: Transferable[] = [],
+  ): Promise<Extract<Reply, { type: T }>> {
     return new Promise((resolve, reject) => {
-      this.pending.set(m.id, { resolve, reject });
+      this.pending.set(m.id, {
+        resolve: (r) =>
+          r.type === want
+            ? resolve(r as Extract<Reply, { type: T }>)
+            : reject(new Error(`the feature worker answered ${r.type} to ${m.type}`)),
+        reject,
+      });
       this.worker.postMessage(m, transfer);
     });
   }
@@ -67,7 +77,7 @@ export class ExtractorClient {
     const key = JSON.stringify([lens, settings]);
     if (key === this.key && this.ready) return this.ready;
     this.key = key;
-    const ready = this.request({ type: 'init', id: this.nextId++, lens, settings }).then((r) => r.loadMs ?? 0);
+    const ready = this.request({ type: 'init', id: this.nextId++, lens, settings }, 'ready').then((r) => r.loadMs);
     ready.catch(() => {
       if (this.ready === ready) [this.key, this.ready] = [null, null]; // a later call tries again
     });
@@ -76,7 +86,16 @@ export class ExtractorClient {
   }
 
   /** One frame (the bitmap is transferred, and closed by the worker). */
-  extract(bitmap: ImageBitmap, keep = false): Promise<FrameResult> {
-    return this.request({ type: 'frame', id: this.nextId++, bitmap, keep }, [bitmap]);
+  async extract(bitmap: ImageBitmap, keep = false): Promise<FrameResult> {
+    const m = await this.request({ type: 'frame', id: this.nextId++, bitmap, keep }, 'features', [bitmap]);
+    return { mag: m.mag, phase: m.phase, ms: m.ms, look: m.look, pano: m.pano, curves: m.curves };
+  }
+
+  /**
+   * The lens check on a few frames (transferred, closed by the worker): the ring, the verdict, and
+   * from now on the worker extracts with the corrected profile when the verdict is "corrected".
+   */
+  async checkLens(bitmaps: ImageBitmap[]): Promise<LensCheck> {
+    return (await this.request({ type: 'lens', id: this.nextId++, bitmaps }, 'lens', bitmaps)).check;
   }
 }

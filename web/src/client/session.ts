@@ -15,7 +15,9 @@ import {
 import { CameraProblem, captureClip, lensMismatch, openCamera } from './camera';
 import { describe, gist, type Answer } from './directions';
 import { ExtractorClient } from './bridge';
+import { LensWatch, checkLensOn, lensWords } from './lenscheck';
 import type { Lens } from '../shared/lens';
+import type { LensCheck } from '../shared/protocol';
 import { encodeRecord, recordMismatch } from '../shared/record';
 import type { Prefs } from './prefs';
 import { NO_FRAMES, NO_LENS, RecordMismatch, problemText } from './problems';
@@ -23,6 +25,7 @@ import type { Cue } from './speech';
 
 const CLIP_FRAMES = 10; // ~1 s at 10 fps: enough for the clip to outvote a single wrong frame
 const CLIP_INTERVAL_MS = 100;
+const RECHECK_MS = 500;
 /** The name the user's own lens profile is offered under, beside the venue's. */
 export const MY_LENS = 'my lens';
 
@@ -55,6 +58,8 @@ export interface Located {
   fps: number;
   medianMs: number;
   rttMs: number;
+  /** The last lens check (a donut lens), in words, and its ring finding per frame. */
+  lensCheck?: { message: string; ms: number };
 }
 
 export interface SessionEvents {
@@ -73,7 +78,11 @@ export interface SessionEvents {
   continuous: boolean;
   /** A preference was set. */
   pref: keyof Prefs;
+  /** The lens was checked (the ring found in the camera's frames and compared with the profile). */
+  lens: LensCheck;
 }
+
+const median = (v: number[]): number => v.slice().sort((a, b) => a - b)[v.length >> 1] ?? 0;
 
 /** Typed listeners, in the order they were added. */
 class Emitter<E> {
@@ -97,6 +106,8 @@ export class Session extends Emitter<SessionEvents> {
   private line = '';
   private ext: ExtractorClient | null = null;
   private stream: MediaStream | null = null;
+  private readonly lensWatch = new LensWatch();
+  private lastCheck: LensCheck | null = null;
   private busy = false;
   /** What was last said (or would have been): continuous mode speaks only when it changes. */
   private lastGist = '';
@@ -200,12 +211,24 @@ export class Session extends Emitter<SessionEvents> {
       const ready = this.ext.configure(lens[1], v.features.settings);
       // a stream ends when the phone locks or another app takes the camera: open it again
       if (this.stream?.getVideoTracks().every((t) => t.readyState === 'ended')) this.stream = null;
-      this.stream ??= await openCamera(video, lens[1]);
+      let fresh = false;
+      if (!this.stream) {
+        this.stream = await openCamera(video, lens[1]);
+        this.lensWatch.reset(); // a new session of the camera: the lens may sit elsewhere now
+        fresh = true;
+      }
       const bad = lensMismatch(video.videoWidth, video.videoHeight, lens[1], lens[0]);
       if (bad) throw new CameraProblem('lens', bad);
       await ready;
       if (!quietIfSame) voice.cue('start');
-      const clip = await captureClip(video, this.ext, CLIP_FRAMES, CLIP_INTERVAL_MS);
+      // a donut lens is checked first (a 360 camera has no ring), and again when the picture jumps
+      const donut = lens[1].model === 'catadioptric';
+      if (donut && this.lensWatch.due(this.ext.configured)) await this.checkLens(this.ext, fresh);
+      let clip = await captureClip(video, this.ext, CLIP_FRAMES, CLIP_INTERVAL_MS);
+      if (donut && this.lensWatch.changed(clip.frames)) {
+        await this.checkLens(this.ext);
+        clip = await captureClip(video, this.ext, CLIP_FRAMES, CLIP_INTERVAL_MS);
+      }
       const record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id);
       const t0 = performance.now();
       const a = await locate(v.id, record, clip.fps, `web-${Date.now()}`);
@@ -222,6 +245,8 @@ export class Session extends Emitter<SessionEvents> {
         fps: clip.fps,
         medianMs: ms[ms.length >> 1],
         rttMs,
+        lensCheck:
+          donut && this.lastCheck ? { message: this.lastCheck.message, ms: median(this.lastCheck.ms) } : undefined,
       });
       const g = gist(a, this.prefs.style);
       if (!quietIfSame || g !== this.lastGist) voice.say(this.sentence(a, v), a.low_confidence ? 'unsure' : 'ok');
@@ -237,6 +262,24 @@ export class Session extends Emitter<SessionEvents> {
       this.busy = false;
       this.emit('busy', false);
     }
+  }
+
+  /**
+   * The lens check (lenscheck.ts): the worker finds the ring and from now on extracts with the
+   * corrected profile; no ring, a cut ring or one too far off stops here, before any request.
+   */
+  private async checkLens(ext: ExtractorClient, fresh = false): Promise<void> {
+    let c = await checkLensOn(this.o.video, ext);
+    // a camera that has just started may still be finding its exposure: look once more before saying no
+    if (fresh && lensWords(c)) {
+      await new Promise((r) => setTimeout(r, RECHECK_MS));
+      c = await checkLensOn(this.o.video, ext);
+    }
+    this.lastCheck = c;
+    this.emit('lens', c);
+    const said = this.lensWatch.record(c, ext.configured);
+    if (said?.stop) throw new CameraProblem('lens', said.text);
+    if (said) this.o.voice.say(said.text, null);
   }
 
   get continuous(): boolean {

@@ -12,6 +12,12 @@ export interface CatadioptricLens {
   elevation_poly: number[];
   forward_deg?: number;
   ccw?: boolean;
+  /**
+   * The ring's visible edges as `omninav calib` measured them when the profile was made; a
+   * re-clipped lens is corrected by how far the ring moved from these. Absent: the ring is
+   * `center`, `r_inner`, `r_outer` (hand-typed and rendered profiles).
+   */
+  ring?: { center: [number, number]; r_inner: number; r_outer: number };
 }
 
 export interface EquirectangularLens {
@@ -104,6 +110,20 @@ export function lensProblem(lens: unknown): string | null {
       !((l.r_inner as number) >= 0 && (l.r_inner as number) < (l.r_outer as number))
     )
       return 'it needs 0 <= r_inner < r_outer';
+    if (l.ring !== undefined) {
+      const r = l.ring as Record<string, unknown> | null;
+      const ok =
+        r !== null &&
+        typeof r === 'object' &&
+        Array.isArray(r.center) &&
+        r.center.length === 2 &&
+        r.center.every(num) &&
+        num(r.r_inner) &&
+        num(r.r_outer) &&
+        (r.r_inner as number) >= 0 &&
+        (r.r_inner as number) < (r.r_outer as number);
+      if (!ok) return 'its ring must be {"center": [x, y], "r_inner": r, "r_outer": R} with 0 <= r < R';
+    }
     return null;
   }
   if (l.model === 'equirectangular')

@@ -1,18 +1,25 @@
 /// <reference lib="webworker" />
 /**
  * The feature worker: owns opencv.js (WebAssembly) and turns camera frames into spectra, off the
- * main thread so that the page, speech and the screen reader never wait on image work.
+ * main thread so that the page, speech and the screen reader never wait on image work. It also
+ * checks the lens: finds the donut's ring in a few frames and corrects the profile it extracts with.
  */
 import cvModule from '@techstark/opencv-js';
 import { Extractor, readyCv, type Cv } from './extract';
-import type { FromWorker, ToWorker } from '../shared/protocol';
+import { findRingFrame, fitLens, lookOf, medianRing, type RingCv } from './ring';
+import type { Lens } from '../shared/lens';
+import type { FeatureSettings } from '../shared/settings';
+import type { FromWorker, LensCheck, ToWorker } from '../shared/protocol';
 
 declare const self: DedicatedWorkerGlobalScope;
 
 // opencv.js compiles its WebAssembly once, on the first lens: one memoised promise
 let cvReady: Promise<Cv> | null = null;
 const loadCv = (): Promise<Cv> => (cvReady ??= readyCv(cvModule));
+let cv: Cv | null = null;
 let ext: Extractor | null = null;
+/** The profile as the page gave it; the extractor's may be its correction for a re-clipped lens. */
+let base: { lens: Lens; settings: FeatureSettings } | null = null;
 let canvas: OffscreenCanvas | null = null;
 let ctx: OffscreenCanvasRenderingContext2D | null = null;
 
@@ -22,9 +29,10 @@ function post(m: FromWorker, transfer: Transferable[] = []): void {
 
 async function init(m: Extract<ToWorker, { type: 'init' }>): Promise<void> {
   const t0 = performance.now();
-  const cv = await loadCv();
+  cv = await loadCv();
   ext?.delete();
   ext = new Extractor(cv, m.lens, m.settings);
+  base = { lens: m.lens, settings: m.settings };
   const [w, h] = m.lens.image_size;
   canvas = new OffscreenCanvas(w, h);
   // willReadFrequently keeps the canvas in CPU memory: getImageData every frame is then cheap
@@ -32,25 +40,81 @@ async function init(m: Extract<ToWorker, { type: 'init' }>): Promise<void> {
   post({ type: 'ready', id: m.id, loadMs: performance.now() - t0 });
 }
 
+/** A frame's pixels at the lens's calibrated size (a camera at another resolution of the same shape is scaled). */
+function pixels(bitmap: ImageBitmap): Uint8ClampedArray {
+  if (!ext || !ctx || !canvas) throw new Error('the feature worker was not initialised with a lens');
+  ctx.drawImage(bitmap, 0, 0, canvas.width, canvas.height);
+  bitmap.close();
+  return ctx.getImageData(0, 0, canvas.width, canvas.height).data;
+}
+
 function frame(m: Extract<ToWorker, { type: 'frame' }>): void {
   const start = performance.now();
   try {
-    if (!ext || !ctx || !canvas) throw new Error('the feature worker was not initialised with a lens');
-    // a camera at another resolution of the same shape is scaled to the lens's calibrated size
-    ctx.drawImage(m.bitmap, 0, 0, canvas.width, canvas.height);
-    m.bitmap.close();
-    const px = ctx.getImageData(0, 0, canvas.width, canvas.height).data;
-    const out = ext.extract(px, m.keep);
+    const px = pixels(m.bitmap);
+    const out = ext!.extract(px, m.keep);
+    const look = lookOf(px, canvas!.width, canvas!.height, ext!.lens);
     const { mag, phase } = out.spectrum;
     const transfer: Transferable[] = [mag.buffer, phase.buffer];
     if (out.pano) transfer.push(out.pano.buffer);
     if (out.curves) transfer.push(out.curves.buffer);
     post(
-      { type: 'features', id: m.id, mag, phase, ms: performance.now() - start, pano: out.pano, curves: out.curves },
+      {
+        type: 'features',
+        id: m.id,
+        mag,
+        phase,
+        ms: performance.now() - start,
+        look,
+        pano: out.pano,
+        curves: out.curves,
+      },
       transfer,
     );
   } catch (e) {
     post({ type: 'error', id: m.id, message: e instanceof Error ? e.message : String(e) });
+  }
+}
+
+/**
+ * The lens check: the ring in each frame, their median against the page's profile, and the
+ * extractor rebuilt on the corrected profile (or back on the page's when the ring is where it says).
+ */
+function lens(m: Extract<ToWorker, { type: 'lens' }>): void {
+  try {
+    const profile = base?.lens;
+    const rings = [];
+    const ms: number[] = [];
+    let px: Uint8ClampedArray | null = null;
+    for (const bm of m.bitmaps) {
+      px = pixels(bm);
+      const t0 = performance.now();
+      if (profile?.model === 'catadioptric') rings.push(findRingFrame(cv as RingCv, px, canvas!.width, canvas!.height));
+      ms.push(performance.now() - t0);
+    }
+    let check: Omit<LensCheck, 'look'>;
+    if (profile?.model !== 'catadioptric') {
+      // a 360 camera has no ring to find, and nothing a clip-on could move
+      const message = 'An equirectangular camera has no lens ring to check';
+      check = { verdict: 'same', dx: 0, dy: 0, scale: 1, moved_px: 0, message, ring: null, ms };
+    } else {
+      const ring = medianRing(rings);
+      const { lens: corrected, ...fit } = fitLens(profile, ring);
+      // corrected against the page's profile every time, never on top of an earlier correction; a
+      // ring that cannot be used leaves the extractor as it is (nothing is sent until it can)
+      const want = fit.verdict === 'corrected' ? corrected : fit.verdict === 'same' ? profile : null;
+      if (want && JSON.stringify(want) !== JSON.stringify(ext!.lens)) {
+        ext!.delete();
+        ext = new Extractor(cv!, want, base!.settings);
+      }
+      check = { ...fit, ring, ms };
+    }
+    const look = px ? lookOf(px, canvas!.width, canvas!.height, ext!.lens) : { mean: NaN, edge: NaN };
+    post({ type: 'lens', id: m.id, check: { ...check, look } });
+  } catch (e) {
+    post({ type: 'error', id: m.id, message: e instanceof Error ? e.message : String(e) });
+  } finally {
+    for (const bm of m.bitmaps) bm.close(); // those a failure left open (closing twice is harmless)
   }
 }
 
@@ -59,4 +123,5 @@ self.onmessage = (ev: MessageEvent<ToWorker>) => {
   if (m.type === 'init')
     init(m).catch((e) => post({ type: 'error', id: m.id, message: `the feature extractor did not start: ${e}` }));
   else if (m.type === 'frame') frame(m);
+  else if (m.type === 'lens') lens(m);
 };

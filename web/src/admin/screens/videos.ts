@@ -10,7 +10,7 @@ import type { AdminContext } from '../context';
 import { button, dataTable, el, field, uid } from '../dom';
 import { formatBytes, formatTime } from '../format';
 import '../media.css';
-import type { Video } from '../types';
+import type { LensCheck, Video } from '../types';
 import { uploads, type Upload, type UploadOptions } from '../uploader';
 import { matchUpload } from '../upload';
 
@@ -383,7 +383,8 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       v.duration_s ? `${formatTime(v.duration_s)} long` : '',
     ].filter(Boolean);
     const what = v.status === 'modelled' ? `modelled (${v.frames} frames)` : 'uploaded, not modelled yet';
-    return facts.length ? `${what}; ${facts.join(', ')}` : what;
+    const lens = lensText(v.suggestions?.lens_check);
+    return [facts.length ? `${what}; ${facts.join(', ')}` : what, lens].filter(Boolean).join('. ');
   };
 
   const drawTable = () => {
@@ -507,4 +508,12 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     abort.abort();
     unlisten();
   };
+}
+
+/** Does the video fit its lens (the server's check on its first frames)? Words for the table. */
+export function lensText(check: LensCheck | null | undefined): string {
+  if (!check) return '';
+  if (check.verdict === 'same') return 'The lens sits where its profile says';
+  if (check.verdict === 'corrected') return `The lens sits ${check.moved_px.toFixed(1)} px off its profile: corrected`;
+  return `Does not fit its lens profile: ${check.message}`;
 }

@@ -58,6 +58,9 @@ export function locateScreen(session: Session, speaker: Speaker): void {
   session.on('answer', (r) => {
     show(r.answer, r.venue);
     const a = r.answer;
+    const c = r.lensCheck;
+    // what the phone's lens check found (the ring in the camera's frames against the profile)
+    const lensRow: [string, string][] = c ? [['Lens check', `${c.message} (${c.ms.toFixed(0)} ms per frame)`]] : [];
     facts(debugFacts, [
       ['Sent', `features only: ${r.recordBytes} bytes for ${r.frames} frames`],
       ['Bytes per frame', String((r.recordBytes - HEADER_BYTES) / r.frames)],
@@ -66,6 +69,7 @@ export function locateScreen(session: Session, speaker: Speaker): void {
       ['Server round trip', `${r.rttMs.toFixed(0)} ms`],
       ['Position', `x ${a.x.toFixed(2)} m, y ${a.y.toFixed(2)} m, heading ${a.heading_deg.toFixed(1)}°`],
       ['Confidence', a.confidence.toFixed(3)],
+      ...lensRow,
     ]);
   });
   // another direction style rephrases the last answer on screen (it is not spoken again)

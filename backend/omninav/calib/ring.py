@@ -1,0 +1,683 @@
+"""Find the donut ring (centre, inner and outer radius) in ordinary frames, without any target.
+
+THE ALGORITHM (the browser's worker ports this text; Python and TypeScript must agree within 0.5 px)
+====================================================================================================
+Pixel coordinates: x right, y down, pixel (i, j) has its centre at x = i, y = j (the image spans
+-0.5 .. w - 0.5). Rounding is floor(v + 0.5) everywhere. Angles are atan2(dy, dx) in radians.
+Only OpenCV operations that opencv.js has are used (cvtColor, resize INTER_AREA, GaussianBlur,
+Sobel, Canny), the rest is plain loops over arrays; no randomness.
+
+A. Coarse stage, on a copy whose longer side is at most COARSE_MAX = 640 px.
+ 1. grey = cvtColor(frame, BGR2GRAY) (RGBA2GRAY in the browser: the same weights), uint8.
+ 2. f = min(1, 640 / max(w, h)); cw = floor(w f + 0.5), ch = floor(h f + 0.5); if f < 1:
+    small = resize(grey, (cw, ch), INTER_AREA), else small = grey. Per-axis scales sx = cw / w,
+    sy = ch / h; a coarse point (u, v) is the full-resolution point ((u + 0.5) / sx - 0.5,
+    (v + 0.5) / sy - 0.5).
+ 3. blur = GaussianBlur(small, ksize 5x5, sigma 1.5, BORDER_DEFAULT); gx, gy = Sobel(blur,
+    CV_32F, dx/dy = 1, ksize 3); edges = Canny(blur, 20, 50, aperture 3, L2gradient false).
+ 4. Edge points: every pixel with edges != 0 and g = hypot(gx, gy) > 0, in row-major order, with
+    its unit gradient (ux, uy) = (gx, gy) / g (it points towards the brighter side).
+ 5. Centre votes (a Hough transform along gradients): the outer edge of the ring is brighter on
+    its inside, so its gradient points at the centre. Radii rmin = floor(0.15 min(cw, ch) + 0.5),
+    rmax = floor(0.6 max(cw, ch) + 0.5). For every VOTE_EVERY = 3rd edge point (indices 0, 3,
+    6, ... of the row-major list) and every k = rmin, rmin + VOTE_STEP, ... <= rmax (VOTE_STEP = 3):
+    (a, b) = (floor(x + k ux + 0.5), floor(y + k uy + 0.5)); if 0 <= a < cw and 0 <= b < ch:
+    acc[b, a] += 1 (ch x cw counts).
+ 6. accB = the VOTE_BOX x VOTE_BOX (15 x 15, centred) box sum of acc, cells off the image counting
+    0; (a0, b0) = its first maximum in row-major order. No ring if that maximum < MIN_VOTES = 30.
+    (The votes of a ring make a blob a few pixels wide, gradient directions being a degree or
+    two off: the wide box finds its middle, a 3x3 one lands anywhere on it under noise.)
+ 7. Outer circle around a centre (a, b) with a radius window W (OUTER_WINDOWS: run twice, W = 3
+    around (a0, b0), then W = 1 around the centre of the circle the first run found). For every
+    edge point with d = hypot(x - a, y - b) > 0: the radial cosine c = (ux (x - a) +
+    uy (y - b)) / d; the point is "inward" if c < -RADIAL_COS (RADIAL_COS = 0.9: brighter towards
+    the centre), "outward" if c > RADIAL_COS. Its angle bin is
+    n = floor(mod(atan2(y - b, x - a), 2 pi) / (2 pi) * 360) (clamped to 0..359), its radius bin
+    q = floor(d + 0.5); hit[q][n] = true for the inward points.
+    For each integer r from max(rmin, W + 1) to rmax: a bin n is visible if its point
+    (a + r cos t, b + r sin t), t = (n + 0.5) 2 pi / 360, lies in -0.5 <= x <= cw - 0.5 and
+    -0.5 <= y <= ch - 0.5; vis(r) = visible bins; cov(r) = visible bins with hit[q][n] for some
+    q in r - W .. r + W; score(r) = cov(r) / vis(r), 0 when vis(r) < 36 (a tenth of the circle).
+    best = max score; no ring if best < MIN_COVERAGE = 0.5. The radius r1 is the SMALLEST r with
+    score(r) >= OUTER_PICK (0.8) * best that is a local maximum (score(r) >= score(r - 1) and
+    >= score(r + 1), a missing neighbour counting as -1): a bright plastic rim further out is as
+    complete a circle, but never inside the ring. Then the inward points with |d - r1| <= W + 1
+    (at least 20, else no ring) -> algebraic circle fit (B3) -> the circle (a1, b1, r1').
+ 8. Inner radius around (a1, b1) from the second run: as 7 with W = 1 but with the "outward"
+    points (a dark centre: brighter outwards) and r from lo = floor(0.1 r1' + 0.5) to
+    hi = floor(0.9 r1' + 0.5) (only if lo >= 1 and hi > lo + 2); r2 = the first r of the highest
+    score if that score >= MIN_COVERAGE. Else the same again with the edge points of a fainter
+    Canny(blur, 8, 20) (CANNY_FAINT: a dim scene's inner edge); else r2 = 0 (no inner circle: a
+    fisheye, not a failure).
+
+B. Sub-pixel stage, at full resolution.
+ 1. fine = GaussianBlur(grey, 5x5, sigma 1.0, BORDER_DEFAULT) (uint8 in, uint8 out), then read as
+    float; centre (cx, cy) and radii R from A (coarse -> full as in A2, radii divided by
+    (sx + sy) / 2).
+ 2. Radial profiles: for each circle (outer: sign -1, inner: sign +1) and each of N_PROFILES = 360
+    angles t_k = 2 pi k / 360: n = 2 H / 0.25 + 1 samples at s_j = -H + 0.25 j, j = 0..n-1 (the
+    half width H = 6 px on the first pass, 3 px on the second) at (cx + (R + s_j) cos t_k,
+    cy + (R + s_j) sin t_k); the angle is left out (not "in the image") if any of its samples lies
+    outside 0 <= x <= w - 1, 0 <= y <= h - 1. Values I_j by bilinear interpolation of fine.
+    D_j = (I_{j+1} - I_{j-1}) / 0.5 for j = 1..n-2; e_j = sign * D_j (the outer edge gets darker
+    outwards, the inner edge brighter). j* = the first j with the largest e_j; the angle gives no
+    point if e_j* < MIN_EDGE = 2.0 grey levels / px or j* is 1 or n-2 (the window's ends).
+    Parabolic peak: A, B, C = e_{j*-1}, e_j*, e_{j*+1}, den = A - 2B + C, delta = 0.5 (A - C) / den
+    if den < 0 else 0, clamped to [-0.5, 0.5]; the point is at radius R + s_j* + 0.25 delta along
+    angle t_k from (cx, cy).
+ 3. Circle fit of points: algebraic (Kasa: least squares of x^2 + y^2 + D x + E y + F = 0, solved
+    about the points' mean for conditioning -> centre (-D/2, -E/2), radius sqrt(cx^2 + cy^2 - F)),
+    then geometric Gauss-Newton from it (residual e_i = hypot(x_i - cx, y_i - cy) - r, Jacobian
+    rows (-(x_i - cx)/d_i, -(y_i - cy)/d_i, -1); 3x3 normal equations; at most 20 steps, stopping
+    after a step whose largest component is < 1e-6). Then twice: e_i = |residual| of every point
+    to the current circle, sigma = max(0.05, 1.4826 * median of e_i over the points still kept);
+    keep only the kept points with e_i <= 3 sigma; refit them (algebraic, then geometric).
+ 4. Outer circle: pass 1 = B2 (H = 6) around the circle from A (full resolution), then B3; pass 2
+    = B2 (H = 3) around pass 1's circle, then B3. In each pass, no ring if the profiles gave
+    fewer than max(20, MIN_SHARE * m) points or the fit kept fewer than that (MIN_SHARE = 0.5,
+    m = the number of that pass's angles in the image). The kept points of pass 2 are the outer
+    edge points (for the ellipse check).
+ 5. Inner circle (only if A gave r2 > 0): the same two passes with sign +1 around the outer
+    circle's final centre, starting at radius r2 (converted as B1), but instead of a circle fit
+    r_inner = the mean distance of the points to that centre, with the same two rounds of
+    3-sigma rejection (residual = distance - current mean). The centre stays the outer circle's:
+    the outer edge is the longer, sharper one. r_inner = 0 if a pass falls short as in B4.
+ 6. Radius convention: the radii are where the intensity crosses half way between the ring and
+    its surround (the strongest derivative). EDGE_BIAS_PX = 0.0 would be subtracted from r_outer
+    and added to r_inner: on the renderer's hard-edged rings (a pixel is on the ring when its
+    centre is within [r_inner, r_outer]) under synth/clipon.py's surround the crossing is
+    within 0.1 px of the true radius (measured: r_outer -0.05 px, r_inner +0.03 px, both pulled
+    into the ring by the vignetting's slope), so there is nothing to correct.
+ 7. visible = the share of N_VISIBLE = 3600 points (cx + r_outer cos t, cy + r_outer sin t),
+    t = 2 pi (k + 0.5) / 3600, with -0.5 <= x <= w - 0.5 and -0.5 <= y <= h - 0.5.
+
+C. Over frames (`find_ring`): the median of cx, cy, r_outer over the frames with a ring, and of
+   r_inner over those of them with r_inner > 0 (r_inner = 0 when those are fewer than half);
+   `spread` = the standard deviations over the same frames (population, ddof 0), center_px =
+   sqrt(std_x^2 + std_y^2).
+   Fewer than half the frames with a ring: NoRing. `ellipse_ratio`: the median over frames of the
+   major / minor axis of cv2.fitEllipse on the kept outer edge points (1.0 for a circle).
+====================================================================================================
+
+`fit_lens` then says whether a lens profile still fits the ring a video shows, and corrects it
+when the lens was clipped on a few pixels off (calib/README.md; the decisions of issue 12).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from ..errors import OmninavError, Unusable
+from ..lens import Catadioptric, Lens
+
+COARSE_MAX = 640
+COARSE_SIGMA = 1.5
+CANNY = (20, 50)
+CANNY_FAINT = (8, 20)
+VOTE_STEP = 3
+VOTE_EVERY = 3
+VOTE_BOX = 15
+OUTER_WINDOWS = (3, 1)
+MIN_VOTES = 30
+RADIAL_COS = 0.9
+N_BINS = 360
+MIN_COVERAGE = 0.5
+OUTER_PICK = 0.8
+FINE_SIGMA = 1.0
+N_PROFILES = 360
+PROFILE_STEP = 0.25
+MIN_EDGE = 2.0
+MIN_SHARE = 0.5
+EDGE_BIAS_PX = 0.0
+N_VISIBLE = 3600
+MIN_SIDE = 64
+
+# fit_lens thresholds (issue 12's decisions)
+STILL_PX = 0.25
+STILL_SCALE = 0.002
+TOO_FAR_SHARE = 0.10
+CUT_MARGIN = 0.02
+
+
+class NoRing(Unusable):
+    """No donut ring in the frames: no lens attached, the lens covered, or an ordinary photo."""
+
+
+@dataclass(frozen=True)
+class Ring:
+    """The donut ring in full-resolution pixels (see the module docstring for how it is found)."""
+
+    image_size: tuple[int, int]  # (w, h)
+    center: tuple[float, float]
+    r_inner: float
+    r_outer: float
+    visible: float  # share of the outer circle inside the image
+    frames_used: int = 1
+    frames_total: int = 1
+    spread: dict[str, float] | None = None  # std over frames: "center_px", "r_inner_px", "r_outer_px"
+    ellipse_ratio: float = 1.0  # major / minor axis of an ellipse fitted to the outer edge
+    points: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)  # (n, 2) outer edge
+
+    def to_dict(self) -> dict[str, Any]:
+        """ring.json: what `omninav calib ring` writes."""
+        return {
+            "image_size": list(self.image_size),
+            "center": [round(self.center[0], 3), round(self.center[1], 3)],
+            "r_inner": round(self.r_inner, 3),
+            "r_outer": round(self.r_outer, 3),
+            "visible": round(self.visible, 4),
+            "frames_used": self.frames_used,
+            "frames_total": self.frames_total,
+            "spread": {k: round(v, 3) for k, v in (self.spread or {}).items()},
+            "ellipse_ratio": round(self.ellipse_ratio, 4),
+        }
+
+
+# ---- small geometry helpers -------------------------------------------------------------------
+def visible_share(center: tuple[float, float], radius: float, size: tuple[int, int]) -> float:
+    """Share of the circle's circumference inside a (w, h) image (B7)."""
+    w, h = size
+    t = 2.0 * np.pi * (np.arange(N_VISIBLE) + 0.5) / N_VISIBLE
+    x = center[0] + radius * np.cos(t)
+    y = center[1] + radius * np.sin(t)
+    inside = (x >= -0.5) & (x <= w - 0.5) & (y >= -0.5) & (y <= h - 0.5)
+    return float(inside.mean())
+
+
+def fit_circle_algebraic(pts: np.ndarray) -> tuple[float, float, float]:
+    """Kasa's circle fit: (N, 2) points -> (cx, cy, r), least squares of x^2+y^2+Dx+Ey+F = 0."""
+    x, y = pts[:, 0], pts[:, 1]
+    # centred for conditioning: the same solution, computed about the points' mean
+    mx, my = float(x.mean()), float(y.mean())
+    u, v = x - mx, y - my
+    a = np.stack([u, v, np.ones_like(u)], 1)
+    sol = np.linalg.lstsq(a, -(u * u + v * v), rcond=None)[0]
+    cx, cy = -sol[0] / 2.0, -sol[1] / 2.0
+    r2 = cx * cx + cy * cy - sol[2]
+    return float(cx + mx), float(cy + my), float(math.sqrt(max(r2, 0.0)))
+
+
+def fit_circle_geometric(pts: np.ndarray, init: tuple[float, float, float]) -> tuple[float, float, float]:
+    """Gauss-Newton on the geometric residuals |p - c| - r, from `init`; (N, 2) -> (cx, cy, r)."""
+    cx, cy, r = init
+    for _ in range(20):
+        dx, dy = pts[:, 0] - cx, pts[:, 1] - cy
+        d = np.maximum(np.hypot(dx, dy), 1e-9)
+        e = d - r
+        j = np.stack([-dx / d, -dy / d, -np.ones_like(d)], 1)
+        step = np.linalg.solve(j.T @ j, -(j.T @ e))
+        cx, cy, r = cx + float(step[0]), cy + float(step[1]), r + float(step[2])
+        if float(np.abs(step).max()) < 1e-6:
+            break
+    return cx, cy, r
+
+
+def _fit_robust(pts: np.ndarray) -> tuple[tuple[float, float, float], np.ndarray]:
+    """B3: circle fit with two rounds of 3-sigma rejection; returns (circle, kept mask)."""
+    keep = np.ones(len(pts), bool)
+    c = fit_circle_geometric(pts, fit_circle_algebraic(pts))
+    for _ in range(2):
+        e = np.abs(np.hypot(pts[:, 0] - c[0], pts[:, 1] - c[1]) - c[2])
+        sigma = max(0.05, 1.4826 * float(np.median(e[keep])))
+        keep = keep & (e <= 3.0 * sigma)
+        if keep.sum() < 3:
+            break
+        c = fit_circle_geometric(pts[keep], fit_circle_algebraic(pts[keep]))
+    return c, keep
+
+
+def _radius_robust(pts: np.ndarray, center: tuple[float, float]) -> tuple[float, np.ndarray]:
+    """B5: mean distance to a fixed centre with two rounds of 3-sigma rejection."""
+    d = np.hypot(pts[:, 0] - center[0], pts[:, 1] - center[1])
+    keep = np.ones(len(d), bool)
+    r = float(d.mean())
+    for _ in range(2):
+        e = np.abs(d - r)
+        sigma = max(0.05, 1.4826 * float(np.median(e[keep])))
+        keep = keep & (e <= 3.0 * sigma)
+        if not keep.any():
+            break
+        r = float(d[keep].mean())
+    return r, keep
+
+
+# ---- A: coarse ---------------------------------------------------------------------------------
+def _grey(frame: np.ndarray) -> np.ndarray:
+    if frame.ndim == 3 and frame.shape[2] == 3:
+        g: np.ndarray = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+        return g
+    if frame.ndim == 2:
+        return frame
+    raise OmninavError(f"a frame must be (H, W, 3) BGR or (H, W) grey, got shape {frame.shape}")
+
+
+def _coverage(
+    hits: np.ndarray, center: tuple[float, float], radii: np.ndarray, size: tuple[int, int], win: int
+) -> np.ndarray:
+    """A7: per radius in `radii`, the share of visible angle bins with an edge hit at r-win..r+win."""
+    cw, ch = size
+    t = 2.0 * np.pi * (np.arange(N_BINS) + 0.5) / N_BINS
+    x = center[0] + radii[:, None] * np.cos(t)[None, :]
+    y = center[1] + radii[:, None] * np.sin(t)[None, :]
+    inside = (x >= -0.5) & (x <= cw - 0.5) & (y >= -0.5) & (y <= ch - 0.5)
+    near = np.zeros((len(radii), N_BINS), bool)
+    for o in range(-win, win + 1):
+        near |= hits[radii + o]
+    vis = inside.sum(1)
+    cov = (near & inside).sum(1)
+    return np.where(vis >= 36, cov / np.maximum(vis, 1), 0.0)
+
+
+def _outer_circle(
+    pts: np.ndarray, grad: np.ndarray, c: tuple[float, float], rlim: tuple[int, int], size: tuple[int, int], win: int
+) -> tuple[float, float, float] | None:
+    """A7-A8 around centre c with a radius window +-win: the coarse outer circle, or None."""
+    rmin, rmax = rlim
+    hits, d, sel = _hits(pts, grad, c, rmax + win, outward=False)
+    radii = np.arange(max(rmin, win + 1), rmax + 1)
+    score = _coverage(hits, c, radii, size, win)
+    best = float(score.max()) if len(score) else 0.0
+    if best < MIN_COVERAGE:
+        return None
+    prev = np.concatenate([[-1.0], score[:-1]])
+    nxt = np.concatenate([score[1:], [-1.0]])
+    cand = np.flatnonzero((score >= OUTER_PICK * best) & (score >= prev) & (score >= nxt))
+    r1 = float(radii[cand[0]])
+    near = sel & (np.abs(d - r1) <= win + 1.0)
+    if near.sum() < 20:
+        return None
+    return fit_circle_algebraic(pts[near])
+
+
+def _hits(
+    pts: np.ndarray, grad: np.ndarray, center: tuple[float, float], rmax: int, outward: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A7: (rmax + 3, N_BINS) bool table of radial edge points around `center`, and the points'
+    distances and a mask of which were radial in the asked sense."""
+    dx, dy = pts[:, 0] - center[0], pts[:, 1] - center[1]
+    d = np.hypot(dx, dy)
+    ok = d > 0
+    c = np.where(ok, (grad[:, 0] * dx + grad[:, 1] * dy) / np.maximum(d, 1e-9), 0.0)
+    sel = ok & ((c > RADIAL_COS) if outward else (c < -RADIAL_COS))
+    q = np.floor(d + 0.5).astype(np.int64)
+    sel &= q <= rmax + 2
+    ang = np.mod(np.arctan2(dy, dx), 2.0 * np.pi)
+    n = np.clip(np.floor(ang / (2.0 * np.pi) * N_BINS).astype(np.int64), 0, N_BINS - 1)
+    table = np.zeros((rmax + 3, N_BINS), bool)
+    table[q[sel], n[sel]] = True
+    return table, d, sel
+
+
+def _edge_points(
+    blur: np.ndarray, gx: np.ndarray, gy: np.ndarray, canny: tuple[int, int]
+) -> tuple[np.ndarray, np.ndarray]:
+    """A3-A4: Canny edge points in row-major order, (N, 2) float64 (x, y), and their unit
+    gradients (N, 2) (towards the brighter side)."""
+    edges = cv2.Canny(blur, canny[0], canny[1], apertureSize=3, L2gradient=False)
+    ys, xs = np.nonzero(edges)
+    gxe, gye = gx[ys, xs].astype(np.float64), gy[ys, xs].astype(np.float64)
+    g = np.hypot(gxe, gye)
+    ok = g > 0
+    pts = np.stack([xs[ok], ys[ok]], 1).astype(np.float64)
+    return pts, np.stack([gxe[ok] / g[ok], gye[ok] / g[ok]], 1)
+
+
+def _inner_radius(
+    pts: np.ndarray, grad: np.ndarray, c: tuple[float, float], rlim: tuple[int, int], size: tuple[int, int]
+) -> float:
+    """A8: the radius of the most complete circle of outward edges around c, or 0 (none)."""
+    lo, hi = rlim
+    hits, _, _ = _hits(pts, grad, c, hi, outward=True)
+    radii = np.arange(lo, hi + 1)
+    sc = _coverage(hits, c, radii, size, 1)
+    if len(sc) and float(sc.max()) >= MIN_COVERAGE:
+        return float(radii[int(np.argmax(sc))])
+    return 0.0
+
+
+def coarse_ring(grey: np.ndarray) -> tuple[tuple[float, float, float, float], tuple[float, float]] | None:
+    """Stage A: ((cx, cy, r_inner, r_outer) in coarse pixels, (sx, sy)) or None without a ring."""
+    h, w = grey.shape
+    f = min(1.0, COARSE_MAX / max(w, h))
+    cw, ch = int(math.floor(w * f + 0.5)), int(math.floor(h * f + 0.5))
+    small = cv2.resize(grey, (cw, ch), interpolation=cv2.INTER_AREA) if f < 1.0 else grey
+    blur = cv2.GaussianBlur(small, (5, 5), COARSE_SIGMA)
+    gx = cv2.Sobel(blur, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(blur, cv2.CV_32F, 0, 1, ksize=3)
+    pts, grad = _edge_points(blur, gx, gy, CANNY)
+    if len(pts) < 20:
+        return None
+    xs, ys, ux, uy = pts[:, 0], pts[:, 1], grad[:, 0], grad[:, 1]
+    rmin = int(math.floor(0.15 * min(cw, ch) + 0.5))
+    rmax = int(math.floor(0.6 * max(cw, ch) + 0.5))
+    # A5: votes along each gradient, towards the brighter side, from every VOTE_EVERY-th point
+    # (float32 for speed: a vote a rounding apart changes nothing that stage B does not refine)
+    ks = np.arange(rmin, rmax + 1, VOTE_STEP, dtype=np.float32)
+    vx, vy = xs[::VOTE_EVERY].astype(np.float32), ys[::VOTE_EVERY].astype(np.float32)
+    vux, vuy = ux[::VOTE_EVERY].astype(np.float32), uy[::VOTE_EVERY].astype(np.float32)
+    a = np.floor(vx[:, None] + ks[None, :] * vux[:, None] + np.float32(0.5)).astype(np.int32)
+    b = np.floor(vy[:, None] + ks[None, :] * vuy[:, None] + np.float32(0.5)).astype(np.int32)
+    idx = b * cw + a
+    idx[(a < 0) | (a >= cw) | (b < 0) | (b >= ch)] = cw * ch  # off the image: one spare cell
+    acc = np.bincount(idx.ravel(), minlength=cw * ch + 1)[: cw * ch].reshape(ch, cw).astype(np.float32)
+    accb = cv2.boxFilter(acc, -1, (VOTE_BOX, VOTE_BOX), normalize=False, borderType=cv2.BORDER_CONSTANT)
+    k = int(np.argmax(accb))
+    if int(accb.flat[k]) < MIN_VOTES:
+        return None
+    c0 = (float(k % cw), float(k // cw))
+    # A7-A8: the outer circle, first tolerant of the votes' error, then around the better centre
+    circle: tuple[float, float, float] | None = (c0[0], c0[1], 0.0)
+    for win in OUTER_WINDOWS:
+        assert circle is not None
+        circle = _outer_circle(pts, grad, (circle[0], circle[1]), (rmin, rmax), (cw, ch), win)
+        if circle is None:
+            return None
+    assert circle is not None
+    a1, b1, r1 = circle
+    # A8: the inner radius (a dark centre); a dim scene's faint inner edge: again with fainter edges
+    lo, hi = int(math.floor(0.1 * r1 + 0.5)), int(math.floor(0.9 * r1 + 0.5))
+    r2 = 0.0
+    if hi > lo + 2 and lo >= 1:
+        r2 = _inner_radius(pts, grad, (a1, b1), (lo, hi), (cw, ch))
+        if r2 == 0.0:
+            pts2, grad2 = _edge_points(blur, gx, gy, CANNY_FAINT)
+            r2 = _inner_radius(pts2, grad2, (a1, b1), (lo, hi), (cw, ch))
+    return (a1, b1, r2, r1), (cw / w, ch / h)
+
+
+# ---- B: sub-pixel ------------------------------------------------------------------------------
+def _bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Bilinear samples of a float32 (H, W) image at points inside [0, W-1] x [0, H-1]."""
+    h, w = img.shape
+    x0 = np.clip(np.floor(x).astype(np.int64), 0, w - 2)
+    y0 = np.clip(np.floor(y).astype(np.int64), 0, h - 2)
+    fx, fy = x - x0, y - y0
+    i00, i01 = img[y0, x0], img[y0, x0 + 1]
+    i10, i11 = img[y0 + 1, x0], img[y0 + 1, x0 + 1]
+    out: np.ndarray = (i00 * (1 - fx) + i01 * fx) * (1 - fy) + (i10 * (1 - fx) + i11 * fx) * fy
+    return out
+
+
+def edge_points(
+    fine: np.ndarray, center: tuple[float, float], radius: float, sign: float, half: float
+) -> tuple[np.ndarray, int]:
+    """B2: the sub-pixel edge on each radial profile across a circle: ((n, 2) points, number of
+    profiles inside the image). sign -1: darker outwards (outer edge), +1: brighter outwards."""
+    h, w = fine.shape
+    t = 2.0 * np.pi * np.arange(N_PROFILES) / N_PROFILES
+    n_s = int(round(2 * half / PROFILE_STEP)) + 1
+    s = -half + PROFILE_STEP * np.arange(n_s)
+    ct, st = np.cos(t)[:, None], np.sin(t)[:, None]
+    x = center[0] + (radius + s[None, :]) * ct
+    y = center[1] + (radius + s[None, :]) * st
+    inside = ((x >= 0) & (x <= w - 1) & (y >= 0) & (y <= h - 1)).all(1)
+    n_in = int(inside.sum())
+    if n_in == 0:
+        return np.zeros((0, 2)), 0
+    prof = _bilinear(fine, x[inside], y[inside]).astype(np.float64)
+    e = sign * (prof[:, 2:] - prof[:, :-2]) / (2 * PROFILE_STEP)  # D_j for j = 1 .. n_s - 2
+    jj = np.argmax(e, axis=1)  # index into e; j* = jj + 1
+    rows = np.arange(len(e))
+    peak = e[rows, jj]
+    ok = (peak >= MIN_EDGE) & (jj >= 1) & (jj <= e.shape[1] - 2)
+    jc = np.clip(jj, 1, e.shape[1] - 2)
+    a_, b_, c_ = e[rows, jc - 1], e[rows, jc], e[rows, jc + 1]
+    den = a_ - 2 * b_ + c_
+    delta = np.where(den < 0, 0.5 * (a_ - c_) / np.where(den < 0, den, -1.0), 0.0)
+    delta = np.clip(delta, -0.5, 0.5)
+    r = radius + s[jj + 1] + PROFILE_STEP * delta
+    pts = np.stack([center[0] + r * ct[inside, 0], center[1] + r * st[inside, 0]], 1)
+    return pts[ok], n_in
+
+
+def _refine_outer(
+    fine: np.ndarray, circle: tuple[float, float, float]
+) -> tuple[tuple[float, float, float], np.ndarray] | None:
+    """B2-B4 for the outer circle: (cx, cy, r) and the kept edge points, or None."""
+    for half in (6.0, 3.0):
+        pts, n_in = edge_points(fine, (circle[0], circle[1]), circle[2], -1.0, half)
+        if n_in == 0 or len(pts) < 20 or len(pts) < MIN_SHARE * n_in:
+            return None
+        circle, keep = _fit_robust(pts)
+        if keep.sum() < max(20, MIN_SHARE * n_in):
+            return None
+    return circle, pts[keep]
+
+
+def _refine_inner(fine: np.ndarray, center: tuple[float, float], r0: float) -> float:
+    """B5: the inner radius around the outer circle's centre, or 0 without an inner edge."""
+    r = r0
+    for half in (6.0, 3.0):
+        pts, n_in = edge_points(fine, center, r, 1.0, half)
+        if n_in == 0 or len(pts) < 20 or len(pts) < MIN_SHARE * n_in:
+            return 0.0
+        r, keep = _radius_robust(pts, center)
+        if keep.sum() < max(20, MIN_SHARE * n_in):
+            return 0.0
+    return r
+
+
+def _ellipse_ratio(pts: np.ndarray) -> float:
+    if len(pts) < 5:
+        return 1.0
+    (_, _), (ax1, ax2), _ = cv2.fitEllipse(pts.astype(np.float32))
+    lo, hi = min(ax1, ax2), max(ax1, ax2)
+    return float(hi / lo) if lo > 0 else 1.0
+
+
+def _check_frame(frame: np.ndarray) -> None:
+    if not isinstance(frame, np.ndarray) or frame.dtype != np.uint8 or frame.ndim not in (2, 3):
+        raise OmninavError("a frame must be a (H, W, 3) BGR or (H, W) grey uint8 image")
+    h, w = frame.shape[:2]
+    if min(w, h) < MIN_SIDE:
+        raise OmninavError(
+            f"the image is {w}x{h} pixels: too small to find a lens ring in (at least {MIN_SIDE} a side)"
+        )
+
+
+def find_ring_frame(frame: np.ndarray) -> Ring | None:
+    """The ring in one (H, W, 3) BGR or (H, W) uint8 frame, or None when it shows none."""
+    _check_frame(frame)
+    grey = _grey(frame)
+    h, w = grey.shape
+    coarse = coarse_ring(grey)
+    if coarse is None:
+        return None
+    (a, b, ri, ro), (sx, sy) = coarse
+    s = 0.5 * (sx + sy)
+    cx, cy = (a + 0.5) / sx - 0.5, (b + 0.5) / sy - 0.5
+    fine = cv2.GaussianBlur(grey, (5, 5), FINE_SIGMA).astype(np.float32)
+    got = _refine_outer(fine, (cx, cy, ro / s))
+    if got is None:
+        return None
+    (cx, cy, r_out), pts = got
+    r_in = _refine_inner(fine, (cx, cy), ri / s) if ri > 0 else 0.0
+    r_out -= EDGE_BIAS_PX
+    if r_in > 0:
+        r_in += EDGE_BIAS_PX
+    return Ring(
+        image_size=(w, h),
+        center=(cx, cy),
+        r_inner=r_in,
+        r_outer=r_out,
+        visible=visible_share((cx, cy), r_out, (w, h)),
+        ellipse_ratio=_ellipse_ratio(pts),
+        points=pts,
+    )
+
+
+def find_ring(frames: Iterable[np.ndarray]) -> Ring:
+    """The ring over many frames: the median of each frame's, their spread, how many showed one.
+
+    Raises NoRing when fewer than half the frames show a ring, OmninavError for frames of
+    different sizes or too small an image.
+    """
+    found: list[Ring] = []
+    total = 0
+    size: tuple[int, ...] | None = None
+    for f in frames:
+        _check_frame(f)
+        if size is None:
+            size = f.shape[:2]
+        elif f.shape[:2] != size:
+            raise OmninavError(
+                f"frames have different sizes ({size[1]}x{size[0]} and {f.shape[1]}x{f.shape[0]}): "
+                "give frames of one camera at one resolution"
+            )
+        total += 1
+        r = find_ring_frame(f)
+        if r is not None:
+            found.append(r)
+    if total == 0:
+        raise OmninavError("no frames to find the lens ring in")
+    if len(found) * 2 < total or not found:
+        raise NoRing(
+            f"no lens ring found in {total - len(found)} of {total} frames: "
+            "is the panoramic lens attached and uncovered?"
+        )
+    arr = np.array([[r.center[0], r.center[1], r.r_inner, r.r_outer] for r in found])
+    med = np.median(arr, axis=0)
+    sd = arr.std(axis=0)
+    inner = arr[arr[:, 2] > 0, 2]  # frames where the inner edge was too faint say 0: not a radius
+    med[2], sd[2] = (float(np.median(inner)), float(inner.std())) if 2 * len(inner) >= len(arr) else (0.0, 0.0)
+    assert size is not None
+    wh = (int(size[1]), int(size[0]))
+    return Ring(
+        image_size=wh,
+        center=(float(med[0]), float(med[1])),
+        r_inner=float(med[2]),
+        r_outer=float(med[3]),
+        visible=visible_share((float(med[0]), float(med[1])), float(med[3]), wh),
+        frames_used=len(found),
+        frames_total=total,
+        spread={
+            "center_px": float(math.hypot(sd[0], sd[1])),
+            "r_inner_px": float(sd[2]),
+            "r_outer_px": float(sd[3]),
+        },
+        ellipse_ratio=float(np.median([r.ellipse_ratio for r in found])),
+    )
+
+
+def ring_of_video(path: Path, max_frames: int = 40) -> Ring:
+    """The ring over up to `max_frames` frames spread over a video (size checked from its header)."""
+    from .cli_ring import read_frames
+
+    return find_ring(read_frames([path], max_frames))
+
+
+# ---- does a profile fit? ------------------------------------------------------------------------
+@dataclass(frozen=True)
+class LensFit:
+    verdict: str  # "same" | "corrected" | "too_far" | "cut" | "no_ring"
+    lens: Lens  # corrected when "corrected", else the profile unchanged (equirectangular: itself)
+    dx: float
+    dy: float
+    scale: float
+    moved_px: float
+    message: str  # the verdict in words, one line
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "verdict": self.verdict,
+            "fits": self.verdict in ("same", "corrected"),
+            "dx": round(self.dx, 3),
+            "dy": round(self.dy, 3),
+            "scale": round(self.scale, 5),
+            "moved_px": round(self.moved_px, 3),
+            "message": self.message,
+            "lens": self.lens.to_dict(),
+        }
+
+
+def _moved_words(dx: float, dy: float, s: float) -> str:
+    """'moved 6.2 px (right 5.0, down 3.7) and is 0.4 % larger'."""
+    parts = []
+    if abs(dx) >= 0.05:
+        parts.append(f"{'right' if dx > 0 else 'left'} {abs(dx):.1f}")
+    if abs(dy) >= 0.05:
+        parts.append(f"{'down' if dy > 0 else 'up'} {abs(dy):.1f}")
+    where = f" ({', '.join(parts)})" if parts else ""
+    pct = (s - 1.0) * 100.0
+    size = "the same size" if abs(pct) < 0.05 else f"{abs(pct):.1f} % {'larger' if pct > 0 else 'smaller'}"
+    return f"moved {math.hypot(dx, dy):.1f} px{where} and is {size}"
+
+
+def scaled_lens(lens: Catadioptric, d: tuple[float, float], s: float) -> Catadioptric:
+    """The profile for a ring moved by d and s times larger: centre and ring moved, radii scaled,
+    elevation(r) -> elevation(r / s)."""
+    ring = lens.ring
+    if ring is not None:
+        ring = (ring[0] + d[0], ring[1] + d[1], ring[2] * s, ring[3] * s)
+    return dataclasses.replace(
+        lens,
+        center=(lens.center[0] + d[0], lens.center[1] + d[1]),
+        r_inner=lens.r_inner * s,
+        r_outer=lens.r_outer * s,
+        elevation_poly=tuple(c / s**k for k, c in enumerate(lens.elevation_poly)),
+        ring=ring,
+    )
+
+
+def fit_lens(lens: Catadioptric, ring: Ring | None) -> LensFit:
+    """Does the profile fit the ring the frames show? Corrects it when the lens moved a little.
+
+    With ref = lens.reference_ring(): d = ring.center - ref.center, s = ring.r_outer / ref.r_outer.
+    The verdicts, checked in this order: "no_ring" (ring None); "cut" when the circle of radius
+    lens.r_outer around ring.center is more than CUT_MARGIN (0.02) less visible than around
+    ref.center (a ring cut by design, the same in both, is not cut); "too_far" when
+    |d| > TOO_FAR_SHARE (0.10) * ref.r_outer or |s - 1| > 0.10; "same" when |d| < STILL_PX (0.25)
+    and |s - 1| < STILL_SCALE (0.002): the profile itself is returned; else "corrected":
+    `scaled_lens(lens, d, s)`.
+    """
+    if ring is None:
+        return LensFit("no_ring", lens, 0.0, 0.0, 1.0, 0.0, "The panoramic lens does not seem to be attached")
+    if tuple(ring.image_size) != tuple(lens.image_size):
+        raise OmninavError(
+            f"the frames are {ring.image_size[0]}x{ring.image_size[1]} but the lens profile is for "
+            f"{lens.image_size[0]}x{lens.image_size[1]}: film at the profile's resolution"
+        )
+    rx, ry, _, ro = lens.reference_ring()
+    dx, dy = ring.center[0] - rx, ring.center[1] - ry
+    s = ring.r_outer / ro
+    moved = math.hypot(dx, dy)
+    words = _moved_words(dx, dy, s)
+    vis_ref = visible_share((rx, ry), lens.r_outer, lens.image_size)
+    vis_now = visible_share(ring.center, lens.r_outer, lens.image_size)
+    if vis_now < vis_ref - CUT_MARGIN:
+        return LensFit(
+            "cut", lens, dx, dy, s, moved, f"The lens is not centred over the camera; clip it on again (ring {words})"
+        )
+    if moved > TOO_FAR_SHARE * ro or abs(s - 1.0) > TOO_FAR_SHARE:
+        return LensFit(
+            "too_far",
+            lens,
+            dx,
+            dy,
+            s,
+            moved,
+            f"The lens ring {words}: too far from the profile to correct; clip the lens on again "
+            "or calibrate it (omninav calib lens)",
+        )
+    if moved < STILL_PX and abs(s - 1.0) < STILL_SCALE:
+        return LensFit("same", lens, dx, dy, s, moved, f"The lens ring is where the profile expects it ({words})")
+    return LensFit("corrected", scaled_lens(lens, (dx, dy), s), dx, dy, s, moved, f"The lens ring {words}: corrected")
+
+
+def corrected_lens(lens: Lens, frames: Sequence[np.ndarray]) -> LensFit:
+    """`fit_lens` on the ring of `frames`; an equirectangular profile has no ring: "same"."""
+    if not isinstance(lens, Catadioptric):
+        return LensFit("same", lens, 0.0, 0.0, 1.0, 0.0, "An equirectangular camera has no lens ring to check")
+    try:
+        ring: Ring | None = find_ring(frames)
+    except NoRing:
+        ring = None
+    return fit_lens(lens, ring)

@@ -1,0 +1,113 @@
+/**
+ * The phone keeps its clip-on lens calibrated by itself (issue 12): at the start of a session, and
+ * again when the picture changes abruptly (the lens clipped off and on, a hand over it), the feature
+ * worker finds the donut's ring in a few frames and compares it with the profile in use. A lens
+ * clipped on a little off is corrected in the worker (said when it moved 1 px or more); no ring, a
+ * ring cut by the picture's edge or one too far off stops "Where am I?" before anything is sent.
+ * The frames stay in the worker: only the features of the clip that follows are ever sent.
+ */
+import type { ExtractorClient, FrameResult } from './bridge';
+import type { LensCheck, Look } from '../shared/protocol';
+
+/** Frames the ring is found in (their median), and how far apart they are taken. */
+export const CHECK_FRAMES = 5;
+export const CHECK_INTERVAL_MS = 80;
+
+export const CORRECTED = 'Lens position corrected.';
+export const NOT_ATTACHED =
+  'The panoramic lens does not seem to be attached. Clip it on over the camera, then press Where am I? again.';
+export const NOT_CENTRED = 'The lens is not centred over the camera; clip it on again.';
+export const TOO_FAR =
+  'The lens is far from where its profile expects it; clip it on again, or choose its lens profile in Settings.';
+
+/** A correction is said when the profile in use moves by at least this much (px). */
+export const SAY_PX = 1;
+
+/** An abrupt change: the mean grey jumps by this many levels or this share, or the ring's edge fades. */
+const MEAN_JUMP = 25;
+const MEAN_SHARE = 0.35;
+const EDGE_MIN = 10;
+const EDGE_KEEP = 0.5;
+
+/** What the user hears after a check, and whether "Where am I?" must stop there. */
+export function lensWords(c: LensCheck): { text: string; stop: boolean } | null {
+  if (c.verdict === 'no_ring') return { text: NOT_ATTACHED, stop: true };
+  if (c.verdict === 'cut') return { text: NOT_CENTRED, stop: true };
+  if (c.verdict === 'too_far') return { text: TOO_FAR, stop: true };
+  return null;
+}
+
+/** The median look over a clip's frames (one odd frame does not count as a change). */
+export function clipLook(frames: FrameResult[]): Look | null {
+  const looks = frames.map((f) => f.look).filter((l): l is Look => !!l);
+  if (!looks.length) return null;
+  const med = (v: number[]) => v.sort((a, b) => a - b)[v.length >> 1];
+  return { mean: med(looks.map((l) => l.mean)), edge: med(looks.map((l) => l.edge)) };
+}
+
+/** Has the picture changed abruptly since `base` (the look when the lens was last checked)? */
+export function lookChanged(base: Look, now: Look): boolean {
+  if (Math.abs(now.mean - base.mean) > Math.max(MEAN_JUMP, MEAN_SHARE * base.mean)) return true;
+  // the ring's edge was clear and has faded (NaN now: the lens was taken off and nothing is there)
+  return Number.isFinite(base.edge) && base.edge >= EDGE_MIN && !(now.edge >= EDGE_KEEP * base.edge);
+}
+
+/** Grab `n` frames `intervalMs` apart and have the worker check the lens on them. */
+export async function checkLensOn(
+  video: HTMLVideoElement,
+  ext: ExtractorClient,
+  n = CHECK_FRAMES,
+  intervalMs = CHECK_INTERVAL_MS,
+): Promise<LensCheck> {
+  const bitmaps: ImageBitmap[] = [];
+  for (let i = 0; i < n; i++) {
+    if (i) await new Promise((r) => setTimeout(r, intervalMs));
+    bitmaps.push(await createImageBitmap(video));
+  }
+  return ext.checkLens(bitmaps);
+}
+
+/**
+ * When the lens must be checked, and what the last check found: the worker's configuration it was
+ * made for (a new lens or venue drops the worker's correction), the look then, and the correction
+ * in use (so that the same correction found again is not said again).
+ */
+export class LensWatch {
+  private checkedFor: string | null = null;
+  private look: Look | null = null;
+  private shift: [number, number] = [0, 0];
+
+  /** A new camera stream: the lens may have been clipped on again meanwhile. */
+  reset(): void {
+    this.checkedFor = null;
+  }
+
+  /** A check is due: never made for this configuration, or the last one stopped "Where am I?". */
+  due(configured: string | null): boolean {
+    return this.checkedFor === null || this.checkedFor !== configured;
+  }
+
+  /** The clip's frames look unlike the picture at the last check. */
+  changed(frames: FrameResult[]): boolean {
+    const now = clipLook(frames);
+    return !!(this.look && now && lookChanged(this.look, now));
+  }
+
+  /**
+   * Record a check; -> what to say (null: nothing) and whether to stop. A correction is said when
+   * it moves the profile in use by SAY_PX or more.
+   */
+  record(c: LensCheck, configured: string | null): { text: string; stop: boolean } | null {
+    const words = lensWords(c);
+    if (words) {
+      this.checkedFor = null; // checked again on the next press
+      return words;
+    }
+    const was = this.checkedFor === configured ? this.shift : [0, 0];
+    const now: [number, number] = c.verdict === 'corrected' ? [c.dx, c.dy] : [0, 0];
+    this.checkedFor = configured;
+    this.look = c.look;
+    this.shift = now;
+    return Math.hypot(now[0] - was[0], now[1] - was[1]) >= SAY_PX ? { text: CORRECTED, stop: false } : null;
+  }
+}

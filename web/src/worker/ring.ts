@@ -1,0 +1,805 @@
+/**
+ * The donut's ring in a camera frame, found without any target: a port of the engine's
+ * calib/ring.py, whose docstring states the algorithm (steps A1-A8, B1-B7, C) and constants; the
+ * same numbers here, so that the phone and `omninav calib ring` agree within 0.5 px (they agree
+ * within 0.01 px on the golden frames). opencv.js does the image work (cvtColor, resize,
+ * GaussianBlur, Canny); Sobel at the edge pixels, votes, coverage, profiles and circle fits are
+ * plain loops. Every Mat is deleted in a finally. No picture leaves the worker: only these numbers do.
+ */
+import type { CatadioptricLens, Lens } from '../shared/lens';
+import type { Look } from '../shared/protocol';
+import type { Cv, CvMat } from './extract';
+
+/** A Mat that can give a window of itself. */
+interface RingMat extends CvMat {
+  roi(rect: unknown): RingMat;
+  copyTo(dst: CvMat): void;
+}
+
+/** The slice of opencv.js the ring finder needs on top of the extractor's. */
+export interface RingCv extends Cv {
+  Mat: new (...args: unknown[]) => RingMat;
+  Size: new (w: number, h: number) => unknown;
+  Rect: new (x: number, y: number, w: number, h: number) => unknown;
+  COLOR_RGBA2GRAY: number;
+  INTER_AREA: number;
+  BORDER_DEFAULT: number;
+  cvtColor(src: CvMat, dst: CvMat, code: number, dstCn: number): void;
+  resize(src: CvMat, dst: CvMat, size: unknown, fx: number, fy: number, interp: number): void;
+  GaussianBlur(src: CvMat, dst: CvMat, size: unknown, sx: number, sy: number, border: number): void;
+  Canny(src: CvMat, dst: CvMat, t1: number, t2: number, aperture: number, l2: boolean): void;
+}
+
+/** A ring in full-resolution pixels (ring.py's `Ring`, the fields a phone needs). */
+export interface Ring {
+  image_size: [number, number];
+  center: [number, number];
+  /** 0 when there is no inner edge (a fisheye). */
+  r_inner: number;
+  r_outer: number;
+  /** Share (0..1) of the outer circle's circumference inside the image. */
+  visible: number;
+  frames_used?: number;
+  frames_total?: number;
+}
+
+// ring.py's constants (its docstring says what each does)
+export const COARSE_MAX = 640;
+const COARSE_SIGMA = 1.5;
+const CANNY: [number, number] = [20, 50];
+const CANNY_FAINT: [number, number] = [8, 20]; // A8's second look for a dim scene's inner edge
+const VOTE_STEP = 3;
+const VOTE_EVERY = 3;
+const VOTE_BOX = 15;
+const OUTER_WINDOWS = [3, 1];
+const MIN_VOTES = 30;
+const RADIAL_COS = 0.9;
+const N_BINS = 360;
+const MIN_COVERAGE = 0.5;
+const OUTER_PICK = 0.8;
+const FINE_SIGMA = 1.0;
+const N_PROFILES = 360;
+const PROFILE_STEP = 0.25;
+const MIN_EDGE = 2.0;
+const MIN_SHARE = 0.5;
+const EDGE_BIAS_PX = 0.0;
+const N_VISIBLE = 3600;
+const MIN_SIDE = 64;
+/** Pixels around the coarse circle that the sub-pixel stage may read (its profiles reach 6 px out). */
+const WINDOW_MARGIN = 12;
+
+type Circle = [number, number, number];
+const f32 = Math.fround;
+
+/** B7: share of the circle's circumference inside a w x h image (which spans -0.5 .. w - 0.5). */
+export function visibleShare(center: readonly [number, number], r: number, w: number, h: number): number {
+  let inside = 0;
+  for (let k = 0; k < N_VISIBLE; k++) {
+    const t = (2 * Math.PI * (k + 0.5)) / N_VISIBLE;
+    const x = center[0] + r * Math.cos(t);
+    const y = center[1] + r * Math.sin(t);
+    if (x >= -0.5 && x <= w - 0.5 && y >= -0.5 && y <= h - 0.5) inside++;
+  }
+  return inside / N_VISIBLE;
+}
+
+const median = (v: ArrayLike<number>): number => {
+  const s = Float64Array.from(v).sort();
+  const k = s.length >> 1;
+  return s.length % 2 ? s[k] : 0.5 * (s[k - 1] + s[k]);
+};
+
+/** Solve the 3x3 system A s = b (Gaussian elimination with partial pivoting); null when singular. */
+function solve3(A: number[], b: number[]): [number, number, number] | null {
+  const m = [A.slice(0, 3).concat(b[0]), A.slice(3, 6).concat(b[1]), A.slice(6, 9).concat(b[2])];
+  for (let c = 0; c < 3; c++) {
+    let p = c;
+    for (let r = c + 1; r < 3; r++) if (Math.abs(m[r][c]) > Math.abs(m[p][c])) p = r;
+    if (Math.abs(m[p][c]) < 1e-300) return null;
+    [m[c], m[p]] = [m[p], m[c]];
+    for (let r = c + 1; r < 3; r++) {
+      const f = m[r][c] / m[c][c];
+      for (let k = c; k < 4; k++) m[r][k] -= f * m[c][k];
+    }
+  }
+  const x = [0, 0, 0];
+  for (let r = 2; r >= 0; r--) {
+    let v = m[r][3];
+    for (let k = r + 1; k < 3; k++) v -= m[r][k] * x[k];
+    x[r] = v / m[r][r];
+  }
+  return [x[0], x[1], x[2]];
+}
+
+/** Kasa's circle fit: least squares of x^2 + y^2 + D x + E y + F = 0, about the points' mean. */
+export function fitCircleAlgebraic(xs: ArrayLike<number>, ys: ArrayLike<number>, idx: ArrayLike<number>): Circle {
+  const n = idx.length;
+  let mx = 0;
+  let my = 0;
+  for (let i = 0; i < n; i++) {
+    mx += xs[idx[i]];
+    my += ys[idx[i]];
+  }
+  mx /= n;
+  my /= n;
+  const A = [0, 0, 0, 0, 0, 0, 0, 0, 0];
+  const b = [0, 0, 0];
+  for (let i = 0; i < n; i++) {
+    const u = xs[idx[i]] - mx;
+    const v = ys[idx[i]] - my;
+    const row = [u, v, 1];
+    const rhs = -(u * u + v * v);
+    for (let a = 0; a < 3; a++) {
+      b[a] += row[a] * rhs;
+      for (let c = 0; c < 3; c++) A[a * 3 + c] += row[a] * row[c];
+    }
+  }
+  const sol = solve3(A, b) ?? [0, 0, 0];
+  const cx = -sol[0] / 2;
+  const cy = -sol[1] / 2;
+  return [cx + mx, cy + my, Math.sqrt(Math.max(cx * cx + cy * cy - sol[2], 0))];
+}
+
+/** Gauss-Newton on the geometric residuals |p - c| - r, from `init`. */
+export function fitCircleGeometric(
+  xs: ArrayLike<number>,
+  ys: ArrayLike<number>,
+  idx: ArrayLike<number>,
+  init: Circle,
+): Circle {
+  let [cx, cy, r] = init;
+  for (let it = 0; it < 20; it++) {
+    const A = [0, 0, 0, 0, 0, 0, 0, 0, 0];
+    const b = [0, 0, 0];
+    for (let i = 0; i < idx.length; i++) {
+      const dx = xs[idx[i]] - cx;
+      const dy = ys[idx[i]] - cy;
+      const d = Math.max(Math.hypot(dx, dy), 1e-9);
+      const e = d - r;
+      const j = [-dx / d, -dy / d, -1];
+      for (let a = 0; a < 3; a++) {
+        b[a] -= j[a] * e;
+        for (let c = 0; c < 3; c++) A[a * 3 + c] += j[a] * j[c];
+      }
+    }
+    const step = solve3(A, b);
+    if (!step) break;
+    cx += step[0];
+    cy += step[1];
+    r += step[2];
+    if (Math.max(Math.abs(step[0]), Math.abs(step[1]), Math.abs(step[2])) < 1e-6) break;
+  }
+  return [cx, cy, r];
+}
+
+const range = (n: number): number[] => Array.from({ length: n }, (_, i) => i);
+
+/** B3: circle fit with two rounds of 3-sigma rejection; -> (circle, indices kept). */
+function fitRobust(xs: Float64Array, ys: Float64Array): [Circle, number[]] {
+  let keep = range(xs.length);
+  let c = fitCircleGeometric(xs, ys, keep, fitCircleAlgebraic(xs, ys, keep));
+  for (let round = 0; round < 2; round++) {
+    const e = Float64Array.from(xs, (x, i) => Math.abs(Math.hypot(x - c[0], ys[i] - c[1]) - c[2]));
+    const sigma = Math.max(0.05, 1.4826 * median(keep.map((i) => e[i])));
+    keep = keep.filter((i) => e[i] <= 3 * sigma);
+    if (keep.length < 3) break;
+    c = fitCircleGeometric(xs, ys, keep, fitCircleAlgebraic(xs, ys, keep));
+  }
+  return [c, keep];
+}
+
+/** B5: mean distance to a fixed centre with two rounds of 3-sigma rejection. */
+function radiusRobust(xs: Float64Array, ys: Float64Array, center: [number, number]): [number, number] {
+  const d = Float64Array.from(xs, (x, i) => Math.hypot(x - center[0], ys[i] - center[1]));
+  const mean = (idx: number[]) => idx.reduce((s, i) => s + d[i], 0) / idx.length;
+  let keep = range(d.length);
+  let r = mean(keep);
+  for (let round = 0; round < 2; round++) {
+    const e = Float64Array.from(d, (v) => Math.abs(v - r));
+    const sigma = Math.max(0.05, 1.4826 * median(keep.map((i) => e[i])));
+    keep = keep.filter((i) => e[i] <= 3 * sigma);
+    if (!keep.length) break;
+    r = mean(keep);
+  }
+  return [r, keep.length];
+}
+
+/** A4: the coarse frame's edge pixels (row-major) and their unit gradients (towards the brighter side). */
+interface Edges {
+  x: Float64Array;
+  y: Float64Array;
+  ux: Float64Array;
+  uy: Float64Array;
+  n: number;
+}
+
+/**
+ * A7: a (rmax + 3) x N_BINS table of radial edge points around `center` (inward: gradient towards
+ * the centre; outward: away), and which points were radial in that sense, with their distances.
+ */
+function hits(e: Edges, center: [number, number], rmax: number, outward: boolean) {
+  const table = new Uint8Array((rmax + 3) * N_BINS);
+  const sel = new Uint8Array(e.n);
+  const dist = new Float64Array(e.n);
+  for (let i = 0; i < e.n; i++) {
+    const dx = e.x[i] - center[0];
+    const dy = e.y[i] - center[1];
+    const d = Math.hypot(dx, dy);
+    dist[i] = d;
+    if (!(d > 0)) continue;
+    const c = (e.ux[i] * dx + e.uy[i] * dy) / Math.max(d, 1e-9);
+    if (outward ? !(c > RADIAL_COS) : !(c < -RADIAL_COS)) continue;
+    const q = Math.floor(d + 0.5);
+    if (q > rmax + 2) continue;
+    let ang = Math.atan2(dy, dx) % (2 * Math.PI);
+    if (ang < 0) ang += 2 * Math.PI;
+    const n = Math.min(N_BINS - 1, Math.max(0, Math.floor((ang / (2 * Math.PI)) * N_BINS)));
+    table[q * N_BINS + n] = 1;
+    sel[i] = 1;
+  }
+  return { table, sel, dist };
+}
+
+const BIN_COS = range(N_BINS).map((n) => Math.cos((2 * Math.PI * (n + 0.5)) / N_BINS));
+const BIN_SIN = range(N_BINS).map((n) => Math.sin((2 * Math.PI * (n + 0.5)) / N_BINS));
+
+/** A7: per radius, the share of the visible angle bins with an edge hit at r - win .. r + win. */
+function coverage(
+  table: Uint8Array,
+  center: [number, number],
+  radii: number[],
+  cw: number,
+  ch: number,
+  win: number,
+): Float64Array {
+  // hits per bin up to each radius: "a hit within r +- win" is then one difference
+  const rows = table.length / N_BINS;
+  const upto = new Int32Array((rows + 1) * N_BINS);
+  for (let q = 0; q < rows; q++)
+    for (let n = 0; n < N_BINS; n++) upto[(q + 1) * N_BINS + n] = upto[q * N_BINS + n] + table[q * N_BINS + n];
+  const out = new Float64Array(radii.length);
+  radii.forEach((r, k) => {
+    let vis = 0;
+    let cov = 0;
+    const hi = (r + win + 1) * N_BINS;
+    const lo = (r - win) * N_BINS;
+    for (let n = 0; n < N_BINS; n++) {
+      const x = center[0] + r * BIN_COS[n];
+      const y = center[1] + r * BIN_SIN[n];
+      if (!(x >= -0.5 && x <= cw - 0.5 && y >= -0.5 && y <= ch - 0.5)) continue;
+      vis++;
+      if (upto[hi + n] > upto[lo + n]) cov++;
+    }
+    out[k] = vis >= 36 ? cov / Math.max(vis, 1) : 0;
+  });
+  return out;
+}
+
+/**
+ * A3-A4: edge pixels of the coarse grey image, with their unit gradients. Sobel (3x3, reflected
+ * border as OpenCV's BORDER_DEFAULT) is evaluated at the edge pixels only: on uint8 input its
+ * sums are small integers, so these are exactly the values cv.Sobel would give, at a tenth of the cost.
+ */
+function coarseEdges(cv: RingCv, small: CvMat, canny: readonly [number, number] = CANNY): Edges {
+  const blur = new cv.Mat();
+  const edges = new cv.Mat();
+  try {
+    cv.GaussianBlur(small, blur, new cv.Size(5, 5), COARSE_SIGMA, COARSE_SIGMA, cv.BORDER_DEFAULT);
+    cv.Canny(blur, edges, canny[0], canny[1], 3, false);
+    const { rows, cols } = small;
+    const ed = edges.data;
+    const g = blur.data;
+    const idx: number[] = [];
+    for (let i = 0; i < rows * cols; i++) if (ed[i]) idx.push(i);
+    const x = new Float64Array(idx.length);
+    const y = new Float64Array(idx.length);
+    const ux = new Float64Array(idx.length);
+    const uy = new Float64Array(idx.length);
+    const refl = (v: number, n: number) => (v < 0 ? Math.min(1, n - 1) : v >= n ? Math.max(n - 2, 0) : v);
+    let n = 0;
+    for (const i of idx) {
+      const px = i % cols;
+      const py = (i / cols) | 0;
+      const xm = refl(px - 1, cols);
+      const xp = refl(px + 1, cols);
+      const ym = refl(py - 1, rows) * cols;
+      const y0 = py * cols;
+      const yp = refl(py + 1, rows) * cols;
+      const gx = g[ym + xp] - g[ym + xm] + 2 * (g[y0 + xp] - g[y0 + xm]) + g[yp + xp] - g[yp + xm];
+      const gy = g[yp + xm] - g[ym + xm] + 2 * (g[yp + px] - g[ym + px]) + g[yp + xp] - g[ym + xp];
+      if (gx === 0 && gy === 0) continue;
+      const m = Math.sqrt(gx * gx + gy * gy);
+      x[n] = px;
+      y[n] = py;
+      ux[n] = gx / m;
+      uy[n] = gy / m;
+      n++;
+    }
+    return { x, y, ux, uy, n };
+  } finally {
+    blur.delete();
+    edges.delete();
+  }
+}
+
+/** Stage A: ((cx, cy, r_inner, r_outer) in coarse pixels, (sx, sy)), or null without a ring. */
+function coarseRing(cv: RingCv, grey: CvMat): [[number, number, number, number], [number, number]] | null {
+  const h = grey.rows;
+  const w = grey.cols;
+  const f = Math.min(1, COARSE_MAX / Math.max(w, h));
+  const cw = Math.floor(w * f + 0.5);
+  const ch = Math.floor(h * f + 0.5);
+  // the coarse image stays until A8 is done: a dim scene's inner edge is looked for again there
+  const small = f < 1 ? new cv.Mat() : null;
+  try {
+    if (small) cv.resize(grey, small, new cv.Size(cw, ch), 0, 0, cv.INTER_AREA);
+    return coarseStages(cv, small ?? grey, w, h, cw, ch);
+  } finally {
+    small?.delete();
+  }
+}
+
+function coarseStages(
+  cv: RingCv,
+  img: CvMat,
+  w: number,
+  h: number,
+  cw: number,
+  ch: number,
+): [[number, number, number, number], [number, number]] | null {
+  const e = coarseEdges(cv, img);
+  if (e.n < 20) return null;
+  const rmin = Math.floor(0.15 * Math.min(cw, ch) + 0.5);
+  const rmax = Math.floor(0.6 * Math.max(cw, ch) + 0.5);
+  // A5: votes along each gradient towards the brighter side, in float32 as the engine casts them
+  const acc = new Int32Array(cw * ch);
+  for (let i = 0; i < e.n; i += VOTE_EVERY) {
+    const vx = f32(e.x[i]);
+    const vy = f32(e.y[i]);
+    const vux = f32(e.ux[i]);
+    const vuy = f32(e.uy[i]);
+    for (let k = rmin; k <= rmax; k += VOTE_STEP) {
+      const a = Math.floor(f32(f32(vx + f32(k * vux)) + 0.5));
+      const b = Math.floor(f32(f32(vy + f32(k * vuy)) + 0.5));
+      // a ray that has left the image never comes back (it starts inside, and the image is convex)
+      if (a < 0 || a >= cw || b < 0 || b >= ch) break;
+      acc[b * cw + a]++;
+    }
+  }
+  // A6: the VOTE_BOX x VOTE_BOX box sum's first maximum (separable: rows, then columns; cells off
+  // the image count 0)
+  const h2 = VOTE_BOX >> 1;
+  const rowsB = new Int32Array(cw * ch);
+  for (let b = 0; b < ch; b++) {
+    let s = 0;
+    for (let a = 0; a <= Math.min(h2, cw - 1); a++) s += acc[b * cw + a];
+    for (let a = 0; a < cw; a++) {
+      rowsB[b * cw + a] = s;
+      if (a + h2 + 1 < cw) s += acc[b * cw + a + h2 + 1];
+      if (a - h2 >= 0) s -= acc[b * cw + a - h2];
+    }
+  }
+  const box = new Int32Array(cw * ch);
+  for (let a = 0; a < cw; a++) {
+    let s = 0;
+    for (let b = 0; b <= Math.min(h2, ch - 1); b++) s += rowsB[b * cw + a];
+    for (let b = 0; b < ch; b++) {
+      box[b * cw + a] = s;
+      if (b + h2 + 1 < ch) s += rowsB[(b + h2 + 1) * cw + a];
+      if (b - h2 >= 0) s -= rowsB[(b - h2) * cw + a];
+    }
+  }
+  let best = -1;
+  let at = 0;
+  for (let p = 0; p < cw * ch; p++) if (box[p] > best) [best, at] = [box[p], p];
+  if (best < MIN_VOTES) return null;
+  // A7-A8: the outer circle, first tolerant of the votes' error, then around the better centre
+  let circle: Circle | null = [at % cw, Math.floor(at / cw), 0];
+  for (const win of OUTER_WINDOWS) {
+    circle = outerCircle(e, [circle[0], circle[1]], rmin, rmax, cw, ch, win);
+    if (!circle) return null;
+  }
+  const [a1, b1, r1] = circle;
+  // A8: the inner radius (a dark centre)
+  const lo = Math.floor(0.1 * r1 + 0.5);
+  const hi = Math.floor(0.9 * r1 + 0.5);
+  let r2 = 0;
+  if (hi > lo + 2 && lo >= 1) {
+    r2 = innerRadius(e, [a1, b1], lo, hi, cw, ch);
+    // a dim scene's faint inner edge: again with the edge points of a fainter Canny
+    if (r2 === 0) r2 = innerRadius(coarseEdges(cv, img, CANNY_FAINT), [a1, b1], lo, hi, cw, ch);
+  }
+  return [
+    [a1, b1, r2, r1],
+    [cw / w, ch / h],
+  ];
+}
+
+/** A8: the radius in lo..hi of the widest coverage by outward points (a dark centre), else 0. */
+function innerRadius(e: Edges, c: [number, number], lo: number, hi: number, cw: number, ch: number): number {
+  const out = hits(e, c, hi, true);
+  const radii = range(hi - lo + 1).map((i) => i + lo);
+  const sc = coverage(out.table, c, radii, cw, ch, 1);
+  let k = 0;
+  for (let i = 1; i < sc.length; i++) if (sc[i] > sc[k]) k = i;
+  return sc.length && sc[k] >= MIN_COVERAGE ? radii[k] : 0;
+}
+
+/**
+ * A7: the coarse outer circle around centre c with a radius window +-win: the smallest radius
+ * whose coverage is a local maximum near the best (a bright rim further out is as complete a
+ * circle, but never inside the ring), then a circle through the inward points near it; or null.
+ */
+function outerCircle(
+  e: Edges,
+  c: [number, number],
+  rmin: number,
+  rmax: number,
+  cw: number,
+  ch: number,
+  win: number,
+): Circle | null {
+  const inward = hits(e, c, rmax + win, false);
+  const r0 = Math.max(rmin, win + 1);
+  const radii = range(Math.max(0, rmax + 1 - r0)).map((i) => i + r0);
+  const score = coverage(inward.table, c, radii, cw, ch, win);
+  let top = 0;
+  for (const v of score) top = Math.max(top, v);
+  if (top < MIN_COVERAGE) return null;
+  let pick = -1;
+  for (let i = 0; i < score.length && pick < 0; i++) {
+    const prev = i > 0 ? score[i - 1] : -1;
+    const next = i < score.length - 1 ? score[i + 1] : -1;
+    if (score[i] >= OUTER_PICK * top && score[i] >= prev && score[i] >= next) pick = i;
+  }
+  const r1 = radii[pick];
+  const near: number[] = [];
+  for (let i = 0; i < e.n; i++) if (inward.sel[i] && Math.abs(inward.dist[i] - r1) <= win + 1) near.push(i);
+  if (near.length < 20) return null;
+  return fitCircleAlgebraic(e.x, e.y, near);
+}
+
+/**
+ * B1: the blurred frame, or the window of it around the ring (the rest of a frame is never read):
+ * `data` holds a w x h frame's pixels ox .. ox + rw - 1, oy .. oy + rh - 1, of which those within
+ * [x0, x1] x [y0, y1] are exactly the whole frame's blur. (The window is copied out first: opencv.js
+ * blurs a window in place with other rounding, and as if its edges were the frame's, where the 5x5
+ * kernel reaches 2 px across.)
+ */
+interface Fine {
+  data: Uint8Array;
+  w: number;
+  h: number;
+  ox: number;
+  oy: number;
+  rw: number;
+  x0: number;
+  y0: number;
+  x1: number;
+  y1: number;
+}
+
+/** A profile reached outside the blurred window: blur the whole frame instead. */
+class OutsideWindow extends Error {}
+
+/** B1 on the window of `grey` around a circle (`margin` px beyond it), or on all of it. */
+function blurred(cv: RingCv, grey: RingMat, c: Circle | null, margin: number): Fine {
+  const w = grey.cols;
+  const h = grey.rows;
+  let [x0, y0, x1, y1] = [0, 0, w - 1, h - 1];
+  if (c) {
+    x0 = Math.max(0, Math.floor(c[0] - c[2] - margin));
+    y0 = Math.max(0, Math.floor(c[1] - c[2] - margin));
+    x1 = Math.min(w - 1, Math.ceil(c[0] + c[2] + margin));
+    y1 = Math.min(h - 1, Math.ceil(c[1] + c[2] + margin));
+  }
+  const K = 2; // the kernel's reach
+  const ox = Math.max(0, x0 - K);
+  const oy = Math.max(0, y0 - K);
+  const rw = Math.min(w - 1, x1 + K) - ox + 1;
+  const rh = Math.min(h - 1, y1 + K) - oy + 1;
+  const whole = rw === w && rh === h;
+  const view = whole ? null : grey.roi(new cv.Rect(ox, oy, rw, rh));
+  const win = new cv.Mat();
+  const out = new cv.Mat();
+  try {
+    view?.copyTo(win);
+    cv.GaussianBlur(view ? win : grey, out, new cv.Size(5, 5), FINE_SIGMA, FINE_SIGMA, cv.BORDER_DEFAULT);
+    return { data: out.data.slice(), w, h, ox, oy, rw, x0, y0, x1, y1 };
+  } finally {
+    for (const m of [view, win, out]) m?.delete();
+  }
+}
+
+/**
+ * B2: the sub-pixel edge on each radial profile across a circle; -> its points and the number of
+ * profiles inside the image. sign -1: darker outwards (outer edge), +1: brighter outwards.
+ */
+function edgePoints(
+  fine: Fine,
+  center: [number, number],
+  radius: number,
+  sign: number,
+  half: number,
+): { xs: Float64Array; ys: Float64Array; nIn: number } {
+  const { w, h, ox, oy, rw, data } = fine;
+  const nS = Math.round((2 * half) / PROFILE_STEP) + 1;
+  const prof = new Float64Array(nS);
+  const e = new Float64Array(nS - 2);
+  const xs: number[] = [];
+  const ys: number[] = [];
+  let nIn = 0;
+  for (let k = 0; k < N_PROFILES; k++) {
+    const t = (2 * Math.PI * k) / N_PROFILES;
+    const ct = Math.cos(t);
+    const st = Math.sin(t);
+    let inside = true;
+    for (let j = 0; j < nS && inside; j++) {
+      const x = center[0] + (radius + (-half + PROFILE_STEP * j)) * ct;
+      const y = center[1] + (radius + (-half + PROFILE_STEP * j)) * st;
+      if (!(x >= 0 && x <= w - 1 && y >= 0 && y <= h - 1)) inside = false;
+      else {
+        const x0 = Math.min(Math.max(Math.floor(x), 0), w - 2);
+        const y0 = Math.min(Math.max(Math.floor(y), 0), h - 2);
+        const fx = x - x0;
+        const fy = y - y0;
+        if (x0 < fine.x0 || y0 < fine.y0 || x0 + 1 > fine.x1 || y0 + 1 > fine.y1) throw new OutsideWindow();
+        const p = (y0 - oy) * rw + (x0 - ox);
+        prof[j] =
+          (data[p] * (1 - fx) + data[p + 1] * fx) * (1 - fy) + (data[p + rw] * (1 - fx) + data[p + rw + 1] * fx) * fy;
+      }
+    }
+    if (!inside) continue;
+    nIn++;
+    let jj = 0;
+    for (let j = 0; j < nS - 2; j++) {
+      e[j] = (sign * (prof[j + 2] - prof[j])) / (2 * PROFILE_STEP);
+      if (e[j] > e[jj]) jj = j;
+    }
+    if (!(e[jj] >= MIN_EDGE && jj >= 1 && jj <= nS - 4)) continue;
+    const [a, b, c] = [e[jj - 1], e[jj], e[jj + 1]];
+    const den = a - 2 * b + c;
+    const delta = Math.min(0.5, Math.max(-0.5, den < 0 ? (0.5 * (a - c)) / den : 0));
+    const r = radius + (-half + PROFILE_STEP * (jj + 1)) + PROFILE_STEP * delta;
+    xs.push(center[0] + r * ct);
+    ys.push(center[1] + r * st);
+  }
+  return { xs: Float64Array.from(xs), ys: Float64Array.from(ys), nIn };
+}
+
+/** B2-B4 for the outer circle, or null. */
+function refineOuter(fine: Fine, circle: Circle): Circle | null {
+  for (const half of [6, 3]) {
+    const { xs, ys, nIn } = edgePoints(fine, [circle[0], circle[1]], circle[2], -1, half);
+    if (nIn === 0 || xs.length < 20 || xs.length < MIN_SHARE * nIn) return null;
+    const [c, keep] = fitRobust(xs, ys);
+    if (keep.length < Math.max(20, MIN_SHARE * nIn)) return null;
+    circle = c;
+  }
+  return circle;
+}
+
+/** B5: the inner radius around the outer circle's centre, or 0 without an inner edge. */
+function refineInner(fine: Fine, center: [number, number], r0: number): number {
+  let r = r0;
+  for (const half of [6, 3]) {
+    const { xs, ys, nIn } = edgePoints(fine, center, r, 1, half);
+    if (nIn === 0 || xs.length < 20 || xs.length < MIN_SHARE * nIn) return 0;
+    const [rr, kept] = radiusRobust(xs, ys, center);
+    if (kept < Math.max(20, MIN_SHARE * nIn)) return 0;
+    r = rr;
+  }
+  return r;
+}
+
+/**
+ * The ring in one frame (RGBA pixels, width x height), or null when it shows none (no lens, a
+ * covered lens, an ordinary photo). Full-resolution pixels; ring.py's find_ring_frame.
+ */
+export function findRingFrame(
+  cv: RingCv,
+  rgba: Uint8Array | Uint8ClampedArray,
+  width: number,
+  height: number,
+): Ring | null {
+  if (Math.min(width, height) < MIN_SIDE) return null;
+  const src = new cv.Mat(height, width, cv.CV_8UC4);
+  const grey = new cv.Mat();
+  try {
+    src.data.set(rgba);
+    cv.cvtColor(src, grey, cv.COLOR_RGBA2GRAY, 0);
+    const coarse = coarseRing(cv, grey);
+    if (!coarse) return null;
+    const [[a, b, ri, ro], [sx, sy]] = coarse;
+    const s = 0.5 * (sx + sy);
+    const start: Circle = [(a + 0.5) / sx - 0.5, (b + 0.5) / sy - 0.5, ro / s];
+    // B2-B5 read the frame near the coarse circle only: blur that window (a 1920x1080 frame's
+    // blur is the slowest step), or the whole frame should a profile reach further
+    const refine = (fine: Fine): [Circle | null, number] => {
+      const outer = refineOuter(fine, start);
+      return [outer, outer && ri > 0 ? refineInner(fine, [outer[0], outer[1]], ri / s) : 0];
+    };
+    let got: [Circle | null, number];
+    try {
+      got = refine(blurred(cv, grey, start, WINDOW_MARGIN + 2 / s));
+    } catch (e) {
+      if (!(e instanceof OutsideWindow)) throw e;
+      got = refine(blurred(cv, grey, null, 0));
+    }
+    const [outer, rInner] = got;
+    if (!outer) return null;
+    const [cx, cy] = outer;
+    const rOut = outer[2] - EDGE_BIAS_PX;
+    let rIn = rInner;
+    if (rIn > 0) rIn += EDGE_BIAS_PX;
+    return {
+      image_size: [width, height],
+      center: [cx, cy],
+      r_inner: rIn,
+      r_outer: rOut,
+      visible: visibleShare([cx, cy], rOut, width, height),
+    };
+  } finally {
+    for (const m of [src, grey]) m.delete();
+  }
+}
+
+/**
+ * C: the median ring over frames (r_inner over the frames that saw an inner edge, 0 when fewer than
+ * half of them did); null when fewer than half of the frames show a ring.
+ */
+export function medianRing(rings: (Ring | null)[]): Ring | null {
+  const found = rings.filter((r): r is Ring => r !== null);
+  if (!found.length || found.length * 2 < rings.length) return null;
+  const center: [number, number] = [median(found.map((r) => r.center[0])), median(found.map((r) => r.center[1]))];
+  const r_outer = median(found.map((r) => r.r_outer));
+  const inner = found.map((r) => r.r_inner).filter((r) => r > 0);
+  const [w, h] = found[0].image_size;
+  return {
+    image_size: [w, h],
+    center,
+    r_inner: 2 * inner.length >= found.length ? median(inner) : 0,
+    r_outer,
+    visible: visibleShare(center, r_outer, w, h),
+    frames_used: found.length,
+    frames_total: rings.length,
+  };
+}
+
+/** What a ring says about a lens profile (ring.py's `LensFit`). */
+export type Verdict = 'same' | 'corrected' | 'too_far' | 'cut' | 'no_ring';
+export interface LensFit {
+  verdict: Verdict;
+  /** The corrected profile when "corrected", else the profile unchanged. */
+  lens: CatadioptricLens;
+  dx: number;
+  dy: number;
+  scale: number;
+  moved_px: number;
+  /** The verdict in words, one line (ring.py's). */
+  message: string;
+}
+
+// issue 12's decisions, as ring.py has them
+export const STILL_PX = 0.25;
+export const STILL_SCALE = 0.002;
+export const TOO_FAR_SHARE = 0.1;
+export const CUT_MARGIN = 0.02;
+
+/** "moved 6.2 px (right 5.0, down 3.7) and is 0.4 % larger" (ring.py's _moved_words). */
+function movedWords(dx: number, dy: number, s: number): string {
+  const parts: string[] = [];
+  if (Math.abs(dx) >= 0.05) parts.push(`${dx > 0 ? 'right' : 'left'} ${Math.abs(dx).toFixed(1)}`);
+  if (Math.abs(dy) >= 0.05) parts.push(`${dy > 0 ? 'down' : 'up'} ${Math.abs(dy).toFixed(1)}`);
+  const where = parts.length ? ` (${parts.join(', ')})` : '';
+  const pct = (s - 1) * 100;
+  const size =
+    Math.abs(pct) < 0.05 ? 'the same size' : `${Math.abs(pct).toFixed(1)} % ${pct > 0 ? 'larger' : 'smaller'}`;
+  return `moved ${Math.hypot(dx, dy).toFixed(1)} px${where} and is ${size}`;
+}
+
+/** The profile for a ring moved by d and s times larger: elevation(r) -> elevation(r / s). */
+export function scaledLens(lens: CatadioptricLens, d: [number, number], s: number): CatadioptricLens {
+  const out: CatadioptricLens = {
+    ...lens,
+    center: [lens.center[0] + d[0], lens.center[1] + d[1]],
+    r_inner: lens.r_inner * s,
+    r_outer: lens.r_outer * s,
+    elevation_poly: lens.elevation_poly.map((c, k) => c / s ** k),
+  };
+  if (lens.ring)
+    out.ring = {
+      center: [lens.ring.center[0] + d[0], lens.ring.center[1] + d[1]],
+      r_inner: lens.ring.r_inner * s,
+      r_outer: lens.ring.r_outer * s,
+    };
+  return out;
+}
+
+/**
+ * Does the profile fit the ring the frames show (ring.py's fit_lens)? Compared with the ring the
+ * profile was made with (`lens.ring`, else its centre and radii): d = centre moved, s = outer
+ * radius now / then; cut, too far (10 %), the same (under 0.25 px and 0.2 %), else corrected.
+ */
+export function fitLens(lens: CatadioptricLens, ring: Ring | null): LensFit {
+  const keep = (verdict: Verdict, dx: number, dy: number, scale: number, message: string): LensFit => ({
+    verdict,
+    lens,
+    dx,
+    dy,
+    scale,
+    moved_px: Math.hypot(dx, dy),
+    message,
+  });
+  if (!ring) return keep('no_ring', 0, 0, 1, 'The panoramic lens does not seem to be attached');
+  const [w, h] = lens.image_size;
+  if (ring.image_size[0] !== w || ring.image_size[1] !== h)
+    throw new Error(
+      `the frames are ${ring.image_size[0]}x${ring.image_size[1]} but the lens profile is for ${w}x${h}: film at the profile's resolution`,
+    );
+  const ref = lens.ring ?? { center: lens.center, r_inner: lens.r_inner, r_outer: lens.r_outer };
+  const dx = ring.center[0] - ref.center[0];
+  const dy = ring.center[1] - ref.center[1];
+  const s = ring.r_outer / ref.r_outer;
+  const moved = Math.hypot(dx, dy);
+  const words = movedWords(dx, dy, s);
+  const visRef = visibleShare(lens.center, lens.r_outer, w, h);
+  const visNow = visibleShare([lens.center[0] + dx, lens.center[1] + dy], lens.r_outer * s, w, h);
+  if (visNow < visRef - CUT_MARGIN)
+    return keep('cut', dx, dy, s, `The lens is not centred over the camera; clip it on again (ring ${words})`);
+  if (moved > TOO_FAR_SHARE * ref.r_outer || Math.abs(s - 1) > TOO_FAR_SHARE)
+    return keep(
+      'too_far',
+      dx,
+      dy,
+      s,
+      `The lens ring ${words}: too far from the profile to correct; clip the lens on again or calibrate it (omninav calib lens)`,
+    );
+  if (moved < STILL_PX && Math.abs(s - 1) < STILL_SCALE)
+    return keep('same', dx, dy, s, `The lens ring is where the profile expects it (${words})`);
+  return {
+    verdict: 'corrected',
+    lens: scaledLens(lens, [dx, dy], s),
+    dx,
+    dy,
+    scale: s,
+    moved_px: moved,
+    message: `The lens ring ${words}: corrected`,
+  };
+}
+
+/**
+ * The picture's look (protocol.ts `Look`) from RGBA pixels: the mean grey over a sparse grid, and
+ * the mean step across the profile's outer ring edge at 90 angles (a few pixels either side).
+ */
+export function lookOf(rgba: Uint8Array | Uint8ClampedArray, w: number, h: number, lens: Lens): Look {
+  const grey = (x: number, y: number) => {
+    const p = 4 * (Math.round(y) * w + Math.round(x));
+    return (77 * rgba[p] + 150 * rgba[p + 1] + 29 * rgba[p + 2]) / 256;
+  };
+  let sum = 0;
+  let n = 0;
+  const step = Math.max(1, Math.round(Math.sqrt((w * h) / 20000)));
+  for (let y = step >> 1; y < h; y += step)
+    for (let x = step >> 1; x < w; x += step) {
+      sum += grey(x, y);
+      n++;
+    }
+  if (lens.model !== 'catadioptric') return { mean: sum / n, edge: NaN };
+  const ring = lens.ring ?? { center: lens.center, r_outer: lens.r_outer };
+  const off = Math.max(3, 0.03 * ring.r_outer);
+  let edge = 0;
+  let m = 0;
+  for (let i = 0; i < 90; i++) {
+    const a = (2 * Math.PI * i) / 90;
+    const [c, s] = [Math.cos(a), Math.sin(a)];
+    const xi = ring.center[0] + (ring.r_outer - off) * c;
+    const yi = ring.center[1] + (ring.r_outer - off) * s;
+    const xo = ring.center[0] + (ring.r_outer + off) * c;
+    const yo = ring.center[1] + (ring.r_outer + off) * s;
+    if (Math.min(xi, yi, xo, yo) < 0 || Math.max(xi, xo) > w - 1 || Math.max(yi, yo) > h - 1) continue;
+    edge += grey(xi, yi) - grey(xo, yo);
+    m++;
+  }
+  return { mean: sum / n, edge: m ? edge / m : NaN };
+}
