@@ -105,6 +105,7 @@ RING_CASES = [
     ("ring-wide", "wide", (4.0, 2.5), 1.0, 4),
     ("ring-hd", "hd", (5.0, 3.0), 1.0, 5),
     ("ring-cut", "donut", (3.0, -30.0), 1.0, 6),  # off the top of the picture: "cut"
+    ("ring-larger", "donut", (0.0, 0.0), 1.05, 7),  # 5 % larger: the usable circle leaves the top
 ]
 
 
@@ -129,7 +130,7 @@ def ring_golden(out: Path, rendered: list[np.ndarray] | None = None) -> None:
             _rgba(out, f"donut-default-{i}", bgr)
 
     lenses = {"donut": donut_lens(1.0), "wide": wide_lens(), "hd": hd_lens()}
-    recipe = json.dumps([RING_CASES, [lens.to_dict() for lens in lenses.values()], 1, "dim"])
+    recipe = json.dumps([RING_CASES, [lens.to_dict() for lens in lenses.values()], 1, "dim", "measured"])
     old = out / "ring.json"
     cached = old.exists() and json.loads(old.read_text()).get("recipe") == recipe
     items = []
@@ -148,6 +149,16 @@ def ring_golden(out: Path, rendered: list[np.ndarray] | None = None) -> None:
     if not cached:
         _rgba(out, "ring-plain", plain_photo((960, 720), seed=6))
         _rgba(out, "ring-covered", covered_lens((960, 720), seed=6))
+    # a profile made by `calib lens`: its optical centre 3.6 px off the ring it measured (`ring`)
+    base = lenses["donut"]
+    measured = replace(
+        base, center=(base.center[0] + 3.0, base.center[1] - 2.0), ring=(*base.center, base.r_inner, base.r_outer)
+    )
+    moved = reclip(base, (2.0, 1.5), 1.0)
+    if not cached:
+        _rgba(out, "ring-measured", ring_frames(moved, 1, seed=8)[0])
+    truth = (*moved.center, moved.r_inner, moved.r_outer)
+    frames.append(("ring-measured", cv2.imread(str(out / "ring-measured.png")), measured, truth))
     # a dim room (a third of the light): the inner edge is found only by A8's second, fainter look
     dim = reclip(lenses["donut"], (2.0, 1.0), 1.0)
     if not cached:

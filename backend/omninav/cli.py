@@ -11,17 +11,14 @@ import logging
 import os
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import click
-import numpy as np
 
 from .calib.commands import calib
 from .catalog import Catalog
 from .errors import OmninavError, read_json
-from .extract import Extractor
 
 
 def _catalog(ctx: click.Context) -> Catalog:
@@ -254,7 +251,8 @@ def locate(
 def features(venue_id: str, clip: Path, lens_path: Path | None, out: Path | None) -> None:
     """Extract CLIP's feature record with VENUE's settings: what a phone sends instead of images."""
     from .calib.correct import clip_spectra
-    from .lens import Lens, load_lens
+    from .extract import Extractors
+    from .lens import load_lens
     from .locate import clip_frames
     from .spectrum import encode_binary, encode_json
 
@@ -268,16 +266,10 @@ def features(venue_id: str, clip: Path, lens_path: Path | None, out: Path | None
             lens = cat.store.load(venue_id).lens
         except OmninavError:
             raise OmninavError("give --lens: the venue has no modelled frames, so no lens of its own") from None
-    exts: dict[str, Extractor] = {}
-
-    def extract(lz: Lens) -> Callable[[np.ndarray], np.ndarray]:
-        if repr(lz) not in exts:
-            exts[repr(lz)] = Extractor(lz, conf)
-        return exts[repr(lz)].spectrum
-
+    exts = Extractors(conf)
     frames, _ = clip_frames(clip, conf["model_fps"])
-    Extractor(lens, conf).check_frame(frames[0], str(clip))
-    spec, _ = clip_spectra(lens, frames, extract, clip=str(clip))
+    exts.get(lens).check_frame(frames[0], str(clip))
+    spec, _ = clip_spectra(lens, frames, exts.spectrum, clip=str(clip))
     if out is not None and out.suffix.lower() == ".onv":
         out.write_bytes(encode_binary(spec, conf))
     else:

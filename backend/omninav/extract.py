@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
+from collections.abc import Callable
 from typing import Any
 
 import cv2
@@ -42,3 +45,30 @@ class Extractor:
     def spectra(self, frames: list[np.ndarray]) -> np.ndarray:
         """(F, C, K) for F >= 1 frames (a clip always has frames: readers refuse empty ones)."""
         return np.stack([self.spectrum(f) for f in frames])
+
+
+class Extractors:
+    """Extractors by lens, the last `size` kept (a remap is ~1 MB and ~10 ms to build): clips
+    corrected for a re-clipped lens (calib/correct.py) each bring a lens of their own. Safe to share
+    between a server worker's threads."""
+
+    def __init__(self, conf: dict[str, Any], size: int = 8):
+        self.conf = conf
+        self.size = size
+        self._by_lens: OrderedDict[str, Extractor] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, lens: Lens) -> Extractor:
+        key = repr(lens)
+        with self._lock:
+            ext = self._by_lens.pop(key, None)
+            if ext is None:
+                ext = Extractor(lens, self.conf)
+            self._by_lens[key] = ext  # the newest at the end
+            while len(self._by_lens) > self.size:
+                self._by_lens.popitem(last=False)
+            return ext
+
+    def spectrum(self, lens: Lens) -> Callable[[np.ndarray], np.ndarray]:
+        """The per-frame function of a lens: what `calib.correct.ClipLens` takes."""
+        return self.get(lens).spectrum

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -12,7 +11,7 @@ import numpy as np
 from .aggregate import AGGREGATORS, Estimate, confidence
 from .calib.correct import ClipLens, clip_spectra
 from .errors import OmninavError
-from .extract import Extractor
+from .extract import Extractor, Extractors
 from .index import Index
 from .lens import Lens
 from .store import Store, key_dims_for
@@ -48,25 +47,16 @@ class Locator:
             key_dims=key_dims_for(self.conf, len(self.gen.frames)),
             arrays=self.gen.arrays,
         )
-        self._extractors: OrderedDict[str, Extractor] = OrderedDict()
+        self._extractors = Extractors(self.conf, EXTRACTORS)
 
     def extractor(self, lens: Lens | None) -> Extractor:
-        """The extractor of a lens, cached: clips corrected for a re-clipped lens each bring a
-        lens of their own, so the cache keeps the last EXTRACTORS (a remap is ~1 MB, ~10 ms)."""
-        lens = lens or self.gen.lens
-        key = repr(lens)
-        if key in self._extractors:
-            self._extractors.move_to_end(key)
-        else:
-            self._extractors[key] = Extractor(lens, self.conf)
-            while len(self._extractors) > EXTRACTORS:
-                self._extractors.popitem(last=False)
-        return self._extractors[key]
+        """The extractor of a lens (default: the venue's), from a small shared cache."""
+        return self._extractors.get(lens or self.gen.lens)
 
     def clip_lens(self, lens: Lens | None, check: Callable[[np.ndarray], None] | None = None) -> ClipLens:
         """A clip's frames -> spectra through `lens` (default: the venue's) corrected for where the
         ring sits in this clip (calib/correct.py)."""
-        return ClipLens(lens or self.gen.lens, lambda lz: self.extractor(lz).spectrum, check)
+        return ClipLens(lens or self.gen.lens, self._extractors.spectrum, check)
 
     def estimate(self, q_spec: np.ndarray, times: np.ndarray | None = None, aggregate: str | None = None) -> Estimate:
         agg = aggregate or self.conf["aggregate"]
@@ -120,7 +110,7 @@ class Locator:
         ext = self.extractor(lens)
         for f in frames[:1]:
             ext.check_frame(f, clip)
-        spec, _ = clip_spectra(lens or self.gen.lens, frames, lambda lz: self.extractor(lz).spectrum, clip=clip)
+        spec, _ = clip_spectra(lens or self.gen.lens, frames, self._extractors.spectrum, clip=clip)
         times = np.arange(len(frames)) / (fps or DEFAULT_CLIP_FPS)
         return self.answer(self.estimate(spec, times, aggregate), clip)
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import io
 import struct
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -166,17 +166,25 @@ def iter_sampled(path: Path, frames: int, stride: int, max_decoded: int) -> Iter
 
     `frames` is the count that the container declared (0: unknown, and then the sampling starts at
     the first frame); no frame beyond it, nor beyond `max_decoded`, is decoded, whatever the stream
-    holds. Skipped frames are only `grab`bed (decoded, never converted). FFmpeg decodes on one
-    thread: its frame threads would each hold a frame, and a request is one of many in a worker.
+    holds.
+    """
+    limit = min(frames, max_decoded) if frames > 0 else max_decoded
+    phase = (frames - 1) % stride if frames > 0 else 0
+    return iter_picked(path, lambda i: i % stride == phase, limit)
+
+
+def iter_picked(path: Path, keep: Callable[[int], bool], limit: int) -> Iterator[np.ndarray]:
+    """The BGR frames i < `limit` of the video at `path` for which keep(i), one at a time.
+
+    Skipped frames are only `grab`bed (decoded, never converted). FFmpeg decodes on one thread:
+    its frame threads would each hold a frame, and a request is one of many in a worker.
     """
     cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG, [cv2.CAP_PROP_N_THREADS, 1])
     try:
         if not cap.isOpened():
             return
-        limit = min(frames, max_decoded) if frames > 0 else max_decoded
-        phase = (frames - 1) % stride if frames > 0 else 0
         for i in range(limit):
-            if i % stride == phase:
+            if keep(i):
                 ok, frame = cap.read()
                 if not ok:
                     return

@@ -20,7 +20,7 @@ import numpy as np
 
 from .calib.correct import ClipLens
 from .errors import OmninavError
-from .extract import Extractor
+from .extract import Extractors
 from .lens import Lens
 from .presets import resolve
 from .store import FRAME_DTYPE, Generation, Store
@@ -88,16 +88,9 @@ def _plan(src: VideoSource, settings: dict[str, Any]) -> _Plan:
 
 def _extract(p: _Plan, settings: dict[str, Any], tick: Callable[[], None]) -> tuple[np.ndarray, np.ndarray]:
     """One video's sampled frames -> (rows FRAME_DTYPE without `video`, spectra)."""
-    exts: dict[str, Extractor] = {}
-
-    def extract(lens: Lens) -> Callable[[np.ndarray], np.ndarray]:
-        if repr(lens) not in exts:
-            exts[repr(lens)] = Extractor(lens, settings)
-        return exts[repr(lens)].spectrum
-
     # the lens as it sat in this video: a walk filmed after the lens was clipped on again is
     # extracted through the profile moved to its ring, as every query clip is (calib/correct.py)
-    clip = ClipLens(p.src.lens, extract)
+    clip = ClipLens(p.src.lens, Extractors(settings, size=2).spectrum)
     rows, specs = [], []
     track = p.src.track
     seen = -1

@@ -107,6 +107,13 @@ describe('the ring in a frame, as the engine finds it', () => {
     );
     expect(frames.find((f) => f.stem === 'ring-hd')!.size).toEqual([1920, 1080]);
     expect(frames.filter((f) => f.engine === null).length).toBeGreaterThanOrEqual(2);
+    // every branch of the decision is on a golden frame: a 5 % larger ring whose usable circle
+    // leaves the picture is cut, and a profile with a measured ring is corrected from that ring
+    const verdict = (stem: string) => frames.find((f) => f.stem === stem)!.fit.verdict;
+    expect(verdict('ring-larger')).toBe('cut');
+    expect(verdict('ring-measured')).toBe('corrected');
+    expect(verdict('ring-donut-still')).toBe('same');
+    expect(verdict('ring-plain')).toBe('no_ring');
   });
 
   for (const f of frames)
@@ -268,6 +275,19 @@ describe('the lens watch: when to check, what to say', () => {
     w.record(check('same'), 'k');
     w.reset(); // a new camera stream
     expect(w.due('k')).toBe(true);
+  });
+
+  it('a new camera stream that finds the same correction says nothing; a change of scale counts as a move', () => {
+    const w = new LensWatch();
+    expect(w.record(check('corrected', 6, -3), 'k')).toEqual({ text: CORRECTED, stop: false });
+    w.reset(); // the phone was locked and unlocked: the worker still holds the correction
+    expect(w.due('k')).toBe(true);
+    expect(w.record(check('corrected', 6.1, -3), 'k')).toBeNull();
+    // the centre stays, the ring grows 1 %: its edge (r 340 px) moves 3.4 px: said
+    const grown = { ...check('corrected', 6.1, -3), scale: 1.01, ring: { r_outer: 343.4 } as LensCheck['ring'] };
+    expect(w.record(grown, 'k')).toEqual({ text: CORRECTED, stop: false });
+    // 0.1 % (0.34 px at the edge): silent
+    expect(w.record({ ...grown, scale: 1.011 }, 'k')).toBeNull();
   });
 
   it('an abrupt change: the brightness jumps, or the ring`s edge fades; not a little drift', () => {

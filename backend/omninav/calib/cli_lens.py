@@ -21,6 +21,7 @@ import numpy as np
 
 from ..errors import OmninavError
 from ..lens import Catadioptric, lens_from_dict
+from .cli_ring import max_frames_option
 
 MIN_VIEWS = 4  # usable board frames: 3 to fit (OCamCalib's minimum) and one held out to score
 MIN_SIDE = 240  # px: below this a board's squares are a few pixels and corners cannot be refined
@@ -175,7 +176,7 @@ def summary(cal: LensCalibration) -> list[str]:
 @click.option("--board", "board", required=True, help="The board: chess:COLSxROWS:SQUARE_M or charuco:...")
 @click.option("-o", "--output", "output", required=True, type=click.Path(path_type=Path), help="lens.json to write.")
 @click.option("--report", type=click.Path(path_type=Path), default=None, help="Write a PNG of the fit here.")
-@click.option("--max-frames", type=int, default=40, show_default=True, help="Frames read, spread over a video.")
+@max_frames_option
 @click.option("--outer-down", is_flag=True, help="The ring's outer edge looks DOWN (rare; default: up).")
 def lens_cmd(
     inputs: tuple[Path, ...], board: str, output: Path, report: Path | None, max_frames: int, outer_down: bool
@@ -189,6 +190,8 @@ def lens_cmd(
     for p in (output, report):
         if p is not None and not p.resolve().parent.is_dir():
             raise OmninavError(f"{p.parent}: folder does not exist")
+    if report is not None and report.suffix.lower() != ".png":
+        raise OmninavError(f"{report}: the report is a PNG: name it something.png")
     frames = read_frames(list(inputs), max_frames)
     cal = calibrate(frames, spec, outer_down=outer_down)
     output.write_text(json.dumps(cal.profile.to_dict(), indent=2) + "\n")

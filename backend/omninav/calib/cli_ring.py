@@ -10,9 +10,7 @@ from __future__ import annotations
 import json
 import mmap
 import sys
-from collections import deque
 from collections.abc import Iterator
-from itertools import islice
 from pathlib import Path
 from typing import Any, cast
 
@@ -24,6 +22,8 @@ from ..errors import OmninavError
 MAX_SIDE = 8192  # px: a frame larger than 8K is no phone video
 MAX_IMAGES = 500
 MAX_IMAGE_BYTES = 64 * 1024 * 1024
+MAX_FRAMES = 500  # --max-frames: far more frames than a ring or a calibration needs
+MAX_PIXELS = 600_000_000  # decoded pixels held at once: 1.8 GB (300 frames of 1920x1080)
 MAX_DECODED = 200_000  # frames a video may make us decode (skipped frames are decoded too)
 
 
@@ -44,14 +44,33 @@ def _video_header(path: Path) -> tuple[int, int, int] | None:
 
 
 def _sampled(path: Path, frames: int, k: int) -> Iterator[np.ndarray]:
-    """Up to k BGR frames spread evenly over a video of `frames` frames (its declared count; 0:
-    unknown, then its first k), ending at its last; no frame past the declared count is decoded."""
-    from ..media import iter_sampled
+    """k BGR frames spread evenly over a video of `frames` frames (its declared count; 0: unknown,
+    then its first k), the first and the last included: a calibration video's protocol starts at
+    its first frames (the board held straight ahead)."""
+    from ..media import iter_picked
 
     if frames <= 0:
-        return islice(iter_sampled(path, 0, 1, MAX_DECODED), k)
-    # every (frames // k)-th frame, ending at the last: the last k of them are k spread over it
-    return iter(deque(iter_sampled(path, frames, max(1, frames // k), MAX_DECODED), maxlen=k))
+        return iter_picked(path, lambda i: i < k, min(k, MAX_DECODED))
+    want = set(np.linspace(0, frames - 1, min(k, frames)).round().astype(int).tolist())
+    return iter_picked(path, want.__contains__, min(max(want) + 1, MAX_DECODED))
+
+
+max_frames_option = click.option(
+    "--max-frames",
+    type=click.IntRange(1, MAX_FRAMES),
+    default=40,
+    show_default=True,
+    help="Frames used, spread over a video.",
+)
+
+
+def _check_pixels(n: int) -> None:
+    """What the frames held at once cost (3 bytes a pixel), before any is decoded."""
+    if n > MAX_PIXELS:
+        raise OmninavError(
+            f"{n / 1e6:.0f} megapixels of frames at once; at most {MAX_PIXELS / 1e6:.0f}: "
+            "give fewer or smaller images (or a smaller --max-frames)"
+        )
 
 
 def _check_size(w: int, h: int, what: str) -> None:
@@ -69,8 +88,8 @@ def read_frames(paths: list[Path], max_frames: int = 40) -> list[np.ndarray]:
     for p in paths:
         if not p.is_file():
             raise OmninavError(f"{p}: not found" if not p.exists() else f"{p}: not a file")
-    if max_frames < 1:
-        raise OmninavError("--max-frames must be at least 1")
+    if not 1 <= max_frames <= MAX_FRAMES:
+        raise OmninavError(f"--max-frames must be 1 to {MAX_FRAMES}")
     with paths[0].open("rb") as fh:
         magic = fh.read(8)
     is_image = magic.startswith(b"\x89PNG\r\n\x1a\n") or magic.startswith(b"\xff\xd8\xff")
@@ -80,6 +99,7 @@ def read_frames(paths: list[Path], max_frames: int = 40) -> list[np.ndarray]:
             raise OmninavError(f"{paths[0]}: not an MP4/QuickTime video nor a PNG/JPEG image")
         w, h, n = head
         _check_size(w, h, str(paths[0]))
+        _check_pixels(w * h * min(max_frames, n or max_frames))
         frames = list(_sampled(paths[0], n, max_frames))
         if not frames:
             raise OmninavError(f"{paths[0]}: the video does not decode (no readable frames)")
@@ -100,6 +120,8 @@ def read_frames(paths: list[Path], max_frames: int = 40) -> list[np.ndarray]:
                 "give frames of one camera at one resolution"
             )
         size = (im.width, im.height)
+    assert size is not None
+    _check_pixels(size[0] * size[1] * len(paths))
     out = []
     for p in paths:
         img = decode_image(p.read_bytes())
@@ -135,7 +157,7 @@ def _ring_text(ring: Any) -> str:
 @click.command("ring")
 @click.argument("media", nargs=-1, required=True, type=click.Path(path_type=Path), metavar="VIDEO|IMAGES...")
 @click.option("-o", "--out", type=click.Path(path_type=Path), help="Write the ring here (ring.json).")
-@click.option("--max-frames", type=int, default=40, show_default=True, help="Frames used, spread over a video.")
+@max_frames_option
 def ring_cmd(media: tuple[Path, ...], out: Path | None, max_frames: int) -> None:
     """Find the donut ring (centre, inner and outer radius) in ordinary frames, without a target."""
     from .ring import find_ring
@@ -179,7 +201,7 @@ def _profile(ctx: click.Context, target: str, lens_name: str | None) -> tuple[An
 @click.argument("target", metavar="VENUE|LENS.JSON")
 @click.argument("media", nargs=-1, required=True, type=click.Path(path_type=Path), metavar="VIDEO|IMAGES...")
 @click.option("--lens", "lens_name", help="Which of the venue's lens profiles (default: its modelling lens).")
-@click.option("--max-frames", type=int, default=40, show_default=True, help="Frames used, spread over a video.")
+@max_frames_option
 @click.option("--json", "as_json", is_flag=True, help="Print the verdict as JSON.")
 @click.pass_context
 def check_cmd(

@@ -6,10 +6,12 @@ from pathlib import Path
 
 import click
 
+from ..errors import OmninavError
 from .cli_lens import lens_cmd
 from .cli_ring import check_cmd, ring_cmd
 
 A4_M = (0.210, 0.297)
+MAX_BOARD_PX = 200_000_000  # an A0 sheet at 300 dpi is 140 megapixels
 
 
 @click.group()
@@ -30,6 +32,12 @@ def board_cmd(spec: str, out: Path, dpi: int) -> None:
     # the picture the renderer and the tests see, a white margin of one square, at `dpi`
     board = parse_board(spec)
     px = int(round(board.square_m / 0.0254 * dpi))
+    sx, sy = board.squares
+    if (sx + 2) * (sy + 2) * px * px > MAX_BOARD_PX:
+        raise OmninavError(
+            f"a {sx}x{sy}-square board of {board.square_m * 100:g} cm squares at {dpi} dpi is over "
+            f"{MAX_BOARD_PX // 10**6} megapixels: use a lower --dpi or smaller squares"
+        )
     img, _ = board_image(board, px_per_square=px)
     exact = px * 0.0254 / board.square_m  # a whole number of dots per square, the square exact in size
     w_m, h_m = img.shape[1] / exact * 0.0254, img.shape[0] / exact * 0.0254

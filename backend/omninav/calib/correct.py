@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..lens import Catadioptric, Lens
-from .ring import LensFit, corrected_lens
+from .ring import TOO_FAR_SHARE, LensFit, corrected_lens, scaled_lens
 
 log = logging.getLogger("omninav.calib")
 
@@ -65,8 +65,15 @@ class ClipLens:
         """Decide the lens on what is held (a clip shorter than FIRST frames) and extract it."""
         if self._fn is None:
             if isinstance(self.profile, Catadioptric) and self._held:
-                self.fit = corrected_lens(self.profile, self._held)
-                self.lens = self.fit.lens
+                self.fit = f = corrected_lens(self.profile, self._held)
+                self.lens = f.lens
+                near = (
+                    f.moved_px <= TOO_FAR_SHARE * self.profile.reference_ring()[3] and abs(f.scale - 1) <= TOO_FAR_SHARE
+                )
+                if f.verdict == "cut" and near:
+                    # the phone asks for the lens to be clipped on again; here nobody can, and the
+                    # ring found (cut by the edge) still says where the lens sits
+                    self.lens = scaled_lens(self.profile, (f.dx, f.dy), f.scale)
             self._fn = self._extract(self.lens)
         held, self._held = self._held, []
         return [self._fn(f) for f in held]
@@ -80,7 +87,8 @@ class ClipLens:
         """A line for the log when the clip's ring was not usable (the profile was used as is)."""
         if self.fit is None or self.fit.verdict in ("same", "corrected"):
             return None
-        return f"{clip}: {self.fit.message}; the lens profile was used as it is"
+        used = "corrected for where it sits" if self.lens is not self.profile else "used as it is"
+        return f"{clip}: {self.fit.message}; the lens profile was {used}"
 
 
 def clip_spectra(

@@ -106,7 +106,9 @@ def write_report(path: Path, frames: Sequence[np.ndarray], cal: Any) -> float:
         f"forward {prof.forward_deg:.1f} deg, ccw {str(prof.ccw).lower()}",
         fontsize=11,
     )
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    try:
+        fig.tight_layout()
+        fig.savefig(path)
+    finally:
+        plt.close(fig)
     return mag

@@ -109,7 +109,6 @@ import dataclasses
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import cv2
@@ -567,13 +566,6 @@ def find_ring(frames: Iterable[np.ndarray]) -> Ring:
     )
 
 
-def ring_of_video(path: Path, max_frames: int = 40) -> Ring:
-    """The ring over up to `max_frames` frames spread over a video (size checked from its header)."""
-    from .cli_ring import read_frames
-
-    return find_ring(read_frames([path], max_frames))
-
-
 # ---- does a profile fit? ------------------------------------------------------------------------
 @dataclass(frozen=True)
 class LensFit:
@@ -631,9 +623,10 @@ def fit_lens(lens: Catadioptric, ring: Ring | None) -> LensFit:
     """Does the profile fit the ring the frames show? Corrects it when the lens moved a little.
 
     With ref = lens.reference_ring(): d = ring.center - ref.center, s = ring.r_outer / ref.r_outer.
-    The verdicts, checked in this order: "no_ring" (ring None); "cut" when the circle of radius
-    lens.r_outer around ring.center is more than CUT_MARGIN (0.02) less visible than around
-    ref.center (a ring cut by design, the same in both, is not cut); "too_far" when
+    The verdicts, checked in this order: "no_ring" (ring None); "cut" when the profile's usable circle
+    (lens.r_outer around lens.center), moved by d and scaled by s as the correction would, is more
+    than CUT_MARGIN (0.02) less visible than as it is (a ring cut by design, the same in both, is
+    not cut); "too_far" when
     |d| > TOO_FAR_SHARE (0.10) * ref.r_outer or |s - 1| > 0.10; "same" when |d| < STILL_PX (0.25)
     and |s - 1| < STILL_SCALE (0.002): the profile itself is returned; else "corrected":
     `scaled_lens(lens, d, s)`.
@@ -650,8 +643,10 @@ def fit_lens(lens: Catadioptric, ring: Ring | None) -> LensFit:
     s = ring.r_outer / ro
     moved = math.hypot(dx, dy)
     words = _moved_words(dx, dy, s)
-    vis_ref = visible_share((rx, ry), lens.r_outer, lens.image_size)
-    vis_now = visible_share(ring.center, lens.r_outer, lens.image_size)
+    # the profile's usable circle as it is, and as the correction would move and scale it
+    vis_ref = visible_share(lens.center, lens.r_outer, lens.image_size)
+    c_now = (lens.center[0] + dx, lens.center[1] + dy)
+    vis_now = visible_share(c_now, lens.r_outer * s, lens.image_size)
     if vis_now < vis_ref - CUT_MARGIN:
         return LensFit(
             "cut", lens, dx, dy, s, moved, f"The lens is not centred over the camera; clip it on again (ring {words})"
@@ -680,4 +675,6 @@ def corrected_lens(lens: Lens, frames: Sequence[np.ndarray]) -> LensFit:
         ring: Ring | None = find_ring(frames)
     except NoRing:
         ring = None
+    except OmninavError as e:  # frames too small to look for a ring in: the profile as it is
+        return LensFit("no_ring", lens, 0.0, 0.0, 1.0, 0.0, str(e))
     return fit_lens(lens, ring)

@@ -29,6 +29,13 @@ const MEAN_SHARE = 0.35;
 const EDGE_MIN = 10;
 const EDGE_KEEP = 0.5;
 
+interface Correction {
+  dx: number;
+  dy: number;
+  scale: number;
+}
+const NONE: Correction = { dx: 0, dy: 0, scale: 1 };
+
 /** What the user hears after a check, and whether "Where am I?" must stop there. */
 export function lensWords(c: LensCheck): { text: string; stop: boolean } | null {
   if (c.verdict === 'no_ring') return { text: NOT_ATTACHED, stop: true };
@@ -75,7 +82,10 @@ export async function checkLensOn(
 export class LensWatch {
   private checkedFor: string | null = null;
   private look: Look | null = null;
-  private shift: [number, number] = [0, 0];
+  /** The correction the worker holds, and the configuration it holds it for (kept across a new
+   * camera stream: the same correction found again after the phone was unlocked is not said). */
+  private held: Correction = NONE;
+  private heldFor: string | null = null;
 
   /** A new camera stream: the lens may have been clipped on again meanwhile. */
   reset(): void {
@@ -103,11 +113,15 @@ export class LensWatch {
       this.checkedFor = null; // checked again on the next press
       return words;
     }
-    const was = this.checkedFor === configured ? this.shift : [0, 0];
-    const now: [number, number] = c.verdict === 'corrected' ? [c.dx, c.dy] : [0, 0];
+    const was = this.heldFor === configured ? this.held : NONE;
+    const now: Correction = c.verdict === 'corrected' ? { dx: c.dx, dy: c.dy, scale: c.scale } : NONE;
     this.checkedFor = configured;
+    this.heldFor = configured;
     this.look = c.look;
-    this.shift = now;
-    return Math.hypot(now[0] - was[0], now[1] - was[1]) >= SAY_PX ? { text: CORRECTED, stop: false } : null;
+    this.held = now;
+    // how far the profile in use moved: its centre, plus its ring's edge for a change of scale
+    const r = c.ring?.r_outer ?? 0;
+    const moved = Math.hypot(now.dx - was.dx, now.dy - was.dy) + Math.abs(now.scale - was.scale) * r;
+    return moved >= SAY_PX ? { text: CORRECTED, stop: false } : null;
   }
 }
