@@ -197,3 +197,31 @@ def test_no_board_never_whole_sizes_tiny(tmp_path: Path) -> None:
         cv2.imwrite(str(tmp_path / f"tiny{i}.png"), cv2.resize(cs.frames[i], (160, 120)))
     msg = _fails(str(tmp_path / "tiny0.png"), str(tmp_path / "tiny1.png"), "--board", SPEC, "-o", "x.json")
     assert "too small" in msg
+
+
+def test_a_fisheye_without_a_dark_centre_calibrates_too() -> None:
+    """A fisheye (no inner ring: r_inner 0, the centre looking straight down the axis), as public
+    fisheye calibration sets are: the ring finder reports no inner edge and the fit still recovers
+    the lens where the board's corners reached."""
+    from omninav.calib.cli_lens import calibrate
+
+    true_el = np.polynomial.polynomial.polyfit([0, 120, 240, 340], [-90, -55, -18, 15], 3)
+    lens = Catadioptric(
+        image_size=(960, 720),
+        center=(478.0, 362.0),
+        r_inner=0.0,
+        r_outer=340.0,
+        elevation_poly=tuple(float(c) for c in true_el),
+        forward_deg=90.0,
+        ccw=True,
+    )
+    cs = board_video(lens, parse_board(SPEC), n_frames=24, seed=2)
+    cal = calibrate(cs.frames, parse_board(SPEC))
+    p = cal.profile
+    assert cal.ring.r_inner == 0.0 and p.r_inner == 0.0
+    assert math.hypot(p.center[0] - 478.0, p.center[1] - 362.0) <= 0.5
+    assert p.ccw is True
+    assert abs((p.forward_deg - 90.0 + 180) % 360 - 180) <= 1.5  # the board is held within ~2 deg of ahead
+    r = np.linspace(160.0, 300.0, 50)  # where the corners reach (the centre is extrapolated)
+    err = np.abs(p.elevation(r) - np.polynomial.polynomial.polyval(r, true_el))
+    assert err.max() <= 0.3, err.max()
