@@ -322,6 +322,25 @@ function coarseEdges(cv: RingCv, small: CvMat, canny: readonly [number, number] 
   }
 }
 
+/**
+ * A running sum over +-h along one axis of a grid: `n` cells a line, `lines` lines; cell i of line
+ * j is at j * lineStep + i * step. Cells off the grid count 0 (A6's box sum, one axis at a time).
+ */
+function boxSum(v: Int32Array, n: number, lines: number, step: number, lineStep: number, h: number): Int32Array {
+  const out = new Int32Array(v.length);
+  for (let j = 0; j < lines; j++) {
+    const o = j * lineStep;
+    let s = 0;
+    for (let i = 0; i <= Math.min(h, n - 1); i++) s += v[o + i * step];
+    for (let i = 0; i < n; i++) {
+      out[o + i * step] = s;
+      if (i + h + 1 < n) s += v[o + (i + h + 1) * step];
+      if (i - h >= 0) s -= v[o + (i - h) * step];
+    }
+  }
+  return out;
+}
+
 /** Stage A: ((cx, cy, r_inner, r_outer) in coarse pixels, (sx, sy)), or null without a ring. */
 function coarseRing(cv: RingCv, grey: CvMat): [[number, number, number, number], [number, number]] | null {
   const h = grey.rows;
@@ -369,26 +388,7 @@ function coarseStages(
   // A6: the VOTE_BOX x VOTE_BOX box sum's first maximum (separable: rows, then columns; cells off
   // the image count 0)
   const h2 = VOTE_BOX >> 1;
-  const rowsB = new Int32Array(cw * ch);
-  for (let b = 0; b < ch; b++) {
-    let s = 0;
-    for (let a = 0; a <= Math.min(h2, cw - 1); a++) s += acc[b * cw + a];
-    for (let a = 0; a < cw; a++) {
-      rowsB[b * cw + a] = s;
-      if (a + h2 + 1 < cw) s += acc[b * cw + a + h2 + 1];
-      if (a - h2 >= 0) s -= acc[b * cw + a - h2];
-    }
-  }
-  const box = new Int32Array(cw * ch);
-  for (let a = 0; a < cw; a++) {
-    let s = 0;
-    for (let b = 0; b <= Math.min(h2, ch - 1); b++) s += rowsB[b * cw + a];
-    for (let b = 0; b < ch; b++) {
-      box[b * cw + a] = s;
-      if (b + h2 + 1 < ch) s += rowsB[(b + h2 + 1) * cw + a];
-      if (b - h2 >= 0) s -= rowsB[(b - h2) * cw + a];
-    }
-  }
+  const box = boxSum(boxSum(acc, cw, ch, 1, cw, h2), ch, cw, cw, 1, h2);
   let best = -1;
   let at = 0;
   for (let p = 0; p < cw * ch; p++) if (box[p] > best) [best, at] = [box[p], p];
