@@ -1,0 +1,59 @@
+"""The ring finder on lenses and pictures it was not tuned on (its constants were chosen on
+synth/clipon.py's two geometries): the board renders of synth/calibration.py (four geometries, a
+bare hard-edged ring, a board in view) and a fisheye without a dark centre; the truth is the lens.
+
+    python bench/ring_heldout.py
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from omninav.calib.board import parse_board
+from omninav.calib.ring import find_ring_frame
+from omninav.lens import Catadioptric
+from omninav.synth.calibration import LENS_GEOMETRIES, board_video
+
+sys.path.insert(0, str(Path(__file__).parent))
+from search_speed import machine  # noqa: E402
+
+# a fisheye looking down its axis: no dark centre, -90 deg at the centre to +15 at the edge
+FISHEYE_EL = np.polynomial.polynomial.polyfit([0, 120, 240, 340], [-90, -55, -18, 15], 3)
+FISHEYE = Catadioptric(
+    image_size=(960, 720),
+    center=(478.0, 362.0),
+    r_inner=0.0,
+    r_outer=340.0,
+    elevation_poly=tuple(float(c) for c in FISHEYE_EL),
+    forward_deg=90.0,
+    ccw=True,
+)
+
+
+def main() -> None:
+    print(f"machine: {machine()}")
+    for name, lens in {**LENS_GEOMETRIES, "fisheye": FISHEYE}.items():
+        for noise in (2.0, 6.0):
+            cs = board_video(lens, parse_board("chess:9x6:0.03"), n_frames=8, noise=noise, seed=21)
+            centre, r_in, r_out, missed = [], [], [], 0
+            for f in cs.frames:
+                r = find_ring_frame(f)
+                if r is None:
+                    missed += 1
+                    continue
+                centre.append(np.hypot(r.center[0] - lens.center[0], r.center[1] - lens.center[1]))
+                r_out.append(abs(r.r_outer - lens.r_outer))
+                r_in.append(abs(r.r_inner - lens.r_inner))
+            print(
+                f"{name:9s} noise {noise:.0f}: centre median {np.median(centre):.3f} max {np.max(centre):.3f} px; "
+                f"r_outer median {np.median(r_out):.3f} max {np.max(r_out):.3f}; "
+                f"r_inner median {np.median(r_in):.3f} max {np.max(r_in):.3f}; missed {missed}/{len(cs.frames)}",
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    main()
