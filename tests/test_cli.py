@@ -125,6 +125,19 @@ def test_evaluate_reports_and_plots(cli_venue, small_ds, tmp_path):
     assert img is not None and img.shape[1] > 500
 
 
+def test_evaluate_takes_longer_clips(cli_venue, small_ds, tmp_path):
+    """--clip-s 3: a third as many clips, each answered from 3 s (the app's "keep turning"); a
+    length the engine does not take is a usage error, not a traceback."""
+    one = json.loads(run_cli(*evaluate_args(small_ds, tmp_path / "a.png"), "--json", data=cli_venue, check=True).stdout)
+    p = run_cli(*evaluate_args(small_ds, tmp_path / "b.png"), "--json", "--clip-s", "3", data=cli_venue, check=True)
+    three = json.loads(p.stdout)
+    assert three["clips"] == one["clips"] // 3
+    assert three["within_2m"] >= 0.85
+    for bad in ("0.2", "5.5", "x"):
+        p = run_cli(*evaluate_args(small_ds, tmp_path / "c.png"), "--clip-s", bad, data=cli_venue)
+        assert p.returncode == 2 and "--clip-s" in p.stderr and "Traceback" not in p.stderr
+
+
 def test_venue_list(cli_venue):
     p = run_cli("venue", "list", data=cli_venue, check=True)
     assert json.loads(p.stdout.splitlines()[0])["id"] == "lab"

@@ -2,14 +2,20 @@
 
 `median` is the paper's: each frame's best venue frame, the median of their indices.
 `sequence` (default) uses what a clip is: frames in time order, taken from places close together
-while facing roughly the same way. Every verified match is a hypothesis of where the clip ends;
-it is supported, per query frame, by that frame's best match that lies within reach in the time
-between the two frames and faces within a gate. The best-supported hypothesis wins, and a
-weighted straight-line fit of its supporters over time gives the pose at the last frame.
+while facing roughly the same way. Every verified match of the clip's last second is a hypothesis
+of where the clip ends; it is supported, per query frame, by that frame's best match that lies
+within reach in the time between the two frames and faces within a gate. The best-supported
+hypothesis wins, and a weighted straight-line fit of its supporters over the last second gives the
+pose at the last frame.
+
+A clip may be 0.3-5 s long. Within a second the reach and the gate are the 1 s clip's
+(`clip_radius_m`, `heading_gate_deg`); further apart in time they grow by as much per second (a
+steady walk, a slow turn), so that every frame of a long clip still counts for the right place.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -21,6 +27,10 @@ from .index import Matches
 WALK_MPS = 1.8  # fastest walking pace we allow between two frames of a clip
 NEAR_M = 0.45  # slack on top: matching granularity and the modelling track's own error
 ALT_M = 3.0  # a rival hypothesis this far away is a different place
+# The span clip_radius_m and heading_gate_deg are for (a 1 s clip), and the part of a longer clip
+# that places the answer: its hypotheses and the fit. Earlier frames only add support: anchored
+# on them, a hypothesis on the user's own way there would be a "rival" of where they are now.
+SPAN_S = 1.0
 
 
 @dataclass
@@ -32,41 +42,70 @@ class Estimate:
     support: float  # mean over frames of the best supporting score, in [-1, 1]
     rival: float  # the same for the best hypothesis >= ALT_M away
     agree: float  # fraction of frames with a supporting match
+    span_s: float = 0.0  # seconds from the clip's first frame to its last (after Locator's cut)
+
+
+def reach_m(dt: np.ndarray, conf: dict[str, Any]) -> np.ndarray:
+    """How far apart two frames `dt` seconds apart may have been filmed: a fast walk, at most
+    clip_radius_m within SPAN_S and clip_radius_m per SPAN_S beyond (a steady walk); plus NEAR_M."""
+    r = float(conf.get("clip_radius_m", 1.5))
+    # written as the 1 s cap plus the growth beyond it: within SPAN_S the same float32 numbers as before
+    return np.minimum(NEAR_M + WALK_MPS * dt, r + NEAR_M + r * np.maximum(dt / SPAN_S - 1.0, 0.0))
+
+
+def gate_deg(dt: np.ndarray, conf: dict[str, Any]) -> np.ndarray:
+    """How far apart the headings of two frames `dt` seconds apart may be: heading_gate_deg within
+    SPAN_S, and heading_gate_deg per SPAN_S beyond (a slow turn), at most all the way round."""
+    g = float(conf["heading_gate_deg"])
+    return np.minimum(g + g * np.maximum(dt / SPAN_S - 1.0, 0.0), 180.0)
 
 
 def sequence(m: Matches, xy: np.ndarray, times: np.ndarray, conf: dict[str, Any]) -> Estimate:
-    """m: (Q, k) matches; xy: (N, 2) venue frame positions; times: (Q,) seconds of the frames."""
+    """m: (Q, k) matches; xy: (N, 2) venue frame positions; times: (Q,) seconds of the frames, in order."""
     q, k = m.index.shape
     pos = xy[m.index.ravel()].astype(np.float64)  # (P, 2)
     hd = m.heading.ravel().astype(np.float64)
     sc = np.maximum(m.score.ravel().astype(np.float64), 0.0)
     row = np.repeat(np.arange(q), k)
-    t = np.asarray(times, np.float64)[row]
-    # hypotheses a x pairs p, float32: 25k-100k entries, so memory traffic is the cost
+    times = np.asarray(times, np.float64)
+    t = times[row]
+    t_last = float(times[-1])
+    # hypotheses: the matches of the last SPAN_S, pairs h0.. (all of them, in a clip of a second)
+    h0 = int(np.searchsorted(t, t_last - SPAN_S - 1e-6))
+    hyp = slice(h0, None)
+    # hypotheses a x pairs p, float32: 25k-650k entries, so memory traffic is the cost
     p32 = pos.astype(np.float32)
-    d2 = (p32[:, None, 0] - p32[None, :, 0]) ** 2 + (p32[:, None, 1] - p32[None, :, 1]) ** 2
+    d2 = (p32[hyp, None, 0] - p32[None, :, 0]) ** 2 + (p32[hyp, None, 1] - p32[None, :, 1]) ** 2
     t32 = t.astype(np.float32)
-    reach = np.minimum(NEAR_M + WALK_MPS * np.abs(t32[:, None] - t32[None, :]), conf.get("clip_radius_m", 1.5) + NEAR_M)
+    dt = np.abs(t32[hyp, None] - t32[None, :])
+    reach = reach_m(dt, conf)
     # heading gate as a dot product of unit vectors: cos(ha - hp) >= cos(gate), no modulo
     hr = np.deg2rad(hd).astype(np.float32)
     u, v = np.cos(hr), np.sin(hr)
-    ok = (d2 <= reach * reach) & (
-        u[:, None] * u[None, :] + v[:, None] * v[None, :] >= np.cos(np.deg2rad(conf["heading_gate_deg"]))
-    )
-    sup = np.where(ok, sc.astype(np.float32)[None, :], np.float32(0)).reshape(len(sc), q, k)
+    span = float(np.ptp(times))
+    cos_gate: np.ndarray | float = np.cos(np.deg2rad(conf["heading_gate_deg"]))
+    if span > SPAN_S:  # a gate per pair; within a second one number, as it always was
+        cos_gate = np.cos(np.deg2rad(gate_deg(dt, conf))).astype(np.float32)
+    ok = (d2 <= reach * reach) & (u[hyp, None] * u[None, :] + v[hyp, None] * v[None, :] >= cos_gate)
+    sup = np.where(ok, sc.astype(np.float32)[None, :], np.float32(0)).reshape(len(sc) - h0, q, k)
     best_k = sup.argmax(axis=2)  # (A, Q): each frame's best supporter of each hypothesis
     best_v = np.take_along_axis(sup, best_k[..., None], axis=2)[..., 0]
     total = best_v.sum(axis=1) / q
-    a = int(np.argmax(total))
-    far = np.hypot(pos[:, 0] - pos[a, 0], pos[:, 1] - pos[a, 1]) >= ALT_M
+    i = int(np.argmax(total))
+    a = h0 + i
+    far = np.hypot(pos[hyp, 0] - pos[a, 0], pos[hyp, 1] - pos[a, 1]) >= ALT_M
     rival = float(total[far].max()) if far.any() else 0.0
-    rows = np.flatnonzero(best_v[a] > 0)
-    picks = rows * k + best_k[a, rows]
+    rows = np.flatnonzero(best_v[i] > 0)
+    picks = rows * k + best_k[i, rows]
     if rows.size == 0:  # no match scored above 0 (a blank frame, a lens cap): hypothesis a, unsupported
         rows, picks = np.array([a // k]), np.array([a])
+    agree = len(rows) / q
+    # the pose where the clip ends: fit on the supporters of its last SPAN_S (on all, if too few)
+    recent = times[rows] >= t_last - SPAN_S - 1e-6
+    if recent.sum() >= 3:
+        rows, picks = rows[recent], picks[recent]
     w = sc[picks]
-    tr = np.asarray(times, np.float64)[rows]
-    t_last = float(np.asarray(times, np.float64)[-1])
+    tr = times[rows]
     p = pos[picks]
     dh = wrap_deg(hd[picks] - hd[a])
     if len(rows) >= 3 and np.ptp(tr) > 0:
@@ -83,7 +122,7 @@ def sequence(m: Matches, xy: np.ndarray, times: np.ndarray, conf: dict[str, Any]
         x, y = p[-1]
         h = hd[picks[-1]]
     return Estimate(
-        float(x), float(y), float(h % 360.0), int(m.index.ravel()[picks[-1]]), float(total[a]), rival, len(rows) / q
+        float(x), float(y), float(h % 360.0), int(m.index.ravel()[picks[-1]]), float(total[i]), rival, agree, span
     )
 
 
@@ -116,19 +155,39 @@ def median(m: Matches, xy: np.ndarray, times: np.ndarray, conf: dict[str, Any]) 
     support = float(np.where(d <= 2.0, sc, 0.0).max(axis=1).mean())
     rival = float(np.where(d >= ALT_M, sc, 0.0).max(axis=1).mean())
     agree = float(np.mean(np.hypot(*(xy[best] - xy[med]).T) <= 2.0))
-    return Estimate(float(xy[med, 0]), float(xy[med, 1]), h % 360.0, med, support, rival, agree)
+    span = float(np.ptp(np.asarray(times, np.float64)))
+    return Estimate(float(xy[med, 0]), float(xy[med, 1]), h % 360.0, med, support, rival, agree, span)
 
 
-def confidence(e: Estimate, conf: dict[str, Any]) -> float:
-    """Calibrated probability that the answer is within 2 m (logistic on support and margin).
+def _get(e: Estimate | Mapping[str, Any], name: str) -> float:
+    return float(e[name] if isinstance(e, Mapping) else getattr(e, name))
 
-    Support: how well the clip's frames agree with the place; margin: how much better it is than
-    the best other place >= 3 m away (repetitive corridors make that rival close).
 
-    Coefficients are fit on synthetic venues (bench/calibrate.py) and stored in the preset.
+# What the confidence model may read from an answer (an Estimate, or an evaluation row with the
+# same fields). Support: how well the clip's frames agree with the place; margin: how much better
+# it is than the best other place >= ALT_M away (repetitive corridors make that rival close).
+CONFIDENCE_INPUTS: dict[str, Callable[[Estimate | Mapping[str, Any]], float]] = {
+    "support": lambda e: _get(e, "support"),
+    "margin": lambda e: _get(e, "support") - _get(e, "rival"),
+    "rel_margin": lambda e: (_get(e, "support") - _get(e, "rival")) / max(_get(e, "support"), 1e-6),
+    "agree": lambda e: _get(e, "agree"),
+}
+
+
+def confidence_inputs(e: Estimate | Mapping[str, Any], names: list[str]) -> list[float]:
+    return [CONFIDENCE_INPUTS[n](e) for n in names]
+
+
+def confidence(e: Estimate | Mapping[str, Any], conf: dict[str, Any]) -> float:
+    """Calibrated probability that the answer is within 2 m: logistic on the inputs named by
+    `confidence_features` (a venue modelled before that key existed used support and margin).
+
+    Coefficients are fit on the tuning families' answers (bench/calibrate.py) and stored in the
+    preset, so a venue keeps the model it was modelled with.
     """
-    w0, w_sup, w_margin = conf["confidence_coef"]
-    z = w0 + w_sup * e.support + w_margin * (e.support - e.rival)
+    names = conf.get("confidence_features", ["support", "margin"])
+    w = conf["confidence_coef"]
+    z = w[0] + sum(wi * xi for wi, xi in zip(w[1:], confidence_inputs(e, names), strict=True))
     return float(1.0 / (1.0 + np.exp(-z)))
 
 

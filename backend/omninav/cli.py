@@ -289,6 +289,13 @@ def features(venue_id: str, clip: Path, lens_path: Path | None, out: Path | None
 @click.option("--plot", "plot_path", type=click.Path(path_type=Path), help="PNG (default: VIDEO.eval.png).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @click.option("--clips", is_flag=True, help="Print every clip's truth and answer as JSON (what the admin page shows).")
+@click.option(
+    "--clip-s",
+    type=click.FloatRange(0.3, 5.0, min_open=True),
+    default=1.0,
+    show_default=True,
+    help="Clip length in seconds: the app films 1 s, and up to 3 s when unsure.",
+)
 @click.pass_context
 def evaluate(
     ctx: click.Context,
@@ -300,8 +307,9 @@ def evaluate(
     plot_path: Path | None,
     as_json: bool,
     clips: bool,
+    clip_s: float,
 ) -> None:
-    """Cut a second walk into 1 s clips, locate each, report accuracy against its TRACK."""
+    """Cut a second walk into clips (1 s unless --clip-s), locate each, report accuracy against its TRACK."""
     from .evaluate import evaluate as run
     from .evaluate import plot, walk_result
     from .lens import load_lens
@@ -312,7 +320,7 @@ def evaluate(
     if not out.parent.is_dir():  # fail before the work, not after
         raise OmninavError(f"{out.parent}: folder for the plot does not exist")
     loc = _locator(ctx, venue_id)
-    ev = run(loc, video, track, lens, aggregate)
+    ev = run(loc, video, track, lens, aggregate, clip_s)
     s = ev.summary()
     plot(ev, loc, out)
     s["plot"] = str(out)

@@ -85,6 +85,22 @@ def evaluate(
     progress: Progress | None = None,
 ) -> Evaluation:
     spec, t, xy, hd, idx = query_spectra(loc, video, track, lens, progress)
+    return evaluate_spectra(loc, spec, t, xy, hd, idx, aggregate, clip_s)
+
+
+def evaluate_spectra(
+    loc: Locator,
+    spec: np.ndarray,
+    t: np.ndarray,
+    xy: np.ndarray,
+    hd: np.ndarray,
+    idx: np.ndarray,
+    aggregate: str | None = None,
+    clip_s: float = 1.0,
+) -> Evaluation:
+    """evaluate() on a walk's spectra already extracted (query_spectra's output): consecutive
+    clips of `clip_s`, each answered at its last frame. Several clip lengths or aggregations of one
+    walk then cost one extraction."""
     n = max(1, int(round(clip_s * loc.conf["model_fps"])))
     ev = Evaluation()
     for s in range(0, len(t) - n + 1, n):
@@ -108,6 +124,7 @@ def evaluate(
                 "support": e.support,
                 "rival": e.rival,
                 "agree": e.agree,
+                "frames": n,
             }
         )
     return ev

@@ -18,6 +18,12 @@ from .store import Store, key_dims_for
 
 EXTRACTORS = 8  # lenses whose remaps a Locator keeps
 DEFAULT_CLIP_FPS = 10.0  # timing assumed for a directory of frames, which carries none
+# A clip is located by its last MAX_CLIP_S seconds, at most MAX_CLIP_FRAMES frames of them: the
+# answer is the pose at the last frame, evidence from long ago says little more about it, and the
+# sequence aggregation costs (frames * candidates)^2. These are the engine's, not a venue's: a venue
+# modelled when a clip was cut to `max_clip_frames` (30) takes 5 s clips as well.
+MAX_CLIP_S = 5.0
+MAX_CLIP_FRAMES = 60
 
 
 class Locator:
@@ -66,12 +72,14 @@ class Locator:
             raise OmninavError("a clip needs at least one frame")
         if times is None:
             times = np.arange(q_spec.shape[0]) / DEFAULT_CLIP_FPS
-        # The answer is the pose at the last frame, and sequence aggregation costs (frames*k)^2:
-        # a long clip is located by its last frames only.
-        keep = self.conf.get("max_clip_frames", 30)
-        q_spec, times = q_spec[-keep:], np.asarray(times)[-keep:]
+        times = np.asarray(times, np.float64)
+        if len(times) != len(q_spec):
+            raise OmninavError(f"a clip of {len(q_spec)} frames needs {len(q_spec)} frame times, got {len(times)}")
+        # the frames less than MAX_CLIP_S before the last (50 at 10 frames/s), at most MAX_CLIP_FRAMES
+        keep = max(1, min(MAX_CLIP_FRAMES, int(np.count_nonzero(times > times[-1] - MAX_CLIP_S + 1e-6))))
+        q_spec, times = q_spec[-keep:], times[-keep:]
         m = self.index.search(q_spec, self.conf["candidates"])
-        return AGGREGATORS[agg](m, self.xy, np.asarray(times, np.float64), self.conf)
+        return AGGREGATORS[agg](m, self.xy, times, self.conf)
 
     def answer(self, e: Estimate, clip: str) -> dict[str, Any]:
         return {

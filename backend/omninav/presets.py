@@ -31,10 +31,15 @@ DEFAULTS: dict[str, Any] = {
     "key_dims": 32,
     "key_project_above": 2000,
     "aggregate": "sequence",
-    "clip_radius_m": 1.5,  # frames of a 1 s clip come from places this close to each other
-    "heading_gate_deg": 35.0,  # and face within this of each other
-    "max_clip_frames": 30,  # a longer clip is located by its last 30 frames (3 s at 10 fps)
-    # logistic(w0 + w1*support + w2*margin) -> P(within 2 m); fit by bench/calibrate.py
+    # Frames of a 1 s clip come from places this close to each other and face within this of each
+    # other; frames further apart in time, as much more per second (aggregate.reach_m, gate_deg).
+    # How long a clip may be is the engine's (locate.MAX_CLIP_S), not a venue's: the
+    # "max_clip_frames" that venues modelled before clips of 5 s still store is not read.
+    "clip_radius_m": 1.5,
+    "heading_gate_deg": 35.0,
+    # logistic(w0 + w . inputs) -> P(within 2 m), inputs named in aggregate.CONFIDENCE_INPUTS;
+    # fit by bench/calibrate.py
+    "confidence_features": ["support", "margin"],
     "confidence_coef": [-6.68, 10.731, 10.215],
     # Modelling
     "model_fps": 10.0,  # modelling frames sampled at this rate from the video
@@ -67,7 +72,20 @@ def resolve(name: str = "default", overrides: dict[str, Any] | None = None) -> d
     conf.update(copy.deepcopy(PRESETS[name]))
     conf.update(copy.deepcopy(overrides or {}))
     conf["preset"] = name
+    _check_confidence(conf)
     return conf
+
+
+def _check_confidence(conf: dict[str, Any]) -> None:
+    """A confidence model that could not be evaluated would fail every locate: refuse it here."""
+    from .aggregate import CONFIDENCE_INPUTS
+
+    names = conf["confidence_features"]
+    unknown = [n for n in names if n not in CONFIDENCE_INPUTS]
+    if unknown:
+        raise OmninavError(f"unknown confidence inputs {unknown} (known: {', '.join(CONFIDENCE_INPUTS)})")
+    if len(conf["confidence_coef"]) != 1 + len(names):
+        raise OmninavError(f"confidence_coef needs {1 + len(names)} weights (an intercept and one per input)")
 
 
 # The settings that change what a feature record contains: a record made with other values of

@@ -358,6 +358,8 @@ describe("the session's lens check: when it runs, what is said, what is sent", (
       look: { mean, edge },
     })),
     fps: 10,
+    startMs: 0,
+    endMs: 900,
   });
   const checked = (verdict: LensCheck['verdict'], dx = 0, dy = 0): LensCheck => ({
     verdict,
@@ -433,7 +435,8 @@ describe("the session's lens check: when it runs, what is said, what is sent", (
     vi.mocked(checkLensOn).mockResolvedValue(checked('corrected', -4, 6));
     await s.whereAmI();
     expect(checkLensOn).toHaveBeenCalledTimes(2);
-    expect(captureClip).toHaveBeenCalledTimes(4);
+    // four 1 s clips (the last press's twice), and each press films on while it is answered
+    expect(vi.mocked(captureClip).mock.calls.map((c) => c[2])).toEqual([10, 20, 10, 20, 10, 10, 20]);
     expect(locate).toHaveBeenCalledTimes(3);
     expect(voice.say.mock.calls.filter((c) => c[0] === CORRECTED)).toHaveLength(2);
   });

@@ -59,6 +59,20 @@ describe('Speaker', () => {
     expect(synth.spoken.at(-1)!.text).toBe('three');
   });
 
+  it('a passing word is said but Repeat still says the last answer', async () => {
+    const { Speaker } = await import('../src/client/speech');
+    const live = region();
+    const s = new Speaker(live, region());
+    s.say('You are in Corridor 1.');
+    synth.spoken[0].onend!();
+    s.say('Stopped.', null, false, false);
+    vi.advanceTimersByTime(60);
+    expect(live.textContent).toBe('Stopped.');
+    synth.spoken[1].onend!();
+    s.repeat();
+    expect(synth.spoken.at(-1)!.text).toBe('You are in Corridor 1.');
+  });
+
   it('an urgent sentence cancels what is being said and drops what waits', async () => {
     const { Speaker } = await import('../src/client/speech');
     const alert = region();

@@ -24,7 +24,7 @@ from ..calib.correct import ClipLens
 from ..catalog import Catalog
 from ..errors import Conflict, OmninavError
 from ..extract import Extractor
-from ..locate import DEFAULT_CLIP_FPS, Locator
+from ..locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, Locator  # a clip (video or not) is at most MAX_CLIP_S
 from ..media import decode_image, iter_sampled, probe_image, probe_mp4, same_size, sampled_count
 from ..presets import n_curves
 from ..spectrum import HEADER_BYTES, decode_binary, decode_json, record_bytes_per_frame
@@ -39,8 +39,8 @@ RECORD_TYPES = ("application/octet-stream", "application/vnd.omninav.record")
 PATH_WINDOW_S = 6.0  # the matched modelling path drawn on the plan: this long either side of the match
 JSON_HEAD_BYTES = 4096  # a JSON feature record's fields other than its numbers
 JSON_NUMBER_BYTES = 48  # a number in a JSON record: digits, sign, exponent, separator, indentation
-MAX_CLIP_S = 5.0  # a video clip: a phone films about a second; five is generous
 MAX_VIDEO_FRAMES = int(MAX_CLIP_S * 240)  # frames decoded from one video clip (5 s at 240 fps), sampled or not
+CLIP_S_SLACK = 1.01  # a phone measures its frame rate over the clip: 50 frames at 9.95 frames/s are 5 s too
 
 
 @dataclass
@@ -119,8 +119,21 @@ def _clip_lens(cat: Catalog, venue_id: str, loc: Locator) -> tuple[Extractor, st
     return ext, (f"lens {name!r}" if name else "the venue's modelling lens")
 
 
-def _read_clip(cat: Catalog, venue_id: str, rt: Runtime, max_frames: int) -> tuple[np.ndarray, float | None, str]:
-    """The request body -> ((F, C, K) spectra, fps or None, what it was)."""
+def _check_duration(frames: int, fps: float) -> None:
+    """413 for a clip longer than MAX_CLIP_S (frames at `fps`): the engine answers from at most
+    that much (locate.py), and a longer clip would be answered from part of what was sent."""
+    if frames / fps > MAX_CLIP_S * CLIP_S_SLACK:
+        raise ApiError(
+            413,
+            f"the clip is {frames / fps:.3g} s long ({frames} frames at {fps:g} frames/s); "
+            f"a clip may be at most {MAX_CLIP_S:g} s",
+        )
+
+
+def _read_clip(
+    cat: Catalog, venue_id: str, rt: Runtime, max_frames: int, fps: float | None
+) -> tuple[np.ndarray, float | None, str]:
+    """The request body -> ((F, C, K) spectra, fps or None, what it was). `fps`: the query's."""
     loc = rt.locator
     ct = request.mimetype
     if ct in RECORD_TYPES or ct == "application/json":
@@ -150,6 +163,7 @@ def _read_clip(cat: Catalog, venue_id: str, rt: Runtime, max_frames: int) -> tup
             raise ApiError(400, "a multipart locate request needs 'frame' files (JPEG/PNG, in order) or one 'video'")
         if len(files) > max_frames:
             raise ApiError(413, f"too many frames: {len(files)} (a clip may have at most {max_frames})")
+        _check_duration(len(files), fps or DEFAULT_CLIP_FPS)  # before any frame is decoded
         images = [(f.read(), f"frame {i} ({f.filename})") for i, f in enumerate(files)]
         return _image_spectra(images, *_clip_lens(cat, venue_id, loc), loc), None, "frames"
     if ct in ("image/jpeg", "image/png"):
@@ -286,8 +300,12 @@ def locate(venue_id: str) -> Any:
     if wait > 0:
         raise ApiError(429, "too many locate requests from this client; slow down", retry_after_s=round(wait, 2))
     rt = svc.runtimes.get(venue_id)
-    spec, body_fps, kind = _read_clip(svc.catalog, venue_id, rt, app.config["MAX_LOCATE_FRAMES"])
-    fps = _float_arg("fps", 0, 240) or body_fps or DEFAULT_CLIP_FPS
+    asked_fps = _float_arg("fps", 0, 240)
+    spec, body_fps, kind = _read_clip(svc.catalog, venue_id, rt, app.config["MAX_LOCATE_FRAMES"], asked_fps)
+    # a video's frames are timed by the video itself (as sampled); ?fps= times what carries none
+    video_fps = body_fps if kind == "frames" else None
+    fps = video_fps or asked_fps or body_fps or DEFAULT_CLIP_FPS
+    _check_duration(len(spec), fps)
     clip = request.args.get("clip", "clip")[:200]
     loc = rt.locator
     e = loc.estimate(spec, np.arange(len(spec)) / fps)

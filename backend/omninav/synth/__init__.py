@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -70,6 +71,37 @@ class Dataset:
     scene: Scene
 
 
+def dataset_files(
+    root: Path,
+    scene: Scene,
+    model_track: dict[str, Any],
+    query_track: dict[str, Any],
+    query_lens: Lens,
+    model_lens: Lens,
+    px_per_m: float = 20.0,
+) -> Dataset:
+    """Everything of a rendered dataset but its two videos: the tracks, both lens profiles
+    (lens.json is the query's) and the floor plan. Returns the Dataset naming all its files."""
+    root.mkdir(parents=True, exist_ok=True)
+    ds = Dataset(
+        root,
+        root / "model.mp4",
+        root / "model_track.json",
+        root / "query.mp4",
+        root / "query_track.json",
+        root / "lens.json",
+        root / "floorplan.png",
+        px_per_m,
+        scene,
+    )
+    write_json(ds.model_track, model_track)
+    write_json(ds.query_track, query_track)
+    write_json(ds.lens, query_lens.to_dict())
+    write_json(root / "model_lens.json", model_lens.to_dict())
+    cv2.imwrite(str(ds.floorplan), cv2.cvtColor(floorplan_image(scene, px_per_m), cv2.COLOR_RGB2BGR))
+    return ds
+
+
 def make_dataset(
     root: Path,
     seed: int = 0,
@@ -99,23 +131,7 @@ def make_dataset(
     q_route = offset_route(scene, q_route, query_perturb.lateral_m, rng)
     m_track = track_for(m_route, [model_speed], fps)
     q_track = track_for(q_route, list(query_speeds), fps)
-    px_per_m = 20.0
-    ds = Dataset(
-        root,
-        root / "model.mp4",
-        root / "model_track.json",
-        root / "query.mp4",
-        root / "query_track.json",
-        root / "lens.json",
-        root / "floorplan.png",
-        px_per_m,
-        scene,
-    )
-    write_json(ds.model_track, m_track)
-    write_json(ds.query_track, q_track)
-    write_json(ds.lens, lens.to_dict())
-    write_json(root / "model_lens.json", mlens.to_dict())
-    cv2.imwrite(str(ds.floorplan), cv2.cvtColor(floorplan_image(scene, px_per_m), cv2.COLOR_RGB2BGR))
+    ds = dataset_files(root, scene, m_track, q_track, lens, mlens)
     mposes = poses_from_track(m_track, MODELLING, np.random.default_rng(seed + 1))
     write_video(
         ds.model_video, (f for _, f in render_frames(scene, mlens, mposes, MODELLING, seed + 2)), fps, mlens.image_size

@@ -10,13 +10,15 @@ frame relates to the world.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
 
 from ..lens import Catadioptric, Lens, pixel_to_direction
-from .scene import PLAN_PPM, TEX_PPM, WALL_H, Person, Scene
+from .scene import PLAN_PPM, TEX_PPM, Person, Scene
 
 
 @dataclass(frozen=True)
@@ -83,12 +85,12 @@ def world_panorama(
     tan_el = np.tan(el).astype(np.float32)[:, None]  # (rows, 1)
     dx, dy = np.sin(az).astype(np.float32), -np.cos(az).astype(np.float32)
     with np.errstate(divide="ignore"):
-        t_plane = np.where(tan_el < 0, cam_h / -tan_el, (WALL_H - cam_h) / tan_el)
+        t_plane = np.where(tan_el < 0, cam_h / -tan_el, (scene.wall_h - cam_h) / tan_el)
     t_plane = np.minimum(t_plane, 200.0).astype(np.float32)  # (rows, 1)
     tw32 = tw.astype(np.float32)[None, :]
     on_wall = tw32 <= t_plane  # (rows, cols)
     aw = scene.atlas.shape[1]
-    zr = ((WALL_H - cam_h) * TEX_PPM - (tw32 * TEX_PPM) * tan_el).astype(np.int32)
+    zr = ((scene.wall_h - cam_h) * TEX_PPM - (tw32 * TEX_PPM) * tan_el).astype(np.int32)
     np.clip(zr, 0, scene.atlas.shape[0] - 1, out=zr)
     wall_idx = zr * aw + col.astype(np.int32)[None, :]
     fw, fh = scene.floor.shape[1], scene.floor.shape[0]
@@ -180,11 +182,22 @@ class CameraModel:
         return cls(lens, vec, np.flatnonzero(ok), (w, h))
 
 
+@functools.cache
+def _blas() -> Any:
+    from threadpoolctl import ThreadpoolController  # type: ignore[import-untyped]
+
+    return ThreadpoolController()
+
+
 def camera_frame(
     cam: CameraModel, pano: np.ndarray, grid: PanoGrid, heading_deg: float, rot: np.ndarray | None = None
 ) -> np.ndarray:
     """Photograph a world panorama: (h, w, 3) uint8 frame for a camera facing heading_deg."""
-    v = cam.vec if rot is None else cam.vec @ rot.T
+    if rot is None:
+        v = cam.vec
+    else:  # one BLAS thread: the same product, but threads fighting over a busy machine took 20x longer
+        with _blas().limit(limits=1, user_api="blas"):
+            v = cam.vec @ rot.T
     az = np.rad2deg(np.arctan2(v[:, 1], v[:, 0])) + heading_deg
     el = np.rad2deg(np.arcsin(np.clip(v[:, 2], -1, 1)))
     mx = (np.mod(az, 360.0) * grid.width / 360.0 - 0.5).astype(np.float32)

@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 
 from ..lens import Lens
+from .optics import Optics, OpticsSim
 from .render import CameraModel, PanoGrid, camera_frame, tilt_rotation, world_panorama
 from .scene import GRID, Person, Point, Scene, random_people
 
@@ -34,6 +35,7 @@ class Perturb:
     lens_shift_px: float = 0.0
     noise: float = 1.0  # sensor noise sigma, grey levels
     sway_deg: float = 0.0  # the yaw swinging +- this at 0.9 Hz (once a stride), walking or standing
+    optics: Optics | None = None  # a real lens and phone (synth/optics.py); None: the ideal lens
 
 
 MODELLING = Perturb(noise=1.5)
@@ -242,6 +244,8 @@ def render_frames(
     cast = 1.0 + rng.uniform(-perturb.cast, perturb.cast, 3)
     people: list[Person] = []
     vel: list[tuple[float, float]] = []
+    # its own generator: a walk without optics draws exactly what it drew before
+    sim = OpticsSim(lens, perturb.optics, np.random.default_rng(seed + 7)) if perturb.optics is not None else None
     for i, p in enumerate(poses):
         if perturb.people and i % 20 == 0:
             people = random_people(scene, rng, (p.x, p.y), int(rng.integers(0, perturb.people + 1)))
@@ -255,6 +259,8 @@ def render_frames(
         rot = tilt_rotation(p.tilt, p.tilt_dir) if p.tilt else None
         rgb = camera_frame(cam, pano, grid, p.heading, rot).astype(np.float32)
         rgb *= (gain * cast)[None, None, :]
+        if sim is not None:
+            rgb = sim(rgb)
         if perturb.noise:
             rgb += rng.normal(0.0, perturb.noise, rgb.shape).astype(np.float32)
         frame = np.clip(rgb, 0, 255).astype(np.uint8)

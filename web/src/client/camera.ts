@@ -1,6 +1,7 @@
 /**
- * The camera: the rear camera at the lens profile's resolution, and ~1 s clips of frames handed to
- * the feature worker as ImageBitmaps (frames never leave the phone: only their features do).
+ * The camera: the rear camera at the lens profile's resolution, and clips of frames (~1 s, 3 s when
+ * the first second was not enough) handed to the feature worker as ImageBitmaps (frames never leave
+ * the phone: only their features do).
  */
 import type { Lens } from '../shared/lens';
 import type { ExtractorClient, FrameResult } from './bridge';
@@ -64,23 +65,53 @@ export function lensMismatch(width: number, height: number, lens: Lens, lensName
 export interface Clip {
   frames: FrameResult[];
   fps: number;
+  /** performance.now() at the first and the last frame grabbed. */
+  startMs: number;
+  endMs: number;
 }
 
-/** Grab `n` frames `intervalMs` apart and extract each as it comes (extraction overlaps capture). */
+/** A clip's frame rate: its frames spread evenly from its first to its last (10 for one frame). */
+export function clipFps(frames: number, startMs: number, endMs: number): number {
+  const span = (endMs - startMs) / 1000;
+  return frames > 1 && span > 0 ? (frames - 1) / span : 10;
+}
+
+/**
+ * Grab `n` frames `intervalMs` apart and extract each as it comes (extraction overlaps capture).
+ * `follow`: a clip these frames continue, the first of them one interval after its last. `stop()`
+ * true ends the grabbing early: the clip then holds the frames grabbed so far.
+ */
 export async function captureClip(
   video: HTMLVideoElement,
   ext: ExtractorClient,
   n: number,
   intervalMs: number,
+  stop: () => boolean = () => false,
+  follow?: Clip,
 ): Promise<Clip> {
   const jobs: Promise<FrameResult>[] = [];
   const times: number[] = [];
+  // following a clip: the next frame is due one interval after the last one grabbed; when the
+  // phone was late (a slow extraction), the frames after it stay an interval apart rather than
+  // being grabbed back to back to catch up (the clip's one fps then spreads the delay evenly)
+  let due = follow ? follow.endMs + intervalMs : null;
   for (let i = 0; i < n; i++) {
-    if (i) await new Promise((r) => setTimeout(r, intervalMs - ((performance.now() - times[0]) % intervalMs)));
+    if (due !== null) {
+      const wait = due - performance.now();
+      if (wait > 0) await new Promise((r) => setTimeout(r, wait));
+    } else if (i) await new Promise((r) => setTimeout(r, intervalMs - ((performance.now() - times[0]) % intervalMs)));
+    if (stop()) break;
     times.push(performance.now());
+    if (due !== null) due = Math.max(due, times[times.length - 1]) + intervalMs;
     jobs.push(createImageBitmap(video).then((bm) => ext.extract(bm)));
   }
   const frames = await Promise.all(jobs);
-  const span = (times[times.length - 1] - times[0]) / 1000;
-  return { frames, fps: n > 1 && span > 0 ? (n - 1) / span : 10 };
+  const [startMs, endMs] = [times[0] ?? performance.now(), times[times.length - 1] ?? performance.now()];
+  return { frames, fps: clipFps(frames.length, startMs, endMs), startMs, endMs };
+}
+
+/** Two clips one after the other as one (the second one filmed to `follow` the first). */
+export function joinClips(a: Clip, b: Clip): Clip {
+  const frames = [...a.frames, ...b.frames];
+  return { frames, fps: clipFps(frames.length, a.startMs, b.endMs), startMs: a.startMs, endMs: b.endMs };
 }

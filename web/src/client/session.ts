@@ -2,6 +2,11 @@
  * The phone's session: the venue in use, the lens, the camera, the feature worker, and the locate
  * loop ("Where am I?" once, or "Keep telling me" every few seconds). It owns no part of the page:
  * screens listen to its events and show them; what it says goes through a Voice.
+ *
+ * A press films a second, and films on while that second is answered. When the answer is not
+ * one to trust (TRUSTED_CONFIDENCE), the session says so, films on to 3 s in all while the user keeps turning, and sends the
+ * three seconds as one clip: one more request, answered from all of it (the engine takes clips of
+ * up to 5 s). Once per press; Stop ends it. A sure answer ends the filming on, unsent.
  */
 import {
   ApiProblem,
@@ -12,7 +17,7 @@ import {
   venues as fetchVenues,
   type Venue,
 } from './api';
-import { CameraProblem, captureClip, lensMismatch, openCamera } from './camera';
+import { CameraProblem, captureClip, joinClips, lensMismatch, openCamera, type Clip } from './camera';
 import { describe, gist, type Answer } from './directions';
 import { ExtractorClient } from './bridge';
 import { LensWatch, checkLensOn, lensWords } from './lenscheck';
@@ -24,14 +29,27 @@ import { NO_FRAMES, NO_LENS, RecordMismatch, problemText } from './problems';
 import type { Cue } from './speech';
 
 const CLIP_FRAMES = 10; // ~1 s at 10 fps: enough for the clip to outvote a single wrong frame
+/** Frames filmed after a first answer that was not sure: 3 s in all, sent as one clip. */
+export const MORE_FRAMES = 20;
 const CLIP_INTERVAL_MS = 100;
+/**
+ * An answer a user may trust without more evidence (docs/benchmarks.md: of the answers at or above
+ * it, 1 % were further than 2 m off on the tuning venue families, 6 % on the held-out ones). Below
+ * it, a press films on to 3 s.
+ */
+export const TRUSTED_CONFIDENCE = 0.8;
+const trusted = (a: Answer): boolean => !a.low_confidence && a.confidence >= TRUSTED_CONFIDENCE;
+/** Said (polite, no cue) when the first second was not enough and the phone films on. */
+export const KEEP_TURNING = 'Not sure yet. Keep turning slowly.';
+/** Said when Stop ends that filming: nothing is sent. */
+export const STOPPED = 'Stopped.';
 const RECHECK_MS = 500;
 /** The name the user's own lens profile is offered under, beside the venue's. */
 export const MY_LENS = 'my lens';
 
 /** What the session says: the Speaker, or a fake in tests. */
 export interface Voice {
-  say(text: string, cue?: Cue | null, urgent?: boolean): void;
+  say(text: string, cue?: Cue | null, urgent?: boolean, remember?: boolean): void;
   cue(kind: Cue): void;
   /** A sentence is being spoken. */
   readonly busy: boolean;
@@ -76,6 +94,8 @@ export interface SessionEvents {
   answer: Located;
   /** "Keep telling me" is on or off. */
   continuous: boolean;
+  /** The first second was not sure: filming more (true), until that ends or is stopped (false). */
+  asking: boolean;
   /** A preference was set. */
   pref: keyof Prefs;
   /** The lens was checked (the ring found in the camera's frames and compared with the profile). */
@@ -113,6 +133,10 @@ export class Session extends Emitter<SessionEvents> {
   private lastGist = '';
   /** The running continuous loop; a new object per start, so that a stopped loop cannot revive. */
   private loop: { timer?: ReturnType<typeof setTimeout> } | null = null;
+  /** The filming on after a press's first second; `stopped` ends it (an answer, Stop, a stopped loop). */
+  private filming: { stopped: boolean } | null = null;
+  /** The first second was not sure: that filming goes on for an answer (Stop would end it). */
+  private askingMore = false;
 
   constructor(private readonly o: SessionOptions) {
     super();
@@ -192,12 +216,16 @@ export class Session extends Emitter<SessionEvents> {
     return null;
   }
 
-  /** One "Where am I?": capture ~1 s, extract in the worker, send features only, say the answer. */
+  /**
+   * One "Where am I?": capture ~1 s, extract in the worker, send features only, say the answer;
+   * when that answer is not sure, answer once more from the 3 s filmed (see the top of the file).
+   */
   async whereAmI(quietIfSame = false): Promise<void> {
     if (this.busy) return;
     this.busy = true;
     this.emit('busy', true);
     const { voice, video } = this.o;
+    let filming: { stopped: boolean } | null = null;
     try {
       // a venue not modelled yet may have been since: ask the server again rather than the cache
       const v = this.venue?.modelled ? this.venue : await this.loadVenue();
@@ -229,9 +257,23 @@ export class Session extends Emitter<SessionEvents> {
         await this.checkLens(this.ext);
         clip = await captureClip(video, this.ext, CLIP_FRAMES, CLIP_INTERVAL_MS);
       }
-      const record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id);
-      const t0 = performance.now();
-      const a = await locate(v.id, record, clip.fps, `web-${Date.now()}`);
+      let record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id);
+      // film on while the first second is answered: an unsure answer then needs no gap in the clip
+      const more = { stopped: false };
+      filming = this.filming = more;
+      const rest = captureClip(video, this.ext, MORE_FRAMES, CLIP_INTERVAL_MS, () => more.stopped, clip);
+      rest.catch(() => undefined); // a failure matters only when the frames are used (filmMore)
+      let t0 = performance.now();
+      let a = await locate(v.id, record, clip.fps, `web-${Date.now()}`);
+      if (trusted(a)) more.stopped = true;
+      else {
+        const longer = await this.filmMore(clip, rest, more, quietIfSame);
+        if (!longer) return; // stopped: nothing sent, nothing more said
+        clip = longer;
+        record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id);
+        t0 = performance.now();
+        a = await locate(v.id, record, clip.fps, `web-${Date.now()}`);
+      }
       const rttMs = performance.now() - t0;
       this.lastAnswer = a;
       const ms = clip.frames.map((f) => f.ms).sort((x, y) => x - y);
@@ -259,9 +301,52 @@ export class Session extends Emitter<SessionEvents> {
       this.lastGist = text;
       if (e instanceof CameraProblem && e.kind !== 'lens') this.stopContinuous();
     } finally {
+      if (filming) filming.stopped = true;
+      if (this.filming === filming) this.filming = null;
       this.busy = false;
       this.emit('busy', false);
     }
+  }
+
+  /**
+   * The first second was not sure: say so (not in continuous mode, which speaks only answers that
+   * changed), wait for the MORE_FRAMES filmed on and -> the whole clip, or null when stopped.
+   */
+  private async filmMore(
+    first: Clip,
+    rest: Promise<Clip>,
+    more: { stopped: boolean },
+    quiet: boolean,
+  ): Promise<Clip | null> {
+    if (more.stopped) return null; // "Keep telling me" was turned off meanwhile
+    // in continuous mode nothing is said and the button stays as it is: the loop's own button
+    // stops it ("Stopped telling you."), and a Stop here would leave the loop running
+    if (quiet) {
+      const after = await rest;
+      return more.stopped ? null : joinClips(first, after);
+    }
+    this.o.voice.say(KEEP_TURNING, null, false, false);
+    this.askingMore = true;
+    this.emit('asking', true);
+    try {
+      const after = await rest;
+      return more.stopped ? null : joinClips(first, after);
+    } finally {
+      this.askingMore = false;
+      this.emit('asking', false);
+    }
+  }
+
+  /** Filming on after an unsure first second (Stop would end it). */
+  get asking(): boolean {
+    return this.askingMore;
+  }
+
+  /** Stop: end the filming on after an unsure first second; nothing is sent. */
+  stop(): void {
+    if (!this.askingMore || !this.filming || this.filming.stopped) return;
+    this.filming.stopped = true;
+    this.o.voice.say(STOPPED, null, false, false);
   }
 
   /**
@@ -306,6 +391,7 @@ export class Session extends Emitter<SessionEvents> {
   }
 
   stopContinuous(): void {
+    if (this.filming) this.filming.stopped = true; // its own sentence says it stopped
     clearTimeout(this.loop?.timer);
     this.loop = null;
     this.emit('continuous', false);

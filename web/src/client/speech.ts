@@ -65,9 +65,11 @@ export class Speaker {
   /**
    * Say a sentence: in the live region (screen readers read it), aloud, with a cue. `urgent`
    * sentences (errors) go to the assertive region and are spoken at once, cutting a waiting one.
+   * `remember` false: a passing word ("Keep turning slowly", "Stopped") that Repeat skips, so that
+   * it still says the last answer.
    */
-  say(text: string, cue: Cue | null = 'ok', urgent = false): void {
-    this.last = text;
+  say(text: string, cue: Cue | null = 'ok', urgent = false, remember = true): void {
+    if (remember) this.last = text;
     const region = urgent ? this.alert : this.live;
     // one message on screen at a time: the other region empties, and its pending text is dropped
     clearTimeout(this.pendingText);

@@ -43,17 +43,21 @@ export function locateScreen(session: Session, speaker: Speaker): void {
     );
   }
 
-  where.addEventListener('click', () => void session.whereAmI());
+  // while the phone films on after an unsure first second, the same button stops it
+  where.addEventListener('click', () => (session.asking ? session.stop() : void session.whereAmI()));
   repeat.addEventListener('click', () => speaker.repeat());
   continuous.addEventListener('click', () => session.toggleContinuous());
 
   session.on('line', (text) => (venueLine.textContent = text));
   session.on('venue', (v) => void plan.show(v.floors[0], v.places, null));
-  session.on('busy', (busy) => {
-    if (busy) where.setAttribute('aria-busy', 'true');
+  function label(busy: boolean, asking: boolean): void {
+    if (busy && !asking) where.setAttribute('aria-busy', 'true');
     else where.removeAttribute('aria-busy');
-    where.textContent = busy ? 'Locating…' : 'Where am I?';
-  });
+    where.textContent = asking ? 'Stop' : busy ? 'Locating…' : 'Where am I?';
+  }
+  let busyNow = false;
+  session.on('busy', (busy) => label((busyNow = busy), session.asking));
+  session.on('asking', (asking) => label(busyNow, asking));
   session.on('continuous', (on) => continuous.setAttribute('aria-pressed', String(on)));
   session.on('answer', (r) => {
     show(r.answer, r.venue);

@@ -1,0 +1,188 @@
+"""Clips of any length in (0.3 s, 5 s] (issue 13): the sequence aggregation's reach and heading gate
+follow the time between two frames, the engine answers from a clip's last 5 s, and the server takes
+50-frame records and refuses a longer clip with a 413 that says why."""
+
+from __future__ import annotations
+
+import io
+import json
+import shutil
+
+import cv2
+import numpy as np
+import pytest
+
+from omninav.aggregate import NEAR_M, WALK_MPS, gate_deg, reach_m, sequence
+from omninav.heading import wrap_deg
+from omninav.index import Matches
+from omninav.lens import load_lens
+from omninav.locate import MAX_CLIP_S, Locator
+from omninav.presets import resolve
+from omninav.server import create_app
+from omninav.spectrum import encode_binary, encode_json
+from omninav.synth.walks import QUERY, Pose, render_frames
+from server_helpers import TOKEN, Api, clip_spectra, heading_error, query_clip
+
+CONF = resolve("default")
+FPS = 10.0
+
+
+# ---- the rule: as before within a second, growing with time beyond -----------------------------
+def test_within_a_second_reach_and_gate_are_what_they_were():
+    dt = np.linspace(0.0, 1.0, 41)
+    old_reach = np.minimum(NEAR_M + WALK_MPS * dt, CONF["clip_radius_m"] + NEAR_M)
+    np.testing.assert_allclose(reach_m(dt, CONF), old_reach, rtol=1e-6)
+    np.testing.assert_allclose(gate_deg(dt, CONF), CONF["heading_gate_deg"])
+
+
+def test_beyond_a_second_they_grow_with_time_at_a_walking_pace_and_a_slow_turn():
+    dt = np.array([1.0, 2.0, 3.0, 5.0])
+    reach = reach_m(dt, CONF) - NEAR_M
+    assert np.all(np.diff(reach) > 0)
+    assert np.all(reach <= WALK_MPS * dt)  # never faster than the fastest walk
+    assert reach[-1] >= 1.2 * 5  # a steady walk of 5 s (1.2 m/s) stays in reach
+    gate = gate_deg(dt, CONF)
+    assert np.all(np.diff(gate) >= 0) and gate[-1] <= 180.0
+    assert gate[2] >= 25.0 * 3  # turning at 25 deg/s for 3 s stays within the gate
+
+
+# ---- sequence on hand-made matches: a corridor and a look-alike one ----------------------------
+VENUE = np.concatenate([np.stack([np.arange(700) * 0.1, np.full(700, 3.0)], -1)] * 2)
+VENUE[700:, 1] = 23.0  # the second corridor, 20 m away, looks the same
+
+
+def clip_matches(x: np.ndarray, heading: np.ndarray, seed: int = 0) -> Matches:
+    """Per frame: the true venue frame (score 0.6) and a look-alike elsewhere that scores higher
+    (0.7) but lands somewhere different every frame, as a repetitive corridor's matches do."""
+    rng = np.random.default_rng(seed)
+    q = len(x)
+    true = np.clip(np.round(x / 0.1).astype(int), 0, 699)
+    decoy = 700 + rng.integers(0, 700, q)
+    index = np.stack([true, decoy], -1)
+    score = np.tile(np.array([0.6, 0.7], np.float32), (q, 1))
+    hd = np.stack([heading, rng.uniform(0, 360, q)], -1).astype(np.float32)
+    return Matches(index, score, score, hd)
+
+
+def test_a_five_second_walk_is_supported_by_every_frame():
+    t = np.arange(50) / FPS
+    x = 20.0 + 1.2 * t
+    e = sequence(clip_matches(x, np.full(50, 90.0)), VENUE, t, CONF)
+    assert e.agree == pytest.approx(1.0)  # capped at 1.95 m, only the last ~1.3 s used to count
+    assert abs(e.x - x[-1]) <= 0.3 and abs(e.y - 3.0) <= 0.1
+    assert e.support > e.rival
+
+
+def test_turning_slowly_for_five_seconds_is_supported_by_every_frame():
+    t = np.arange(50) / FPS
+    heading = (200.0 + 25.0 * t) % 360.0  # 122 deg in all: a fixed 35 deg gate split it in three
+    e = sequence(clip_matches(np.full(50, 30.0), heading, seed=1), VENUE, t, CONF)
+    assert e.agree == pytest.approx(1.0)
+    assert abs(e.x - 30.0) <= 0.3
+    assert abs(wrap_deg(e.heading - heading[-1])) <= 2.0
+
+
+def test_frames_too_far_apart_for_the_time_between_them_do_not_support_each_other():
+    t = np.arange(50) / FPS
+    x = np.where(t < 2.5, 10.0, 60.0)  # 50 m in a tenth of a second
+    e = sequence(clip_matches(x, np.full(50, 90.0)), VENUE, t, CONF)
+    assert e.agree <= 0.55
+    assert abs(e.x - 60.0) <= 0.3  # the later half wins the tie: the answer is where the clip ends
+
+
+# ---- the engine on the small venue ------------------------------------------------------------
+@pytest.fixture(scope="module")
+def loc(modelled) -> Locator:
+    st, vid = modelled
+    return Locator(st, vid, device="cpu")
+
+
+def test_a_five_second_walking_clip_is_located_and_a_longer_one_by_its_last_five_seconds(loc, small_ds):
+    frames, truth = query_clip(small_ds, 60, n=60)
+    spec = clip_spectra(small_ds, frames, loc.conf)
+    ans = loc.locate_spectra(spec, "long")
+    assert np.hypot(ans["x"] - truth[0], ans["y"] - truth[1]) <= 2.0, (ans, truth)
+    assert heading_error(ans["heading_deg"], truth[2]) <= 5.0
+    a, b = loc.estimate(spec), loc.estimate(spec[-int(MAX_CLIP_S * FPS) :])  # 60 frames: the last 50
+    assert (a.x, a.y, a.heading, a.venue_row) == pytest.approx((b.x, b.y, b.heading, b.venue_row), abs=1e-6)
+    short = loc.estimate(spec[-3:])  # 0.3 s: three frames still answer
+    assert np.isfinite([short.x, short.y, short.heading]).all()
+
+
+def test_standing_and_turning_slowly_for_three_seconds(loc, small_ds):
+    """The app's "keep turning slowly": the user stands and turns at 20 deg/s while it films 3 s."""
+    x, y, h0 = 6.0, 2.2, 40.0  # on the first corridor of the small layout
+    poses = [Pose(i / FPS, x, y, (h0 + 20.0 * i / FPS) % 360.0, 1.3, 2.0, 30.0) for i in range(30)]
+    look = QUERY.__class__(**{**QUERY.__dict__, "people": 0})
+    frames = [f for _, f in render_frames(small_ds.scene, load_lens(small_ds.lens), poses, look, seed=5)]
+    e = loc.estimate(clip_spectra(small_ds, frames, loc.conf))
+    assert np.hypot(e.x - x, e.y - y) <= 1.0, e
+    assert heading_error(e.heading, poses[-1].heading) <= 3.0, e
+    assert e.agree >= 0.9  # every frame supports the answer, the first ones 60 deg round from the last
+
+
+# ---- the server: 5 s of records, and no more -----------------------------------------------------
+@pytest.fixture(scope="module")
+def api(modelled, small_ds, tmp_path_factory) -> Api:
+    st, _ = modelled
+    data = tmp_path_factory.mktemp("cliplen") / "data"
+    shutil.copytree(st.root, data)
+    app = create_app({"DATA": str(data), "ADMIN_TOKEN": TOKEN, "JOB_RUNNER": False, "LOCATE_RATE": 0.0})
+    cat = app.extensions["omninav"].catalog
+    cat.venues.create("lab", "Lab")
+    cat.floors.set_plan("lab", "1", small_ds.floorplan.read_bytes())
+    cat.floors.put("lab", "1", {"px_per_m": 20.0})
+    cat.lenses.put("lab", "donut", json.loads((small_ds.root / "model_lens.json").read_text()))
+    return Api(app.test_client())
+
+
+@pytest.fixture(scope="module")
+def five_s(small_ds, loc) -> tuple[np.ndarray, tuple[float, float, float]]:
+    frames, truth = query_clip(small_ds, 60, n=51)
+    return clip_spectra(small_ds, frames, loc.conf), truth
+
+
+def post(api: Api, body: bytes, query: str = "") -> dict:
+    r = api.post(f"/api/venues/lab/locate{query}", data=body, content_type="application/octet-stream")
+    return {"status": r.status_code, **r.json}
+
+
+def test_the_server_answers_a_five_second_record(api, five_s, loc):
+    spec, truth = five_s
+    a = post(api, encode_binary(spec[1:], loc.conf))
+    assert a["status"] == 200 and a["frames"] == 50, a
+    assert np.hypot(a["x"] - truth[0], a["y"] - truth[1]) <= 2.0, (a, truth)
+    r = api.post("/api/venues/lab/locate", json={**encode_json(spec[1:], loc.conf), "fps": 10})
+    assert r.status_code == 200 and r.json["frames"] == 50
+
+
+def test_a_longer_clip_is_refused_with_its_length(api, five_s, loc):
+    spec, _ = five_s
+    a = post(api, encode_binary(spec, loc.conf))
+    assert a["status"] == 413 and "5.1 s long (51 frames at 10 frames/s)" in a["error"], a
+    assert "at most 5 s" in a["error"]
+    r = api.post("/api/venues/lab/locate", json={**encode_json(spec[1:], loc.conf), "fps": 8})
+    assert r.status_code == 413 and "6.25 s long" in r.json["error"]
+    # the same 51 frames filmed faster are 2.55 s: taken
+    assert post(api, encode_binary(spec, loc.conf), "?fps=20")["status"] == 200
+
+
+def test_frames_for_a_longer_clip_are_refused_before_any_is_decoded(api, small_ds):
+    frames, _ = query_clip(small_ds, 60, n=1)
+    png = cv2.imencode(".png", frames[0])[1].tobytes()
+    files = [(io.BytesIO(png[:64] + b"\0" * 10), f"f{i}.png") for i in range(51)]  # cut short: never decoded
+    r = api.post("/api/venues/lab/locate?lens=donut", data={"frame": files}, content_type="multipart/form-data")
+    assert r.status_code == 413 and "51 frames" in r.json["error"], r.json
+
+
+def test_a_video_is_timed_by_itself_not_by_the_fps_argument(api, small_ds, tmp_path):
+    """A 3 s video sent with a wrong ?fps=5: its own 10 fps times its frames (at 5 fps it would
+    be a 6 s clip, refused)."""
+    from omninav.synth.walks import write_video
+
+    frames, truth = query_clip(small_ds, 60, n=30)
+    path = tmp_path / "clip.mp4"
+    write_video(path, frames, 10.0, (frames[0].shape[1], frames[0].shape[0]))
+    r = api.post("/api/venues/lab/locate?lens=donut&fps=5", data=path.read_bytes(), content_type="video/mp4")
+    assert r.status_code == 200 and r.json["frames"] == 30, r.json
+    assert np.hypot(r.json["x"] - truth[0], r.json["y"] - truth[1]) <= 2.0
