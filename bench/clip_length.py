@@ -23,8 +23,6 @@ frames and 20 more); the row after it asks for more below confidence 0.8 instead
 from __future__ import annotations
 
 import argparse
-import hashlib
-import json
 import sys
 import time
 from collections.abc import Callable
@@ -39,9 +37,6 @@ from omninav.evaluate import query_spectra
 from omninav.heading import wrap_deg
 from omninav.lens import Lens, load_lens
 from omninav.locate import Locator
-from omninav.model_venue import model_video
-from omninav.presets import resolve
-from omninav.store import Store
 from omninav.synth import QUERY, build_scene, make_dataset
 from omninav.synth.scene import Scene
 from omninav.synth.walks import Perturb, Pose, render_frames, write_video
@@ -49,6 +44,7 @@ from omninav.track import load_track
 from omninav.video import VideoInfo, iter_video
 
 sys.path.insert(0, str(Path(__file__).parent))
+from families import dataset, venue  # noqa: E402
 from search_speed import machine  # noqa: E402
 
 LENGTHS_S = (0.3, 0.5, 1.0, 2.0, 3.0, 5.0)
@@ -71,24 +67,10 @@ class Walk:
     starts: np.ndarray  # the first frame a clip ending there may use (a stand's first frame)
 
 
-def modelled(root: Path, preset: str = "default") -> Locator:
-    """The venue modelled from root's modelling walk, cached as bench/accuracy.py caches it."""
-    st = Store(root / "bench-data")
-    vid = f"v-{hashlib.sha1(json.dumps([preset, {}], sort_keys=True).encode()).hexdigest()[:10]}"
-    if st.generation(vid) is None:
-        print(f"modelling {root} ...", file=sys.stderr, flush=True)
-        model_video(
-            st,
-            vid,
-            root / "model.mp4",
-            load_track(root / "model_track.json"),
-            load_lens(root / "model_lens.json"),
-            settings=resolve(preset),
-        )
-    loc = Locator(st, vid, device="cpu")
-    # answers are scored with today's confidence model, not the one stored when it was modelled
-    loc.conf.update({k: resolve(preset)[k] for k in ("confidence_features", "confidence_coef")})
-    return loc
+def modelled(root: Path) -> Locator:
+    """The venue modelled from root's modelling walk with the default settings, cached as
+    bench/families.py caches it (answers scored with today's confidence model)."""
+    return venue(root, "default")
 
 
 def _cached(path: Path, key: str, make: Callable[[], dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
@@ -244,7 +226,6 @@ def main() -> None:
     a = ap.parse_args()
     print(f"machine: {machine()}")
     if a.family:
-        from families import dataset
         from omninav.synth.families import FAMILIES, family_venue
 
         for name in a.family:

@@ -4,6 +4,7 @@ follow the time between two frames, the engine answers from a clip's last 5 s, a
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 import shutil
@@ -113,7 +114,7 @@ def test_standing_and_turning_slowly_for_three_seconds(loc, small_ds):
     """The app's "keep turning slowly": the user stands and turns at 20 deg/s while it films 3 s."""
     x, y, h0 = 6.0, 2.2, 40.0  # on the first corridor of the small layout
     poses = [Pose(i / FPS, x, y, (h0 + 20.0 * i / FPS) % 360.0, 1.3, 2.0, 30.0) for i in range(30)]
-    look = QUERY.__class__(**{**QUERY.__dict__, "people": 0})
+    look = dataclasses.replace(QUERY, people=0)
     frames = [f for _, f in render_frames(small_ds.scene, load_lens(small_ds.lens), poses, look, seed=5)]
     e = loc.estimate(clip_spectra(small_ds, frames, loc.conf))
     assert np.hypot(e.x - x, e.y - y) <= 1.0, e
@@ -186,3 +187,32 @@ def test_a_video_is_timed_by_itself_not_by_the_fps_argument(api, small_ds, tmp_p
     r = api.post("/api/venues/lab/locate?lens=donut&fps=5", data=path.read_bytes(), content_type="video/mp4")
     assert r.status_code == 200 and r.json["frames"] == 30, r.json
     assert np.hypot(r.json["x"] - truth[0], r.json["y"] - truth[1]) <= 2.0
+
+
+# What `sequence` answered for these 1 s clips before clips could be longer (computed with the
+# aggregate.py of commit dca0edd): a clip of a second must be answered exactly as it was.
+BEFORE_LONG_CLIPS = {
+    1: (-4.144501584290717, -0.5502131584169601, 183.54169488562786, 331, 0.601956307888031, 0.43522825837135315, 0.8),
+    2: (-0.23848194124883504, -4.700070405846014, 38.31688678168084, 355, 0.6165151596069336, 0.43530434370040894, 0.9),
+    3: (0.34924424615674354, 1.152199328615451, 20.09594328014245, 135, 0.5281327962875366, 0.41243138909339905, 0.7),
+}
+
+
+@pytest.mark.parametrize("seed", sorted(BEFORE_LONG_CLIPS))
+def test_a_one_second_clip_is_answered_exactly_as_before(seed):
+    from omninav.aggregate import sequence
+    from omninav.index import Matches
+    from omninav.presets import resolve
+
+    rng = np.random.default_rng(seed)
+    q, k, n = 10, 16, 400
+    xy = np.cumsum(rng.normal(0, 0.15, (n, 2)), axis=0)
+    idx = rng.integers(0, n, (q, k))
+    m = Matches(
+        idx,
+        rng.random((q, k)).astype(np.float32),
+        (rng.random((q, k)) * 1.2 - 0.2).astype(np.float32),
+        (rng.random((q, k)) * 360).astype(np.float32),
+    )
+    e = sequence(m, xy, np.arange(q) / 10.0, resolve("default"))
+    assert (e.x, e.y, e.heading, e.venue_row, e.support, e.rival, e.agree) == BEFORE_LONG_CLIPS[seed]

@@ -43,20 +43,21 @@ def wide_lens() -> Catadioptric:
     )
 
 
+def resized(lens: Catadioptric, scale: float) -> Catadioptric:
+    """The same optics on a sensor `scale` times the size (a smaller video of the same lens)."""
+    return dataclasses.replace(
+        lens,
+        image_size=(int(round(lens.image_size[0] * scale)), int(round(lens.image_size[1] * scale))),
+        center=(lens.center[0] * scale, lens.center[1] * scale),
+        r_inner=lens.r_inner * scale,
+        r_outer=lens.r_outer * scale,
+        elevation_poly=tuple(c / scale**k for k, c in enumerate(lens.elevation_poly)),
+    )
+
+
 def geometries(scale: float = 1.0) -> dict[str, Catadioptric]:
     """The lens geometries the ring finder is tested on (at `scale` of their size, for speed)."""
-    wide = wide_lens()
-    return {
-        "donut": donut_lens(scale),
-        "wide": dataclasses.replace(
-            wide,
-            image_size=(int(round(wide.image_size[0] * scale)), int(round(wide.image_size[1] * scale))),
-            center=(wide.center[0] * scale, wide.center[1] * scale),
-            r_inner=wide.r_inner * scale,
-            r_outer=wide.r_outer * scale,
-            elevation_poly=tuple(c / scale**k for k, c in enumerate(wide.elevation_poly)),
-        ),
-    }
+    return {"donut": donut_lens(scale), "wide": resized(wide_lens(), scale)}
 
 
 def reclip(lens: Catadioptric, shift: tuple[float, float] = (0.0, 0.0), scale: float = 1.0) -> Catadioptric:

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..lens import Catadioptric, Equirectangular, Lens
 from . import Dataset, dataset_files, donut_lens, equirect_lens
-from .clipon import geometries
+from .clipon import geometries, resized
 from .optics import MILD, REAL
 from .scene import COOL, DEFAULT_DECOR, NEUTRAL, WARM, Decor, Lighting, Point, Scene, build_scene
 from .walks import (
@@ -65,18 +65,6 @@ class Family:
     query_route: tuple[Point, ...] | None = None  # instead of the layout's own
 
 
-def _scaled(lens: Catadioptric, scale: float) -> Catadioptric:
-    """The same lens on a sensor `scale` times the size (a smaller video of the same optics)."""
-    return dataclasses.replace(
-        lens,
-        image_size=(int(round(lens.image_size[0] * scale)), int(round(lens.image_size[1] * scale))),
-        center=(lens.center[0] * scale, lens.center[1] * scale),
-        r_inner=lens.r_inner * scale,
-        r_outer=lens.r_outer * scale,
-        elevation_poly=tuple(c / scale**k for k, c in enumerate(lens.elevation_poly)),
-    )
-
-
 def square_lens(scale: float = 1.0) -> Catadioptric:
     """A third geometry: an 800x600 video whose ring (70-290 px, -35..+50 deg, a cubic profile)
     sits a little off centre, forward to the image's right."""
@@ -92,7 +80,7 @@ def square_lens(scale: float = 1.0) -> Catadioptric:
         forward_deg=0.0,
         ccw=True,
     )
-    return _scaled(lens, scale)
+    return resized(lens, scale)
 
 
 _FAMILIES = [
@@ -290,7 +278,7 @@ def _lens_at(lens: Lens, scale: float) -> Lens:
     if isinstance(lens, Equirectangular):
         w = 2 * int(round(lens.image_size[0] * scale / 2))
         return equirect_lens(w)
-    return _scaled(lens, scale)
+    return resized(lens, scale)
 
 
 def _cut(route: list[Point], length_m: float) -> list[Point]:
