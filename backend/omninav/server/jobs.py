@@ -450,7 +450,9 @@ class Jobs:
 
     # ---- runner side --------------------------------------------------------------------------
     def start(self) -> None:
-        """Run jobs in a background thread of this process (create_app with JOB_RUNNER)."""
+        """Run jobs in a background thread of this process (create_app with JOB_RUNNER); again
+        after stop()."""
+        self._stop.clear()
         self.reap()
         self._thread = threading.Thread(target=self._loop, name="omninav-jobs", daemon=True)
         self._thread.start()
