@@ -14,23 +14,12 @@ import numpy as np
 
 from omninav.calib.board import parse_board
 from omninav.calib.ring import find_ring_frame
-from omninav.lens import Catadioptric
-from omninav.synth.calibration import LENS_GEOMETRIES, board_video
+from omninav.synth.calibration import LENS_GEOMETRIES, board_video, fisheye_lens
 
 sys.path.insert(0, str(Path(__file__).parent))
 from search_speed import machine  # noqa: E402
 
-# a fisheye looking down its axis: no dark centre, -90 deg at the centre to +15 at the edge
-FISHEYE_EL = np.polynomial.polynomial.polyfit([0, 120, 240, 340], [-90, -55, -18, 15], 3)
-FISHEYE = Catadioptric(
-    image_size=(960, 720),
-    center=(478.0, 362.0),
-    r_inner=0.0,
-    r_outer=340.0,
-    elevation_poly=tuple(float(c) for c in FISHEYE_EL),
-    forward_deg=90.0,
-    ccw=True,
-)
+FISHEYE = fisheye_lens()
 
 
 def main() -> None:

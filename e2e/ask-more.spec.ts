@@ -54,13 +54,19 @@ async function press(page: Page): Promise<void> {
   await page.keyboard.press('Enter');
 }
 
-test('an unsure first second: "keep turning", then one 30-frame request, and the answer from it', async ({ page }) => {
+/** The demo venue opened, "Where am I?" pressed with the first answer made unsure: the requests sent. */
+async function pressUnsure(page: Page): Promise<Request[]> {
   await spyOnSpeech(page);
   const sent = locates(page);
   await firstAnswerUnsure(page);
   await page.goto(`${base()}/?venue=demo`);
   await expect(page.locator('#venue-line')).toContainText('Ready');
   await press(page);
+  return sent;
+}
+
+test('an unsure first second: "keep turning", then one 30-frame request, and the answer from it', async ({ page }) => {
+  const sent = await pressUnsure(page);
   // said politely, while the same button now stops the filming
   await expect(page.locator('#live')).toHaveText(KEEP_TURNING);
   await expect(page.getByRole('button', { name: 'Stop' })).toBeFocused();
@@ -79,12 +85,7 @@ test('an unsure first second: "keep turning", then one 30-frame request, and the
 });
 
 test('Stop, pressed while it films on, ends it: nothing more is sent', async ({ page }) => {
-  await spyOnSpeech(page);
-  const sent = locates(page);
-  await firstAnswerUnsure(page);
-  await page.goto(`${base()}/?venue=demo`);
-  await expect(page.locator('#venue-line')).toContainText('Ready');
-  await press(page);
+  const sent = await pressUnsure(page);
   await expect(page.locator('#live')).toHaveText(KEEP_TURNING);
   await page.keyboard.press('Enter'); // the focused button is Stop now
   await expect(page.locator('#live')).toHaveText('Stopped.');

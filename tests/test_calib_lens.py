@@ -20,7 +20,7 @@ from conftest import run_cli
 from omninav.calib import ocam as oc
 from omninav.calib.board import parse_board
 from omninav.lens import Catadioptric, load_lens
-from omninav.synth.calibration import LENS_GEOMETRIES, board_video, save_stills, save_video
+from omninav.synth.calibration import LENS_GEOMETRIES, board_video, fisheye_lens, save_stills, save_video
 
 SPEC = "chess:9x6:0.03"
 
@@ -205,16 +205,8 @@ def test_a_fisheye_without_a_dark_centre_calibrates_too() -> None:
     the lens where the board's corners reached."""
     from omninav.calib.cli_lens import calibrate
 
-    true_el = np.polynomial.polynomial.polyfit([0, 120, 240, 340], [-90, -55, -18, 15], 3)
-    lens = Catadioptric(
-        image_size=(960, 720),
-        center=(478.0, 362.0),
-        r_inner=0.0,
-        r_outer=340.0,
-        elevation_poly=tuple(float(c) for c in true_el),
-        forward_deg=90.0,
-        ccw=True,
-    )
+    lens = fisheye_lens()
+    true_el = np.asarray(lens.elevation_poly)
     cs = board_video(lens, parse_board(SPEC), n_frames=24, seed=2)
     cal = calibrate(cs.frames, parse_board(SPEC))
     p = cal.profile

@@ -42,7 +42,6 @@ class Estimate:
     support: float  # mean over frames of the best supporting score, in [-1, 1]
     rival: float  # the same for the best hypothesis >= ALT_M away
     agree: float  # fraction of frames with a supporting match
-    span_s: float = 0.0  # seconds from the clip's first frame to its last (after Locator's cut)
 
 
 def reach_m(dt: np.ndarray, conf: dict[str, Any]) -> np.ndarray:
@@ -122,7 +121,7 @@ def sequence(m: Matches, xy: np.ndarray, times: np.ndarray, conf: dict[str, Any]
         x, y = p[-1]
         h = hd[picks[-1]]
     return Estimate(
-        float(x), float(y), float(h % 360.0), int(m.index.ravel()[picks[-1]]), float(total[i]), rival, agree, span
+        float(x), float(y), float(h % 360.0), int(m.index.ravel()[picks[-1]]), float(total[i]), rival, agree
     )
 
 
@@ -155,8 +154,7 @@ def median(m: Matches, xy: np.ndarray, times: np.ndarray, conf: dict[str, Any]) 
     support = float(np.where(d <= 2.0, sc, 0.0).max(axis=1).mean())
     rival = float(np.where(d >= ALT_M, sc, 0.0).max(axis=1).mean())
     agree = float(np.mean(np.hypot(*(xy[best] - xy[med]).T) <= 2.0))
-    span = float(np.ptp(np.asarray(times, np.float64)))
-    return Estimate(float(xy[med, 0]), float(xy[med, 1]), h % 360.0, med, support, rival, agree, span)
+    return Estimate(float(xy[med, 0]), float(xy[med, 1]), h % 360.0, med, support, rival, agree)
 
 
 def _get(e: Estimate | Mapping[str, Any], name: str) -> float:

@@ -68,6 +68,21 @@ LENS_GEOMETRIES: dict[str, Catadioptric] = {
 }
 
 
+def fisheye_lens() -> Catadioptric:
+    """A fisheye looking down its axis, kept out of LENS_GEOMETRIES (the lens fit's held-out
+    case): no dark centre, -90 deg at the centre to +15 at the edge, a cubic between."""
+    el = np.polynomial.polynomial.polyfit([0, 120, 240, 340], [-90, -55, -18, 15], 3)
+    return Catadioptric(
+        image_size=(960, 720),
+        center=(478.0, 362.0),
+        r_inner=0.0,
+        r_outer=340.0,
+        elevation_poly=tuple(float(c) for c in el),
+        forward_deg=90.0,
+        ccw=True,
+    )
+
+
 @dataclass
 class CalibSet:
     """A rendered calibration video and its truth.

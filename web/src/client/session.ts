@@ -321,19 +321,19 @@ export class Session extends Emitter<SessionEvents> {
     if (more.stopped) return null; // "Keep telling me" was turned off meanwhile
     // in continuous mode nothing is said and the button stays as it is: the loop's own button
     // stops it ("Stopped telling you."), and a Stop here would leave the loop running
-    if (quiet) {
-      const after = await rest;
-      return more.stopped ? null : joinClips(first, after);
+    if (!quiet) {
+      this.o.voice.say(KEEP_TURNING, null, false, false);
+      this.askingMore = true;
+      this.emit('asking', true);
     }
-    this.o.voice.say(KEEP_TURNING, null, false, false);
-    this.askingMore = true;
-    this.emit('asking', true);
     try {
       const after = await rest;
       return more.stopped ? null : joinClips(first, after);
     } finally {
-      this.askingMore = false;
-      this.emit('asking', false);
+      if (!quiet) {
+        this.askingMore = false;
+        this.emit('asking', false);
+      }
     }
   }
 
