@@ -84,7 +84,9 @@ def venue(root: Path, config: str, overrides: dict[str, Any] | None = None) -> L
     settings = {**resolve(preset), **over, **(overrides or {})}
     st = Store(root / "bench-data")
     # the confidence model is not part of what is modelled: a recalibration reuses the venue
-    key = json.dumps({k: v for k, v in settings.items() if k not in CONFIDENCE_KEYS}, sort_keys=True).encode()
+    # nor is tracking (tracking.py's track_* keys): a venue modelled before them is the same venue
+    kept = {k: v for k, v in settings.items() if k not in CONFIDENCE_KEYS and not k.startswith("track_")}
+    key = json.dumps(kept, sort_keys=True).encode()
     vid = f"{config}-{hashlib.sha1(key).hexdigest()[:10]}"
     if st.generation(vid) is None:
         model_video(

@@ -11,6 +11,9 @@ export const ELSEWHERE = resolve(WORK, 'elsewhere/clip.y4m');
 /** The lens check's clips (e2e/fixtures.py `lens`): the lens 6 px off, no lens, the ring cut by the edge. */
 export const LENS_KINDS = ['shifted', 'nolens', 'cut'] as const;
 export const lensClip = (kind: (typeof LENS_KINDS)[number]): string => resolve(WORK, `lens-${kind}/lens.y4m`);
+/** Walks to the stairs for route guidance (e2e/fixtures.py `walk`): right, and the wrong way first. */
+export const WALKS = ['to-stairs', 'wrong-way'] as const;
+export const walkClip = (name: (typeof WALKS)[number]): string => resolve(WORK, `walk/${name}.y4m`);
 export const TOKEN = 'e2e-admin-token-0123456789';
 export const PYTHON = resolve(ROOT, '.venv/bin/python');
 

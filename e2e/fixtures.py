@@ -9,6 +9,8 @@
     python e2e/fixtures.py lens OUT KIND  # a Y4M clip for the phone's lens check: KIND is shifted
                                           # (the clip's lens clipped on 6 px off), nolens (a plain
                                           # picture, no ring) or cut (the ring cut by the edge)
+    python e2e/fixtures.py walk OUT NAME  # a walk through the demo venue for route guidance: NAME is
+                                         # to-stairs or wrong-way (OUT/NAME.y4m and its truth NAME.json)
 
 Golden files: a few frames of the synthetic venue through the engine's stages, so that the
 TypeScript extractor (in Node and in Chromium) can be checked against them stage by stage; and
@@ -20,6 +22,7 @@ from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Iterable
 from dataclasses import replace
 from pathlib import Path
 
@@ -184,14 +187,19 @@ def ring_golden(out: Path, rendered: list[np.ndarray] | None = None) -> None:
     old.write_text(json.dumps({"recipe": recipe, "frames": items}, indent=1))
 
 
-def write_y4m(path: Path, frames: list[np.ndarray], fps: int) -> None:
-    """BGR frames -> a YUV 4:2:0 Y4M file, the format Chromium's fake camera plays."""
-    h, w = frames[0].shape[:2]
+def write_y4m(path: Path, frames: Iterable[np.ndarray], fps: int) -> int:
+    """BGR frames (of one size; a list or as they are rendered) -> a YUV 4:2:0 Y4M file, the format
+    Chromium's fake camera plays; returns how many."""
+    n = 0
     with path.open("wb") as f:
-        f.write(f"YUV4MPEG2 W{w} H{h} F{fps}:1 Ip A1:1 C420jpeg\n".encode())
         for bgr in frames:
+            if not n:
+                h, w = bgr.shape[:2]
+                f.write(f"YUV4MPEG2 W{w} H{h} F{fps}:1 Ip A1:1 C420jpeg\n".encode())
             f.write(b"FRAME\n")
             f.write(cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420).tobytes())
+            n += 1
+    return n
 
 
 def clip(out: Path, scene_seed: int = 0, scale: float = 0.5, frames: int = 20, fps: int = 10) -> None:
@@ -300,10 +308,149 @@ def lens_clip(out: Path, kind: str, frames: int = 20, fps: int = 10) -> None:
     (out / "lens.json").write_text(json.dumps({**truth, "kind": kind, "shift_px": shift, "fps": fps}))
 
 
+# Walks for route guidance (issue 14) in the quick demo venue (the L of scene.py's small layout:
+# the entrance (2, 2), Room 1 (11, 2), the lifts at the corner (20, 2), the stairs (20, 12)), both
+# to the stairs. Chromium's fake camera plays a walk in real time from when the app opens the camera
+# (its first locate: the route's preview) and starts again at its end: each walk stands still first,
+# long enough for the preview and Start, and stands at its end, long enough for a late answer.
+# Steps: ("stand", s), ("turn", heading, s) on the spot, ("walk", x, y): at WALK_SPEED, turning to
+# the new leg over TURN_S around its start (a corner is turned over TURN_S, walking).
+WALK_SPEED = 1.0
+TURN_S = 1.5
+WALK_STAND_S = 8.0
+WALKS: dict[str, dict] = {
+    # the entrance to the stairs: 18 m east (a reassurance on the way), the turn at the lifts, 10 m south
+    "to-stairs": {
+        "from": (2.0, 2.0, 90.0),
+        "steps": [("stand", WALK_STAND_S), ("walk", 20.0, 2.0), ("walk", 20.0, 12.0), ("stand", 25.0)],
+    },
+    # the L has no side corridor to take by mistake: the wrong way is back, away from the route. From
+    # Room 1, facing the right way (east), the user turns round and walks west (walking back along
+    # the route for two answers, and more than 3 m off it from x = 8 on), stands at the west end,
+    # turns back and walks the new route as far as Room 1
+    "wrong-way": {
+        "from": (11.0, 2.0, 90.0),
+        "steps": [
+            ("stand", WALK_STAND_S),
+            ("turn", 270.0, 2.0),
+            ("walk", 2.5, 2.0),
+            ("stand", 5.0),
+            ("turn", 450.0, 2.0),
+            ("walk", 11.0, 2.0),
+            ("stand", 10.0),
+        ],
+    },
+}
+WALK_LOOK = Perturb(light=(0.85, 1.1), cast=0.06, people=1, lens_shift_px=1.0, noise=2.0)  # QUERY, milder
+
+
+def walk_script(name: str) -> tuple[list[dict], list[tuple[float, float]], list[dict]]:
+    """A walk's waypoints ({t, x, y}: linear in time, a point repeated = standing), its heading
+    keys ((t, unwrapped heading): linear in time) and its marks ({t, what}: each step's start)."""
+    spec = WALKS[name]
+    x, y, h = spec["from"]
+    t = 0.0
+    wps = [{"t": 0.0, "x": x, "y": y}]
+    keys = [(0.0, h)]
+    marks = []
+    for step in spec["steps"]:
+        marks.append({"t": round(t, 3), "what": " ".join(str(s) for s in step)})
+        if step[0] == "stand":
+            t += step[1]
+            keys.append((t, h))
+        elif step[0] == "turn":
+            h = step[1]
+            t += step[2]
+            keys.append((t, h))
+        else:
+            bx, by = step[1], step[2]
+            leg = float(np.degrees(np.arctan2(bx - x, -(by - y))))
+            leg += 360.0 * round((h - leg) / 360.0)  # the nearer way round
+            d = float(np.hypot(bx - x, by - y))
+            # the turn onto the leg, over TURN_S around its start (the key before it moved back)
+            if abs(leg - h) > 1e-6 and keys[-1][0] == t:
+                keys[-1] = (t - TURN_S / 2, h)
+            keys.append((t + min(TURN_S / 2, d / WALK_SPEED / 2), leg))
+            x, y, h = bx, by, leg
+            t += d / WALK_SPEED
+            keys.append((t, h))
+        wps.append({"t": round(t, 3), "x": x, "y": y})
+    marks.append({"t": round(t, 3), "what": "end"})
+    return wps, keys, marks
+
+
+def walk_poses(name: str, fps: float, rng: np.random.Generator) -> list[Pose]:
+    """One pose per frame along the walk: the phone at 1.3-1.4 m, bobbing with each step and
+    swaying 2 degrees once a stride while walking, tilted up to 3 degrees."""
+    wps, keys, _ = walk_script(name)
+    wt = np.array([w["t"] for w in wps])
+    ts = np.arange(int(np.floor(wt[-1] * fps)) + 1) / fps
+    x = np.interp(ts, wt, [w["x"] for w in wps])
+    y = np.interp(ts, wt, [w["y"] for w in wps])
+    kt, kh = np.array(keys).T
+    moving = np.hypot(np.gradient(x), np.gradient(y)) > 1e-6
+    hd = np.interp(ts, kt, kh) + moving * 2.0 * np.sin(2 * np.pi * 0.9 * ts)
+    cam_h = rng.uniform(1.3, 1.4)
+    tilt = np.interp(ts, np.arange(int(ts[-1]) + 2), rng.uniform(0.0, 3.0, int(ts[-1]) + 2))
+    tdir = np.interp(ts, np.arange(int(ts[-1]) + 2), rng.uniform(0.0, 360.0, int(ts[-1]) + 2))
+    return [
+        Pose(
+            float(t),
+            float(px),
+            float(py),
+            float(np.mod(h, 360.0)),
+            cam_h + 0.01 * moving[i] * np.sin(t * 2 * np.pi * 1.8),
+            float(a),
+            float(d),
+        )
+        for i, (t, px, py, h, a, d) in enumerate(zip(ts, x, y, hd, tilt, tdir, strict=True))
+    ]
+
+
+def walk(out: Path, name: str, fps: int = 10, scale: float = 0.5) -> None:
+    """OUT/NAME.y4m (the walk WALKS[NAME] for the fake camera, at `fps`) and OUT/NAME.json: its
+    truth (its positions as a track in docs/formats.md's form, for `omninav evaluate`; the pose,
+    heading included, every half second; each step's start time). Rendered once (about 30 s on two
+    cores), again when its recipe changes; the truth is written last, so a cut-off render is redone."""
+    out.mkdir(parents=True, exist_ok=True)
+    recipe = json.dumps([WALKS[name], WALK_SPEED, TURN_S, repr(WALK_LOOK), fps, scale, 1])
+    truth_path = out / f"{name}.json"
+    if (out / f"{name}.y4m").exists() and truth_path.exists():
+        if json.loads(truth_path.read_text()).get("recipe") == recipe:
+            return
+    lens = donut_lens(scale)
+    poses = walk_poses(name, fps, np.random.default_rng(41))
+    frames = (f for _, f in render_frames(build_scene(0, "small"), lens, poses, WALK_LOOK, seed=43))
+    n = write_y4m(out / f"{name}.y4m", frames, fps)
+    wps, _, marks = walk_script(name)
+    half = [p for p in poses if round(p.t * fps) % max(1, fps // 2) == 0]
+    truth_path.write_text(
+        json.dumps(
+            {
+                "recipe": recipe,
+                "name": name,
+                "to": "the stairs",
+                "fps": fps,
+                "frames": n,
+                "duration_s": (n - 1) / fps,
+                "size": list(lens.image_size),
+                "track": {"fps": fps, "waypoints": wps, "heading_offset_deg": 0.0},
+                "poses": [[round(p.t, 2), round(p.x, 3), round(p.y, 3), round(p.heading, 1)] for p in half],
+                "marks": marks,
+            },
+            indent=1,
+        )
+    )
+
+
 if __name__ == "__main__":
-    if len(sys.argv) not in (3, 4) or sys.argv[1] not in ("golden", "ring", "clip", "admin", "lens"):
+    if len(sys.argv) not in (3, 4) or sys.argv[1] not in ("golden", "ring", "clip", "admin", "lens", "walk"):
         sys.exit(__doc__)
-    if sys.argv[1] == "golden":
+    if sys.argv[1] == "walk":
+        if len(sys.argv) != 4 or sys.argv[3] not in WALKS:
+            sys.exit(f"walk NAME: one of {', '.join(WALKS)}")
+        walk(Path(sys.argv[2]), sys.argv[3])
+    elif sys.argv[1] == "golden":
         golden(Path(sys.argv[2]))
     elif sys.argv[1] == "ring":
         ring_golden(Path(sys.argv[2]))

@@ -1,8 +1,9 @@
-// Before the suite: the engine makes the golden files and the fake camera's clip; a real server
-// starts with the quick demo venue and models it through its job queue.
+// Before the suite: the engine makes the golden files and the fake camera's clips (the walks of
+// guide.spec.ts rendered once, kept while their recipe holds); a real server starts with the quick
+// demo venue and models it through its job queue.
 import { execFileSync } from 'node:child_process';
 import { resolve } from 'node:path';
-import { GOLDEN, LENS_KINDS, PYTHON, ROOT, TOKEN, WORK, lensClip } from './env';
+import { GOLDEN, LENS_KINDS, PYTHON, ROOT, TOKEN, WALKS, WORK, lensClip } from './env';
 import { startServer, waitModelled } from './server.cjs';
 
 export default async function globalSetup(): Promise<() => Promise<void>> {
@@ -13,6 +14,7 @@ export default async function globalSetup(): Promise<() => Promise<void>> {
   execFileSync(PYTHON, [fixtures, 'admin', resolve(WORK, 'admin')], { stdio: 'inherit' });
   for (const kind of LENS_KINDS)
     execFileSync(PYTHON, [fixtures, 'lens', resolve(lensClip(kind), '..'), kind], { stdio: 'inherit' });
+  for (const name of WALKS) execFileSync(PYTHON, [fixtures, 'walk', resolve(WORK, 'walk'), name], { stdio: 'inherit' });
   const srv = await startServer(resolve(WORK, 'server'), {
     args: ['--demo', 'quick', '--workers', '2'],
     env: { OMNINAV_ADMIN_TOKEN: TOKEN },

@@ -19,6 +19,32 @@ test('settings and about screens: reachable by role and name, no axe violation',
   await expectNoAxeViolations(page, 'the about screen');
 });
 
+test('the Go to screen: places by floor, a filter, reachable by role and name, no axe violation', async ({ page }) => {
+  await page.goto(`${base()}/?venue=demo`);
+  await expect(page.locator('#venue-line')).toContainText('Ready');
+  await page.getByRole('button', { name: 'Go to', exact: true }).click();
+  await expect(page.getByRole('heading', { name: 'Go to a place' })).toBeFocused();
+  await expect(page.locator('#goto-status')).toContainText('to go to.');
+  const places = page.locator('#goto-list button.dest');
+  expect(await places.count()).toBeGreaterThan(0);
+  await expectNoAxeViolations(page, 'the Go to screen');
+  await page.getByLabel('Find a place').fill('no such place');
+  await expect(page.locator('#goto-status')).toHaveText('No place matches “no such place”.');
+  await expect(places).toHaveCount(0);
+  await page.getByLabel('Find a place').fill('');
+  await expect(places).not.toHaveCount(0);
+  // a place chosen: the route panel (the preview, Start, What next?, Stop guidance) passes axe too
+  const name = (await places.first().textContent()) ?? '';
+  await places.first().click();
+  await expect(page.getByRole('heading', { name: `Route to ${name}` })).toBeFocused();
+  await expect(page.locator('#goto-state')).toHaveText('Press Start when you are ready to walk.', { timeout: 30_000 });
+  await expect(page.getByRole('button', { name: 'Start' })).toBeEnabled();
+  await expect(places.first()).toHaveAttribute('aria-current', 'true');
+  await expectNoAxeViolations(page, 'the Go to screen with a route');
+  await page.getByRole('button', { name: 'Stop guidance' }).click();
+  await expect(page.locator('#goto-state')).toHaveText('Guidance stopped.');
+});
+
 test('camera denied: a spoken message that says how to allow it', async ({ browser }) => {
   const ctx = await browser.newContext({ permissions: [] });
   const page = await ctx.newPage();

@@ -223,6 +223,7 @@ CANNOT_STATE = (
     "other settings",
     "declared size",  # Content-Range: its total must be the size the video was announced with
     "feature record",  # a binary body is "bytes" to the spec; the record's layout is in its description
+    "needs a tracking 'session'",  # locate's ?to= without ?session=
 )
 
 

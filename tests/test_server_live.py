@@ -182,6 +182,39 @@ def test_a_job_killed_with_its_server_is_taken_up_again_on_restart(venue_data, s
         srv.kill()
 
 
+def test_a_tracking_session_continues_on_every_worker_and_across_a_restart(venue_data, small_ds):
+    """A walk's session lives in the database: whichever of the two workers answers, and after the
+    server is stopped and started again on the same data folder (new processes, nothing of the walk
+    in their memory), the filter goes on counting."""
+    octet = {"Content-Type": "application/octet-stream"}
+    srv = Server(venue_data)
+    try:
+        _, venue = srv.call("GET", "/api/venues/lab")
+        conf = venue["features"]["settings"]
+        records = []
+        for start in (60, 80, 100, 120):
+            frames, _ = query_clip(small_ds, start)
+            records.append((encode_binary(clip_spectra(small_ds, frames, conf), conf), (start + 9) / 10.0))
+        seen = []
+        for i in range(12):  # two workers of four threads: the requests land on either
+            record, t = records[i % len(records)]
+            st, a = srv.call("POST", f"/api/venues/lab/locate?session=livewalk01&t={t + 8 * (i // 4)}", record, octet)
+            assert st == 200, a
+            seen.append(a["tracking"])
+        assert [tr["updates"] for tr in seen] == list(range(1, 13))
+        assert seen[0]["reason"] == "new" and all(tr["reason"] is None for tr in seen[1:])
+        srv.stop()
+
+        srv = Server(venue_data)
+        record, t = records[0]
+        st, a = srv.call("POST", f"/api/venues/lab/locate?session=livewalk01&t={t + 24}", record, octet)
+        assert st == 200 and a["tracking"]["updates"] == 13 and not a["tracking"]["restarted"], a["tracking"]
+        st, d = srv.call("GET", "/api/venues/lab/destinations")
+        assert st == 200 and d["venue"] == "lab"
+    finally:
+        srv.kill()
+
+
 def test_https_with_a_self_signed_certificate_for_the_lan(venue_data):
     srv = Server(venue_data, "--https")
     try:

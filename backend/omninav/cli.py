@@ -38,6 +38,22 @@ def _locator(ctx: click.Context, venue_id: str, device: str | None = None) -> An
     return Locator(cat.store, venue_id, device, cat.places.all(venue_id), floors[0]["id"] if floors else None)
 
 
+def _track_locator(ctx: click.Context, venue_id: str) -> Any:
+    """A venue's Locator for tracking: its walk graph with each modelling video on its own floor
+    (the catalogue's) and the venue's places (lifts and stairs join floors), as the server builds
+    it (server/locate_api.py), so that walks of two floors at the same x, y stay apart."""
+    from .walkgraph import from_frames
+
+    cat = _catalog(ctx)
+    loc = _locator(ctx, venue_id)
+    floors = [str(f["id"]) for f in cat.floors.all(venue_id)]
+    vf = cat.videos.floors(venue_id)
+    first = min(floors) if floors else str(loc.floor or "1")
+    video_floor = [str(vf.get(name, first)) for name in loc.gen.videos] or [first]
+    loc.use_floors(video_floor, from_frames(loc.gen.frames, video_floor, loc.places))
+    return loc
+
+
 class Progress:
     """A one-line progress bar with frames/s and ETA, drawn only on a terminal."""
 
@@ -245,6 +261,52 @@ def locate(
 
 @cli.command()
 @click.argument("venue_id", metavar="VENUE")
+@click.argument("walk", type=click.Path(path_type=Path))
+@click.option("--lens", "lens_path", type=click.Path(path_type=Path), help="Lens of the walk (default: the venue's).")
+@click.option(
+    "--every", type=click.FloatRange(0.1, 60.0), default=1.0, show_default=True, help="Seconds between answers."
+)
+@click.option("--imu", "imu_path", type=click.Path(path_type=Path), help="The phone's steps and yaw (imu.json).")
+@click.option(
+    "--fps",
+    type=click.FloatRange(0.1, 240.0, min_open=True),
+    default=10.0,
+    show_default=True,
+    help="Frame rate of a directory of frames (a video carries its own).",
+)
+@click.pass_context
+def track(
+    ctx: click.Context,
+    venue_id: str,
+    walk: Path,
+    lens_path: Path | None,
+    every: float,
+    imu_path: Path | None,
+    fps: float,
+) -> None:
+    """Track a WALK (a video or a directory of frames) through VENUE: one JSON answer per --every
+    seconds, the pose at that moment from only the walk up to it (a 1 s clip ending there, and
+    the filter's memory of the walk before)."""
+    from .evaluate import track_walk, walk_spectra
+    from .lens import load_lens
+    from .tracking import load_imu
+
+    lens = load_lens(lens_path) if lens_path else None
+    imu = load_imu(imu_path) if imu_path is not None else None
+    if not walk.exists():
+        raise OmninavError(f"{walk}: walk not found")
+    loc = _track_locator(ctx, venue_id)
+    bar = Progress(f"reading {walk.name}")
+    try:
+        spec, t, _ = walk_spectra(loc, walk, lens, bar, fps)
+    finally:
+        bar.close()
+    for e, pose, _est in track_walk(loc, spec, t, every, imu):
+        click.echo(json.dumps(loc.track_answer(pose, walk.name, float(t[e]))))
+
+
+@cli.command()
+@click.argument("venue_id", metavar="VENUE")
 @click.argument("clip", type=click.Path(path_type=Path))
 @click.option("--lens", "lens_path", type=click.Path(path_type=Path), help="Lens of the clip (default: the venue's).")
 @click.option("-o", "--out", type=click.Path(path_type=Path), help="Write here; .onv is binary, else JSON.")
@@ -296,6 +358,19 @@ def features(venue_id: str, clip: Path, lens_path: Path | None, out: Path | None
     show_default=True,
     help="Clip length in seconds: the app films 1 s, and up to 3 s when unsure.",
 )
+@click.option(
+    "--track-mode",
+    is_flag=True,
+    help="Also track along the walk (one answer per --every s): filtered accuracy beside the single clips'.",
+)
+@click.option(
+    "--every",
+    type=click.FloatRange(0.1, 60.0),
+    default=1.0,
+    show_default=True,
+    help="With --track-mode: seconds between answers (the app: every 2-3 s).",
+)
+@click.option("--imu", "imu_path", type=click.Path(path_type=Path), help="With --track-mode: the walk's imu.json.")
 @click.pass_context
 def evaluate(
     ctx: click.Context,
@@ -308,6 +383,9 @@ def evaluate(
     as_json: bool,
     clips: bool,
     clip_s: float,
+    track_mode: bool,
+    every: float,
+    imu_path: Path | None,
 ) -> None:
     """Cut a second walk into clips (1 s unless --clip-s), locate each, report accuracy against its TRACK."""
     from .evaluate import evaluate as run
@@ -319,6 +397,15 @@ def evaluate(
     out = plot_path or video.with_suffix(".eval.png")
     if not out.parent.is_dir():  # fail before the work, not after
         raise OmninavError(f"{out.parent}: folder for the plot does not exist")
+    if (imu_path is not None or every != 1.0) and not track_mode:
+        raise OmninavError("--every and --imu go with --track-mode")
+    if track_mode:
+        if clips or clip_s != 1.0 or aggregate is not None:
+            raise OmninavError(
+                "--track-mode answers 1 s clips with the venue's aggregation: no --clips, --clip-s, --aggregate"
+            )
+        _evaluate_track(ctx, venue_id, video, track, lens, out, as_json, every, imu_path)
+        return
     loc = _locator(ctx, venue_id)
     ev = run(loc, video, track, lens, aggregate, clip_s)
     s = ev.summary()
@@ -383,13 +470,53 @@ def quality(
     click.echo(result["sentence"])
 
 
-def _table(rows: list[tuple[str, dict[str, Any]]]) -> str:
+def _evaluate_track(
+    ctx: click.Context,
+    venue_id: str,
+    video: Path,
+    track: Any,
+    lens: Any,
+    out: Path,
+    as_json: bool,
+    every: float,
+    imu_path: Path | None,
+) -> None:
+    """evaluate --track-mode: the walk answered every `every` s alone and through the filter."""
+    from .evaluate import evaluate_track, plot, query_spectra, track_summary
+    from .tracking import load_imu
+
+    imu = load_imu(imu_path) if imu_path is not None else None
+    loc = _track_locator(ctx, venue_id)
+    bar = Progress(f"reading {video.name}")
+    try:
+        spec = query_spectra(loc, video, track, lens, bar)
+    finally:
+        bar.close()
+    single, tracked = evaluate_track(loc, *spec, every=every, imu=imu)
+    plot(tracked, loc, out, title="tracking: filtered answers")
+    s1, s2 = track_summary(single), track_summary(tracked)
+    if as_json:
+        click.echo(json.dumps({"single": s1, "track": s2, "every_s": every, "imu": imu is not None, "plot": str(out)}))
+        return
+    click.echo(f"answers every {every:g} s, after the first {s2['skip_s']:g} s{' (with IMU)' if imu else ''}")
+    rows = [(f"single clip ({loc.conf['aggregate']})", s1), ("tracking (filter)", s2)]
+    click.echo(_table(rows, confident=True))
+
+
+def _table(rows: list[tuple[str, dict[str, Any]]], confident: bool = False) -> str:
     head = f"{'method':<28}{'clips':>6}{'<=1 m':>8}{'<=2 m':>8}{'median m':>10}{'heading med':>13}"
+    if confident:  # track mode: the trusted answers (>= 0.8) that were far off
+        head += f"{'conf>=.8':>10}{'>5 m':>6}{'>2 m':>6}"
     lines = [head, "-" * len(head)]
     for name, s in rows:
         lines.append(
             f"{name:<28}{s['clips']:>6}{s['within_1m']:>8.1%}{s['within_2m']:>8.1%}"
             f"{s['median_err_m']:>10.2f}{s['median_heading_err_deg']:>12.2f}°"
+            + (
+                f"{s['confident_share']:>10.1%}{s['confident_over_5m']:>6}{s['confident_over_2m']:>6}"
+                if confident
+                else ""
+            )
         )
     return "\n".join(lines)
 

@@ -8,21 +8,23 @@ venue frame, with the ground truth and the band of venue frames within 2 m of it
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .aggregate import confidence
+from .aggregate import Estimate, confidence
 from .errors import OmninavError
 from .heading import wrap_deg
 from .lens import Lens
-from .locate import Locator
+from .locate import DEFAULT_CLIP_FPS, Locator
 from .model_venue import Progress
 from .quality import AMBIGUOUS_MARGIN, RADIUS_M
 from .track import Track
-from .video import VideoInfo, iter_video
+from .tracking import Imu, TrackPose, TrackState
+from .video import IMAGE_EXT, VideoInfo, iter_video
 
 
 @dataclass
@@ -52,27 +54,58 @@ def query_spectra(
     loc: Locator, video: Path, track: Track, lens: Lens | None, progress: Progress | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Sampled frames of a walk -> spectra (F, C, K), times, true xy, true heading, frame index."""
-    info = VideoInfo(video)
-    vfps = info.fps if info.fps > 0 else track.fps
+    spec, t, idx = walk_spectra(loc, video, lens, progress, track.fps)
+    xy, hd, ok = track.pose_at(t)
+    if not ok.any():
+        raise OmninavError(f"{video}: no frame lies within the track's waypoints")
+    return spec[ok], t[ok], xy[ok], hd[ok], idx[ok]
+
+
+def walk_spectra(
+    loc: Locator, video: Path, lens: Lens | None, progress: Progress | None = None, fps: float = DEFAULT_CLIP_FPS
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A walk (a video, or a directory of frame images filmed at `fps`) sampled at the venue's
+    model_fps -> spectra (F, C, K), times (s, the video's clock), frame index."""
+    if video.is_dir():
+        files = sorted(f for f in video.iterdir() if f.suffix.lower() in IMAGE_EXT)
+        if not files:
+            raise OmninavError(f"{video}: directory holds no frame images ({', '.join(sorted(IMAGE_EXT))})")
+        vfps, n_frames = fps, len(files)
+    else:
+        info = VideoInfo(video)
+        vfps, n_frames = (info.fps if info.fps > 0 else fps), info.frames
     stride = max(1, int(round(vfps / loc.conf["model_fps"])))
     ext = loc.extractor(lens)
     # the walk's lens as it sits in this walk: the ring is measured on its first frames
     clip = loc.clip_lens(lens, lambda f: ext.check_frame(f, str(video)))
     specs: list[np.ndarray] = []
     idx: list[int] = []
-    total = max(1, -(-info.frames // stride))
+    total = max(1, -(-n_frames // stride))
     t0 = time.perf_counter()
-    for i, frame in iter_video(info, stride=stride):
+    frames: Iterator[tuple[int, np.ndarray]]
+    if video.is_dir():
+        frames = ((i, _image(files[i])) for i in range(0, len(files), stride))
+    else:
+        frames = iter_video(info, stride=stride)
+    for i, frame in frames:
         specs.extend(clip.feed(frame))
         idx.append(i)
         if progress:
             progress(len(idx), max(total, len(idx)), time.perf_counter() - t0)
     specs.extend(clip.flush())
+    if not specs:
+        raise OmninavError(f"{video}: no frames")
     t = np.array(idx) / vfps  # the video's rate: a track's fps only counts its own frame numbers
-    xy, hd, ok = track.pose_at(t)
-    if not ok.any():
-        raise OmninavError(f"{video}: no frame lies within the track's waypoints")
-    return np.stack(specs)[ok], t[ok], xy[ok], hd[ok], np.array(idx)[ok]
+    return np.stack(specs), t, np.array(idx)
+
+
+def _image(path: Path) -> np.ndarray:
+    import cv2
+
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None:
+        raise OmninavError(f"{path}: not a readable image")
+    return img
 
 
 def evaluate(
@@ -220,3 +253,100 @@ def plot(ev: Evaluation, loc: Locator, path: Path, title: str = "") -> None:
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+
+
+# ---- tracking while walking (tracking.py): `omninav track`, `evaluate --track-mode` ---------------
+SKIP_S = 5.0  # track-mode figures count the seconds after the first 5 (the filter's start)
+TRUST = 0.8  # the confidence a user is told to trust
+
+
+def track_ends(t: np.ndarray, every: float = 1.0, clip_s: float = 1.0) -> list[int]:
+    """Frames at which a walk is answered: every `every` s, the first a clip_s after its start."""
+    ends: list[int] = []
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.1
+    at = float(t[0]) + clip_s - dt / 2
+    while at <= float(t[-1]) + 1e-6:
+        e = int(np.searchsorted(t, at - 1e-6))
+        if not ends or e > ends[-1]:
+            ends.append(e)
+        at += every
+    return ends
+
+
+def track_walk(
+    loc: Locator,
+    spec: np.ndarray,
+    t: np.ndarray,
+    every: float = 1.0,
+    imu: Imu | None = None,
+    clip_s: float = 1.0,
+) -> Iterator[tuple[int, TrackPose, Estimate]]:
+    """A walk's spectra -> at every answer (track_ends), the filter's pose and the single clip's
+    Estimate, each from the clip_s clip ending there and (the filter) the walk before it."""
+    state: TrackState | None = None
+    t_prev: float | None = None
+    for e in track_ends(t, every, clip_s):
+        w = np.flatnonzero((t > t[e] - clip_s + 1e-6) & (t <= t[e] + 1e-9))
+        motion = imu.motion(t_prev, float(t[e])) if imu is not None and t_prev is not None else None
+        state, pose, est = loc.track(loc.tracker, spec[w], t[w], state, float(t[e]), motion)
+        t_prev = float(t[e])
+        yield e, pose, est
+
+
+def evaluate_track(
+    loc: Locator,
+    spec: np.ndarray,
+    t: np.ndarray,
+    xy: np.ndarray,
+    hd: np.ndarray,
+    idx: np.ndarray,
+    every: float = 1.0,
+    imu: Imu | None = None,
+) -> tuple[Evaluation, Evaluation]:
+    """(single clips, the filter) on the same seconds of a walk: rows as evaluate_spectra's."""
+    single, tracked = Evaluation(), Evaluation()
+    n = max(1, int(round(loc.conf["model_fps"])))
+    for e, pose, est in track_walk(loc, spec, t, every, imu):
+        tx, ty = xy[e]
+        base = {"frame": int(idx[e]), "t": float(t[e] - t[0]), "true_x": float(tx), "true_y": float(ty)}
+        base["true_heading"] = float(hd[e])
+        for ev, x, y, h, c, extra in (
+            (
+                single,
+                est.x,
+                est.y,
+                est.heading,
+                confidence(est, loc.conf),
+                {"support": est.support, "rival": est.rival},
+            ),
+            (tracked, pose.x, pose.y, pose.heading, pose.confidence, {"ambiguous": pose.ambiguous, "mass": pose.mass}),
+        ):
+            row = int(np.argmin(np.hypot(loc.xy[:, 0] - x, loc.xy[:, 1] - y)))
+            ev.rows.append(
+                {
+                    **base,
+                    "x": x,
+                    "y": y,
+                    "heading": h,
+                    "err_m": float(np.hypot(x - tx, y - ty)),
+                    "heading_err_deg": float(wrap_deg(h - hd[e])),
+                    "venue_row": row,
+                    "confidence": c,
+                    "frames": n,
+                    **extra,
+                }
+            )
+    return single, tracked
+
+
+def track_summary(ev: Evaluation, skip_s: float = SKIP_S) -> dict[str, Any]:
+    """Evaluation.summary() over the answers after the first skip_s seconds, with the answers
+    given with confidence >= 0.8 that were further than 5 m and than 2 m from the truth."""
+    kept = Evaluation([r for r in ev.rows if r["t"] >= skip_s])
+    s = kept.summary()
+    err = np.array([r["err_m"] for r in kept.rows])
+    hi = np.array([r["confidence"] >= TRUST for r in kept.rows], bool)
+    s["confident_over_5m"] = int(np.sum(hi & (err > 5.0))) if len(err) else 0
+    s["confident_over_2m"] = int(np.sum(hi & (err > 2.0))) if len(err) else 0
+    s["skip_s"] = skip_s
+    return s

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -12,9 +12,13 @@ from .aggregate import AGGREGATORS, Estimate, confidence
 from .calib.correct import ClipLens, clip_spectra
 from .errors import OmninavError
 from .extract import Extractor, Extractors
-from .index import Index
+from .index import Index, Matches
 from .lens import Lens
 from .store import Store, key_dims_for
+
+if TYPE_CHECKING:
+    from .tracking import Motion, Tracker, TrackPose, TrackState
+    from .walkgraph import WalkGraph
 
 EXTRACTORS = 8  # lenses whose remaps a Locator keeps
 DEFAULT_CLIP_FPS = 10.0  # timing assumed for a directory of frames, which carries none
@@ -54,6 +58,9 @@ class Locator:
             arrays=self.gen.arrays,
         )
         self._extractors = Extractors(self.conf, EXTRACTORS)
+        self._graph: WalkGraph | None = None
+        self._tracker: Tracker | None = None
+        self._frame_floor: np.ndarray | None = None  # (V,) each venue frame's floor, with use_floors
 
     def extractor(self, lens: Lens | None) -> Extractor:
         """The extractor of a lens (default: the venue's), from a small shared cache."""
@@ -65,9 +72,18 @@ class Locator:
         return ClipLens(lens or self.gen.lens, self._extractors.spectrum, check)
 
     def estimate(self, q_spec: np.ndarray, times: np.ndarray | None = None, aggregate: str | None = None) -> Estimate:
+        agg = self._aggregation(aggregate)
+        m, times = self._search(q_spec, times)
+        return AGGREGATORS[agg](m, self.xy, times, self.conf)
+
+    def _aggregation(self, aggregate: str | None) -> str:
         agg = aggregate or self.conf["aggregate"]
         if agg not in AGGREGATORS:
             raise OmninavError(f"unknown aggregation {agg!r} (use median or sequence)")
+        return str(agg)
+
+    def _search(self, q_spec: np.ndarray, times: np.ndarray | None) -> tuple[Matches, np.ndarray]:
+        """A clip's candidate matches (its last MAX_CLIP_S, at most MAX_CLIP_FRAMES) and their times."""
         if q_spec.ndim != 3 or q_spec.shape[0] == 0:
             raise OmninavError("a clip needs at least one frame")
         if times is None:
@@ -78,8 +94,84 @@ class Locator:
         # the frames less than MAX_CLIP_S before the last (50 at 10 frames/s), at most MAX_CLIP_FRAMES
         keep = max(1, min(MAX_CLIP_FRAMES, int(np.count_nonzero(times > times[-1] - MAX_CLIP_S + 1e-6))))
         q_spec, times = q_spec[-keep:], times[-keep:]
-        m = self.index.search(q_spec, self.conf["candidates"])
-        return AGGREGATORS[agg](m, self.xy, times, self.conf)
+        return self.index.search(q_spec, self.conf["candidates"]), times
+
+    # ---- tracking while walking (tracking.py) ----------------------------------------------------
+    @property
+    def graph(self) -> WalkGraph:
+        """The walk graph of this generation's modelling walks: as `use_floors` set it (every
+        video on its own floor, lifts and stairs joining them), else all on the Locator's one
+        floor (the server builds its own with every video's floor and the venue's places)."""
+        if self._graph is None:
+            from .walkgraph import from_frames
+
+            floor = str(self.floor or "1")
+            self._graph = from_frames(self.gen.frames, [floor] * max(1, len(self.gen.videos)), self.places)
+        return self._graph
+
+    def use_floors(self, video_floor: Sequence[str], graph: WalkGraph) -> None:
+        """Track on `graph` (walkgraph.from_frames with each modelling video's floor, by its index
+        in the generation, and the venue's places), each venue frame on its video's floor: walks
+        of two floors at the same x, y stay apart, and the answers name the pose's floor."""
+        if len(video_floor) == 0:
+            raise ValueError("use_floors needs each modelling video's floor")
+        vf = np.asarray([str(f) for f in video_floor])
+        vid = np.asarray(self.gen.frames["video"], np.int64)
+        self._frame_floor = vf[np.where((vid >= 0) & (vid < len(vf)), vid, 0)]
+        self._graph = graph
+        self._tracker = None
+
+    @property
+    def tracker(self) -> Tracker:
+        """The tracking filter over `graph` (built once: its precomputed neighbourhoods)."""
+        if self._tracker is None:
+            from .tracking import Tracker
+
+            floor = np.full(len(self.xy), str(self.floor or "1")) if self._frame_floor is None else self._frame_floor
+            self._tracker = Tracker(self.graph, self.xy, floor, self.conf)
+        return self._tracker
+
+    def track(
+        self,
+        tracker: Tracker,
+        q_spec: np.ndarray,
+        times: np.ndarray | None,
+        state: TrackState | None,
+        t_now: float | None = None,
+        motion: Motion | None = None,
+        aggregate: str | None = None,
+    ) -> tuple[TrackState, TrackPose, Estimate]:
+        """One clip -> the filter's new state and pose, and the clip's own Estimate: one index
+        search feeds both. `times`: the clip's frame times; `t_now` (default: the last of them)
+        the caller's clock at the clip's last frame (the frame times are shifted onto it)."""
+        agg = self._aggregation(aggregate)
+        m, times = self._search(q_spec, times)
+        e = AGGREGATORS[agg](m, self.xy, times, self.conf)
+        now = float(times[-1]) if t_now is None else float(t_now)
+        new, pose = tracker.update(state, m, times - times[-1] + now, now, motion)
+        return new, pose, e
+
+    def track_answer(self, pose: TrackPose, clip: str, t: float | None = None) -> dict[str, Any]:
+        """A filtered pose -> the answer (CONVENTIONS.md fields, `t`, and `ambiguous`)."""
+        on = self._frame_floor is None or self._frame_floor == pose.floor  # the pose's floor's frames
+        row = int(np.argmin(np.where(on, np.hypot(self.xy[:, 0] - pose.x, self.xy[:, 1] - pose.y), np.inf)))
+        floor = self.floor if self._frame_floor is None else pose.floor
+        out: dict[str, Any] = {"clip": clip}
+        if t is not None:
+            out["t"] = round(t, 3)
+        out.update(
+            {
+                "x": round(pose.x, 3),
+                "y": round(pose.y, 3),
+                "heading_deg": round(pose.heading % 360.0, 2),
+                "confidence": round(pose.confidence, 3),
+                "floor": floor,
+                "place": self.nearest_place(pose.x, pose.y, None if self._frame_floor is None else floor),
+                "frame": int(self.gen.frames["frame"][row]),
+                "ambiguous": pose.ambiguous,
+            }
+        )
+        return out
 
     def answer(self, e: Estimate, clip: str) -> dict[str, Any]:
         return {
@@ -93,8 +185,11 @@ class Locator:
             "frame": int(self.gen.frames["frame"][e.venue_row]),
         }
 
-    def nearest_place(self, x: float, y: float) -> str | None:
+    def nearest_place(self, x: float, y: float, floor: str | None = None) -> str | None:
+        """The name of the place nearest (x, y) (on `floor`, when given and the places say theirs)."""
         places = self.places
+        if floor is not None:
+            places = [p for p in places if str(p.get("floor", floor)) == floor]
         if not places:
             return None
         d = [np.hypot(p["x"] - x, p["y"] - y) for p in places]

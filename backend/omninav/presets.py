@@ -43,6 +43,36 @@ DEFAULTS: dict[str, Any] = {
     "confidence_coef": [-6.68, 10.731, 10.215],
     # Modelling
     "model_fps": 10.0,  # modelling frames sampled at this rate from the video
+    # Tracking while walking (tracking.py), read with these defaults by a venue modelled before:
+    # a venue frame's verified match counts for the walk graph's nodes within track_radius_m,
+    # track_dist_penalty less a metre away; a clip's mean best score near a node, times
+    # track_beta, is its log-likelihood, mixed with track_outlier of "this clip says nothing";
+    # walking is 0-track_max_mps along the graph (+ track_slack_m); when the phone counts steps,
+    # track_step_trust of the weight goes to about track_step_m a step (give or take
+    # track_step_sigma_m + 12 %), the rest to anywhere the steps could reach; track_uniform of a
+    # uniform belief is mixed in at every update; a move walking backwards from where the clip
+    # says the phone faces counts track_backward as much, one whose facing changed by more than
+    # track_turn_gate_deg other than the gyroscope says counts less; a lift's or stairs' node
+    # passes track_floor_change of its belief to the other floor an update; track_ambiguous:
+    # belief >= 3 m from the answer at which it says "not sure".
+    "track_radius_m": 1.5,
+    "track_dist_penalty": 0.05,
+    "track_beta": 25.0,
+    "track_outlier": 0.02,
+    "track_max_mps": 1.8,
+    "track_slack_m": 1.0,
+    "track_step_m": 0.7,
+    "track_step_sigma_m": 0.5,
+    "track_step_trust": 0.9,
+    "track_uniform": 1e-3,
+    "track_backward": 0.3,
+    "track_turn_gate_deg": 45.0,
+    "track_floor_change": 0.05,
+    "track_ambiguous": 0.35,
+    # logistic(w0 + w . inputs) -> P(filtered pose within 2 m), inputs named in
+    # tracking.TRACK_CONFIDENCE_INPUTS; fit by bench/tracking.py on the tuning families' walks
+    "track_confidence_features": ["mass", "far", "young"],
+    "track_confidence_coef": [-0.436, 5.367, -2.68, 1.883],
 }
 
 PRESETS: dict[str, dict[str, Any]] = {
@@ -86,6 +116,15 @@ def _check_confidence(conf: dict[str, Any]) -> None:
         raise OmninavError(f"unknown confidence inputs {unknown} (known: {', '.join(CONFIDENCE_INPUTS)})")
     if len(conf["confidence_coef"]) != 1 + len(names):
         raise OmninavError(f"confidence_coef needs {1 + len(names)} weights (an intercept and one per input)")
+    from .tracking import TRACK_CONFIDENCE_INPUTS
+
+    names = conf["track_confidence_features"]
+    unknown = [n for n in names if n not in TRACK_CONFIDENCE_INPUTS]
+    if unknown:
+        known = ", ".join(TRACK_CONFIDENCE_INPUTS)
+        raise OmninavError(f"unknown tracking confidence inputs {unknown} (known: {known})")
+    if len(conf["track_confidence_coef"]) != 1 + len(names):
+        raise OmninavError(f"track_confidence_coef needs {1 + len(names)} weights (an intercept and one per input)")
 
 
 # The settings that change what a feature record contains: a record made with other values of

@@ -72,6 +72,8 @@ def parse_track(d: Any, where: str = "track") -> Track:
             t = finite(w["t"], f"waypoint {i} 't'", where)
         elif "frame" in w:
             t = finite(w["frame"], f"waypoint {i} 'frame'", where) / fps
+            if not np.isfinite(t):  # a huge frame number over a tiny fps
+                raise OmninavError(f"{where}: waypoint {i} 'frame' / 'fps' is not a finite time")
         else:
             raise OmninavError(f"{where}: waypoint {i} needs 'frame' or 't'")
         for k in ("x", "y"):

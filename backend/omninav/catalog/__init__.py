@@ -13,6 +13,7 @@ Each resource has one owner module, which validates what it is given and persist
     places.py   named places and areas, in metres
     lenses.py   lens profiles, by name
     videos.py   modelling videos: registration, the resumable upload, their state
+    sessions.py tracking sessions: a phone's walk, as the filter and the route guide remember it
 
 Errors are OmninavError subclasses (errors.py); the server's blueprints alone turn them into
 status codes. `Catalog.open` also imports, once, the venues an older omninav kept in
@@ -29,6 +30,7 @@ from .db import Db
 from .floors import Floors
 from .lenses import Lenses
 from .places import Places
+from .sessions import Sessions
 from .venues import Venues
 from .videos import Videos
 
@@ -43,6 +45,7 @@ class Catalog:
         self.places = Places(self)
         self.lenses = Lenses(self)
         self.videos = Videos(self)
+        self.sessions = Sessions(self)
 
     @classmethod
     def open(cls, conf: dict[str, Any]) -> Catalog:

@@ -48,6 +48,22 @@ def _job_videos(c: Connection) -> None:
             )
 
 
+def _tracking_sessions(c: Connection) -> None:
+    """The tracking sessions (catalog/sessions.py); their filter state is bytes, whose column type
+    each database names its own way."""
+    blob = "BYTEA" if c.dialect.name == "postgresql" else "BLOB"
+    c.execute(
+        text(
+            f"""CREATE TABLE tracking_sessions (
+            id TEXT NOT NULL, venue TEXT NOT NULL REFERENCES venues(id) ON DELETE CASCADE,
+            generation TEXT NOT NULL, state {blob} NOT NULL, guide TEXT,
+            updated DOUBLE PRECISION NOT NULL, expires DOUBLE PRECISION NOT NULL,
+            PRIMARY KEY (venue, id))"""
+        )
+    )
+    c.execute(text("CREATE INDEX tracking_sessions_expires ON tracking_sessions (expires)"))
+
+
 Migration = list[str | Callable[[Connection], None]]
 MIGRATIONS: list[Migration] = [
     # 1: the first schema
@@ -128,6 +144,8 @@ MIGRATIONS: list[Migration] = [
         "CREATE UNIQUE INDEX jobs_one_active ON jobs (venue, kind, (COALESCE(target, ''))) "
         "WHERE state IN ('queued', 'running')",
     ],
+    # 5: tracking sessions (issue 14): a phone's walk continues on any worker and after a restart
+    [_tracking_sessions],
 ]
 SCHEMA_VERSION = len(MIGRATIONS)
 MIGRATION_LOCK = 0x6F6D6E69  # 'omni': the advisory lock id migrations hold on PostgreSQL

@@ -7,6 +7,10 @@ The phone makes the words the user hears (web/src/client/directions.ts), in the 
 style and offline too; the answer's `sentence` is the same sentence in the default style, for API
 clients. Both are pinned by one table of cases, tests/data/sentences.json, which also holds the
 thresholds below: change a word or a number there and in both languages.
+
+Route guidance (route.py makes the numbers: bearing, metres, what is at the end) is worded here
+too, by `guidance_sentence` and `preview_sentence`, pinned with the app's words by
+tests/data/guidance.json in the same way.
 """
 
 from __future__ import annotations
@@ -49,6 +53,18 @@ def clock_hour(bearing: float) -> int:
     return (12 - h if b < 0 else h) % 12 or 12
 
 
+# the sides style's sector limits: straight ahead | ahead on a side | beside | behind on a side | behind
+SECTOR_DEG = (15.0, 60.0, 120.0, 165.0)
+
+
+def sector(bearing: float) -> int:
+    """The sides style's sector of a bearing: 0 straight ahead, 1 ahead on a side, 2 beside, 3 behind on
+    a side, 4 behind (both `direction` and `turn_phrase` word it). A bearing on a boundary belongs to
+    the sector nearer straight ahead, on either side."""
+    a = abs(_signed(bearing))
+    return next((k for k, limit in enumerate(SECTOR_DEG) if a <= limit), len(SECTOR_DEG))
+
+
 def direction(bearing: float, style: Style) -> str:
     """'at 3 o'clock' | 'to your right' | 'at 90 degrees right': a phrase that follows a place name."""
     b = _signed(bearing)
@@ -63,16 +79,9 @@ def direction(bearing: float, style: Style) -> str:
         if d == 180:
             return "straight behind you"
         return f"at {d} {'degree' if d == 1 else 'degrees'} {side}"
-    # sides: a bearing on a boundary belongs to the sector nearer straight ahead
-    if a <= 15:
-        return "straight ahead"
-    if a <= 60:
-        return f"ahead on your {side}"
-    if a <= 120:
-        return f"to your {side}"
-    if a <= 165:
-        return f"behind you on your {side}"
-    return "behind you"
+    return ("straight ahead", f"ahead on your {side}", f"to your {side}", f"behind you on your {side}", "behind you")[
+        sector(b)
+    ]
 
 
 def with_article(name: str) -> str:
@@ -148,3 +157,85 @@ def describe(
     words["place"] = near["name"] if near else words["area"] or (nearest and nearest["name"])
     words["sentence"] = sentence({**words, "low_confidence": low}, DEFAULT_STYLE, floor_name)
     return words
+
+
+# --- route guidance (route.py makes the numbers; these are its words) ---------------------------
+# Pinned with the app's directions.ts by one table, tests/data/guidance.json.
+
+STRAIGHT_DEG = SECTOR_DEG[0]  # a bearing within this of straight ahead is "straight ahead": no turn
+GUIDE_UNSURE = "Not sure where you are yet; keep walking slowly."
+
+
+def turn_phrase(bearing: float, style: Style) -> str | None:
+    """'Turn to 2 o'clock' | 'Turn right' | 'Turn 60 degrees right'; None within STRAIGHT_DEG."""
+    b = _signed(bearing)
+    side = "right" if b > 0 else "left"
+    k = sector(b)
+    if k == 0:
+        return None
+    if style == "clock":
+        return f"Turn to {clock_hour(b)} o'clock"
+    if style == "degrees":
+        d = _round(abs(b))
+        return "Turn around" if d >= 180 else f"Turn {d} degrees {side}"
+    return (f"Bear {side}", f"Turn {side}", f"Turn sharp {side}", "Turn around")[k - 1]
+
+
+def instruction(bearing: float, walk_m: float, until: str | None, style: Style, in_m: float | None = None) -> str:
+    """'Turn to 2 o'clock and walk 12 metres, to the end of the corridor.' (straight ahead: 'Walk
+    straight ahead 12 metres, to ...'). With `in_m`, the metres still to walk to the corner where
+    the turn is: 'In 3 metres, turn to 2 o'clock and walk 12 metres, ...' (none when it rounds to 0)."""
+    tail = f", to {until}" if until else ""
+    turn = turn_phrase(bearing, style)
+    said = (
+        f"Walk straight ahead {metres(walk_m)}{tail}." if turn is None else f"{turn} and walk {metres(walk_m)}{tail}."
+    )
+    if in_m is None or _round(in_m) < 1:
+        return said
+    return f"In {metres(in_m)}, {said[0].lower()}{said[1:]}"
+
+
+def guidance_sentence(g: Mapping[str, Any], style: Style = DEFAULT_STYLE) -> str:
+    """The sentence for a guidance (route.py's JSON: kind, bearing_deg, walk_m, until, in_m,
+    floor_change, to {name, say?})."""
+    kind = g["kind"]
+    if kind == "unsure":
+        return GUIDE_UNSURE
+    b = g["bearing_deg"]
+    if kind == "arrived":
+        if g["walk_m"] < 0.5:  # at the place itself: it has no bearing
+            said = f"You have arrived at {g['to']['name']}."
+        else:
+            said = f"You have arrived at {g['to']['name']}; it is {direction(b, style)}, {metres(g['walk_m'])}."
+        say = g["to"].get("say")
+        return f"{said} {say}" if say else said
+    if kind == "off_route":
+        turn = turn_phrase(b, style)
+        return f"You are off the route; {turn[0].lower() + turn[1:] if turn else 'walk straight ahead'}."
+    fc = g.get("floor_change")
+    if fc:
+        return f"Take the {fc['via']} to {fc['to_floor_name']}."
+    if kind == "reassure":
+        tail = f" to {g['until']}" if g["until"] else ""
+        return f"Keep going, {metres(g['walk_m'])}{tail}."
+    return instruction(b, g["walk_m"], g["until"], style, g.get("in_m"))
+
+
+def preview_sentence(p: Mapping[str, Any], to: Mapping[str, Any]) -> str:
+    """A route before starting: 'Room 102: 45 metres, 2 turns, first turn after 12 metres.'"""
+    name = str(to["name"])
+    name = name[:1].upper() + name[1:]  # the sentence starts with it: "The lifts: ..."
+    n = p["turns"]
+    if p["length_m"] < 1 and n == 0:
+        return f"{name}: you are there."
+    parts = [metres(p["length_m"])]
+    if n == 0:
+        parts.append("no turns")
+    elif n == 1:
+        parts.append(f"1 turn, after {metres(p['first_turn_m'])}")
+    else:
+        parts.append(f"{n} turns, first turn after {metres(p['first_turn_m'])}")
+    floors = len(set(p.get("floors") or ()))
+    if floors > 1:
+        parts.append(f"on {floors} floors")
+    return f"{name}: {', '.join(parts)}."

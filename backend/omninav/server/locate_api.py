@@ -4,12 +4,19 @@ A clip comes as its feature record (JSON or binary: what the phone sends, a few 
 frame) or, for clients without WebAssembly, as frames (multipart JPEG/PNG) or a short video; the
 server then extracts the same features itself. Each worker keeps the venues it has answered for
 loaded (a memory map of one shared copy) and checks for edits at most every VENUE_CACHE_S.
+
+With ?session= the clip is one step of a walk: the venue's walk graph and tracking filter (built
+once per generation and revision, on the first tracked request) update the session's state, which
+lives in the catalogue database (catalog/sessions.py) so that the walk continues on any worker and
+after a restart; the answer's pose and words are the filter's. With ?to= the route guide adds the
+next instruction towards a place (route.py), its state kept beside the filter's.
 """
 
 from __future__ import annotations
 
 import base64
 import logging
+import math
 import tempfile
 import threading
 import time
@@ -22,13 +29,17 @@ from flask import Blueprint, current_app, jsonify, request
 
 from ..calib.correct import ClipLens
 from ..catalog import Catalog
-from ..errors import Conflict, OmninavError
+from ..catalog.sessions import Session, check_session_id
+from ..errors import Conflict, NotFound, OmninavError
 from ..extract import Extractor
 from ..locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, Locator  # a clip (video or not) is at most MAX_CLIP_S
 from ..media import decode_image, iter_sampled, probe_image, probe_mp4, same_size, sampled_count
 from ..presets import n_curves
+from ..route import guide
 from ..spectrum import HEADER_BYTES, decode_binary, decode_json, record_bytes_per_frame
-from .describe import describe
+from ..tracking import Motion, Tracker, TrackState
+from ..walkgraph import WalkGraph, attach, from_frames
+from .describe import DEFAULT_STYLE, Style, describe
 from .http import ApiError, client_address, json_body
 from .plan import annotate
 
@@ -43,6 +54,15 @@ MAX_VIDEO_FRAMES = int(MAX_CLIP_S * 240)  # frames decoded from one video clip (
 CLIP_S_SLACK = 1.01  # a phone measures its frame rate over the clip: 50 frames at 9.95 frames/s are 5 s too
 
 
+@dataclass(frozen=True)
+class Walk:
+    """A venue's walkable space as a worker tracks and guides on it."""
+
+    graph: WalkGraph
+    tracker: Tracker
+    nodes: dict[str, int]  # place id -> its node, for the places on the graph (the destinations)
+
+
 @dataclass
 class Runtime:
     """One venue as a worker answers for it."""
@@ -54,6 +74,29 @@ class Runtime:
     places: dict[str, list[dict[str, Any]]]  # by floor
     video_floor: list[str]  # floor of each modelling video, by its index in the generation
     checked: float = field(default_factory=time.monotonic)
+    _walk: Walk | None = field(default=None, repr=False)
+    _walk_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def walk(self) -> Walk:
+        """The walk graph of this generation and revision (its places join floors), and its
+        tracker: built on the first request that tracks or guides, once."""
+        if self._walk is None:
+            with self._walk_lock:
+                if self._walk is None:
+                    fr = self.locator.gen.frames
+                    places = [p for ps in self.places.values() for p in ps]
+                    graph = from_frames(fr, self.video_floor, places)
+                    frame_floor = np.asarray(self.video_floor, dtype=str)[np.asarray(fr["video"], np.int64)]
+                    tracker = Tracker(graph, self.locator.xy, frame_floor, self.locator.conf)
+                    self._walk = Walk(graph, tracker, attach(graph, places))
+        return self._walk
+
+    def destinations(self, key: str) -> list[dict[str, Any]]:
+        """The places on the walk graph that `key` names: the one of that id, else those of that
+        exact name (a lift's name on each floor it serves)."""
+        nodes = self.walk().nodes
+        every = [p for ps in self.places.values() for p in ps if p["id"] in nodes]
+        return [p for p in every if p["id"] == key] or [p for p in every if p["name"] == key]
 
 
 class Runtimes:
@@ -292,6 +335,65 @@ def accuracy_m(confidence: float, low: float) -> float | None:
     return None
 
 
+@dataclass(frozen=True)
+class TrackArgs:
+    """A tracked locate's query parameters (?session=&t=&steps=&turn_deg=&to=&style=)."""
+
+    session: str
+    t: float | None  # the phone's clock at the clip's last frame (seconds), None: the server's
+    motion: Motion | None
+    to: str | None
+    style: Style
+
+
+STYLES: tuple[Style, ...] = ("clock", "sides", "degrees")
+# `t` up to this much before the session's last update is jitter (the filter takes it so); more is
+# a clock that went back: the walk starts over (reason "clock")
+CLOCK_SLACK_S = 1.0
+MAX_T = 1e12  # seconds: any phone clock (Unix time in seconds is 1.8e9, a monotonic one far less)
+
+
+def _number(name: str, lo: float, hi: float, integer: bool = False) -> float | None:
+    """A query parameter as a finite number in [lo, hi] (an integer if asked), None if absent; 400 else."""
+    raw = request.args.get(name)
+    if raw is None:
+        return None
+    try:
+        v = float(int(raw)) if integer else float(raw)
+    except ValueError:
+        raise ApiError(
+            400, f"query parameter '{name}' must be {'an integer' if integer else 'a number'}, got {raw[:40]!r}"
+        ) from None
+    if not (math.isfinite(v) and lo <= v <= hi):
+        raise ApiError(400, f"query parameter '{name}' must be in [{lo:g}, {hi:g}], got {raw[:40]}")
+    return v
+
+
+def _track_args() -> TrackArgs | None:
+    """The tracking parameters, checked (400 naming the one that is wrong), before any work;
+    None when the request does not track (no session: the answer is the clip's alone)."""
+    t = _number("t", 0.0, MAX_T)
+    steps = _number("steps", 0, 10000, integer=True)
+    turn = _number("turn_deg", -36000, 36000)
+    style = request.args.get("style", DEFAULT_STYLE)
+    if style not in STYLES:
+        raise ApiError(400, f"query parameter 'style' must be one of {', '.join(STYLES)}, got {style[:40]!r}")
+    to = request.args.get("to")
+    if to is not None and not 0 < len(to) <= 200:
+        raise ApiError(400, "query parameter 'to' must name a place (its id or name, at most 200 characters)")
+    session = request.args.get("session")
+    if session is None:
+        if to is not None:
+            raise ApiError(400, "'to' needs a tracking 'session' (an id the app makes for this walk)")
+        return None
+    try:
+        check_session_id(session)
+    except OmninavError as e:
+        raise ApiError(400, str(e)) from None
+    motion = None if steps is None and turn is None else Motion(None if steps is None else int(steps), turn)
+    return TrackArgs(session, t, motion, to, style)
+
+
 @bp.post("/api/venues/<venue_id>/locate")
 def locate(venue_id: str) -> Any:
     app = current_app
@@ -299,7 +401,9 @@ def locate(venue_id: str) -> Any:
     wait = svc.limiter.take(client_address())
     if wait > 0:
         raise ApiError(429, "too many locate requests from this client; slow down", retry_after_s=round(wait, 2))
+    track = _track_args()
     rt = svc.runtimes.get(venue_id)
+    targets = _targets(venue_id, rt, track.to) if track is not None and track.to is not None else []
     asked_fps = _float_arg("fps", 0, 240)
     spec, body_fps, kind = _read_clip(svc.catalog, venue_id, rt, app.config["MAX_LOCATE_FRAMES"], asked_fps)
     # a video's frames are timed by the video itself (as sampled); ?fps= times what carries none
@@ -308,24 +412,137 @@ def locate(venue_id: str) -> Any:
     _check_duration(len(spec), fps)
     clip = request.args.get("clip", "clip")[:200]
     loc = rt.locator
-    e = loc.estimate(spec, np.arange(len(spec)) / fps)
-    ans = loc.answer(e, clip)
-    floor = rt.video_floor[int(loc.gen.frames["video"][e.venue_row])]
+    if track is None:
+        e = loc.estimate(spec, np.arange(len(spec)) / fps)
+        ans = loc.answer(e, clip)
+        floor = rt.video_floor[int(loc.gen.frames["video"][e.venue_row])]
+        ambiguous = False
+    else:
+        e, ans, floor, ambiguous, extra = _tracked(svc.catalog, venue_id, rt, track, targets, spec, fps, clip)
     fl = rt.floors.get(floor)
-    low = ans["confidence"] < app.config["LOW_CONFIDENCE"]
+    low = ans["confidence"] < app.config["LOW_CONFIDENCE"] or ambiguous
     places = rt.places.get(floor, [])
     words = describe(ans["x"], ans["y"], ans["heading_deg"], places, fl["name"] if fl else floor, low)
     ans.update(
         floor=floor,
         **words,  # place, area, nearest, facing, sentence
         low_confidence=low,
-        accuracy_m=accuracy_m(ans["confidence"], app.config["LOW_CONFIDENCE"]),
+        accuracy_m=None if ambiguous else accuracy_m(ans["confidence"], app.config["LOW_CONFIDENCE"]),
         frames=int(len(spec)),
         sent=kind,
     )
+    if track is not None:
+        ans.update(extra)  # tracking, guidance
     if request.args.get("plan") in ("1", "true", "png"):
-        ans["plan_png"] = _plan_png(svc.catalog, venue_id, rt, e.venue_row, ans, fl)
+        row = e.venue_row if track is None else _row_near(rt, ans["x"], ans["y"], floor)
+        ans["plan_png"] = _plan_png(svc.catalog, venue_id, rt, row, ans, fl)
     return jsonify(ans)
+
+
+def _row_near(rt: Runtime, x: float, y: float, floor: str) -> int:
+    """The modelled frame nearest to a (filtered) pose on its floor: the plan draws the modelling
+    path around the pose the answer gives, not around the single clip's match."""
+    fr = rt.locator.gen.frames
+    vf = np.asarray(rt.video_floor)[fr["video"]]
+    d = np.hypot(fr["x"] - x, fr["y"] - y)
+    d = np.where(vf == floor, d, np.inf) if (vf == floor).any() else d
+    return int(np.argmin(d))
+
+
+def _targets(venue_id: str, rt: Runtime, to: str) -> list[dict[str, Any]]:
+    """The places ?to= names (on the walk graph), or 404 pointing at the list of them."""
+    found = rt.destinations(to)
+    if not found:
+        raise NotFound(
+            f"no place {to[:80]!r} in venue {venue_id!r}; the places you can be guided to are listed at "
+            f"/api/venues/{venue_id}/destinations"
+        )
+    return found
+
+
+def _restart_reason(
+    sess: Session | None, rt: Runtime, graph: WalkGraph, t_now: float, now: float, life_s: float
+) -> tuple[TrackState | None, str | None]:
+    """The session's filter state to continue from, or None and why it starts over."""
+    if sess is None:
+        return None, "new"
+    if sess.expired(now):
+        return None, "expired"
+    if sess.generation != rt.generation:
+        return None, "venue changed"
+    state = TrackState.from_bytes(sess.state, graph)
+    if state is None:  # another walk graph (the places that join floors changed), or unreadable
+        return None, "venue changed"
+    if t_now < state.t - CLOCK_SLACK_S:
+        return None, "clock"
+    if t_now - state.t > life_s:
+        return None, "expired"
+    return state, None
+
+
+def _tracked(
+    cat: Catalog,
+    venue_id: str,
+    rt: Runtime,
+    track: TrackArgs,
+    targets: list[dict[str, Any]],
+    spec: np.ndarray,
+    fps: float,
+    clip: str,
+) -> tuple[Any, dict[str, Any], str, bool, dict[str, Any]]:
+    """One step of a tracked walk: the session's state read, updated by this clip, written back.
+    -> (the clip's own estimate, the answer's numbers (the filtered pose), its floor, whether the
+    filter is split between places, the answer's `tracking` and `guidance`)."""
+    walk = rt.walk()
+    life_s = float(current_app.config["TRACK_SESSION_S"])
+    now = time.time()
+    t_now = now if track.t is None else track.t
+    sess = cat.sessions.get(venue_id, track.session)
+    state, reason = _restart_reason(sess, rt, walk.graph, t_now, now, life_s)
+    times = t_now - (len(spec) - 1 - np.arange(len(spec))) / fps
+    loc = rt.locator
+    new_state, pose, e = loc.track(walk.tracker, spec, times, state, t_now, track.motion)
+    if state is not None and new_state.updates != state.updates + 1:  # the filter forgot a walk left too long
+        reason = "expired"
+    single = loc.answer(e, clip)
+    ans = {
+        **single,
+        "x": round(float(pose.x), 3),
+        "y": round(float(pose.y), 3),
+        "heading_deg": round(float(pose.heading) % 360.0, 2) % 360.0,  # 359.999 is 0.0, not 360.0
+        "confidence": round(float(pose.confidence), 3),
+    }
+    extra: dict[str, Any] = {
+        "tracking": {
+            "session": track.session,
+            "restarted": reason is not None,
+            "reason": reason,
+            "updates": int(new_state.updates),
+            "single": {k: single[k] for k in ("x", "y", "heading_deg", "confidence")},
+        }
+    }
+    guide_saved = None  # a request without ?to= ends the guidance (the app's "Stop guidance")
+    if targets:
+        place = min(targets, key=lambda p: p["floor"] != pose.floor)  # a lift's name: the one on this floor
+        # the guide's own state (it starts over by itself for another place or walk graph)
+        before = sess.guide if sess is not None and reason is None else None
+        g, guide_saved = guide(
+            walk.graph,
+            None,  # planned from the pose at the first answer, then followed (and replanned) by the state
+            place,
+            walk.nodes[place["id"]],
+            pose,
+            before,
+            t_now,
+            places=[p for ps in rt.places.values() for p in ps],
+            floor_names={f: fl["name"] for f, fl in rt.floors.items()},
+            style=track.style,
+            low_confidence=float(current_app.config["LOW_CONFIDENCE"]),
+        )
+        extra["guidance"] = g
+    gen = rt.generation or ""
+    cat.sessions.put(venue_id, track.session, gen, new_state.to_bytes(), guide_saved, life_s, now)
+    return e, ans, str(pose.floor), bool(pose.ambiguous), extra
 
 
 def _plan_png(

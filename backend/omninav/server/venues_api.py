@@ -1,5 +1,5 @@
-"""Public read API: health, the OpenAPI document, venues and their floor plans; and the public
-documents of a venue and a floor, which the admin API answers with too."""
+"""Public read API: health, the OpenAPI document, venues and their floor plans, the places one can
+be guided to; and the public documents of a venue and a floor, which the admin API answers with too."""
 
 from __future__ import annotations
 
@@ -97,3 +97,19 @@ def plan(venue_id: str, floor: str) -> Any:
         raise NotFound(f"floor {floor!r} of venue {venue_id!r} has no floor plan yet")
     # streamed from the file, not read whole: a plan may be 40 megapixels (catalog/floors.py)
     return send_file(cat.floors.plan_path(venue_id, floor), mimetype="image/png", max_age=60)
+
+
+@bp.get("/api/venues/<venue_id>/destinations")
+def destinations(venue_id: str) -> Any:
+    """The places on the venue's walk graph (locate's ?to=), by floor in the venue's order, each
+    floor's sorted by name; floors without one are left out. 409 while the venue has no frames."""
+    rt = current_app.extensions["omninav"].runtimes.get(venue_id)
+    nodes = rt.walk().nodes
+    floors = []
+    for fid, f in rt.floors.items():
+        on = [p for p in rt.places.get(fid, []) if p["id"] in nodes]
+        if on:
+            on.sort(key=lambda p: (p["name"].casefold(), p["name"], p["id"]))
+            places = [{k: p.get(k) for k in ("id", "name", "kind", "x", "y")} for p in on]
+            floors.append({"id": fid, "name": f["name"], "places": places})
+    return jsonify({"venue": venue_id, "floors": floors})

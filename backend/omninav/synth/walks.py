@@ -13,7 +13,7 @@ import json
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -22,6 +22,9 @@ from ..lens import Lens
 from .optics import Optics, OpticsSim
 from .render import CameraModel, PanoGrid, camera_frame, tilt_rotation, world_panorama
 from .scene import GRID, Person, Point, Scene, random_people
+
+if TYPE_CHECKING:
+    from ..track import Track
 
 
 @dataclass(frozen=True)
@@ -165,6 +168,29 @@ def walk_events(
     return turns, stops
 
 
+def walk_heading(tr: Track, ts: np.ndarray, turn_s: float = 0.0) -> np.ndarray:
+    """The walker's heading at times `ts` (degrees clockwise from plan up, before the track's
+    heading offset and any sway): the direction of the leg, turning at once at a waypoint or,
+    with `turn_s` > 0, steadily over `turn_s` seconds centred on it (then unwrapped). One
+    function for the rendered heading (poses_from_track) and the gyroscope's truth (imu_for),
+    so that the two cannot drift apart."""
+    legs = tr.leg_headings()
+    if turn_s > 0 and len(legs) > 1:
+        legs = np.unwrap(legs, period=360.0)
+        # the heading ramps from one leg's to the next over turn_s around each inner waypoint
+        kt, kh = [tr.times[0]], [legs[0]]
+        for i in range(1, len(legs)):
+            if legs[i] != legs[i - 1]:
+                half = min(turn_s / 2, (tr.times[i] - tr.times[i - 1]) / 2, (tr.times[i + 1] - tr.times[i]) / 2)
+                kt += [tr.times[i] - half, tr.times[i] + half]
+                kh += [legs[i - 1], legs[i]]
+        kt.append(tr.times[-1])
+        kh.append(legs[-1])
+        return np.asarray(np.interp(ts, kt, kh))
+    leg = np.clip(np.searchsorted(tr.times, ts, side="right") - 1, 0, len(legs) - 1)
+    return np.asarray(legs[leg])
+
+
 def poses_from_track(
     track: dict[str, Any], perturb: Perturb, rng: np.random.Generator, turn_s: float = 0.0
 ) -> list[Pose]:
@@ -181,22 +207,7 @@ def poses_from_track(
     n = int(np.floor(tr.times[-1] * tr.fps)) + 1
     ts = np.arange(n) / tr.fps
     xy, _, ok = tr.pose_at(ts)
-    legs = tr.leg_headings()
-    if turn_s > 0 and len(legs) > 1:
-        legs = np.unwrap(legs, period=360.0)
-        # the heading ramps from one leg's to the next over turn_s around each inner waypoint
-        kt, kh = [tr.times[0]], [legs[0]]
-        for i in range(1, len(legs)):
-            if legs[i] != legs[i - 1]:
-                half = min(turn_s / 2, (tr.times[i] - tr.times[i - 1]) / 2, (tr.times[i + 1] - tr.times[i]) / 2)
-                kt += [tr.times[i] - half, tr.times[i] + half]
-                kh += [legs[i - 1], legs[i]]
-        kt.append(tr.times[-1])
-        kh.append(legs[-1])
-        hd = np.interp(ts, kt, kh)
-    else:
-        leg = np.clip(np.searchsorted(tr.times, ts, side="right") - 1, 0, len(legs) - 1)
-        hd = legs[leg]
+    hd = walk_heading(tr, ts, turn_s)
     if perturb.sway_deg:
         hd = hd + perturb.sway_deg * np.sin(2 * np.pi * 0.9 * ts)
     hd = np.mod(hd + tr.heading_offset, 360.0)
@@ -302,3 +313,76 @@ def render_walk(
 
 def write_json(path: Path, obj: dict[str, Any]) -> None:
     path.write_text(json.dumps(obj, indent=1))
+
+
+def imu_for(
+    track: dict[str, Any],
+    rng: np.random.Generator,
+    step_m: tuple[float, float] = (0.62, 0.78),
+    miss_p: float = 0.05,
+    extra_p: float = 0.03,
+    gyro_bias_dps: float = 0.3,
+    gyro_walk_dps: float = 0.2,
+    gyro_noise_deg: float = 0.5,
+    rate_hz: float = 20.0,
+    turn_s: float = 0.0,
+) -> dict[str, Any]:
+    """The phone's own motion on a walk (imu.json, docs/formats.md), as a phone would measure it.
+
+    Steps: the walker's step length is drawn once from `step_m` and varies +-8 % a step; a step is
+    detected when walked, missed with `miss_p`, and a false one is added with `extra_p` (standing
+    still: none, but the odd false one at the same rate per second). Yaw: the true heading's change
+    since the start (the walk's corners, turned over `turn_s` like poses_from_track), plus a
+    constant gyroscope bias, a random walk and white noise.
+    """
+    from ..track import parse_track
+
+    tr = parse_track(track)
+    length = rng.uniform(*step_m)
+    t_end = float(tr.times[-1])
+    # distance walked along the track, finely sampled in time
+    ts = np.arange(0.0, t_end + 1e-9, 0.02)
+    xy, _, _ = tr.pose_at(ts)
+    s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(xy, axis=0).T))]
+    steps: list[float] = []
+    at = length * rng.uniform(0.5, 1.0)
+    while at < s[-1]:
+        t = float(np.interp(at, s, ts))
+        if rng.random() >= miss_p:
+            steps.append(t)
+        at += length * rng.uniform(0.92, 1.08)
+    n_extra = rng.poisson(extra_p * max(len(steps), t_end))
+    steps = sorted(steps + list(rng.uniform(0.0, t_end, n_extra)))
+    # yaw: the true heading, unwrapped, from the start
+    yt = np.arange(0.0, t_end + 1e-9, 1.0 / rate_hz)
+    true = np.unwrap(walk_heading(tr, yt, turn_s), period=360.0)  # what the renderer shows
+    bias = rng.uniform(-gyro_bias_dps, gyro_bias_dps)
+    walk = np.cumsum(rng.normal(0.0, gyro_walk_dps / np.sqrt(rate_hz), len(yt)))
+    yaw = true - true[0] + bias * yt + walk + rng.normal(0.0, gyro_noise_deg, len(yt))
+    return {
+        "steps": [round(float(t), 3) for t in steps],
+        "yaw": {"t": [round(float(t), 3) for t in yt], "deg": [round(float(d), 2) for d in yaw]},
+    }
+
+
+def with_stops(
+    track: dict[str, Any], rng: np.random.Generator, n: int = 3, stop_s: tuple[float, float] = (3.0, 8.0)
+) -> dict[str, Any]:
+    """The same walk standing still `n` times (drawn from `stop_s` seconds each) at interior
+    waypoints spread along it (a person waiting, reading a sign, talking): every later waypoint
+    moves by the time stood. The heading while standing is the one arrived with (track.py)."""
+    wps = [dict(w) for w in track["waypoints"]]
+    inner = np.arange(1, len(wps) - 1)
+    if n <= 0 or len(inner) == 0:
+        return {**track, "waypoints": wps}
+    at = sorted(int(i) for i in rng.choice(inner, size=min(n, len(inner)), replace=False))
+    out: list[dict[str, Any]] = []
+    shift = 0.0
+    for i, w in enumerate(wps):
+        t = float(w["t"]) + shift
+        out.append({**w, "t": round(t, 4)})
+        if i in at:
+            s = float(rng.uniform(*stop_s))
+            shift += s
+            out.append({**w, "t": round(t + s, 4)})
+    return {**track, "waypoints": out}

@@ -1,7 +1,19 @@
 /** The server's public API (backend/omninav/server/openapi.yaml), with errors a person can act on. */
-import type { Answer, Venue } from '../shared/api-types';
+import type { Answer, Destinations, Venue } from '../shared/api-types';
+import type { Style } from './directions';
 
-export type { Answer, Floor, Nearest, Place, Venue } from '../shared/api-types';
+export type {
+  Answer,
+  Destination,
+  DestinationFloor,
+  Destinations,
+  Floor,
+  Guidance,
+  Nearest,
+  Place,
+  Tracking,
+  Venue,
+} from '../shared/api-types';
 
 /** The server could not be reached at all (offline, wrong network, server stopped). */
 export class Unreachable extends Error {}
@@ -51,9 +63,50 @@ export async function venue(id: string): Promise<Venue> {
   return (await call(`/api/venues/${encodeURIComponent(id)}`)) as Venue;
 }
 
-/** POST a binary feature record; the server answers where the clip's last frame was taken. */
-export async function locate(venueId: string, record: Uint8Array, fps: number, clip: string): Promise<Answer> {
-  const q = new URLSearchParams({ fps: fps.toFixed(2), clip });
+/** The places one can be guided to in a venue, by floor, sorted by name. */
+export async function destinations(venueId: string): Promise<Destinations> {
+  return (await call(`/api/venues/${encodeURIComponent(venueId)}/destinations`)) as Destinations;
+}
+
+/**
+ * A tracked request (issue 14): `session` continues the server's filter, `to` asks for guidance
+ * to a place, `t` is the phone's clock (s) at the clip's last frame, `steps` and `turn_deg` the
+ * phone's motion since the session's previous request (absent: unknown), `style` the words of
+ * `guidance.sentence`.
+ */
+export interface Tracked {
+  session: string;
+  to?: string;
+  t?: number;
+  steps?: number | null;
+  turn_deg?: number | null;
+  style?: Style;
+}
+
+/** The query of a tracked request, each value within the server's bounds. */
+export function trackedQuery(o: Tracked): Record<string, string> {
+  const q: Record<string, string> = { session: o.session };
+  if (o.to !== undefined) q.to = o.to;
+  if (o.t !== undefined && Number.isFinite(o.t)) q.t = o.t.toFixed(3);
+  if (o.steps !== undefined && o.steps !== null) q.steps = String(Math.min(Math.max(Math.round(o.steps), 0), 10000));
+  if (o.turn_deg !== undefined && o.turn_deg !== null && Number.isFinite(o.turn_deg))
+    q.turn_deg = (Math.round(Math.min(Math.max(o.turn_deg, -36000), 36000) * 10) / 10).toString();
+  if (o.style) q.style = o.style;
+  return q;
+}
+
+/**
+ * POST a binary feature record; the server answers where the clip's last frame was taken (with
+ * `tracked`: the filtered pose, and guidance when it names a place).
+ */
+export async function locate(
+  venueId: string,
+  record: Uint8Array,
+  fps: number,
+  clip: string,
+  tracked?: Tracked,
+): Promise<Answer> {
+  const q = new URLSearchParams({ fps: fps.toFixed(2), clip, ...(tracked ? trackedQuery(tracked) : {}) });
   return (await call(`/api/venues/${encodeURIComponent(venueId)}/locate?${q}`, {
     method: 'POST',
     headers: { 'Content-Type': 'application/octet-stream' },

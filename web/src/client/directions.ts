@@ -6,7 +6,7 @@
  * tests/data/sentences.json, holds both to the same words. Pure functions: the same words go to
  * speech and to the screen.
  */
-import type { Answer } from '../shared/api-types';
+import type { Answer, Guidance, RoutePreview } from '../shared/api-types';
 
 export type { Answer };
 
@@ -38,6 +38,20 @@ export function clockHour(bearing: number): number {
   return (b < 0 ? 12 - h : h) % 12 || 12;
 }
 
+/** The sides style's sector limits: straight ahead | ahead on a side | beside | behind on a side | behind. */
+export const SECTOR_DEG = [15, 60, 120, 165] as const;
+
+/**
+ * The sides style's sector of a bearing: 0 straight ahead, 1 ahead on a side, 2 beside, 3 behind on
+ * a side, 4 behind (both `direction` and `turnPhrase` word it). A bearing on a boundary belongs to
+ * the sector nearer straight ahead, on either side.
+ */
+export function sector(bearing: number): number {
+  const a = Math.abs(signed(bearing));
+  const k = SECTOR_DEG.findIndex((limit) => a <= limit);
+  return k < 0 ? SECTOR_DEG.length : k;
+}
+
 /** "at 3 o'clock" | "to your right" | "at 90 degrees right": a phrase that follows a place name. */
 export function direction(bearing: number, style: Style): string {
   const b = signed(bearing);
@@ -50,12 +64,9 @@ export function direction(bearing: number, style: Style): string {
     if (d === 180) return 'straight behind you';
     return `at ${d} ${d === 1 ? 'degree' : 'degrees'} ${side}`;
   }
-  // sides: a bearing on a boundary belongs to the sector nearer straight ahead
-  if (a <= 15) return 'straight ahead';
-  if (a <= 60) return `ahead on your ${side}`;
-  if (a <= 120) return `to your ${side}`;
-  if (a <= 165) return `behind you on your ${side}`;
-  return 'behind you';
+  return ['straight ahead', `ahead on your ${side}`, `to your ${side}`, `behind you on your ${side}`, 'behind you'][
+    sector(b)
+  ];
 }
 
 /** "Corridor 1", "Hall B" and "the lifts" stay; "North corridor" becomes "the North corridor". */
@@ -100,4 +111,86 @@ export function gist(a: Said, style: Style): string {
   if (a.low_confidence) return 'unsure';
   const n = nearOf(a);
   return [a.floor, a.area, n?.name, n ? direction(n.bearing_deg, style) : '', a.facing].join('|');
+}
+
+// --- route guidance: the words of backend/omninav/server/describe.py's guidance_sentence and
+// preview_sentence, held to the same sentences by one table, tests/data/guidance.json.
+
+/** A bearing within this of straight ahead is "straight ahead": no turn. */
+export const STRAIGHT_DEG = SECTOR_DEG[0];
+export const GUIDE_UNSURE = 'Not sure where you are yet; keep walking slowly.';
+
+/** What a guidance sentence is made from: the answer's `guidance` (its `to` may carry the place's `say`). */
+export type Guided = Pick<Guidance, 'kind' | 'bearing_deg' | 'walk_m' | 'until' | 'floor_change'> &
+  Partial<Pick<Guidance, 'in_m'>> & {
+    to: { name: string; say?: string | null };
+  };
+
+/** "Turn to 2 o'clock" | "Turn right" | "Turn 60 degrees right"; null within STRAIGHT_DEG. */
+export function turnPhrase(bearing: number, style: Style): string | null {
+  const b = signed(bearing);
+  const side = b > 0 ? 'right' : 'left';
+  const k = sector(b);
+  if (k === 0) return null;
+  if (style === 'clock') return `Turn to ${clockHour(b)} o'clock`;
+  if (style === 'degrees') {
+    const d = round(Math.abs(b));
+    return d >= 180 ? 'Turn around' : `Turn ${d} degrees ${side}`;
+  }
+  return [`Bear ${side}`, `Turn ${side}`, `Turn sharp ${side}`, 'Turn around'][k - 1];
+}
+
+/**
+ * "Turn to 2 o'clock and walk 12 metres, to the end of the corridor." (straight: "Walk straight
+ * ahead 12 metres, ..."). With `inM`, the metres still to walk to the corner where the turn is:
+ * "In 3 metres, turn to 2 o'clock and walk 12 metres, ..." (none when it rounds to 0).
+ */
+export function instruction(
+  bearing: number,
+  walkM: number,
+  until: string | null,
+  style: Style,
+  inM: number | null = null,
+): string {
+  const tail = until ? `, to ${until}` : '';
+  const turn = turnPhrase(bearing, style);
+  const said =
+    turn === null ? `Walk straight ahead ${metres(walkM)}${tail}.` : `${turn} and walk ${metres(walkM)}${tail}.`;
+  if (inM === null || round(inM) < 1) return said;
+  return `In ${metres(inM)}, ${said[0].toLowerCase()}${said.slice(1)}`;
+}
+
+/** The sentence for a guidance, in the user's style (the server's `sentence` is the default style's). */
+export function guidanceSentence(g: Guided, style: Style): string {
+  if (g.kind === 'unsure') return GUIDE_UNSURE;
+  const b = g.bearing_deg ?? 0;
+  const walk = g.walk_m ?? 0;
+  if (g.kind === 'arrived') {
+    const said =
+      walk < 0.5
+        ? `You have arrived at ${g.to.name}.`
+        : `You have arrived at ${g.to.name}; it is ${direction(b, style)}, ${metres(walk)}.`;
+    return g.to.say ? `${said} ${g.to.say}` : said;
+  }
+  if (g.kind === 'off_route') {
+    const turn = turnPhrase(b, style);
+    return `You are off the route; ${turn ? turn[0].toLowerCase() + turn.slice(1) : 'walk straight ahead'}.`;
+  }
+  if (g.floor_change) return `Take the ${g.floor_change.via} to ${g.floor_change.to_floor_name}.`;
+  if (g.kind === 'reassure') return `Keep going, ${metres(walk)}${g.until ? ` to ${g.until}` : ''}.`;
+  return instruction(b, walk, g.until, style, g.in_m ?? null);
+}
+
+/** A route before starting: "Room 102: 45 metres, 2 turns, first turn after 12 metres." */
+export function previewSentence(p: RoutePreview, to: { name: string }): string {
+  const name = to.name.slice(0, 1).toUpperCase() + to.name.slice(1);
+  const n = p.turns;
+  if (p.length_m < 1 && n === 0) return `${name}: you are there.`;
+  const parts = [metres(p.length_m)];
+  if (n === 0) parts.push('no turns');
+  else if (n === 1) parts.push(`1 turn, after ${metres(p.first_turn_m ?? 0)}`);
+  else parts.push(`${n} turns, first turn after ${metres(p.first_turn_m ?? 0)}`);
+  const floors = new Set(p.floors).size;
+  if (floors > 1) parts.push(`on ${floors} floors`);
+  return `${name}: ${parts.join(', ')}.`;
 }

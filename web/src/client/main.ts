@@ -1,18 +1,24 @@
 /**
  * The app: one big "Where am I?" control; the answer spoken, in the live region, as text and on
- * the floor plan. Image work happens in the feature worker; this thread stays free for speech and
- * the screen reader. This module only wires the session to the screens.
+ * the floor plan; "Go to" guides the user to a chosen place. Image work happens in the feature
+ * worker; this thread stays free for speech and the screen reader. This module only wires the
+ * session and the guide to the screens.
  */
 import './style.css';
 import { byId } from './dom';
 import { askMotion, onShake, onTwoFingerDoubleTap } from './gestures';
+import { guidanceSentence, previewSentence } from './directions';
+import { Guide } from './guide';
+import { MotionFeed } from './motion';
 import { loadPrefs, savePrefs } from './prefs';
 import { routeTabs } from './router';
 import { aboutScreen, type About } from './screens/about';
+import { gotoScreen } from './screens/goto';
 import { locateScreen } from './screens/locate';
 import { settingsScreen } from './screens/settings';
 import { Session } from './session';
 import { Speaker } from './speech';
+import { ScreenLock } from './wakelock';
 
 const speaker = new Speaker(byId('live'), byId('alert'));
 const session = new Session({
@@ -21,6 +27,17 @@ const session = new Session({
   voice: speaker,
   video: byId<HTMLVideoElement>('camera'),
   askedVenue: new URLSearchParams(location.search).get('venue'),
+});
+const guide = new Guide({
+  voice: speaker,
+  track: async (q, motion) => (await session.track(q, motion))?.answer ?? null,
+  motion: new MotionFeed(),
+  screen: new ScreenLock(),
+  askMotion,
+  style: () => session.prefs.style,
+  words: { guidance: guidanceSentence, preview: (g) => previewSentence(g.preview!, g.to) },
+  // the place's own sentence on arrival ("The lifts are on your right."), from the venue
+  arrivalNote: (to) => session.venue?.places.find((p) => p.id === to.id)?.say,
 });
 
 /** Inside the first gesture: iOS speaks, and gives motion events, only after one. */
@@ -42,6 +59,7 @@ async function registerServiceWorker(about: About): Promise<void> {
 document.addEventListener('pointerdown', firstGesture, { once: true, capture: true });
 document.addEventListener('keydown', firstGesture, { once: true, capture: true });
 locateScreen(session, speaker);
+gotoScreen(session, speaker, guide);
 routeTabs();
 onShake(() => void session.whereAmI());
 onTwoFingerDoubleTap(document.body, () => void session.whereAmI());

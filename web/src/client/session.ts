@@ -7,12 +7,16 @@
  * one to trust (TRUSTED_CONFIDENCE), the session says so, films on to 3 s in all while the user keeps turning, and sends the
  * three seconds as one clip: one more request, answered from all of it (the engine takes clips of
  * up to 5 s). Once per press; Stop ends it. A sure answer ends the filming on, unsent.
+ *
+ * A guided walk (guide.ts) asks `track()` instead: one second, located in a tracking session with
+ * the phone's clock and motion; the guide says what is to be said.
  */
 import {
   ApiProblem,
   UNREACHABLE,
   Unreachable,
   locate,
+  type Tracked,
   venue as fetchVenue,
   venues as fetchVenues,
   type Venue,
@@ -21,6 +25,7 @@ import { CameraProblem, captureClip, joinClips, lensMismatch, openCamera, type C
 import { describe, gist, type Answer } from './directions';
 import { ExtractorClient } from './bridge';
 import { LensWatch, checkLensOn, lensWords } from './lenscheck';
+import type { Motion } from './motion';
 import type { Lens } from '../shared/lens';
 import type { LensCheck } from '../shared/protocol';
 import { encodeRecord, recordMismatch } from '../shared/record';
@@ -102,10 +107,20 @@ export interface SessionEvents {
   lens: LensCheck;
 }
 
+/** What every request needs before filming (Session.ready). */
+interface Ready {
+  v: Venue;
+  lens: [string, Lens];
+  ext: ExtractorClient;
+  /** The camera was opened for this request. */
+  fresh: boolean;
+  donut: boolean;
+}
+
 const median = (v: number[]): number => v.slice().sort((a, b) => a - b)[v.length >> 1] ?? 0;
 
 /** Typed listeners, in the order they were added. */
-class Emitter<E> {
+export class Emitter<E> {
   private listeners: { [K in keyof E]?: ((v: E[K]) => void)[] } = {};
 
   on<K extends keyof E>(kind: K, fn: (v: E[K]) => void): void {
@@ -217,6 +232,64 @@ export class Session extends Emitter<SessionEvents> {
   }
 
   /**
+   * The venue, its lens, the camera and the feature worker, ready to film: the first steps of
+   * every request (a venue not modelled yet may have been since: the server is asked again).
+   */
+  private async ready(): Promise<Ready> {
+    const v = this.venue?.modelled ? this.venue : await this.loadVenue();
+    if (!v) throw new Unreachable(this.line || UNREACHABLE);
+    if (!v.modelled) throw new ApiProblem(409, NO_FRAMES);
+    const mismatch = recordMismatch(v.features);
+    if (mismatch) throw new RecordMismatch(mismatch);
+    const lens = this.chosenLens(v);
+    if (!lens) throw new ApiProblem(422, NO_LENS);
+    const ext = (this.ext ??= new ExtractorClient());
+    const configured = ext.configure(lens[1], v.features.settings);
+    const video = this.o.video;
+    // a stream ends when the phone locks or another app takes the camera: open it again
+    if (this.stream?.getVideoTracks().every((t) => t.readyState === 'ended')) this.stream = null;
+    let fresh = false;
+    if (!this.stream) {
+      this.stream = await openCamera(video, lens[1]);
+      this.lensWatch.reset(); // a new session of the camera: the lens may sit elsewhere now
+      fresh = true;
+    }
+    const bad = lensMismatch(video.videoWidth, video.videoHeight, lens[1], lens[0]);
+    if (bad) throw new CameraProblem('lens', bad);
+    await configured;
+    return { v, lens, ext, fresh, donut: lens[1].model === 'catadioptric' };
+  }
+
+  /** ~1 s of frames; a donut lens is checked first (a 360 camera has no ring), and again when the picture jumps. */
+  private async firstClip(r: Ready): Promise<Clip> {
+    const { ext, donut } = r;
+    if (donut && this.lensWatch.due(ext.configured)) await this.checkLens(ext, r.fresh);
+    const clip = await captureClip(this.o.video, ext, CLIP_FRAMES, CLIP_INTERVAL_MS);
+    if (!donut || !this.lensWatch.changed(clip.frames)) return clip;
+    await this.checkLens(ext);
+    return captureClip(this.o.video, ext, CLIP_FRAMES, CLIP_INTERVAL_MS);
+  }
+
+  /** An answer with how it was made, for the screens. */
+  private located(a: Answer, r: Ready, clip: Clip, recordBytes: number, rttMs: number): Located {
+    const ms = clip.frames.map((f) => f.ms).sort((x, y) => x - y);
+    const video = this.o.video;
+    return {
+      answer: a,
+      venue: r.v,
+      recordBytes,
+      frames: clip.frames.length,
+      camera: [video.videoWidth, video.videoHeight],
+      lens: r.lens[0],
+      fps: clip.fps,
+      medianMs: ms[ms.length >> 1],
+      rttMs,
+      lensCheck:
+        r.donut && this.lastCheck ? { message: this.lastCheck.message, ms: median(this.lastCheck.ms) } : undefined,
+    };
+  }
+
+  /**
    * One "Where am I?": capture ~1 s, extract in the worker, send features only, say the answer;
    * when that answer is not sure, answer once more from the 3 s filmed (see the top of the file).
    */
@@ -227,41 +300,15 @@ export class Session extends Emitter<SessionEvents> {
     const { voice, video } = this.o;
     let filming: { stopped: boolean } | null = null;
     try {
-      // a venue not modelled yet may have been since: ask the server again rather than the cache
-      const v = this.venue?.modelled ? this.venue : await this.loadVenue();
-      if (!v) throw new Unreachable(this.line || UNREACHABLE);
-      if (!v.modelled) throw new ApiProblem(409, NO_FRAMES);
-      const mismatch = recordMismatch(v.features);
-      if (mismatch) throw new RecordMismatch(mismatch);
-      const lens = this.chosenLens(v);
-      if (!lens) throw new ApiProblem(422, NO_LENS);
-      this.ext ??= new ExtractorClient();
-      const ready = this.ext.configure(lens[1], v.features.settings);
-      // a stream ends when the phone locks or another app takes the camera: open it again
-      if (this.stream?.getVideoTracks().every((t) => t.readyState === 'ended')) this.stream = null;
-      let fresh = false;
-      if (!this.stream) {
-        this.stream = await openCamera(video, lens[1]);
-        this.lensWatch.reset(); // a new session of the camera: the lens may sit elsewhere now
-        fresh = true;
-      }
-      const bad = lensMismatch(video.videoWidth, video.videoHeight, lens[1], lens[0]);
-      if (bad) throw new CameraProblem('lens', bad);
-      await ready;
+      const r = await this.ready();
+      const { v, ext } = r;
       if (!quietIfSame) voice.cue('start');
-      // a donut lens is checked first (a 360 camera has no ring), and again when the picture jumps
-      const donut = lens[1].model === 'catadioptric';
-      if (donut && this.lensWatch.due(this.ext.configured)) await this.checkLens(this.ext, fresh);
-      let clip = await captureClip(video, this.ext, CLIP_FRAMES, CLIP_INTERVAL_MS);
-      if (donut && this.lensWatch.changed(clip.frames)) {
-        await this.checkLens(this.ext);
-        clip = await captureClip(video, this.ext, CLIP_FRAMES, CLIP_INTERVAL_MS);
-      }
+      let clip = await this.firstClip(r);
       let record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id);
       // film on while the first second is answered: an unsure answer then needs no gap in the clip
       const more = { stopped: false };
       filming = this.filming = more;
-      const rest = captureClip(video, this.ext, MORE_FRAMES, CLIP_INTERVAL_MS, () => more.stopped, clip);
+      const rest = captureClip(video, ext, MORE_FRAMES, CLIP_INTERVAL_MS, () => more.stopped, clip);
       rest.catch(() => undefined); // a failure matters only when the frames are used (filmMore)
       let t0 = performance.now();
       let a = await locate(v.id, record, clip.fps, `web-${Date.now()}`);
@@ -276,26 +323,12 @@ export class Session extends Emitter<SessionEvents> {
       }
       const rttMs = performance.now() - t0;
       this.lastAnswer = a;
-      const ms = clip.frames.map((f) => f.ms).sort((x, y) => x - y);
-      this.emit('answer', {
-        answer: a,
-        venue: v,
-        recordBytes: record.length,
-        frames: clip.frames.length,
-        camera: [video.videoWidth, video.videoHeight],
-        lens: lens[0],
-        fps: clip.fps,
-        medianMs: ms[ms.length >> 1],
-        rttMs,
-        lensCheck:
-          donut && this.lastCheck ? { message: this.lastCheck.message, ms: median(this.lastCheck.ms) } : undefined,
-      });
+      this.emit('answer', this.located(a, r, clip, record.length, rttMs));
       const g = gist(a, this.prefs.style);
       if (!quietIfSame || g !== this.lastGist) voice.say(this.sentence(a, v), a.low_confidence ? 'unsure' : 'ok');
       this.lastGist = g;
     } catch (e) {
-      // the venue changed under us (re-modelled with other settings, emptied): reload it next time
-      if (e instanceof ApiProblem && (e.status === 400 || e.status === 409)) this.venue = null;
+      this.forgetVenueOn(e);
       const text = problemText(e);
       if (!quietIfSame || this.lastGist !== text) voice.say(text, 'error', true);
       this.lastGist = text;
@@ -303,6 +336,49 @@ export class Session extends Emitter<SessionEvents> {
     } finally {
       if (filming) filming.stopped = true;
       if (this.filming === filming) this.filming = null;
+      this.busy = false;
+      this.emit('busy', false);
+    }
+  }
+
+  /** The venue changed under us (re-modelled with other settings, emptied): reload it next time. */
+  private forgetVenueOn(e: unknown): void {
+    if (e instanceof ApiProblem && (e.status === 400 || e.status === 409)) this.venue = null;
+  }
+
+  /**
+   * One request of a guided walk (guide.ts): film ~1 s and locate it in tracking session
+   * `q.session` (with `q.to`: guidance), `t` the clip's last frame on the phone's clock, and the
+   * phone's motion since the session's previous answered request, asked of `motion` once the
+   * clip is filmed (the guide counts that reading as sent only when this resolves with an
+   * answer). Nothing is said here: errors are thrown, for the guide to say. Null when the camera
+   * is taken (a "Where am I?" is filming; `motion` is not asked): the guide tries again at its
+   * next turn.
+   */
+  async track(q: Omit<Tracked, 't' | 'steps' | 'turn_deg'>, motion?: () => Motion): Promise<Located | null> {
+    if (this.busy) return null;
+    this.busy = true;
+    this.emit('busy', true);
+    try {
+      const r = await this.ready();
+      const clip = await this.firstClip(r);
+      const record = encodeRecord(clip.frames, r.v.features.settings, r.v.features.settings_id);
+      const m = motion?.();
+      const t0 = performance.now();
+      const a = await locate(r.v.id, record, clip.fps, `web-${Date.now()}`, {
+        ...q,
+        t: clip.endMs / 1000,
+        steps: m?.steps,
+        turn_deg: m?.turn_deg,
+      });
+      this.lastAnswer = a;
+      const located = this.located(a, r, clip, record.length, performance.now() - t0);
+      this.emit('answer', located);
+      return located;
+    } catch (e) {
+      this.forgetVenueOn(e);
+      throw e;
+    } finally {
       this.busy = false;
       this.emit('busy', false);
     }

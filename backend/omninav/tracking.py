@@ -1,0 +1,582 @@
+"""Tracking while walking: a filter over the walk graph's nodes, fed clip after clip.
+
+An HMM over the nodes of the venue's walk graph (walkgraph.py), run forward (the belief after
+each clip; no smoothing: the answer is the pose now, from the evidence up to now). Why an HMM and
+not a particle filter: the walkable space *is* the graph (nodes ~1 m apart along the modelling
+walks), so a belief over its few hundred to few thousand nodes is exact where particles would be a
+sample of it. Every node keeps its probability, so a look-alike corridor 40 m away keeps what it
+is owed until the walk rules it out: a particle filter loses such a mode when no particle happens
+to sit there. And the per-update cost is fixed and small (a sparse transition and a sparse
+emission), with a state a few KB long that a server can keep per phone.
+
+- **Transition** (walking): from node i to node j in dt seconds with probability by their graph
+  distance d: any d up to `track_max_mps` * dt + `track_slack_m` (0-1.8 m/s; a stop is d = 0),
+  falling off beyond. With the phone's step count the distance walked is about steps *
+  `track_step_m`: a d near it counts up to 1 / (1 - `track_step_trust`) times as much as any other
+  d within reach. The steps sharpen, never forbid: a count that is wrong (a phone held steady, a
+  slow walker or a wheelchair counting no steps, a stalled sensor feed; a person who turned back
+  walked more than d) costs a few answers, since clips that agree win against it (one clip moves
+  the odds by up to 1 / `track_outlier`, more). A little of a uniform belief is mixed in at every update
+  (`track_uniform`), so that a wrong lock-in is undone by evidence, never by luck.
+- **Emission** (the clip): each query frame's verified candidate matches (index.Matches, with
+  scores), the best one within `track_radius_m` of a node counting for that node; a node without
+  one counts the frame's worst kept score (it was not among the best). The mean over the clip's
+  last second, tempered by `track_beta`, is the log-likelihood: exp(beta * (E - max E)), mixed
+  with `track_outlier` of "this clip says nothing" so one bad clip cannot overturn a track.
+- **Facing**: the clip also says where the phone faces at each node (its best match's heading
+  there). A move that walks backwards from that counts less (`track_backward`): people walk the
+  way they hold the phone, and a corridor of repeating doors no longer lets the track slide back
+  a door. With the gyroscope's turn, a move i -> j whose facing changed by other than the turn
+  counts less: checked per hypothesis, against the facing the last clip gave *that* node (one
+  global "previous heading" would lock in a wrong answer, whose heading is wrong too).
+- **Pose**: the node whose 1.5 m neighbourhood holds the most belief; position and heading from
+  aggregate.sequence on the clip's matches near that node only (those facing the gyroscope's way,
+  if the others face elsewhere), so the answer is as precise as a single clip's where it is right.
+  Without a match near that node the heading is the gyroscope's (the last answer's plus the turn
+  since); without a gyroscope it is unknown and the answer "not sure" (confidence held below 0.5).
+- **Confidence**: logistic on the belief's mass within 2 m of the answer and its mass 3 m or more
+  away (`track_confidence_features`/`_coef` in presets.py, fit by bench/tracking.py on the tuning
+  families' walks only). `ambiguous` when at least `track_ambiguous` of the belief lies 3 m or
+  more from the answer: the answer says "not sure" (confidence held below 0.5) and the walk that
+  follows resolves it.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import scipy.sparse  # type: ignore[import-untyped]
+from scipy.spatial import cKDTree  # type: ignore[import-untyped]
+
+from .aggregate import Estimate, sequence
+from .heading import wrap_deg
+from .index import Matches
+from .presets import DEFAULTS
+
+if TYPE_CHECKING:
+    from .walkgraph import WalkGraph
+
+FACING_S = 0.3  # where the phone faces now: the clip's latest matches
+FACING_MARGIN = 0.1  # ... those within this of their frame's best score
+CLIP_S = 1.0  # the emission reads the clip's last second: the pose now, not where the clip began
+PLACE_M = 1.5  # a "place": the nodes within this of a node (the answer's node has the most belief)
+NEAR_M = 2.0  # the confidence is P(within this of the truth): the belief within it of the answer
+FAR_M = 3.0  # belief this far from the answer is another place (the `ambiguous` rule, the rival)
+LIMIT_M = 8.0  # graph distances are kept up to this; a longer gap is walked in several steps
+FIT_M = 2.0  # the clip's matches within this of the answer's node place it and give its heading
+FORGET_S = 120.0  # after this long without an update, start over
+AMBIGUOUS_CAP = 0.45  # the confidence of an ambiguous answer: below the app's "not sure" (0.5)
+MAX_STORED = 1500  # nodes a serialised state keeps one by one (the most probable) ...
+STORE_REL = 1e-6  # ... those with at least this share of the most probable's belief; a broader
+# belief (a young one on a big graph) is kept whole instead, never cut to the lowest-numbered
+MAGIC = b"ONT2"  # the nodes kept one by one
+MAGIC_ALL = b"ONTA"  # every node's belief and facing (zlib: a flat or broad belief packs small)
+HEADER = "<4sdIfIB"  # magic, t, updates, heading (NaN: none), nodes of the graph, length of its key
+
+
+def _conf(conf: Mapping[str, Any], key: str) -> Any:
+    """A tracking setting: the venue's, else today's default (venues modelled before tracking)."""
+    return conf.get(key, DEFAULTS[key])
+
+
+@dataclass(frozen=True)
+class Motion:
+    """The phone's own sensors between the previous update and this one."""
+
+    steps: int | None = None  # steps detected (DeviceMotion), None = unknown
+    turn_deg: float | None = None  # gyroscope yaw change, clockwise +, None = unknown
+
+
+@dataclass
+class TrackState:
+    """Everything the filter remembers between updates: small, serialisable (to_bytes)."""
+
+    t: float  # seconds (the caller's clock) of the last update
+    belief: np.ndarray  # (N,) float64 over the graph's nodes, sums to 1
+    graph_key: str
+    updates: int
+    heading: float | None = None  # the last answer's heading
+    # (N,) where the last clip says the phone faced at each node (NaN: it did not say): the
+    # gyroscope's turn is checked against it node by node, never against one global heading
+    facing: np.ndarray | None = None
+
+    def to_bytes(self) -> bytes:
+        """A header with the graph's key, the belief (float16 relative to the largest) and facing
+        (float16 degrees), and a CRC-32. The belief's nodes with at least STORE_REL of the
+        largest, when there are at most MAX_STORED of them: each one's index (uint32), belief
+        and facing, 8 bytes a node; more than that (a young belief, flat over much of a big
+        graph): every node's, zlib-compressed, so that the state says as much of every part
+        of the building as of the one that happens to be numbered first."""
+        p = np.asarray(self.belief, np.float64)
+        big = max(float(p.max()), 1e-300) if len(p) else 1.0
+        keep = np.flatnonzero(p >= STORE_REL * big)
+        face = np.full(len(p), np.nan) if self.facing is None else np.asarray(self.facing, np.float64)
+        key = self.graph_key.encode()
+        whole = len(keep) > MAX_STORED
+        head = struct.pack(
+            HEADER,
+            MAGIC_ALL if whole else MAGIC,
+            self.t,
+            self.updates,
+            np.nan if self.heading is None else self.heading,
+            len(p),
+            len(key),
+        )
+        if whole:
+            rel = np.where(p >= STORE_REL * big, p / big, 0.0).astype("<f2")
+            body = head + key + zlib.compress(rel.tobytes() + face.astype("<f2").tobytes())
+        else:
+            rel = (p[keep] / big).astype("<f2")
+            body = head + key + struct.pack("<I", len(keep)) + keep.astype("<u4").tobytes() + rel.tobytes()
+            body += face[keep].astype("<f2").tobytes()
+        return body + struct.pack("<I", zlib.crc32(body))
+
+    @staticmethod
+    def from_bytes(b: bytes, graph: WalkGraph) -> TrackState | None:
+        """A state saved by to_bytes, or None: corrupt, or saved against another graph."""
+        try:
+            if len(b) < 4 or zlib.crc32(b[:-4]) != struct.unpack("<I", b[-4:])[0]:
+                return None
+            b = b[:-4]
+            magic, t, updates, heading, n, klen = struct.unpack_from(HEADER, b, 0)
+            off = struct.calcsize(HEADER)
+            key = b[off : off + klen].decode()
+            off += klen
+            if magic not in (MAGIC, MAGIC_ALL) or key != graph.key or n != len(graph.xy) or not np.isfinite(t):
+                return None
+            if magic == MAGIC_ALL:
+                raw = zlib.decompressobj().decompress(b[off:], 4 * n + 1)
+                if len(raw) != 4 * n:
+                    return None
+                m, idx = n, np.arange(n)
+                rel = np.frombuffer(raw, "<f2", n, 0).astype(np.float64)
+                face = np.frombuffer(raw, "<f2", n, 2 * n).astype(np.float64)
+            else:
+                (m,) = struct.unpack_from("<I", b, off)
+                off += 4
+                if len(b) != off + 8 * m:
+                    return None
+                idx = np.frombuffer(b, "<u4", m, off).astype(np.int64)
+                rel = np.frombuffer(b, "<f2", m, off + 4 * m).astype(np.float64)
+                face = np.frombuffer(b, "<f2", m, off + 6 * m).astype(np.float64)
+        except (struct.error, UnicodeDecodeError, ValueError, zlib.error):
+            return None
+        if m == 0 or (idx >= n).any() or not np.isfinite(rel).all() or (rel < 0).any() or rel.sum() <= 0:
+            return None
+        belief = np.zeros(n)
+        belief[idx] = rel
+        facing = np.full(n, np.nan)
+        facing[idx] = face
+        h = float(heading) if np.isfinite(heading) else None
+        return TrackState(float(t), belief / belief.sum(), key, int(updates), h, facing)
+
+
+@dataclass(frozen=True)
+class TrackPose:
+    """The filtered pose at the update's time."""
+
+    x: float
+    y: float
+    floor: str
+    heading: float  # degrees clockwise from plan up, [0, 360)
+    confidence: float  # calibrated P(within 2 m)
+    node: int
+    ambiguous: bool  # the belief is split between places >= 3 m apart: say "not sure"
+    spread_m: float  # RMS distance of the belief from the answer (other floors count 50 m)
+    mass: float = 0.0  # belief within NEAR_M of the answer
+    far: float = 0.0  # belief FAR_M or more from it
+    updates: int = 1  # clips the belief has seen since it (re)started
+    # False: no match near the answer said where the phone faces, nor the gyroscope (heading is a
+    # stand-in: the last answer's, else 0; confidence held below 0.5 as an ambiguous answer's)
+    heading_known: bool = True
+
+
+def _field(p: Any, name: str) -> float:
+    return float(p[name] if isinstance(p, Mapping) else getattr(p, name))
+
+
+# What the confidence model may read from a pose (or a row of bench/tracking.py with its fields)
+TRACK_CONFIDENCE_INPUTS: dict[str, Callable[[Any], float]] = {
+    "mass": lambda p: _field(p, "mass"),
+    "far": lambda p: _field(p, "far"),
+    "spread": lambda p: min(_field(p, "spread_m"), 20.0) / 10.0,
+    # a belief of one or two clips is as sure as those clips: a young track is less reliable
+    "young": lambda p: 1.0 / max(1.0, _field(p, "updates")),
+}
+
+
+def track_confidence(pose: Any, conf: Mapping[str, Any]) -> float:
+    """Calibrated P(within 2 m) of a filtered pose: logistic on `track_confidence_features`."""
+    names = _conf(conf, "track_confidence_features")
+    w = _conf(conf, "track_confidence_coef")
+    z = w[0] + sum(wi * TRACK_CONFIDENCE_INPUTS[n](pose) for wi, n in zip(w[1:], names, strict=True))
+    return float(1.0 / (1.0 + np.exp(-z)))
+
+
+def _pairs_within(a: np.ndarray, b: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(i, j, distance) for every point a[i] within r of b[j]."""
+    if len(a) == 0 or len(b) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+    m = cKDTree(a).sparse_distance_matrix(cKDTree(b), r, output_type="coo_matrix")
+    return m.row.astype(np.int64), m.col.astype(np.int64), m.data.astype(np.float64)
+
+
+class Tracker:
+    """The filter of one walk graph and one venue generation: what can be precomputed is, once."""
+
+    def __init__(self, graph: WalkGraph, venue_xy: np.ndarray, venue_floor: np.ndarray, conf: Mapping[str, Any]):
+        """venue_xy (V, 2), venue_floor (V,): every venue frame's position and floor (the index's
+        rows); conf: the venue's settings (tracking keys read with presets.py's defaults)."""
+        self.graph = graph
+        self.conf = dict(conf)
+        self.key = graph.key
+        self.n = n = len(graph.xy)
+        if n == 0:
+            raise ValueError("a walk graph without nodes cannot be tracked on")
+        self.xy = np.asarray(graph.xy, np.float64)
+        self.floor = np.asarray(graph.floor).astype(str)
+        vxy = np.asarray(venue_xy, np.float64)
+        vfl = np.asarray(venue_floor).astype(str)
+        self.venue_xy = vxy
+        radius = float(_conf(conf, "track_radius_m"))
+        # venue frame -> nodes within radius (same floor); node -> nodes within PLACE_M / NEAR_M
+        fr, fc, fd = self._by_floor(vxy, vfl, self.xy, self.floor, radius)
+        # data: the distance + 1 (an explicit 0 could be dropped by a later sparse operation)
+        self.f2n = scipy.sparse.csr_matrix((fd + 1.0, (fr, fc)), shape=(len(vxy), n))
+        pr, pc, _ = self._by_floor(self.xy, self.floor, self.xy, self.floor, PLACE_M)
+        self.place = scipy.sparse.csr_matrix((np.ones(len(pr)), (pr, pc)), shape=(n, n))
+        # graph distances up to LIMIT_M (chunked: never an N x N dense array)
+        rows, cols, dist = [], [], []
+        for s in range(0, n, 256):
+            src = np.arange(s, min(n, s + 256))
+            d = graph.distances(src, limit=LIMIT_M)
+            i, j = np.nonzero(np.isfinite(d))
+            rows.append(src[i])
+            cols.append(j)
+            dist.append(d[i, j])
+        # a lift or stairs (graph.via) joins two floors: an entry of its own (distance -1), walked
+        # with probability track_floor_change an update (unless its ends are within LIMIT_M anyway)
+        if graph.via:
+            ends = np.array(list(graph.via), np.int64).reshape(-1, 2)
+            have = np.isin(ends[:, 0] * n + ends[:, 1], np.concatenate(rows) * n + np.concatenate(cols))
+            for a, b in ends[~have]:
+                rows.append(np.array([a, b]))
+                cols.append(np.array([b, a]))
+                dist.append(np.array([-1.0, -1.0]))
+        r = np.concatenate(rows)
+        order = np.lexsort((np.concatenate(cols), r))
+        self.t_row = r[order]
+        self.t_col = np.concatenate(cols)[order]
+        self.t_dist = np.concatenate(dist)[order]
+        self.t_indptr = np.r_[0, np.cumsum(np.bincount(self.t_row, minlength=n))]
+        self.t_dx = self.xy[self.t_col, 0] - self.xy[self.t_row, 0]
+        self.t_dy = self.xy[self.t_col, 1] - self.xy[self.t_row, 1]
+        # the entry of the edge the other way (distances are symmetric, so every edge has one)
+        # (entries are in (row, col) order; the k-th in (col, row) order is the k-th one reversed)
+        self.t_rev = np.lexsort((self.t_row, self.t_col))
+
+    @staticmethod
+    def _by_floor(
+        a: np.ndarray, fa: np.ndarray, b: np.ndarray, fb: np.ndarray, r: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        out: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        for f in np.unique(fa):
+            ia, ib = np.flatnonzero(fa == f), np.flatnonzero(fb == f)
+            i, j, d = _pairs_within(a[ia], b[ib], r)
+            out.append((ia[i], ib[j], d))
+        if not out:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        return tuple(np.concatenate(x) for x in zip(*out, strict=True))  # type: ignore[return-value]
+
+    # ---- the three steps of an update ------------------------------------------------------------
+    def _transition(
+        self,
+        belief: np.ndarray,
+        dt: float,
+        steps: int | None = None,
+        facing: np.ndarray | None = None,
+        turn: tuple[np.ndarray, float] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """belief (N,) -> the belief dt seconds of walking later (steps: the phone's step count);
+        also the last step's edge weights and the belief it started from (for `_predicted`).
+
+        `facing` (N,): where the clip says the phone faces at each node (NaN: it does not say);
+        a move that ends walking backwards from it by more than a metre counts
+        `track_backward` as much (people walk the way they hold the phone), which keeps a walk
+        along a corridor of repeating doors from sliding back by one door. `turn`: (where the
+        last clip said the phone faced at each node, the gyroscope's turn since): a move i -> j
+        whose facing changed by other than the turn counts less (by how much more than
+        `track_turn_gate_deg` it is off), hypothesis by hypothesis."""
+        vmax = float(_conf(self.conf, "track_max_mps"))
+        slack = float(_conf(self.conf, "track_slack_m"))
+        step_m = float(_conf(self.conf, "track_step_m"))
+        dt = max(0.0, dt)
+        parts = max(1, int(np.ceil((vmax * dt + slack) / (LIMIT_M - 1.0))))
+        walked = None if steps is None else max(0, steps) * step_m / parts
+        d = self.t_dist
+        reach = vmax * dt / parts + slack
+        flat = np.exp(-0.5 * np.maximum(d - reach, 0.0) ** 2)  # 1 within reach, falling off beyond
+        if walked is None:
+            k = flat
+        else:  # the distance walked is about known (a stride varies ~10 %, a step is missed or
+            # added now and then): a move of about that length counts up to 1 / (1 - trust) times as
+            # much as any other within reach. The steps sharpen, never forbid: a phone that counts
+            # none while its user walks (held steady, a slow walker, a wheelchair, a stalled sensor
+            # feed) or a walker who turned back (more walked than the graph distance) keeps the
+            # flat part, so that clips that agree win within a few updates (one clip moves the odds
+            # by up to 1 / track_outlier, more than the steps' 1 / (1 - trust))
+            sig = 0.12 * walked + float(_conf(self.conf, "track_step_sigma_m"))
+            trust = float(_conf(self.conf, "track_step_trust"))
+            k = flat * (trust * np.exp(-0.5 * ((d - walked) / sig) ** 2) + (1 - trust))
+        k = np.where(d < 0, float(_conf(self.conf, "track_floor_change")), np.maximum(k, 1e-12))
+        rowsum = np.add.reduceat(k, self.t_indptr[:-1])
+        k = k / rowsum[self.t_row]
+        kk = k
+        if facing is not None:  # the clip's facing, at the end of the walk
+            h = np.deg2rad(facing)
+            fs, fc = np.sin(h), np.cos(h)
+            fwd = self.t_dx * fs[self.t_col] - self.t_dy * fc[self.t_col]
+            back = float(_conf(self.conf, "track_backward")) ** (parts == 1)
+            kk = np.where(fwd < -1.0 * parts, k * back, k)  # NaN facing: fwd is NaN, no change
+            if turn is not None:
+                b = np.deg2rad(turn[0] + turn[1])
+                cos_off = fc[self.t_col] * np.cos(b)[self.t_row] + fs[self.t_col] * np.sin(b)[self.t_row]
+                gate = float(_conf(self.conf, "track_turn_gate_deg"))
+                bad = np.flatnonzero(cos_off < np.cos(np.deg2rad(gate)))  # NaN: no change
+                off = np.degrees(np.arccos(np.clip(cos_off[bad], -1.0, 1.0)))
+                kk = kk.copy()
+                kk[bad] *= np.maximum(np.exp(-0.5 * ((off - gate) / 20.0) ** 2), 0.1)  # soft, floored
+        p = belief
+        start = p
+        for i in range(parts):
+            start = p
+            w = kk if i == parts - 1 else k
+            tmat = scipy.sparse.csr_matrix((w, self.t_col, self.t_indptr), shape=(self.n, self.n))
+            p = np.asarray(tmat.T @ p)
+        return p, kk, start
+
+    def _predicted(
+        self, nodes: np.ndarray, kk: np.ndarray, start: np.ndarray, turn: tuple[np.ndarray, float]
+    ) -> np.ndarray:
+        """The gyroscope's heading at `nodes`: the facing the last clip gave each one's likeliest
+        predecessor (by the last step's flow, kk x start), plus the turn; NaN where unknown."""
+        out = np.full(len(nodes), np.nan)
+        for o, j in enumerate(nodes):
+            e = np.arange(self.t_indptr[j], self.t_indptr[j + 1])  # j -> i; t_rev: i -> j
+            if len(e):
+                i = self.t_col[e][int(np.argmax(kk[self.t_rev[e]] * start[self.t_col[e]]))]
+                out[o] = (turn[0][i] + turn[1]) % 360.0
+        return out
+
+    def emission(self, matches: Matches, times: np.ndarray, t_now: float) -> tuple[np.ndarray, np.ndarray]:
+        """(N,) mean over the clip's last second of each frame's best verified score near the
+        node, and (N,) the heading of the best match near it in the clip's last FACING_S (NaN
+        where there is none)."""
+        times = np.asarray(times, np.float64)
+        keep = np.flatnonzero(times > t_now - CLIP_S - 1e-6)
+        if len(keep) == 0:
+            keep = np.array([len(times) - 1])
+        idx = matches.index[keep]
+        sc = np.maximum(np.asarray(matches.score[keep], np.float64), 0.0)
+        hd = np.asarray(matches.heading[keep], np.float64)
+        q, k = idx.shape
+        bg = sc.min(axis=1)  # a node that none of a frame's candidates is near: as its worst kept
+        b = np.repeat(bg[:, None], self.n, axis=1)
+        sub = self.f2n[idx.ravel()]
+        r = np.repeat(np.arange(q * k), np.diff(sub.indptr))
+        # a match counts for a node less the further it is from it: the emission peaks where it is
+        val = sc.ravel()[r] - float(_conf(self.conf, "track_dist_penalty")) * (sub.data - 1.0)
+        np.maximum.at(b, (r // k, sub.indices), val)
+        # the facing: the best-scoring match near each node among the latest frames
+        facing = np.full(self.n, np.nan)
+        # (only matches about as good as the frame's best: a poor one near a node says little)
+        late = (times[keep][r // k] > t_now - FACING_S - 1e-6) & (val >= sc.max(axis=1)[r // k] - FACING_MARGIN)
+        if late.any():
+            col, v, h = sub.indices[late], val[late], hd.ravel()[r[late]]
+            order = np.lexsort((v, col))
+            last = np.r_[col[order][1:] != col[order][:-1], True]
+            facing[col[order][last]] = h[order][last]
+        return np.asarray(b.mean(axis=0)), facing
+
+    def update(
+        self,
+        state: TrackState | None,
+        matches: Matches,
+        times: np.ndarray,
+        t_now: float,
+        motion: Motion | None = None,
+    ) -> tuple[TrackState, TrackPose]:
+        """One clip's matches (Q, k) and frame times (last == t_now) -> the new state and pose.
+        state None (or another graph's, or too old) -> start over from a uniform belief."""
+        motion = motion or Motion()
+        times = np.asarray(times, np.float64)
+        if len(times) != matches.index.shape[0] or len(times) == 0:
+            raise ValueError(f"{matches.index.shape[0]} frames of matches need as many frame times, got {len(times)}")
+        fresh = (
+            state is None
+            or state.graph_key != self.key
+            or len(state.belief) != self.n
+            or not (-1.0 <= t_now - state.t <= FORGET_S)
+        )
+        uniform = np.full(self.n, 1.0 / self.n)
+        e, facing = self.emission(matches, times, t_now)
+        gyro = None
+        # the last answer's heading plus the gyroscope's turn since (True), or alone (False: a
+        # stand-in, not a heading the answer may be sure of)
+        last: tuple[float, bool] | None = None
+        if fresh or state is None:
+            prior, updates = uniform, 0
+        else:
+            turn = None
+            if motion.turn_deg is not None and state.facing is not None and len(state.facing) == self.n:
+                turn = (state.facing, float(motion.turn_deg))
+            eps = float(_conf(self.conf, "track_uniform"))
+            prior, kk, start = self._transition(state.belief, t_now - state.t, motion.steps, facing, turn)
+            prior = (1 - eps) * prior / max(prior.sum(), 1e-300) + eps * uniform
+            updates = state.updates
+            if turn is not None:  # where the phone faces now, by the gyroscope, per hypothesis
+                gyro = (kk, start, turn)
+            if state.heading is not None:
+                turned = motion.turn_deg is not None
+                last = ((state.heading + float(motion.turn_deg or 0.0)) % 360.0, turned)
+        # one clip can be an outlier (people in the way, a turn, a look-alike): it moves the odds
+        # between two places by at most 1 / track_outlier
+        rho = float(_conf(self.conf, "track_outlier"))
+        post = prior * ((1 - rho) * np.exp(float(_conf(self.conf, "track_beta")) * (e - e.max())) + rho)
+        post /= post.sum()
+        pose = self.pose(post, matches, times, t_now, gyro, updates + 1, last)
+        heading = pose.heading if pose.heading_known else None
+        return TrackState(float(t_now), post, self.key, updates + 1, heading, facing), pose
+
+    def pose(
+        self,
+        p: np.ndarray,
+        matches: Matches,
+        times: np.ndarray,
+        t_now: float,
+        gyro: tuple[np.ndarray, np.ndarray, tuple[np.ndarray, float]] | None = None,
+        updates: int = 1,
+        last: tuple[float, bool] | None = None,
+    ) -> TrackPose:
+        """The belief p (N,) after `updates` clips -> the answer. `gyro`: the last transition's
+        weights, the belief it started from and (the last clip's facing per node, the turn), for
+        the gyroscope's heading at the answer (_predicted); `last`: the last answer's heading plus
+        the gyroscope's turn since, and whether the turn was known (the heading when the clip's
+        matches do not give one there)."""
+        place_mass = np.asarray(self.place @ p)
+        node = int(np.argmax(place_mass))
+        on = self.floor == self.floor[node]
+        d = np.where(on, np.hypot(self.xy[:, 0] - self.xy[node, 0], self.xy[:, 1] - self.xy[node, 1]), np.inf)
+        mass = float(p[d <= NEAR_M].sum())
+        far = float(p[d >= FAR_M].sum())
+        guess = None
+        if gyro is not None:  # the gyroscope's heading here: of the nearest node that has one
+            near = np.flatnonzero(d <= FIT_M)
+            near = near[np.argsort(d[near], kind="stable")]
+            pred = self._predicted(near, *gyro)
+            ok = np.flatnonzero(np.isfinite(pred))
+            if len(ok):
+                guess = float(pred[ok[0]])
+        x, y, h, known = self._fit(node, matches, times, t_now, guess, last)
+        dx = np.where(on, np.hypot(self.xy[:, 0] - x, self.xy[:, 1] - y), 50.0)
+        spread = float(np.sqrt((p * np.minimum(dx, 50.0) ** 2).sum()))
+        ambiguous = far >= float(_conf(self.conf, "track_ambiguous"))
+        pose = TrackPose(x, y, str(self.floor[node]), h, 0.0, node, ambiguous, spread, mass, far, updates, known)
+        c = track_confidence(pose, self.conf)
+        if ambiguous or not known:  # "not sure": of the place, or of which way the phone faces
+            c = min(c, AMBIGUOUS_CAP)
+        return TrackPose(x, y, pose.floor, h, c, node, ambiguous, spread, mass, far, updates, known)
+
+    def _fit(
+        self,
+        node: int,
+        matches: Matches,
+        times: np.ndarray,
+        t_now: float,
+        predicted: float | None,
+        last: tuple[float, bool] | None = None,
+    ) -> tuple[float, float, float, bool]:
+        """Position and heading at t_now, and whether the heading is known: aggregate.sequence on
+        the clip's matches within FIT_M of `node` only (those facing within the gate of the
+        gyroscope's prediction, when it has one and some do): the clip's own answer, confined to
+        the filter's place. Without a match there: the node, and the gyroscope's heading
+        (`predicted`, else `last`: the last answer's plus the turn); with neither, the heading is
+        unknown (False: the answer is "not sure"; the last answer's heading stands in, never a
+        made-up 0° unless there is none)."""
+        nx, ny = self.xy[node]
+        keep = np.flatnonzero(times > t_now - CLIP_S - 1e-6)
+        m = Matches(*(np.asarray(a)[keep] for a in (matches.index, matches.coarse, matches.score, matches.heading)))
+        pos = self.venue_xy[m.index]  # (Q, k, 2)
+        near = np.hypot(pos[..., 0] - nx, pos[..., 1] - ny) <= FIT_M
+        if not (near & (m.score > 0)).any():
+            if predicted is not None:
+                return float(nx), float(ny), float(predicted % 360.0), True
+            h, known = last if last is not None else (0.0, False)
+            return float(nx), float(ny), float(h % 360.0), known
+
+        def fit(use: np.ndarray) -> Estimate:
+            masked = Matches(m.index, m.coarse, np.where(use, m.score, 0.0).astype(np.float32), m.heading)
+            return sequence(masked, self.venue_xy, times[keep], self.conf)
+
+        e = fit(near)
+        if predicted is not None:  # facing away from the gyroscope's heading: its matches, if any
+            gate = float(_conf(self.conf, "track_turn_gate_deg"))
+            ok = near & (np.abs(wrap_deg(m.heading - predicted)) <= gate)
+            if abs(wrap_deg(e.heading - predicted)) > gate and (ok & (m.score > 0)).any():
+                e = fit(ok)
+        x, y = e.x, e.y
+        dd = float(np.hypot(x - nx, y - ny))
+        if dd > FIT_M:  # never further from the node than its neighbourhood
+            x, y = nx + (x - nx) * FIT_M / dd, ny + (y - ny) * FIT_M / dd
+        return float(x), float(y), float(e.heading % 360.0), True
+
+
+@dataclass(frozen=True)
+class Imu:
+    """A walk's phone motion (imu.json, docs/formats.md): each detected step's time, and the
+    gyroscope's yaw integrated since the start, clockwise + (degrees), at its sample times."""
+
+    steps: np.ndarray  # (S,) seconds, increasing
+    yaw_t: np.ndarray  # (Y,) seconds, increasing
+    yaw_deg: np.ndarray  # (Y,)
+
+    def motion(self, t0: float, t1: float) -> Motion:
+        """What the phone measured between two moments: steps in (t0, t1], the yaw change."""
+        steps = int(np.count_nonzero((self.steps > t0) & (self.steps <= t1)))
+        turn = None
+        if len(self.yaw_t):
+            turn = float(np.interp(t1, self.yaw_t, self.yaw_deg) - np.interp(t0, self.yaw_t, self.yaw_deg))
+        return Motion(steps, turn)
+
+
+def parse_imu(d: Any, where: str = "imu") -> Imu:
+    from .errors import OmninavError
+
+    if not isinstance(d, dict):
+        raise OmninavError(f"{where}: an imu file must be a JSON object")
+    try:
+        steps = np.asarray(d.get("steps", []), np.float64).reshape(-1)
+        yaw = d.get("yaw") or {"t": [], "deg": []}
+        yt = np.asarray(yaw["t"], np.float64).reshape(-1)
+        yd = np.asarray(yaw["deg"], np.float64).reshape(-1)
+    except (TypeError, ValueError, KeyError) as e:
+        shape = "'steps' must be a list of times, 'yaw' {'t': [...], 'deg': [...]}"
+        raise OmninavError(f"{where}: {shape} ({e})") from None
+    if len(yt) != len(yd):
+        raise OmninavError(f"{where}: 'yaw' needs as many 'deg' as 't' ({len(yd)} and {len(yt)})")
+    if not (np.isfinite(steps).all() and np.isfinite(yt).all() and np.isfinite(yd).all()):
+        raise OmninavError(f"{where}: times and angles must be finite numbers")
+    if (np.diff(steps) < 0).any() or (np.diff(yt) <= 0).any():
+        raise OmninavError(f"{where}: step and yaw times must be increasing")
+    return Imu(steps, yt, yd)
+
+
+def load_imu(path: Any) -> Imu:
+    from .errors import read_json
+
+    return parse_imu(read_json(path, "imu file"), where=str(path))

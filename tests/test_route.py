@@ -1,0 +1,470 @@
+"""Routes and the spoken guide (route.py) on the synthetic layouts' walk graphs: the route to each
+place is the shortest along the graph, legs turn where the corridors do, and a simulated walk along
+a known route hears exactly the expected sentences (a wrong turn: off the route, then a new
+instruction; a lift: take it to the other floor). Poses are made along polylines; nothing is
+rendered."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+import pytest
+
+from omninav import route as rt
+from omninav import walkgraph as wg
+from omninav.demo import LANDMARKS
+from omninav.synth.scene import small_layout, twin_routes
+from test_walkgraph import default_model_route, dense
+
+
+@dataclass(frozen=True)
+class Pose:
+    x: float
+    y: float
+    floor: str
+    heading: float
+    confidence: float = 0.9
+    ambiguous: bool = False
+
+
+def venue_places(layout: str) -> list[dict[str, Any]]:
+    return [{"id": f"p{i}", "name": n, "floor": "1", "x": x, "y": y} for i, (n, x, y) in enumerate(LANDMARKS[layout])]
+
+
+PLACES = venue_places("default")
+ROOM_102 = next(p for p in PLACES if p["name"] == "Room 102") | {"say": "The door is on your left."}
+
+
+@pytest.fixture(scope="module")
+def ring() -> wg.WalkGraph:
+    return wg.build([(dense(default_model_route()), "1")], PLACES)
+
+
+def walk(points: list[tuple[float, float]], step: float = 3.0, floor: str = "1") -> list[Pose]:
+    """Poses every `step` metres along a polyline, facing the way walked (at a corner: the way on)."""
+    p = np.asarray(points, float)
+    seg = np.hypot(*np.diff(p, axis=0).T)
+    ends = np.cumsum(seg)
+    out = []
+    for at in np.arange(0.0, ends[-1] + 1e-9, step):
+        k = min(int(np.searchsorted(ends, at, side="right")), len(seg) - 1)
+        t = (at - (ends[k] - seg[k])) / seg[k]
+        x, y = p[k] + t * (p[k + 1] - p[k])
+        out.append(Pose(round(float(x), 6), round(float(y), 6), floor, rt.heading_of(*(p[k + 1] - p[k]))))
+    return out
+
+
+def follow(
+    graph: wg.WalkGraph,
+    place: dict[str, Any],
+    poses: list[Pose],
+    state: dict[str, Any] | None = None,
+    t0: float = 0.0,
+    dt: float = 2.5,
+    **kw: Any,
+) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:
+    """Each pose one answer dt seconds apart; the state through JSON, as the server stores it."""
+    node = wg.attach(graph, [place])[wg.place_key(place)]
+    out = []
+    for i, p in enumerate(poses):
+        g, state = rt.guide(graph, None, place, node, p, state, t0 + i * dt, PLACES, **kw)
+        state = json.loads(json.dumps(state))
+        json.dumps(g)
+        out.append(g)
+    return out, state
+
+
+def spoken(gs: list[dict[str, Any]]) -> list[tuple[str, str]]:
+    return [(g["kind"], g["sentence"]) for g in gs if g["speak"]]
+
+
+# --- planning -----------------------------------------------------------------------------------
+
+
+def twin_graph() -> tuple[wg.WalkGraph, list[dict[str, Any]]]:
+    model = twin_routes()[0]
+    places = [{"name": f"corner {i}", "floor": "1", "x": x, "y": y} for i, (x, y) in enumerate(model[:6])]
+    places.append({"name": "stair foot", "floor": "1", "x": 9.0, "y": 8.0})
+    return wg.build([(dense(model), "1")], places), places
+
+
+def small_graph() -> tuple[wg.WalkGraph, list[dict[str, Any]]]:
+    _, _, lines = small_layout()
+    return wg.build([(dense([lines[0][0], lines[0][1], lines[1][1]]), "1")]), venue_places("small")
+
+
+@pytest.mark.parametrize("layout", ["default", "twin", "small"])
+def test_the_route_to_each_place_is_the_shortest_along_the_walk_graph(layout: str, ring: wg.WalkGraph):
+    graph, places = (ring, PLACES) if layout == "default" else twin_graph() if layout == "twin" else small_graph()
+    at = wg.attach(graph, places)
+    assert len(at) == len(places)
+    starts = [graph.nearest(*graph.xy[k]) for k in range(0, len(graph), 7)]
+    dist = graph.distances(starts)
+    for si, start in enumerate(starts):
+        for p in places:
+            r = rt.plan(graph, start, p, at[wg.place_key(p)], places)
+            assert r is not None and r.nodes[0] == start and r.nodes[-1] == at[wg.place_key(p)]
+            assert r.length_m == pytest.approx(dist[si, r.nodes[-1]], abs=1e-6)
+            steps = [graph.edge_m(i, j) for i, j in zip(r.nodes[:-1], r.nodes[1:], strict=True)]
+            assert sum(steps) == pytest.approx(r.length_m, abs=1e-6)
+            assert sum(leg.length_m for leg in r.legs) == pytest.approx(r.length_m, abs=1e-6)
+            # legs follow each other, sharing their corners, and every boundary is a real turn
+            assert [n for leg in r.legs for n in leg.nodes[1:]] == r.nodes[1:]
+            assert all(abs(leg.turn_deg) >= rt.TURN_DEG for leg in r.legs[1:])
+            assert r.to == {"id": wg.place_key(p), "name": p["name"], "floor": "1"}
+
+
+def test_legs_turn_where_the_corridors_do_and_say_what_is_at_their_end(ring: wg.WalkGraph):
+    at = wg.attach(ring, PLACES)
+    r = rt.plan(ring, ring.nearest(15, 23), ROOM_102, at["p3"], PLACES)
+    assert r is not None and r.length_m == pytest.approx(44.0)
+    got = [(round(leg.length_m, 1), leg.heading_deg, leg.turn_deg, leg.until) for leg in r.legs]
+    assert got == [
+        (12.0, 90.0, 0.0, "the stairs"),  # east along the south corridor
+        (20.0, 0.0, -90.0, "the lifts"),  # left, up the middle corridor
+        (12.0, 90.0, 90.0, "Room 102"),  # right, east along the north corridor
+    ]
+    assert r.preview() == {"length_m": 44, "turns": 2, "first_turn_m": 12, "floors": ["1"]}
+    assert np.allclose(r.xy, ring.xy[r.nodes])
+    # without places: a corridor that goes on past the corner is a junction
+    bare = rt.plan(ring, ring.nearest(15, 23), ROOM_102, at["p3"])
+    # and one that does not (a T: the north corridor crosses ahead) is the end of the corridor
+    assert bare is not None
+    assert [leg.until for leg in bare.legs] == ["the junction", "the end of the corridor", "Room 102"]
+
+
+def test_a_corner_with_nothing_straight_on_is_the_end_of_the_corridor():
+    graph, places = small_graph()
+    stairs = next(p for p in places if p["name"] == "the stairs")
+    r = rt.plan(graph, graph.nearest(2, 2), stairs, wg.attach(graph, [stairs])[wg.place_key(stairs)])
+    assert r is not None
+    assert [(leg.until, leg.turn_deg) for leg in r.legs] == [("the end of the corridor", 0.0), ("the stairs", 90.0)]
+    assert r.preview() == {"length_m": 28, "turns": 1, "first_turn_m": 18, "floors": ["1"]}
+
+
+def test_bends_under_thirty_degrees_are_not_turns():
+    # a corridor that bends by 20 degrees, then a real corner of 70 degrees, then a 0.8 m jog
+    bend = [(0.0, 0.0), (10.0, 0.0), (10.0 + 10 * np.cos(np.radians(20)), 10 * np.sin(np.radians(20)))]
+    corner = bend[-1]
+    h = np.radians(90.0)  # plan heading 90 + 20 = 110 -> turn 70 more: 180 (down the plan)
+    del h
+    down = (corner[0], corner[1] + 10.0)
+    jog = [(down[0] + 0.8, down[1] + 0.8), (down[0] + 0.8, down[1] + 10.8)]
+    pts = [*bend, down, *jog]
+    g = wg.build([(dense(pts), "1")])
+    end = {"name": "the end", "floor": "1", "x": jog[-1][0], "y": jog[-1][1]}
+    r = rt.plan(g, g.nearest(0, 0), end, g.nearest(*jog[-1]))
+    assert r is not None and len(r.legs) == 2
+    assert r.legs[1].turn_deg == pytest.approx(75.0, abs=8.0)  # the chords' headings: 100 -> 176
+    assert r.preview()["turns"] == 1
+
+
+def two_floor_graph() -> tuple[wg.WalkGraph, list[dict[str, Any]]]:
+    _, _, lines = small_layout()
+    walk_ = dense([lines[0][0], lines[0][1], lines[1][1]])  # the L: 18 m east, 10 m south
+    places = [
+        {"id": "l1", "name": "the lifts", "floor": "1", "x": 20.0, "y": 1.0, "kind": "lift"},
+        {"id": "l2", "name": "the lifts", "floor": "2", "x": 20.0, "y": 1.0, "kind": "lift"},
+        {"id": "e1", "name": "the entrance", "floor": "1", "x": 2.0, "y": 2.0},
+        {"id": "r2", "name": "Room 214", "floor": "2", "x": 20.0, "y": 11.0},
+    ]
+    return wg.build([(walk_, "1"), (walk_, "2")], places), places
+
+
+def test_a_route_to_another_floor_takes_the_lift():
+    g, places = two_floor_graph()
+    at = wg.attach(g, places)
+    r = rt.plan(g, at["e1"], places[3], at["r2"], places)
+    assert r is not None
+    legs = [(leg.floor, leg.via, leg.to_floor, round(leg.length_m, 1), leg.turn_deg, leg.until) for leg in r.legs]
+    assert legs == [
+        ("1", None, None, 18.0, 0.0, "the lifts"),
+        ("1", "lift", "2", 0.0, 0.0, None),
+        ("2", None, None, 9.0, 0.0, "Room 214"),  # the first leg of a floor turns from nothing
+    ]
+    assert r.length_m == pytest.approx(27.0)  # metres walked: the ride is not a walk
+    assert r.preview() == {"length_m": 27, "turns": 0, "first_turn_m": None, "floors": ["1", "2"]}
+
+
+def test_the_guide_takes_the_lift_and_walks_on_upstairs():
+    g, places = two_floor_graph()
+    names = {"1": "Floor 1", "2": "Floor 2"}
+    first = walk([(2.0, 2.0), (20.0, 2.0)])
+    upstairs = [Pose(20.0, 2.0, "2", 90.0)] + walk([(20.0, 2.0), (20.0, 11.0)], floor="2")[1:]
+    node = wg.attach(g, places)["r2"]
+    state, said = None, []
+    for i, p in enumerate(first + upstairs):
+        gd, state = rt.guide(g, None, places[3], node, p, state, i * 2.5, places, floor_names=names)
+        said.append((gd["kind"], gd["speak"], gd["sentence"], gd["floor_change"]))
+    assert [s[:3] for s in said if s[1]] == [
+        ("start", True, "Walk straight ahead 18 metres, to the lifts."),
+        ("reassure", True, "Keep going, 6 metres to the lifts."),
+        ("floor_change", True, "Take the lift to Floor 2."),  # 3 m before the lift
+        ("turn", True, "Turn to 3 o'clock and walk 9 metres, to Room 214."),  # out of the lift, upstairs
+        ("arrived", True, "You have arrived at Room 214."),  # at the place itself: no bearing to say
+    ]
+    assert next(s[3] for s in said if s[0] == "floor_change") == {
+        "via": "lift",
+        "to_floor": "2",
+        "to_floor_name": "Floor 2",
+    }
+
+
+def test_a_route_that_starts_at_the_lift_says_take_it_first():
+    g, places = two_floor_graph()
+    at = wg.attach(g, places)
+    gd, _ = rt.guide(g, None, places[3], at["r2"], Pose(20.0, 2.0, "1", 270.0), None, 0.0, places)
+    assert (gd["kind"], gd["sentence"]) == ("start", "Take the lift to floor 2.")
+    assert gd["preview"] == {"length_m": 9, "turns": 0, "first_turn_m": None, "floors": ["1", "2"]}
+
+
+# --- guiding ------------------------------------------------------------------------------------
+
+
+def test_walking_a_known_route_hears_the_expected_sentences(ring: wg.WalkGraph):
+    gs, _ = follow(ring, ROOM_102, walk([(15.0, 23.0), (27.0, 23.0), (27.0, 3.0), (39.0, 3.0)]))
+    assert spoken(gs) == [
+        ("start", "Walk straight ahead 12 metres, to the stairs."),
+        ("turn", "In 3 metres, turn to 9 o'clock and walk 20 metres, to the lifts."),
+        ("reassure", "Keep going, 11 metres to the lifts."),
+        ("turn", "In 2 metres, turn to 3 o'clock and walk 12 metres, to Room 102."),
+        ("arrived", "You have arrived at Room 102; it is at 12 o'clock, 2 metres. The door is on your left."),
+    ]
+    first, last = gs[0], gs[-1]
+    assert first["preview"] == {"length_m": 44, "turns": 2, "first_turn_m": 12, "floors": ["1"]}
+    assert first["route"] == [[15.0, 23.0], [27.0, 23.0], [27.0, 3.0], [39.0, 3.0]]
+    assert first | {"preview": None, "route": None} == {
+        "to": {"id": "p3", "name": "Room 102", "floor": "1", "say": "The door is on your left."},
+        "kind": "start",
+        "speak": True,
+        "urgent": False,
+        "bearing_deg": 0.0,
+        "walk_m": 12.0,
+        "until": "the stairs",
+        "in_m": None,
+        "next_turn_m": 12.0,
+        "remaining_m": 44.0,
+        "on_route": True,
+        "arrived": False,
+        "floor_change": None,
+        "preview": None,
+        "route": None,
+        "sentence": "Walk straight ahead 12 metres, to the stairs.",
+    }
+    assert all("preview" not in g for g in gs[1:])
+    assert last["urgent"] and last["arrived"] and last["remaining_m"] == 0.0
+    assert (last["bearing_deg"], last["walk_m"]) == (0.0, 2.0)  # the place itself, from the user
+    # between the sentences: nothing said, the current instruction kept for "What next?"
+    quiet = [g for g in gs if not g["speak"]]
+    assert quiet and all(g["kind"] == "continue" for g in quiet)
+    assert [g["remaining_m"] for g in gs] == [44.0 - 3 * k for k in range(len(gs) - 1)] + [0.0]
+
+
+def test_a_wrong_turn_is_off_the_route_then_a_new_instruction(ring: wg.WalkGraph):
+    # straight on past the corner where the route turns left, then back as told
+    gone, state = follow(ring, ROOM_102, walk([(15.0, 23.0), (27.0, 23.0), (33.0, 23.0)]))
+    assert spoken(gone) == [
+        ("start", "Walk straight ahead 12 metres, to the stairs."),
+        ("turn", "In 3 metres, turn to 9 o'clock and walk 20 metres, to the lifts."),
+        ("off_route", "You are off the route; turn to 6 o'clock."),
+    ]
+    off = gone[-1]
+    assert off["urgent"] and not off["on_route"] and off["bearing_deg"] == 180.0
+    assert off["remaining_m"] == 38.0 and np.allclose(off["route"][:2], [[33.0, 23.0], [27.0, 23.0]], atol=0.01)
+    back, _ = follow(ring, ROOM_102, walk([(33.0, 23.0), (27.0, 23.0), (27.0, 3.0)])[1:4], state, t0=20.0)
+    assert spoken(back) == [("turn", "In 3 metres, turn to 3 o'clock and walk 20 metres, to the lifts.")]
+    assert back[0]["in_m"] == 3.0 and back[0]["next_turn_m"] == 3.0 and back[0]["walk_m"] == 20.0
+    assert all(g["on_route"] for g in back)
+
+
+def test_walking_back_along_the_route_for_two_answers_is_off_the_route(ring: wg.WalkGraph):
+    there = walk([(15.0, 23.0), (27.0, 23.0), (27.0, 14.0)])
+    back = [replace(p, heading=180.0) for p in walk([(27.0, 14.0), (27.0, 23.0)], step=2.0)[1:]]
+    gs, _ = follow(ring, ROOM_102, there + back)
+    kinds = [g["kind"] for g in gs]
+    k = kinds.index("off_route")
+    assert k == len(there) + 1  # the second answer walking away
+    assert gs[k]["sentence"] == "You are off the route; turn to 6 o'clock." and gs[k]["urgent"]
+    # the new route starts where the user is: on it again at once
+    assert gs[k + 1]["on_route"] and gs[k + 1]["kind"] == "turn"
+
+
+def test_a_pose_wavering_about_the_turns_announcement_says_it_once(ring: wg.WalkGraph):
+    poses = [Pose(x, 23.0, "1", 90.0) for x in (15.0, 24.2, 23.8, 24.2, 23.9)]
+    gs, _ = follow(ring, ROOM_102, poses)
+    assert spoken(gs) == [
+        ("start", "Walk straight ahead 12 metres, to the stairs."),
+        ("turn", "In 3 metres, turn to 9 o'clock and walk 20 metres, to the lifts."),
+    ]
+    assert [g["kind"] for g in gs[2:]] == ["continue"] * 3
+
+
+def test_reassurance_waits_for_quiet_and_ten_metres(ring: wg.WalkGraph):
+    long_walk = walk([(3.0, 23.0), (51.0, 23.0)], step=2.0)  # to the toilets, 48 m straight
+    toilets = next(p for p in PLACES if p["name"] == "the toilets")
+    slow, _ = follow(ring, toilets, long_walk)
+    assert spoken(slow) == [
+        ("start", "Walk straight ahead 48 metres, to the toilets."),
+        ("reassure", "Keep going, 38 metres to the toilets."),
+        ("reassure", "Keep going, 28 metres to the toilets."),
+        ("reassure", "Keep going, 18 metres to the toilets."),
+        ("reassure", "Keep going, 8 metres to the toilets."),
+        ("arrived", "You have arrived at the toilets; it is at 12 o'clock, 2 metres."),
+    ]
+    # answers 1 s apart, 2 m each (a brisk 2 m/s): 10 m takes 5 s, so each waits for the 6th second
+    fast, _ = follow(ring, toilets, long_walk, dt=1.0)
+    assert [s for _, s in spoken(fast)][1:3] == [
+        "Keep going, 36 metres to the toilets.",
+        "Keep going, 24 metres to the toilets.",
+    ]
+
+
+def test_not_sure_is_said_after_two_low_answers_and_then_the_instruction_again(ring: wg.WalkGraph):
+    poses = walk([(15.0, 23.0), (24.0, 23.0)])
+    unsure = [replace(p, ambiguous=True) for p in poses[1:3]] + [replace(poses[3], confidence=0.2)]
+    gs, _ = follow(ring, ROOM_102, [poses[0], *unsure, poses[3]])
+    assert [(g["kind"], g["speak"]) for g in gs] == [
+        ("start", True),
+        ("continue", False),  # one low answer is held: nothing said, nothing decided
+        ("unsure", True),  # the second in a row
+        ("unsure", False),
+        ("turn", True),  # a new leg: said at once
+    ]
+    assert gs[1]["sentence"] == "Walk straight ahead 9 metres, to the stairs."
+    assert gs[2]["sentence"] == "Not sure where you are yet; keep walking slowly."
+    assert gs[2]["bearing_deg"] is None and gs[2]["walk_m"] is None and gs[2]["remaining_m"] == 44.0
+    assert gs[-1]["sentence"] == "In 3 metres, turn to 9 o'clock and walk 20 metres, to the lifts."
+
+
+def test_a_confidence_hovering_about_the_threshold_says_a_handful_of_sentences(ring: wg.WalkGraph):
+    # 0.9 and 0.4 in turn (the filter caps a split belief at 0.45): no "not sure", and the route's
+    # sentences once each, not one at every answer
+    poses = walk([(15.0, 23.0), (27.0, 23.0), (27.0, 3.0), (39.0, 3.0)], step=2.0)
+    hovering = [replace(p, confidence=0.4 if i % 2 == 0 and i > 0 else 0.9) for i, p in enumerate(poses)]
+    gs, _ = follow(ring, ROOM_102, hovering, dt=2.0)
+    assert len(gs) == 23
+    assert spoken(gs) == [
+        ("start", "Walk straight ahead 12 metres, to the stairs."),
+        ("turn", "In 2 metres, turn to 9 o'clock and walk 20 metres, to the lifts."),
+        ("reassure", "Keep going, 10 metres to the lifts."),
+        ("turn", "In 2 metres, turn to 3 o'clock and walk 12 metres, to Room 102."),
+        ("arrived", "You have arrived at Room 102; it is at 12 o'clock, 2 metres. The door is on your left."),
+    ]
+    assert all(g["on_route"] for g in gs) and "unsure" not in {g["kind"] for g in gs}
+    # the other phase: the answers before the corners are the low ones, held; the turn is said at
+    # the next sure answer
+    other = [replace(p, confidence=0.4 if i % 2 else 0.9) for i, p in enumerate(poses)]
+    gs, _ = follow(ring, ROOM_102, other, dt=2.0)
+    assert len(spoken(gs)) == 5 and "unsure" not in {g["kind"] for g in gs}
+    # a single low pose off the route decides nothing: not off the route, nothing said
+    poses = [Pose(15.0, 23.0, "1", 90.0), Pose(20.0, 30.0, "1", 90.0, confidence=0.45), Pose(18.0, 23.0, "1", 90.0)]
+    gs, _ = follow(ring, ROOM_102, poses)
+    assert [(g["kind"], g["speak"], g["on_route"]) for g in gs] == [
+        ("start", True, True),
+        ("unsure", False, True),
+        ("continue", False, True),
+    ]
+
+
+def test_a_clearly_low_answer_is_not_sure_at_once_and_the_instruction_waits_for_quiet(ring: wg.WalkGraph):
+    at = [Pose(x, 23.0, "1", 90.0) for x in (15.0, 16.0, 17.0, 18.0, 19.0, 20.0)]
+    poses = [at[0], replace(at[1], confidence=0.3), at[2], at[3], replace(at[4], confidence=0.3), at[5]]
+    gs, _ = follow(ring, ROOM_102, poses, dt=2.0)
+    assert [(g["kind"], g["speak"]) for g in gs] == [
+        ("start", True),  # t 0
+        ("unsure", True),  # t 2: under CLEAR_LOW, at once
+        ("continue", False),  # t 4: the same leg, said 4 s ago: not again yet
+        ("turn", True),  # t 6: QUIET_S since it was said
+        ("unsure", True),  # t 8
+        ("continue", False),  # t 10: said 4 s ago
+    ]
+    assert gs[3]["sentence"] == "Walk straight ahead 9 metres, to the stairs."
+
+
+def test_an_unsure_first_answer_starts_the_route_when_sure(ring: wg.WalkGraph):
+    p = Pose(15.0, 23.0, "1", 90.0)
+    gs, _ = follow(ring, ROOM_102, [replace(p, confidence=0.1), p])
+    assert [(g["kind"], g["speak"]) for g in gs] == [("unsure", True), ("start", True)]
+    assert gs[0]["on_route"] is False and gs[0]["remaining_m"] is None and gs[0]["route"] == []
+
+
+def test_a_turn_said_before_its_corner_says_how_far_the_corner_is(ring: wg.WalkGraph):
+    # 2 m before the corner where the route turns left; then at the corner itself
+    gs, _ = follow(ring, ROOM_102, [Pose(25.0, 23.0, "1", 90.0), Pose(27.0, 23.0, "1", 90.0)], style="sides")
+    assert [(g["kind"], g["sentence"], g["in_m"], g["next_turn_m"]) for g in gs] == [
+        ("start", "In 2 metres, turn left and walk 20 metres, to the lifts.", 2.0, 2.0),
+        ("continue", "Turn left and walk 20 metres, to the lifts.", None, 20.0),
+    ]
+    assert gs[0]["bearing_deg"] == -90.0 and gs[0]["walk_m"] == 20.0  # from the user's heading now
+    gs, _ = follow(ring, ROOM_102, [Pose(24.4, 23.0, "1", 90.0)], style="degrees")
+    assert gs[0]["sentence"] == "In 3 metres, turn 90 degrees left and walk 20 metres, to the lifts."
+    # walking the first leg, far from its corner: no in_m
+    gs, _ = follow(ring, ROOM_102, [Pose(15.0, 23.0, "1", 90.0)])
+    assert gs[0]["in_m"] is None
+
+
+def test_standing_still_with_a_jittering_pose_is_not_off_the_route(ring: wg.WalkGraph):
+    # the filter's pose wanders a metre or so back and forth, and the heading by 25 degrees
+    xs = [20.0, 18.8, 17.6, 18.9, 20.1, 18.7, 17.5, 19.0]
+    poses = [Pose(x, 23.0, "1", 90.0 + (25.0 if k % 2 else -25.0 if k else 0.0)) for k, x in enumerate(xs)]
+    gs, _ = follow(ring, ROOM_102, poses)
+    assert spoken(gs) == [("start", "Walk straight ahead 7 metres, to the stairs.")]
+    assert all(g["on_route"] and g["kind"] in ("start", "continue") for g in gs)
+
+
+def test_a_place_moved_while_guided_starts_over(ring: wg.WalkGraph):
+    p = Pose(15.0, 23.0, "1", 90.0)
+    _, state = follow(ring, ROOM_102, [p])
+    assert state is not None and state["remaining_m"] == 44.0
+    moved = ROOM_102 | {"x": 19.0, "y": 23.0}  # the same place (id p3), now 4 m ahead
+    gs, state = follow(ring, moved, [p], state)
+    assert gs[0]["kind"] == "start" and gs[0]["remaining_m"] == 4.0
+    assert gs[0]["sentence"] == "Walk straight ahead 4 metres, to Room 102."
+    assert state is not None and state["nodes"][-1] == ring.nearest(19.0, 23.0)
+
+
+def test_a_state_from_another_graph_or_place_starts_over(ring: wg.WalkGraph):
+    p = Pose(15.0, 23.0, "1", 90.0)
+    _, state = follow(ring, ROOM_102, [p])
+    assert state is not None and state["graph"] == ring.key and len(json.dumps(state)) < 2000
+    again, _ = follow(ring, ROOM_102, [p], state)
+    assert again[0]["kind"] == "continue" and not again[0]["speak"]
+    other = wg.build([(dense(default_model_route()), "1")], PLACES, join_m=1.5)
+    toilets = next(q for q in PLACES if q["name"] == "the toilets")
+    for graph, place, st in [
+        (other, ROOM_102, state),
+        (ring, toilets, state),
+        (ring, ROOM_102, {**state, "nodes": [10**6]}),
+        (ring, ROOM_102, {"v": 99}),
+        (ring, ROOM_102, {**state, "nodes": "junk"}),
+    ]:
+        gs, _ = follow(graph, place, [p], st)
+        assert gs[0]["kind"] == "start", st
+
+
+def test_arrival_is_said_once_with_the_places_bearing(ring: wg.WalkGraph):
+    near = Pose(39.0, 4.5, "1", 270.0)  # 1.5 m below Room 102's node, facing west
+    gs, _ = follow(ring, ROOM_102, [Pose(33.0, 3.0, "1", 90.0), near, near])
+    assert [(g["kind"], g["speak"], g["urgent"]) for g in gs[1:]] == [("arrived", True, True), ("arrived", False, True)]
+    assert gs[1]["bearing_deg"] == 90.0 and gs[1]["walk_m"] == 1.5
+    assert gs[1]["sentence"] == "You have arrived at Room 102; it is at 3 o'clock, 2 metres. The door is on your left."
+
+
+def test_a_route_given_by_the_caller_is_the_one_started(ring: wg.WalkGraph):
+    at = wg.attach(ring, PLACES)
+    r = rt.plan(ring, ring.nearest(15, 23), ROOM_102, at["p3"], PLACES)
+    g, state = rt.guide(ring, r, ROOM_102, at["p3"], Pose(15, 23, "1", 0.0), None, 0.0, PLACES, style="sides")
+    assert g["kind"] == "start" and state["nodes"] == r.nodes if r else False
+    assert g["sentence"] == "Turn right and walk 12 metres, to the stairs." and g["bearing_deg"] == 90.0
+
+
+def test_leaving_the_place_a_guidance_started_at_gives_a_route_again(ring: wg.WalkGraph):
+    # the first answer is at Room 102 (a route with nowhere to walk); then the user walks 10 m away
+    at_place = Pose(39.0, 3.0, "1", 90.0)
+    gs, _ = follow(ring, ROOM_102, [at_place, Pose(29.0, 3.0, "1", 270.0), Pose(28.0, 3.0, "1", 270.0)])
+    assert [g["kind"] for g in gs] == ["arrived", "start", "continue"]
+    assert gs[1]["sentence"] == "Turn to 6 o'clock and walk 10 metres, to Room 102." and not gs[1]["arrived"]
+    assert gs[1]["remaining_m"] == 10.0 and gs[1]["urgent"] is False

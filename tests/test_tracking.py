@@ -1,0 +1,543 @@
+"""Tracking while walking (tracking.py): the filter over the walk graph, its state, its CLI.
+
+Most tests feed the filter made-up candidate matches on a venue of frames along known corridors
+(no rendering): where the truth is, where its look-alike is, and how well each scores. That pins
+what the filter does with evidence a single clip cannot settle. The last ones run it on the small
+rendered venue (conftest.py), through Locator.track and the `omninav track` / `evaluate
+--track-mode` commands.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import cli_model, run_cli
+from omninav.aggregate import sequence
+from omninav.errors import OmninavError
+from omninav.index import Matches
+from omninav.lens import load_lens
+from omninav.locate import Locator
+from omninav.presets import resolve
+from omninav.synth import Dataset
+from omninav.synth.scene import TWIN_RING, twin_routes
+from omninav.synth.walks import imu_for, track_for
+from omninav.track import parse_track
+from omninav.tracking import MAX_STORED, Motion, Tracker, TrackState, parse_imu
+from omninav.walkgraph import build
+
+CONF = resolve("default")
+FPS = 10.0
+K = 16
+
+
+def heading_of(a: np.ndarray, b: np.ndarray) -> float:
+    """Plan heading from a to b: clockwise from up (y down)."""
+    return float(np.degrees(np.arctan2(b[0] - a[0], -(b[1] - a[1]))) % 360.0)
+
+
+def frames_along(route: list[tuple[float, float]], step: float = 0.12) -> tuple[np.ndarray, np.ndarray]:
+    """Venue frames every `step` m along a modelling route: (V, 2) positions, (V,) headings."""
+    xy, hd = [], []
+    for a, b in zip(route[:-1], route[1:], strict=True):
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        n = max(1, int(np.ceil(np.hypot(*(b - a)) / step)))
+        for f in np.arange(n) / n:
+            xy.append(a + f * (b - a))
+            hd.append(heading_of(a, b))
+    xy.append(np.asarray(route[-1], float))
+    hd.append(hd[-1])
+    return np.array(xy), np.array(hd)
+
+
+class Venue:
+    """Frames along a route, its walk graph and a tracker; made-up matches for any truth."""
+
+    def __init__(self, route: list[tuple[float, float]], conf: dict | None = None):
+        self.xy, self.hd = frames_along(route)
+        self.graph = build([(self.xy, "1")])
+        self.conf = {**CONF, **(conf or {})}
+        self.tracker = Tracker(self.graph, self.xy, np.full(len(self.xy), "1"), self.conf)
+
+    def matches(
+        self, sources: list[list[tuple[float, float, float, float]]], rng: np.random.Generator, per: int = 4
+    ) -> Matches:
+        """Per frame, a list of (x, y, heading, score): each source's `per` nearest venue frames
+        score about `score` (less with distance) and give `heading`; the rest are random frames."""
+        q = len(sources)
+        idx = np.zeros((q, K), np.int64)
+        sc = np.zeros((q, K), np.float32)
+        hd = np.zeros((q, K), np.float32)
+        for i, srcs in enumerate(sources):
+            cols: list[tuple[int, float, float]] = []
+            for x, y, h, s in srcs:
+                d = np.hypot(self.xy[:, 0] - x, self.xy[:, 1] - y)
+                for j in np.argsort(d)[:per]:
+                    cols.append((int(j), s - 0.03 * float(d[j]) + rng.normal(0, 0.005), h + rng.normal(0, 1.0)))
+            while len(cols) < K:
+                cols.append((int(rng.integers(len(self.xy))), rng.uniform(0.2, 0.4), rng.uniform(0, 360)))
+            cols.sort(key=lambda c: -c[1])
+            for j, (r, s, h) in enumerate(cols[:K]):
+                idx[i, j], sc[i, j], hd[i, j] = r, s, h % 360.0
+        return Matches(idx, sc.copy(), sc, hd)
+
+
+def walk_poses(points: list[tuple[float, float]], speed: float = 1.2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A walk along points at `speed`, sampled at FPS: times, (T, 2) positions, headings."""
+    track = parse_track(track_for(points, [speed], FPS))
+    t = np.arange(0.0, track.times[-1] + 1e-9, 1.0 / FPS)
+    xy, hd, _ = track.pose_at(t)
+    return t, xy, hd
+
+
+def half_turn(x: float, y: float) -> tuple[float, float]:
+    x0, y0, x1, y1 = TWIN_RING
+    return x0 + x1 - x, y0 + y1 - y
+
+
+def in_west_wing(x: float, y: float) -> bool:
+    """The west twin's stretch that looks like the east one (its corners differ)."""
+    x0, y0, _, y1 = TWIN_RING
+    return abs(x - x0) < 0.3 and y0 + 1.5 < y < y1 - 1.5
+
+
+def run_walk(
+    v: Venue,
+    t: np.ndarray,
+    xy: np.ndarray,
+    hd: np.ndarray,
+    evidence,
+    every: float = 1.0,
+    seed: int = 0,
+    motion=None,
+    per: int = 4,
+):
+    """Update the filter every `every` s with the 1 s clip ending there; -> per update (t, pose,
+    the single clip's Estimate, truth xy)."""
+    rng = np.random.default_rng(seed)
+    state, out, t_prev = None, [], None
+    for e in range(int(FPS) - 1, len(t), int(round(every * FPS))):
+        w = slice(e - int(FPS) + 1, e + 1)
+        m = v.matches([evidence(x, y, h) for (x, y), h in zip(xy[w], hd[w], strict=True)], rng, per)
+        mo = motion(t_prev, t[e]) if motion is not None and t_prev is not None else None
+        state, pose = v.tracker.update(state, m, t[w], float(t[e]), mo)
+        t_prev = float(t[e])
+        out.append((float(t[e]), pose, sequence(m, v.xy, t[w], v.conf), xy[e], state))
+    return out
+
+
+@pytest.fixture(scope="module")
+def twin() -> Venue:
+    return Venue(twin_routes()[0])
+
+
+def twin_evidence(true_s: float, alike_s: float):
+    """In the west wing's middle, its half-turned look-alike in the east wing scores alike_s."""
+
+    def ev(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
+        out = [(x, y, h, true_s if in_west_wing(x, y) else 0.8)]
+        if in_west_wing(x, y):
+            out.append((*half_turn(x, y), h + 180.0, alike_s))
+        return out
+
+    return ev
+
+
+def err(pose, xy) -> float:
+    return float(np.hypot(pose.x - xy[0], pose.y - xy[1]))
+
+
+def test_the_filter_rules_out_the_look_alike_a_single_clip_picks(twin: Venue) -> None:
+    """Down the west wing from the north corridor: every second's clip prefers the east twin
+    (0.81 against 0.79), so the single clip answers ~10 m away; the filter knows where the walk
+    came from and stays right, and says it is sure."""
+    x0, y0, _, y1 = TWIN_RING
+    t, xy, hd = walk_poses([(12.0, y0), (x0, y0), (x0, y1)])
+    out = run_walk(twin, t, xy, hd, twin_evidence(0.79, 0.81))
+    wing = [(p, e, truth) for tt, p, e, truth, _ in out if in_west_wing(*truth) and tt > 3]
+    assert len(wing) >= 6
+    single_wrong = [np.hypot(e.x - truth[0], e.y - truth[1]) > 5 for _, e, truth in wing]
+    assert np.mean(single_wrong) >= 0.8
+    assert all(err(p, truth) <= 2.0 for p, _, truth in wing)
+    assert all(not p.ambiguous and p.confidence >= 0.8 for p, _, _ in wing)
+
+
+def test_an_ambiguous_start_says_so_then_resolves_within_seconds(twin: Venue) -> None:
+    """Starting in the middle of a twin wing (the look-alike scores the same), the answer is
+    "not sure" (ambiguous, confidence < 0.5), never a confident wrong one; a few seconds after
+    the walk leaves the wing it is right and sure."""
+    x0, y0, _, _ = TWIN_RING
+    t, xy, hd = walk_poses([(x0, 16.0), (x0, y0), (12.0, y0)])
+    out = run_walk(twin, t, xy, hd, twin_evidence(0.8, 0.8))
+    first = out[0][1]
+    assert first.ambiguous and first.confidence < 0.5 and first.spread_m > 5
+    for tt, p, _, truth, _ in out:
+        if p.confidence >= 0.8:
+            assert err(p, truth) <= 2.0, f"confident and wrong at {tt:.0f} s"
+    left = next(tt for tt, _, _, truth, _ in out if not in_west_wing(*truth))
+    after = [(tt, p, truth) for tt, p, _, truth, _ in out if tt >= left + 3.0]
+    assert after and all(err(p, truth) <= 2.0 and not p.ambiguous and p.confidence >= 0.8 for _, p, truth in after)
+
+
+def test_a_split_belief_is_ambiguous_with_low_confidence(twin: Venue) -> None:
+    tr = twin.tracker
+    a = twin.graph.nearest(3.0, 14.0)
+    b = twin.graph.nearest(*half_turn(3.0, 14.0))
+    m = twin.matches([[(3.0, 14.0, 0.0, 0.8)]], np.random.default_rng(0))
+    for p_a, ambiguous in ((0.5, True), (0.65, True), (1.0, False)):
+        belief = np.zeros(tr.n)
+        belief[a], belief[b] = p_a, 1 - p_a
+        pose = tr.pose(belief, m, np.array([0.0]), 0.0, updates=10)
+        assert pose.ambiguous is ambiguous
+        assert (pose.confidence < 0.5) if ambiguous else (pose.confidence >= 0.8)
+
+
+def test_state_round_trips_and_refuses_another_graph_or_corrupt_bytes(twin: Venue) -> None:
+    x0, y0, _, _ = TWIN_RING
+    t, xy, hd = walk_poses([(12.0, y0), (x0, y0), (x0, 16.0)])
+    state = run_walk(twin, t, xy, hd, twin_evidence(0.8, 0.8))[-1][-1]
+    b = state.to_bytes()
+    back = TrackState.from_bytes(b, twin.graph)
+    assert back is not None
+    assert (back.t, back.updates, back.graph_key) == (state.t, state.updates, state.graph_key)
+    assert back.heading == pytest.approx(state.heading, abs=1e-3)
+    big = state.belief >= 1e-3
+    np.testing.assert_allclose(back.belief[big], state.belief[big], rtol=2e-3)
+    assert back.belief.sum() == pytest.approx(1.0)
+    # the next update continues from the restored state as from the original
+    m = twin.matches([[(3.0, 15.0, 180.0, 0.8)]] * 10, np.random.default_rng(1))
+    times = state.t + 1 + np.arange(-0.9, 0.01, 0.1)
+    p1 = twin.tracker.update(state, m, times, float(times[-1]))[1]
+    p2 = twin.tracker.update(back, m, times, float(times[-1]))[1]
+    assert (p1.node, p1.ambiguous) == (p2.node, p2.ambiguous)
+    assert p1.confidence == pytest.approx(p2.confidence, abs=1e-3)
+    # another graph (another venue, or this one re-modelled), and broken bytes: None
+    other = build([(twin.xy[::-1] + [0.0, 1.0], "1")])
+    assert TrackState.from_bytes(b, other) is None
+    for bad in (b"", b[:-1], b[:20], b[:30] + bytes([b[30] ^ 1]) + b[31:], b"\x00" * len(b), b + b"x"):
+        assert TrackState.from_bytes(bad, twin.graph) is None
+
+
+def test_state_of_a_2000_node_graph_fits_in_16_kb() -> None:
+    # a 2 km serpentine of corridors: ~2,000 nodes; the worst belief is a flat one
+    pts = [(0.0, 0.0)]
+    for i in range(20):
+        pts += [(100.0 if i % 2 == 0 else 0.0, 5.0 * i), (100.0 if i % 2 == 0 else 0.0, 5.0 * (i + 1))]
+    g = build([(np.array(pts), "1")])
+    assert len(g.xy) >= 2000
+    st = TrackState(12.5, np.full(len(g.xy), 1.0 / len(g.xy)), g.key, 3, 90.0)
+    b = st.to_bytes()
+    assert len(b) <= 16 * 1024
+    back = TrackState.from_bytes(b, g)
+    assert back is not None and back.heading == 90.0 and back.updates == 3
+    np.testing.assert_allclose(back.belief, st.belief)  # flat stays flat: every node, not the first 1,500
+
+
+def test_a_broad_young_belief_on_a_big_graph_is_kept_whole() -> None:
+    """More than MAX_STORED nodes with belief (a young track on a 2,000-node graph: a clip that
+    says little, so most nodes tie): the saved state keeps every part of the building, not the
+    lowest-numbered nodes; a sharp belief is still kept node by node (8 bytes each)."""
+    pts = [(0.0, 0.0)]
+    for i in range(20):
+        pts += [(100.0 if i % 2 == 0 else 0.0, 5.0 * i), (100.0 if i % 2 == 0 else 0.0, 5.0 * (i + 1))]
+    g = build([(np.array(pts), "1")])
+    n = len(g.xy)
+    assert n > MAX_STORED
+    rng = np.random.default_rng(3)
+    p = np.full(n, 1.0)
+    p[rng.choice(n, 40, replace=False)] = 5.0  # a few places a little likelier, anywhere
+    p /= p.sum()
+    facing = np.where(np.arange(n) % 3 == 0, 90.0, np.nan)
+    back = TrackState.from_bytes(TrackState(1.0, p, g.key, 1, None, facing).to_bytes(), g)
+    assert back is not None and back.heading is None
+    np.testing.assert_allclose(back.belief, p, rtol=2e-3)
+    assert back.facing is not None and np.array_equal(np.isnan(back.facing), np.isnan(facing))
+    late = np.arange(n) >= n - 500  # the last-numbered nodes (the serpentine's far end) keep theirs
+    assert back.belief[late].sum() == pytest.approx(p[late].sum(), rel=2e-3)
+    sharp = np.zeros(n)
+    sharp[[5, n - 5]] = [0.7, 0.3]
+    b = TrackState(1.0, sharp, g.key, 9, 45.0).to_bytes()
+    assert len(b) < 200
+    back = TrackState.from_bytes(b, g)
+    assert back is not None and back.belief[n - 5] == pytest.approx(0.3, abs=1e-3)
+    for bad in (b[:-5] + b[-4:], b"ONTA" + b[4:]):
+        assert TrackState.from_bytes(bad, g) is None
+
+
+def test_a_state_of_another_graph_starts_over(twin: Venue) -> None:
+    m = twin.matches([[(3.0, 14.0, 0.0, 0.8)]], np.random.default_rng(0))
+    stale = TrackState(0.0, np.full(7, 1 / 7), "another", 9)
+    state, _ = twin.tracker.update(stale, m, np.array([1.0]), 1.0)
+    assert state.updates == 1 and state.graph_key == twin.graph.key
+    old = TrackState(0.0, np.full(twin.tracker.n, 1 / twin.tracker.n), twin.graph.key, 9)
+    assert twin.tracker.update(old, m, np.array([1000.0]), 1000.0)[0].updates == 1  # long forgotten
+    assert twin.tracker.update(old, m, np.array([1.0]), 1.0)[0].updates == 10
+
+
+@pytest.fixture(scope="module")
+def corridor() -> Venue:
+    """A 48 m corridor whose doors repeat every 4 m: one distinctive end."""
+    return Venue([(0.0, 0.0), (48.0, 0.0)])
+
+
+def periodic(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
+    """Near the west end (x < 3) the place is unique; beyond it, every 4 m looks the same."""
+    if x < 3.0:
+        return [(x, y, h, 0.8)]
+    return [(x + 4.0 * k, y, h, 0.8) for k in range(-12, 13) if 3.0 <= x + 4.0 * k <= 48.0]
+
+
+def test_motion_helps_in_a_repetitive_corridor(corridor: Venue) -> None:
+    """Walking 3 m between updates (the phone's 2.5 s) past identical doors every 4 m from a
+    distinctive end: without the step count, a slower walk to the door behind explains the clips
+    as well, and the answer soon slips back a door; with the steps (noisy, as a phone counts them,
+    this walker's stride 0.76 m where the filter assumes 0.7) it keeps the right door ~1.5 times as
+    long. Nothing holds the phase of a truly periodic corridor for ever: its end will."""
+    t, xy, hd = walk_poses([(0.5, 0.0), (47.0, 0.0)])
+    track = track_for([(0.5, 0.0), (47.0, 0.0)], [1.2], FPS)
+    imu = parse_imu(imu_for(track, np.random.default_rng(5)))
+
+    def right_until(motion) -> float:
+        out = run_walk(corridor, t, xy, hd, periodic, every=2.5, motion=motion, per=1)
+        return next((tt for tt, p, _, truth, _ in out if err(p, truth) > 2.0), np.inf)
+
+    without, with_steps = right_until(None), right_until(imu.motion)
+    assert with_steps >= 15.0
+    assert with_steps >= 1.4 * without
+
+
+def test_steps_that_miss_a_walk_cost_a_few_answers_at_most(corridor: Venue) -> None:
+    """A phone that counts no steps while its user walks 3 m between updates (held steady, a slow
+    walker, a wheelchair, a stalled sensor feed): the steps sharpen the walking model, never
+    forbid a move, so clips that agree keep a confident right answer (a wrong count once left
+    the moves the steps did not explain ~1e-8 and drove the answer to "not sure" for good)."""
+    t, xy, hd = walk_poses([(0.5, 0.0), (47.0, 0.0)])
+
+    def unique(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
+        return [(x, y, h, 0.8)]
+
+    out = run_walk(corridor, t, xy, hd, unique, every=2.5, motion=lambda t0, t1: Motion(0, 0.0), per=1)
+    assert len(out) >= 15
+    later = out[2:]  # a fresh start's first answers may be "not sure"
+    assert all(err(p, truth) <= 2.0 for _, p, _, truth, _ in later)
+    assert min(p.confidence for _, p, _, _, _ in later) >= 0.9
+    # and a count that stops for a while: back to confident within a few answers of walking
+    stalled = lambda t0, t1: Motion(0 if 10.0 < t1 < 25.0 else int(round((t1 - t0) * 1.2 / 0.7)), 0.0)  # noqa: E731
+    out = run_walk(corridor, t, xy, hd, unique, every=2.5, motion=stalled, per=1)
+    unsure = [tt for tt, p, _, truth, _ in out[2:] if p.confidence < 0.8 or err(p, truth) > 2.0]
+    assert len(unsure) <= 2
+
+
+def test_standing_still_keeps_the_place(corridor: Venue) -> None:
+    """Zero steps: most of the belief stays where it was (a stop is no reason to drift to a
+    look-alike), yet a walk the steps missed keeps a share (the steps sharpen, never forbid)."""
+    tr = corridor.tracker
+    node = corridor.graph.nearest(20.0, 0.0)
+    belief = np.zeros(tr.n)
+    belief[node] = 1.0
+    d_stay = np.hypot(tr.xy[:, 0] - 20.0, tr.xy[:, 1])
+    for dt in (1.0, 2.5, 5.0):
+        stay = tr._transition(belief, dt, steps=0)[0]
+        walk = tr._transition(belief, dt)[0]
+        assert stay[node] > 2.5 * walk[node]
+        assert stay[d_stay <= 2.5].sum() > walk[d_stay <= 2.5].sum() + 0.1
+        assert stay[d_stay > 2.5].sum() > 0.01 * dt  # never forbidden: clips can say otherwise
+    assert stay[d_stay <= 2.5].sum() > 0.45
+    assert walk[d_stay <= 13.0].sum() > 0.99  # 1.8 m/s at most (and a slack of a metre or two)
+
+
+def test_the_heading_without_a_match_near_the_answer_is_the_gyroscopes_or_unsure(corridor: Venue) -> None:
+    """A clip whose matches all lie far from where the belief is (one odd clip cannot move a
+    settled track): the answer's heading is the last one plus the gyroscope's turn, or, without
+    a gyroscope, unknown and the answer "not sure" (never a made-up 0°)."""
+    tr = corridor.tracker
+    belief = np.zeros(tr.n)
+    belief[corridor.graph.nearest(20.0, 0.0)] = 1.0
+    state = TrackState(10.0, belief, corridor.graph.key, 12, 90.0)
+    far = np.argsort(np.hypot(corridor.xy[:, 0] - 44.0, corridor.xy[:, 1]))[:K]  # every candidate at 44 m
+    sc = np.full((10, K), 0.8, np.float32)
+    m = Matches(np.tile(far, (10, 1)), sc, sc, np.full((10, K), 270.0, np.float32))
+    times = 11.0 + np.arange(-0.9, 0.01, 0.1)
+    new, pose = tr.update(state, m, times, 11.0, Motion(1, 30.0))
+    assert abs(pose.x - 20.0) <= 2.0 and pose.heading_known
+    assert pose.heading == pytest.approx(120.0) and new.heading == pytest.approx(120.0)
+    assert pose.confidence > 0.8
+    new, pose = tr.update(state, m, times, 11.0, Motion(1, None))
+    assert abs(pose.x - 20.0) <= 2.0 and not pose.heading_known
+    assert pose.heading == pytest.approx(90.0)  # the last answer's stands in, flagged unknown
+    assert pose.confidence <= 0.45 and new.heading is None
+    # the next answer with a match there has a heading again
+    m2 = corridor.matches([[(21.0, 0.0, 95.0, 0.8)]] * 10, np.random.default_rng(1))
+    _, pose = tr.update(new, m2, times + 1.0, 12.0, Motion(1, None))
+    assert pose.heading_known and abs(pose.heading - 95.0) < 5.0
+
+
+def test_a_lift_takes_the_belief_to_the_other_floor() -> None:
+    """Two floors, one corridor each, joined by a lift at their east end (walkgraph's `via`):
+    walking to the lift on floor 1, then clips that only floor 2 explains, the answer follows to
+    floor 2 within a few updates (and never leaves floor 1 before the lift)."""
+    xy1, _ = frames_along([(0.0, 0.0), (20.0, 0.0)])
+    xy2, _ = frames_along([(20.0, 0.0), (20.0, 15.0)])
+    vxy = np.concatenate([xy1, xy2])
+    vfl = np.array(["1"] * len(xy1) + ["2"] * len(xy2))
+    lift = [{"name": "Lift", "kind": "lift", "floor": f, "x": 20.0, "y": 0.0} for f in ("1", "2")]
+    g = build([(xy1, "1"), (xy2, "2")], lift)
+    assert set(g.via.values()) == {"lift"}
+    tr = Tracker(g, vxy, vfl, CONF)
+    rng = np.random.default_rng(0)
+
+    def clip(x: float, y: float, floor: str) -> Matches:
+        rows = np.flatnonzero(vfl == floor)
+        near = rows[np.argsort(np.hypot(vxy[rows, 0] - x, vxy[rows, 1] - y))[:4]]
+        idx = np.concatenate([near, rng.integers(0, len(vxy), K - 4)])
+        sc = np.concatenate([np.full(4, 0.8), rng.uniform(0.2, 0.4, K - 4)]).astype(np.float32)
+        one = Matches(idx[None], sc[None], sc[None], np.full((1, K), 90.0, np.float32))
+        return Matches(*(np.repeat(a, 10, axis=0) for a in (one.index, one.coarse, one.score, one.heading)))
+
+    state, t = None, 0.0
+    for x in np.arange(2.0, 20.1, 1.2):  # floor 1, east to the lift
+        t += 1.0
+        state, pose = tr.update(state, clip(x, 0.0, "1"), t + np.arange(-0.9, 0.01, 0.1), t)
+        assert pose.floor == "1"
+    for _ in range(3):  # in the lift: the clips say nothing (a blank wall everywhere alike)
+        t += 10.0
+        blank = Matches(rng.integers(0, len(vxy), (10, K)), *(np.full((3, 10, K), 0.3, np.float32)))
+        state, pose = tr.update(state, blank, t + np.arange(-0.9, 0.01, 0.1), t)
+    floors = []
+    for y in np.arange(1.0, 8.0, 1.2):  # out on floor 2, south
+        t += 1.0
+        state, pose = tr.update(state, clip(20.0, y, "2"), t + np.arange(-0.9, 0.01, 0.1), t)
+        floors.append(pose.floor)
+    assert floors[2:] == ["2"] * (len(floors) - 2) and pose.confidence >= 0.8
+
+
+def test_imu_motion_between_two_moments_and_bad_files() -> None:
+    imu = parse_imu({"steps": [0.5, 1.0, 1.6, 2.2], "yaw": {"t": [0.0, 1.0, 2.0], "deg": [0.0, 10.0, -80.0]}})
+    m = imu.motion(1.0, 2.0)
+    assert m.steps == 1 and m.turn_deg == pytest.approx(-90.0)  # steps in (1.0, 2.0]
+    assert imu.motion(0.4, 2.2).steps == 4
+    assert imu.motion(0.0, 0.5).turn_deg == pytest.approx(5.0)
+    assert parse_imu({"steps": [1.0]}).motion(0.0, 2.0) == Motion(1, None)  # no gyroscope: turn unknown
+    for bad in ([], {"steps": "x"}, {"steps": [2.0, 1.0]}, {"yaw": {"t": [0, 1], "deg": [0]}}, {"steps": [None]}):
+        with pytest.raises(OmninavError):
+            parse_imu(bad)
+
+
+def test_a_tracking_confidence_model_that_cannot_be_evaluated_is_refused() -> None:
+    with pytest.raises(OmninavError, match="luck"):
+        resolve("default", {"track_confidence_features": ["mass", "luck"], "track_confidence_coef": [0, 1, 1]})
+    with pytest.raises(OmninavError, match="3 weights"):
+        resolve("default", {"track_confidence_features": ["mass", "far"], "track_confidence_coef": [0, 1]})
+    # a venue modelled before tracking existed has none of the keys: today's defaults apply
+    old = {k: v for k, v in CONF.items() if not k.startswith("track_")}
+    v = Venue([(0.0, 0.0), (10.0, 0.0)], conf=None)
+    tr = Tracker(v.graph, v.xy, np.full(len(v.xy), "1"), old)
+    m = v.matches([[(5.0, 0.0, 90.0, 0.8)]], np.random.default_rng(0))
+    assert 0.0 <= tr.update(None, m, np.array([0.0]), 0.0)[1].confidence <= 1.0
+
+
+# ---- on the small rendered venue ---------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def walk_spec(modelled, small_ds: Dataset):
+    from omninav.evaluate import query_spectra
+    from omninav.track import load_track
+
+    st, vid = modelled
+    loc = Locator(st, vid, device="cpu")
+    spec = query_spectra(loc, small_ds.query_video, load_track(small_ds.query_track), load_lens(small_ds.lens))
+    return loc, spec
+
+
+def test_locator_track_feeds_the_clip_estimate_and_the_filter(walk_spec) -> None:
+    from omninav.evaluate import evaluate_track, track_summary
+
+    loc, (spec, t, xy, hd, idx) = walk_spec
+    w = slice(30, 40)
+    state, pose, est = loc.track(loc.tracker, spec[w], t[w], None, 100.0)
+    same = loc.estimate(spec[w], t[w])
+    assert (est.x, est.y, est.heading) == (same.x, same.y, same.heading)  # the clip's answer, unchanged
+    assert state.t == 100.0 and state.updates == 1 and state.graph_key == loc.graph.key
+    assert 0.0 <= pose.confidence <= 1.0 and pose.floor == "1"
+    single, tracked = evaluate_track(loc, spec, t, xy, hd, idx)
+    s1, s2 = track_summary(single), track_summary(tracked)
+    assert s2["clips"] == s1["clips"] >= 15
+    assert s2["within_2m"] >= max(0.9, s1["within_2m"] - 0.05)
+    assert s2["confident_over_5m"] == 0
+
+
+def test_locator_tracks_each_modelling_video_on_its_own_floor(modelled, walk_spec) -> None:
+    """Locator.use_floors (what `omninav track` and `evaluate --track-mode` do with the
+    catalogue's video floors): the walk graph and the venue frames keep each video's floor, and
+    an answer names the floor of the place it gives (the modelling walk cut in two videos here,
+    on floors 2 and 3)."""
+    from omninav.evaluate import track_walk
+    from omninav.walkgraph import from_frames
+
+    st, vid = modelled
+    _, (spec, t, _, _, _) = walk_spec
+    loc = Locator(st, vid, device="cpu", floor="2")
+    frames = np.array(loc.gen.frames)
+    frames["video"] = (frames["t"] > np.median(frames["t"])).astype(frames["video"].dtype)
+    loc.gen.frames, loc.gen.videos = frames, ["first", "second"]
+    video_floor = ["2", "3"]
+    loc.use_floors(video_floor, from_frames(frames, video_floor))
+    assert set(loc.graph.floor.tolist()) == {"2", "3"}
+    answers = [loc.track_answer(pose, "walk", float(t[e])) for e, pose, _ in track_walk(loc, spec, t)]
+    assert {a["floor"] for a in answers} == {"2", "3"}
+    for a in answers:  # the answer's frame is on the answer's floor
+        row = int(np.flatnonzero(frames["frame"] == a["frame"])[0])
+        assert video_floor[int(frames["video"][row])] == a["floor"]
+
+
+@pytest.fixture(scope="module")
+def cli_venue(small_ds: Dataset, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    data = tmp_path_factory.mktemp("track-cli")
+    run_cli("venue", "create", "lab", "--floor", "2", data=data, check=True)
+    cli_model(small_ds, "lab", data)
+    return data
+
+
+def test_cli_track_prints_one_answer_per_second(cli_venue: Path, small_ds: Dataset, tmp_path: Path) -> None:
+    track = json.loads(small_ds.query_track.read_text())
+    imu = tmp_path / "imu.json"
+    imu.write_text(json.dumps(imu_for(track, np.random.default_rng(0))))
+    p = run_cli("track", "lab", str(small_ds.query_video), "--lens", str(small_ds.lens), data=cli_venue, check=True)
+    lines = [json.loads(s) for s in p.stdout.splitlines()]
+    duration = track["waypoints"][-1]["t"]
+    assert len(lines) == pytest.approx(duration, abs=1.5)
+    assert [round(a["t"]) for a in lines[:3]] == [1, 2, 3]
+    for a in lines:
+        assert {"clip", "t", "x", "y", "heading_deg", "confidence", "floor", "place", "frame", "ambiguous"} <= set(a)
+        assert a["floor"] == "2" and 0 <= a["confidence"] <= 1 and 0 <= a["heading_deg"] < 360
+    tr = parse_track(track)
+    truth, _, _ = tr.pose_at(np.array([a["t"] for a in lines]))
+    e = np.hypot(*(np.array([[a["x"], a["y"]] for a in lines]) - truth).T)
+    assert np.mean(e[5:] <= 2.0) >= 0.9
+    p2 = run_cli(
+        "track", "lab", str(small_ds.query_video), "--lens", str(small_ds.lens), "--every", "2.5", "--imu", str(imu),
+        data=cli_venue, check=True,
+    )  # fmt: skip
+    assert len(p2.stdout.splitlines()) == pytest.approx(len(lines) / 2.5, abs=1.5)
+    bad = run_cli("track", "lab", str(small_ds.query_video), "--imu", str(tmp_path / "nope.json"), data=cli_venue)
+    assert bad.returncode == 2 and "imu file not found" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_cli_evaluate_track_mode(cli_venue: Path, small_ds: Dataset, tmp_path: Path) -> None:
+    args = ["evaluate", "lab", str(small_ds.query_video), "--track", str(small_ds.query_track)]
+    args += ["--lens", str(small_ds.lens), "--plot", str(tmp_path / "t.png"), "--track-mode"]
+    out = json.loads(run_cli(*args, "--json", data=cli_venue, check=True).stdout)
+    for key in ("single", "track"):
+        s = out[key]
+        assert s["clips"] >= 15 and {"within_1m", "within_2m", "median_heading_err_deg"} <= set(s)
+        assert {"confident_over_5m", "confident_over_2m"} <= set(s)
+    assert out["track"]["clips"] == out["single"]["clips"]
+    assert out["track"]["within_2m"] >= 0.9 and out["track"]["confident_over_5m"] == 0
+    table = run_cli(*args, "--every", "2", data=cli_venue, check=True).stdout
+    assert "tracking (filter)" in table and "single clip" in table
+    bad = run_cli("evaluate", *args[1:-1], "--every", "2", data=cli_venue)
+    assert bad.returncode == 2 and "--track-mode" in bad.stderr
