@@ -67,6 +67,8 @@ export function groups(d: Destinations, query = ''): Group[] {
 const count = (gs: Group[]): number => gs.reduce((n, g) => n + g.places.length, 0);
 const placesWord = (n: number): string => (n === 1 ? '1 place' : `${n} places`);
 
+/** How long the typing pauses before the filter's count is said. */
+const COUNT_QUIET_MS = 600;
 /** The filter's status line: how many places are listed. */
 export function countLine(d: Destinations, query: string): string {
   const total = count(groups(d));
@@ -167,6 +169,8 @@ export function gotoScreen(session: Session, speaker: Speaker, guide: Guide): vo
   // what the list shows now: re-made only when it changes, so that a focused place keeps the focus
   let shown: { d: Destinations; q: string } | null = null;
 
+  let typing = false;
+  let countTimer: ReturnType<typeof setTimeout> | undefined;
   /** The list for the filter; when only the chosen place changed, only its mark moves. */
   function render(): void {
     if (!dests) return;
@@ -178,7 +182,12 @@ export function gotoScreen(session: Session, speaker: Speaker, guide: Guide): vo
       return;
     }
     shown = { d: dests, q };
-    status.textContent = countLine(dests, q);
+    // said once the typing pauses: a screen reader reading the count after every letter talks
+    // over the letters being echoed
+    const line = countLine(dests, q);
+    clearTimeout(countTimer);
+    if (typing) countTimer = setTimeout(() => (status.textContent = line), COUNT_QUIET_MS);
+    else status.textContent = line;
     const blocks = groups(dests, q).map((g, i) => {
       const h = document.createElement('h4');
       h.id = `goto-floor-${i}`;
@@ -268,7 +277,11 @@ export function gotoScreen(session: Session, speaker: Speaker, guide: Guide): vo
   });
   next.addEventListener('click', () => guide.whatNext());
   stop.addEventListener('click', () => guide.stop());
-  filter.addEventListener('input', render);
+  filter.addEventListener('input', () => {
+    typing = true;
+    render();
+    typing = false;
+  });
 
   guide.on('state', showState);
   guide.on('problem', (text) => {
