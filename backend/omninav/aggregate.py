@@ -15,7 +15,7 @@ steady walk, a slow turn), so that every frame of a long clip still counts for t
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -157,18 +157,25 @@ def median(m: Matches, xy: np.ndarray, times: np.ndarray, conf: dict[str, Any]) 
     return Estimate(float(xy[med, 0]), float(xy[med, 1]), h % 360.0, med, support, rival, agree)
 
 
-def _get(e: Estimate | Mapping[str, Any], name: str) -> float:
+def field_of(e: Any, name: str) -> float:
+    """A field of an answer (an object with it as an attribute, or an evaluation row with the key)."""
     return float(e[name] if isinstance(e, Mapping) else getattr(e, name))
+
+
+def logistic(coef: Sequence[float], inputs: Sequence[float]) -> float:
+    """logistic(w0 + w . inputs): the calibrated confidence models' form (this one's, tracking's)."""
+    z = coef[0] + sum(wi * xi for wi, xi in zip(coef[1:], inputs, strict=True))
+    return float(1.0 / (1.0 + np.exp(-z)))
 
 
 # What the confidence model may read from an answer (an Estimate, or an evaluation row with the
 # same fields). Support: how well the clip's frames agree with the place; margin: how much better
 # it is than the best other place >= ALT_M away (repetitive corridors make that rival close).
 CONFIDENCE_INPUTS: dict[str, Callable[[Estimate | Mapping[str, Any]], float]] = {
-    "support": lambda e: _get(e, "support"),
-    "margin": lambda e: _get(e, "support") - _get(e, "rival"),
-    "rel_margin": lambda e: (_get(e, "support") - _get(e, "rival")) / max(_get(e, "support"), 1e-6),
-    "agree": lambda e: _get(e, "agree"),
+    "support": lambda e: field_of(e, "support"),
+    "margin": lambda e: field_of(e, "support") - field_of(e, "rival"),
+    "rel_margin": lambda e: (field_of(e, "support") - field_of(e, "rival")) / max(field_of(e, "support"), 1e-6),
+    "agree": lambda e: field_of(e, "agree"),
 }
 
 
@@ -184,9 +191,7 @@ def confidence(e: Estimate | Mapping[str, Any], conf: dict[str, Any]) -> float:
     preset, so a venue keeps the model it was modelled with.
     """
     names = conf.get("confidence_features", ["support", "margin"])
-    w = conf["confidence_coef"]
-    z = w[0] + sum(wi * xi for wi, xi in zip(w[1:], confidence_inputs(e, names), strict=True))
-    return float(1.0 / (1.0 + np.exp(-z)))
+    return logistic(conf["confidence_coef"], confidence_inputs(e, names))
 
 
 AGGREGATORS = {"sequence": sequence, "median": median}

@@ -44,12 +44,8 @@ def _track_locator(ctx: click.Context, venue_id: str) -> Any:
     it (server/locate_api.py), so that walks of two floors at the same x, y stay apart."""
     from .walkgraph import from_frames
 
-    cat = _catalog(ctx)
     loc = _locator(ctx, venue_id)
-    floors = [str(f["id"]) for f in cat.floors.all(venue_id)]
-    vf = cat.videos.floors(venue_id)
-    first = min(floors) if floors else str(loc.floor or "1")
-    video_floor = [str(vf.get(name, first)) for name in loc.gen.videos] or [first]
+    video_floor = _catalog(ctx).videos.floor_list(venue_id, loc.gen.videos)
     loc.use_floors(video_floor, from_frames(loc.gen.frames, video_floor, loc.places))
     return loc
 

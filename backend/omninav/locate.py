@@ -30,6 +30,14 @@ MAX_CLIP_S = 5.0
 MAX_CLIP_FRAMES = 60
 
 
+def frame_floors(frames: np.ndarray, video_floor: Sequence[str]) -> np.ndarray:
+    """(N,) str: each venue frame's floor, its modelling video's (by the video's index in the
+    generation; a video beyond the list is on the first one's floor)."""
+    vf = np.asarray([str(f) for f in video_floor])
+    vid = np.asarray(frames["video"], np.int64)
+    return vf[np.where((vid >= 0) & (vid < len(vf)), vid, 0)]
+
+
 class Locator:
     """One venue's live generation loaded for answering; reuse it across queries."""
 
@@ -115,9 +123,7 @@ class Locator:
         of two floors at the same x, y stay apart, and the answers name the pose's floor."""
         if len(video_floor) == 0:
             raise ValueError("use_floors needs each modelling video's floor")
-        vf = np.asarray([str(f) for f in video_floor])
-        vid = np.asarray(self.gen.frames["video"], np.int64)
-        self._frame_floor = vf[np.where((vid >= 0) & (vid < len(vf)), vid, 0)]
+        self._frame_floor = frame_floors(self.gen.frames, video_floor)
         self._graph = graph
         self._tracker = None
 

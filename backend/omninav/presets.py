@@ -8,6 +8,7 @@ over the defaults, as hloc's `confs` do.
 from __future__ import annotations
 
 import copy
+from collections.abc import Mapping
 from typing import Any
 
 from .errors import OmninavError
@@ -109,22 +110,20 @@ def resolve(name: str = "default", overrides: dict[str, Any] | None = None) -> d
 def _check_confidence(conf: dict[str, Any]) -> None:
     """A confidence model that could not be evaluated would fail every locate: refuse it here."""
     from .aggregate import CONFIDENCE_INPUTS
-
-    names = conf["confidence_features"]
-    unknown = [n for n in names if n not in CONFIDENCE_INPUTS]
-    if unknown:
-        raise OmninavError(f"unknown confidence inputs {unknown} (known: {', '.join(CONFIDENCE_INPUTS)})")
-    if len(conf["confidence_coef"]) != 1 + len(names):
-        raise OmninavError(f"confidence_coef needs {1 + len(names)} weights (an intercept and one per input)")
     from .tracking import TRACK_CONFIDENCE_INPUTS
 
-    names = conf["track_confidence_features"]
-    unknown = [n for n in names if n not in TRACK_CONFIDENCE_INPUTS]
+    _check_model(conf, "confidence", CONFIDENCE_INPUTS, "confidence inputs")
+    _check_model(conf, "track_confidence", TRACK_CONFIDENCE_INPUTS, "tracking confidence inputs")
+
+
+def _check_model(conf: dict[str, Any], prefix: str, known: Mapping[str, Any], what: str) -> None:
+    """`<prefix>_features` all in `known`, and `<prefix>_coef` an intercept and one weight each."""
+    names = conf[f"{prefix}_features"]
+    unknown = [n for n in names if n not in known]
     if unknown:
-        known = ", ".join(TRACK_CONFIDENCE_INPUTS)
-        raise OmninavError(f"unknown tracking confidence inputs {unknown} (known: {known})")
-    if len(conf["track_confidence_coef"]) != 1 + len(names):
-        raise OmninavError(f"track_confidence_coef needs {1 + len(names)} weights (an intercept and one per input)")
+        raise OmninavError(f"unknown {what} {unknown} (known: {', '.join(known)})")
+    if len(conf[f"{prefix}_coef"]) != 1 + len(names):
+        raise OmninavError(f"{prefix}_coef needs {1 + len(names)} weights (an intercept and one per input)")
 
 
 # The settings that change what a feature record contains: a record made with other values of

@@ -53,7 +53,7 @@ import numpy as np
 import scipy.sparse  # type: ignore[import-untyped]
 from scipy.spatial import cKDTree  # type: ignore[import-untyped]
 
-from .aggregate import Estimate, sequence
+from .aggregate import SPAN_S, Estimate, field_of, logistic, sequence
 from .heading import wrap_deg
 from .index import Matches
 from .presets import DEFAULTS
@@ -63,7 +63,6 @@ if TYPE_CHECKING:
 
 FACING_S = 0.3  # where the phone faces now: the clip's latest matches
 FACING_MARGIN = 0.1  # ... those within this of their frame's best score
-CLIP_S = 1.0  # the emission reads the clip's last second: the pose now, not where the clip began
 PLACE_M = 1.5  # a "place": the nodes within this of a node (the answer's node has the most belief)
 NEAR_M = 2.0  # the confidence is P(within this of the truth): the belief within it of the answer
 FAR_M = 3.0  # belief this far from the answer is another place (the `ambiguous` rule, the rival)
@@ -196,17 +195,13 @@ class TrackPose:
     heading_known: bool = True
 
 
-def _field(p: Any, name: str) -> float:
-    return float(p[name] if isinstance(p, Mapping) else getattr(p, name))
-
-
 # What the confidence model may read from a pose (or a row of bench/tracking.py with its fields)
 TRACK_CONFIDENCE_INPUTS: dict[str, Callable[[Any], float]] = {
-    "mass": lambda p: _field(p, "mass"),
-    "far": lambda p: _field(p, "far"),
-    "spread": lambda p: min(_field(p, "spread_m"), 20.0) / 10.0,
+    "mass": lambda p: field_of(p, "mass"),
+    "far": lambda p: field_of(p, "far"),
+    "spread": lambda p: min(field_of(p, "spread_m"), 20.0) / 10.0,
     # a belief of one or two clips is as sure as those clips: a young track is less reliable
-    "young": lambda p: 1.0 / max(1.0, _field(p, "updates")),
+    "young": lambda p: 1.0 / max(1.0, field_of(p, "updates")),
 }
 
 
@@ -214,8 +209,7 @@ def track_confidence(pose: Any, conf: Mapping[str, Any]) -> float:
     """Calibrated P(within 2 m) of a filtered pose: logistic on `track_confidence_features`."""
     names = _conf(conf, "track_confidence_features")
     w = _conf(conf, "track_confidence_coef")
-    z = w[0] + sum(wi * TRACK_CONFIDENCE_INPUTS[n](pose) for wi, n in zip(w[1:], names, strict=True))
-    return float(1.0 / (1.0 + np.exp(-z)))
+    return logistic(w, [TRACK_CONFIDENCE_INPUTS[n](pose) for n in names])
 
 
 def _pairs_within(a: np.ndarray, b: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -234,7 +228,6 @@ class Tracker:
         rows); conf: the venue's settings (tracking keys read with presets.py's defaults)."""
         self.graph = graph
         self.conf = dict(conf)
-        self.key = graph.key
         self.n = n = len(graph.xy)
         if n == 0:
             raise ValueError("a walk graph without nodes cannot be tracked on")
@@ -378,7 +371,7 @@ class Tracker:
         node, and (N,) the heading of the best match near it in the clip's last FACING_S (NaN
         where there is none)."""
         times = np.asarray(times, np.float64)
-        keep = np.flatnonzero(times > t_now - CLIP_S - 1e-6)
+        keep = np.flatnonzero(times > t_now - SPAN_S - 1e-6)
         if len(keep) == 0:
             keep = np.array([len(times) - 1])
         idx = matches.index[keep]
@@ -419,7 +412,7 @@ class Tracker:
             raise ValueError(f"{matches.index.shape[0]} frames of matches need as many frame times, got {len(times)}")
         fresh = (
             state is None
-            or state.graph_key != self.key
+            or state.graph_key != self.graph.key
             or len(state.belief) != self.n
             or not (-1.0 <= t_now - state.t <= FORGET_S)
         )
@@ -451,7 +444,7 @@ class Tracker:
         post /= post.sum()
         pose = self.pose(post, matches, times, t_now, gyro, updates + 1, last)
         heading = pose.heading if pose.heading_known else None
-        return TrackState(float(t_now), post, self.key, updates + 1, heading, facing), pose
+        return TrackState(float(t_now), post, self.graph.key, updates + 1, heading, facing), pose
 
     def pose(
         self,
@@ -509,7 +502,7 @@ class Tracker:
         unknown (False: the answer is "not sure"; the last answer's heading stands in, never a
         made-up 0° unless there is none)."""
         nx, ny = self.xy[node]
-        keep = np.flatnonzero(times > t_now - CLIP_S - 1e-6)
+        keep = np.flatnonzero(times > t_now - SPAN_S - 1e-6)
         m = Matches(*(np.asarray(a)[keep] for a in (matches.index, matches.coarse, matches.score, matches.heading)))
         pos = self.venue_xy[m.index]  # (Q, k, 2)
         near = np.hypot(pos[..., 0] - nx, pos[..., 1] - ny) <= FIT_M

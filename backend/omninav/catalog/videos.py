@@ -22,7 +22,7 @@ import os
 import re
 import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
@@ -95,6 +95,15 @@ class Videos:
         return {
             r["name"]: r["floor"] for r in self.db.all("SELECT name, floor FROM videos WHERE venue = :v", v=venue_id)
         }
+
+    def floor_list(self, venue_id: str, names: Sequence[str], floor_ids: Sequence[str] | None = None) -> list[str]:
+        """The floor of each of these videos (a generation's, by their index in it); a video the
+        catalogue no longer lists is on the venue's first floor ("1" when it has none).
+        `floor_ids`: the venue's floors, when the caller has them already."""
+        vf = self.floors(venue_id)
+        ids = [str(f["id"]) for f in self.cat.floors.all(venue_id)] if floor_ids is None else list(floor_ids)
+        first = min(ids) if ids else "1"
+        return [str(vf.get(n, first)) for n in names] or [first]
 
     def check_track(self, venue_id: str, floor: str, track: Any) -> Track:
         """A track as sent, parsed, and on the floor's plan."""

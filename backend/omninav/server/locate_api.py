@@ -32,7 +32,7 @@ from ..catalog import Catalog
 from ..catalog.sessions import Session, check_session_id
 from ..errors import Conflict, NotFound, OmninavError
 from ..extract import Extractor
-from ..locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, Locator  # a clip (video or not) is at most MAX_CLIP_S
+from ..locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, Locator, frame_floors  # a clip (video or not) is at most MAX_CLIP_S
 from ..media import decode_image, iter_sampled, probe_image, probe_mp4, same_size, sampled_count
 from ..presets import n_curves
 from ..route import guide
@@ -83,12 +83,11 @@ class Runtime:
         if self._walk is None:
             with self._walk_lock:
                 if self._walk is None:
-                    fr = self.locator.gen.frames
+                    loc = self.locator  # shared with the runtime of the last revision: not changed here
                     places = [p for ps in self.places.values() for p in ps]
-                    graph = from_frames(fr, self.video_floor, places)
-                    frame_floor = np.asarray(self.video_floor, dtype=str)[np.asarray(fr["video"], np.int64)]
-                    tracker = Tracker(graph, self.locator.xy, frame_floor, self.locator.conf)
-                    self._walk = Walk(graph, tracker, attach(graph, places))
+                    graph = from_frames(loc.gen.frames, self.video_floor, places)
+                    floor = frame_floors(loc.gen.frames, self.video_floor)
+                    self._walk = Walk(graph, Tracker(graph, loc.xy, floor, loc.conf), attach(graph, places))
         return self._walk
 
     def destinations(self, key: str) -> list[dict[str, Any]]:
@@ -135,9 +134,7 @@ class Runtimes:
         places: dict[str, list[dict[str, Any]]] = {}
         for p in self.cat.places.all(venue_id):
             places.setdefault(p["floor"], []).append(p)
-        vf = self.cat.videos.floors(venue_id)
-        first = min(floors) if floors else "1"
-        video_floor = [vf.get(name, first) for name in loc.gen.videos]
+        video_floor = self.cat.videos.floor_list(venue_id, loc.gen.videos, list(floors))
         return Runtime(loc, revision, loc.generation, floors, places, video_floor)
 
 
@@ -386,10 +383,7 @@ def _track_args() -> TrackArgs | None:
         if to is not None:
             raise ApiError(400, "'to' needs a tracking 'session' (an id the app makes for this walk)")
         return None
-    try:
-        check_session_id(session)
-    except OmninavError as e:
-        raise ApiError(400, str(e)) from None
+    check_session_id(session)  # an OmninavError: a 400 with its message (http.py)
     motion = None if steps is None and turn is None else Motion(None if steps is None else int(steps), turn)
     return TrackArgs(session, t, motion, to, style)
 

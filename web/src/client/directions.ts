@@ -18,7 +18,7 @@ export const UNSURE = 'Not sure where you are; turn slowly and try again.';
 export const NEAR_M = 10;
 
 /** Any angle -> (-180, 180], computed as Python's float % does, so both sides agree to the bit. */
-function signed(b: number): number {
+export function signed(b: number): number {
   let m = (b + 180) % 360;
   if (m < 0) m += 360;
   const r = m - 180;

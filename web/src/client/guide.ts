@@ -281,8 +281,8 @@ export class Guide extends Emitter<GuideEvents> {
 
   /** A place was chosen: a new session, one answer, its preview said. */
   async choose(place: Target): Promise<void> {
-    this.halt();
-    const run = this.newRun();
+    this.halt(); // a new run: whatever the last one still had in flight is dropped
+    const run = this.run;
     this.place = place;
     this.session = this.d.newSession?.() ?? newSessionId();
     this.latest = this.current = null;
@@ -476,21 +476,15 @@ export class Guide extends Emitter<GuideEvents> {
   stop(): void {
     if (this.state !== 'guiding' && this.state !== 'ready' && this.state !== 'previewing') return;
     this.halt();
-    this.newRun();
     this.set('stopped');
     this.voice(STOPPED_GUIDANCE, null, false, false);
   }
 
   /** End the loop quietly: timers, sensors, screen lock. */
   private halt(): void {
-    endRun(this.run);
-    this.run = {};
+    this.newRun();
     this.page.removeEventListener('visibilitychange', this.onVisibility);
     this.d.motion.stop();
     void this.d.screen.release();
-  }
-
-  get guiding(): boolean {
-    return this.state === 'guiding';
   }
 }

@@ -17,6 +17,7 @@
  * report gravity with the opposite sign, which would mirror the turn. Where a browser gives
  * orientation angles but no rotation rate, the change of `alpha` stands in.
  */
+import { signed } from './directions';
 
 /** A rise of the smoothed acceleration magnitude above its mean by this much (m/s²) is a step. */
 export const STEP_HIGH = 0.9;
@@ -87,12 +88,8 @@ export function upFromOrientation(betaDeg: number, gammaDeg: number): Vec3 {
   return [-Math.cos(b) * Math.sin(g), Math.sin(b), Math.cos(b) * Math.cos(g)];
 }
 
-/** Any angle in degrees -> (-180, 180]. */
-export function wrap180(d: number): number {
-  let m = (d + 180) % 360;
-  if (m < 0) m += 360;
-  return m === 0 ? 180 : m - 180;
-}
+/** Any angle in degrees -> (-180, 180]: the words' own wrap (directions.ts). */
+export const wrap180 = signed;
 
 /**
  * Integrates the turn about the vertical, clockwise seen from above positive (degrees). The phone
