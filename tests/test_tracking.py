@@ -541,3 +541,9 @@ def test_cli_evaluate_track_mode(cli_venue: Path, small_ds: Dataset, tmp_path: P
     assert "tracking (filter)" in table and "single clip" in table
     bad = run_cli("evaluate", *args[1:-1], "--every", "2", data=cli_venue)
     assert bad.returncode == 2 and "--track-mode" in bad.stderr
+
+
+def test_an_answers_heading_is_below_360_however_it_rounds():
+    from omninav.locate import answer_heading
+
+    assert [answer_heading(h) for h in (359.996, 360.0, -0.001, 90.004, 720.5)] == [0.0, 0.0, 0.0, 90.0, 0.5]

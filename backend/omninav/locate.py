@@ -30,6 +30,11 @@ MAX_CLIP_S = 5.0
 MAX_CLIP_FRAMES = 60
 
 
+def answer_heading(h: float) -> float:
+    """An answer's heading: degrees in [0, 360) to 0.01 (359.996 rounds to 0.0, not 360.0)."""
+    return round(float(h) % 360.0, 2) % 360.0
+
+
 def frame_floors(frames: np.ndarray, video_floor: Sequence[str]) -> np.ndarray:
     """(N,) str: each venue frame's floor, its modelling video's (by the video's index in the
     generation; a video beyond the list is on the first one's floor)."""
@@ -169,7 +174,7 @@ class Locator:
             {
                 "x": round(pose.x, 3),
                 "y": round(pose.y, 3),
-                "heading_deg": round(pose.heading % 360.0, 2),
+                "heading_deg": answer_heading(pose.heading),
                 "confidence": round(pose.confidence, 3),
                 "floor": floor,
                 "place": self.nearest_place(pose.x, pose.y, None if self._frame_floor is None else floor),
@@ -184,7 +189,7 @@ class Locator:
             "clip": clip,
             "x": round(e.x, 3),
             "y": round(e.y, 3),
-            "heading_deg": round(e.heading % 360.0, 2),
+            "heading_deg": answer_heading(e.heading),
             "confidence": round(confidence(e, self.conf), 3),
             "floor": self.floor,
             "place": self.nearest_place(e.x, e.y),

@@ -32,7 +32,7 @@ from ..catalog import Catalog
 from ..catalog.sessions import Session, check_session_id
 from ..errors import Conflict, NotFound, OmninavError
 from ..extract import Extractor
-from ..locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, Locator, frame_floors  # a clip (video or not) is at most MAX_CLIP_S
+from ..locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, Locator, answer_heading, frame_floors
 from ..media import decode_image, iter_sampled, probe_image, probe_mp4, same_size, sampled_count
 from ..presets import n_curves
 from ..route import guide
@@ -503,7 +503,7 @@ def _tracked(
         **single,
         "x": round(float(pose.x), 3),
         "y": round(float(pose.y), 3),
-        "heading_deg": round(float(pose.heading) % 360.0, 2) % 360.0,  # 359.999 is 0.0, not 360.0
+        "heading_deg": answer_heading(pose.heading),
         "confidence": round(float(pose.confidence), 3),
     }
     extra: dict[str, Any] = {
