@@ -23,6 +23,9 @@ const SAID = {
   // already round it: straight on)
   turn: /^(In \d+ metres?, )?(turn to [234] o'clock and walk|walk straight ahead) \d+ metres?, to the stairs\.$/i,
   arrived: /^You have arrived at the stairs\b/,
+  // the whole arrival sentence: the words of the server's guidance (the demo's stairs have no
+  // sentence of their own), and nothing the app adds
+  arrivedExactly: /^You have arrived at the stairs(; it is at \d+ o'clock, \d+ metres?)?\.$/,
   offRoute: /^You are off the route; (turn to \d+ o'clock|walk straight ahead)\.$/,
   instruction: /^(In \d+ metres?, )?(walk straight ahead|turn to \d+ o'clock and walk|keep going)/i,
   // a leg to walk: where to face, how far, to what
@@ -127,14 +130,34 @@ function expectInOrder(sentences: string[], patterns: [string, RegExp][], log: s
   }
 }
 
+/**
+ * The venue as the app loads it says something else about the stairs on arrival than the server
+ * (a place edited since the app loaded it): the app must say the guidance's words, not its own copy.
+ */
+const STALE_SAY = 'An old sentence about the stairs.';
+
+async function staleVenue(page: Page): Promise<void> {
+  await page.route(
+    (url) => url.pathname === '/api/venues/demo',
+    async (route) => {
+      const res = await route.fetch();
+      const v = (await res.json()) as { places: { name: string; say?: string }[] };
+      const places = v.places.map((p) => (p.name === 'the stairs' ? { ...p, say: STALE_SAY } : p));
+      await route.fulfill({ response: res, json: { ...v, places } });
+    },
+  );
+}
+
 /** A browser whose fake camera plays the walk `w`, its page on the demo venue, logged. */
 async function open(
   playwright: { chromium: { launch: (o: object) => Promise<Browser> } },
   w: Walk,
+  prepare?: (page: Page) => Promise<void>,
 ): Promise<{ browser: Browser; page: Page }> {
   const browser = await playwright.chromium.launch({ executablePath: chromiumPath(), args: chromiumArgs(walkClip(w)) });
   const page = await (await browser.newContext({ permissions: ['camera'] })).newPage();
   await logWalk(page);
+  await prepare?.(page);
   await page.goto(`${base()}/?venue=demo`);
   await expect(page.locator('#venue-line')).toContainText('Ready');
   return { browser, page };
@@ -161,7 +184,7 @@ test.describe.configure({ timeout: 240_000 });
 test('walking to the stairs: the preview, the first instruction, "keep going", the turn, arrival', async ({
   playwright,
 }) => {
-  const { browser, page } = await open(playwright, 'to-stairs');
+  const { browser, page } = await open(playwright, 'to-stairs', staleVenue);
   try {
     await page.getByRole('button', { name: 'Go to', exact: true }).click();
     await expect(page.getByRole('heading', { name: 'Go to a place' })).toBeVisible();
@@ -192,6 +215,11 @@ test('walking to the stairs: the preview, the first instruction, "keep going", t
     expect(kinds, log).toContain('turn');
     expect(kinds.at(-1), log).toBe('arrived');
     expect(await said(page), log).not.toContainEqual(expect.stringMatching(SAID.offRoute));
+    // arrival said once, as the guidance's words have it: nothing appended from the app's venue
+    const arrivals = (await said(page)).filter((s) => SAID.arrived.test(s));
+    expect(arrivals, log).toHaveLength(1);
+    expect(arrivals[0], log).toMatch(SAID.arrivedExactly);
+    expect((await said(page)).join(' '), log).not.toContain(STALE_SAY);
     // guidance ended with arrival: no more requests, and the screen says so
     const n = kinds.length;
     await page.waitForTimeout(3000);

@@ -280,6 +280,84 @@ def test_a_wrong_turn_is_off_the_route_then_a_new_instruction(ring: wg.WalkGraph
     assert all(g["on_route"] for g in back)
 
 
+def corridor() -> tuple[wg.WalkGraph, dict[str, Any]]:
+    """A straight corridor 60 m long, its end the place: nowhere to go the wrong way but back."""
+    return wg.build([(dense([(0.0, 0.0), (60.0, 0.0)]), "1")]), {"id": "e", "name": "the end", "x": 55.0, "y": 0.0}
+
+
+def test_walking_on_the_wrong_way_hears_off_the_route_once_per_spell_not_at_every_answer():
+    # issue 14: facing the right way, then round and 29 m the wrong way, one answer every 2.5 s
+    graph, end = corridor()
+    poses = [Pose(30.0, 0.0, "1", 90.0)] + walk([(30.0, 0.0), (1.0, 0.0)])[1:]
+    gs, state = follow(graph, end, poses)
+    assert [(t * 2.5, g["kind"], g["sentence"]) for t, g in enumerate(gs) if g["speak"]] == [
+        (0.0, "start", "Walk straight ahead 25 metres, to the end."),
+        (5.0, "off_route", "You are off the route; turn to 6 o'clock."),
+        (7.5, "turn", "Turn to 6 o'clock and walk 31 metres, to the end."),  # the new route, as ever
+        # each answer leaves the new route again (10, 15 s): planned anew, the same way, nothing said
+        (20.0, "off_route", "You are off the route; turn to 6 o'clock."),  # OFF_AGAIN_S since the last
+        (22.5, "turn", "Turn to 6 o'clock and walk 49 metres, to the end."),
+    ]
+    assert [g["urgent"] for g in gs if g["speak"]] == [False, True, False, True, False]
+    # the departures in between are planned anew all the same: the route and the bearing follow
+    quiet = [gs[4], gs[6]]
+    assert [(g["kind"], g["on_route"], g["remaining_m"], g["bearing_deg"]) for g in quiet] == [
+        ("continue", False, 37.0, 180.0),
+        ("continue", False, 43.0, 180.0),
+    ]
+    assert state is not None and state["off"] == {"t": 20.0, "way": 4}
+    # while the walker is off, never silent for longer than OFF_AGAIN_S
+    said_at = [t * 2.5 for t, g in enumerate(gs) if g["speak"]][1:]
+    assert max(b - a for a, b in zip(said_at[:-1], said_at[1:], strict=True)) <= rt.OFF_AGAIN_S
+
+
+def test_back_on_the_new_route_a_new_departure_is_said_at_once():
+    # off the route (3 s), back along the new route past where it began, then the wrong way again
+    # at 12 s: under OFF_AGAIN_S since the first, but after the walker was on a route again
+    graph, end = corridor()
+    there = walk([(30.0, 0.0), (21.0, 0.0)])[1:]
+    back = walk([(21.0, 0.0), (30.0, 0.0)])[1:]
+    again = walk([(30.0, 0.0), (18.0, 0.0)])[1:]
+    gs, _ = follow(graph, end, [Pose(30.0, 0.0, "1", 90.0), *there, *back, *again], dt=1.5)
+    assert [(t * 1.5, g["kind"]) for t, g in enumerate(gs) if g["speak"]] == [
+        (0.0, "start"),
+        (3.0, "off_route"),
+        (4.5, "turn"),
+        (12.0, "off_route"),
+        (13.5, "turn"),
+    ]
+    assert gs[7]["on_route"] and gs[7]["kind"] == "continue"  # 9 m back along the new route
+
+
+def test_a_wrong_turn_that_finds_another_way_says_the_new_way_not_another_warning(ring: wg.WalkGraph):
+    # straight on past the corner where the route turns left, and on: from (39, 23) the way on round
+    # the ring is the shorter one, and the walker is told so, as an instruction
+    gs, state = follow(ring, ROOM_102, walk([(15.0, 23.0), (27.0, 23.0), (51.0, 23.0)]))
+    assert [(g["kind"], g["sentence"], g["urgent"], g["on_route"]) for g in gs if g["speak"]] == [
+        ("start", "Walk straight ahead 12 metres, to the stairs.", False, True),
+        ("turn", "In 3 metres, turn to 9 o'clock and walk 20 metres, to the lifts.", False, True),
+        ("off_route", "You are off the route; turn to 6 o'clock.", True, False),
+        ("turn", "Turn to 6 o'clock and walk 6 metres, to the stairs.", False, True),
+        ("turn", "Walk straight ahead 12 metres, to the toilets.", False, False),  # off again, another way
+        ("turn", "In 3 metres, turn to 9 o'clock and walk 20 metres, to the café.", False, True),
+    ]
+    assert state is not None and state["off"] is None  # on the new route since: the spell is over
+
+
+def test_a_guide_state_without_the_off_route_spell_is_read_as_none():
+    # a state written before the spell was kept (or one with junk in it) goes on from where it was
+    graph, end = corridor()
+    _, state = follow(graph, end, walk([(30.0, 0.0), (24.0, 0.0)]))
+    assert state is not None and state["off"] == {"t": 5.0, "way": 4} and state["v"] == 1
+    for old in ({k: v for k, v in state.items() if k != "off"}, {**state, "off": {"t": "junk"}}):
+        gs, st = follow(graph, end, [Pose(21.0, 0.0, "1", 270.0), Pose(15.0, 0.0, "1", 270.0)], old, t0=7.5)
+        assert [(g["kind"], g["speak"]) for g in gs] == [("turn", True), ("off_route", True)]
+        assert st is not None and st["off"] == {"t": 10.0, "way": 4}
+    # the state as it is: still in the spell, so the second departure says nothing
+    gs, _ = follow(graph, end, [Pose(21.0, 0.0, "1", 270.0), Pose(15.0, 0.0, "1", 270.0)], state, t0=7.5)
+    assert [(g["kind"], g["speak"]) for g in gs] == [("turn", True), ("continue", False)]
+
+
 def test_walking_back_along_the_route_for_two_answers_is_off_the_route(ring: wg.WalkGraph):
     there = walk([(15.0, 23.0), (27.0, 23.0), (27.0, 14.0)])
     back = [replace(p, heading=180.0) for p in walk([(27.0, 14.0), (27.0, 23.0)], step=2.0)[1:]]

@@ -9,8 +9,9 @@ a place near it, else "the end of the corridor" (nothing walkable straight on) o
 `guide` is geometric, not another filter: the tracking filter (tracking.py) already smooths the
 pose over time and says when it is unsure, so the guide only has to project that pose onto the
 route and decide what to say. What it remembers between answers is a small JSON dict (the route's
-nodes, the leg last announced, the furthest point reached, what was said last, where and when), so
-the server keeps it beside the tracking state and any worker can continue it. The thresholds are
+nodes, the leg last announced, the furthest point reached, what was said last, where and when, a
+spell off the route), so the server keeps it beside the tracking state and any worker can continue
+it; a key added later is read with its default from a state written before it. The thresholds are
 the issue's, chosen for a walker who cannot see: off the route beyond OFF_ROUTE_M (3 m, wider than
 a corridor's half width plus the filter's error) or walking back along it for two answers (more
 than AWAY_M behind the furthest point reached, facing more than AWAY_DEG from the leg's way: a
@@ -29,6 +30,19 @@ every answer: the guide says "not sure" after LOW_ANSWERS low answers in a row (
 said, nothing decided on it: no turn, no off route, no arrival; a user's turn may then be said one
 answer later, nearer its corner, which `in_m` still says). After a spell of "not sure" the
 instruction is said again only when its leg changed or QUIET_S has passed since it was last said.
+
+Off the route is said once per spell, not at every departure: a walker who goes on the wrong way
+leaves each new route within an answer or two, and hearing "You are off the route" every 4 s is
+noise that hides the instructions. The first departure says it (urgent) and starts a spell; the
+answer after it says the new route's instruction, as ever. While the spell lasts, a further
+departure plans a new route from where the walker is (the plan and the bearings follow them) but
+says "off the route" again only once OFF_AGAIN_S (15 s) has passed since the spell's last warning,
+so a walker who keeps going still hears it, and never less often than that; in between it says the
+new route's instruction instead (not urgent) when its way differs from the last way said in the
+spell (the walker turned: another sector of `describe.sector`, so that a bearing that wavers by a
+few degrees is not news), and else nothing (the instruction stays in the answer for "What next?").
+The spell ends when the walker is back on a route: a sure answer within OFF_ROUTE_M of it, having
+walked REJOIN_M along it; a departure after that is news again and is said at once.
 """
 
 from __future__ import annotations
@@ -55,6 +69,8 @@ ARRIVE_M = 2.0
 TURN_AHEAD_M = 3.0
 REASSURE_M = 10.0
 QUIET_S = 6.0
+OFF_AGAIN_S = 15.0  # "off the route" again, in one spell, no sooner than this after the last
+REJOIN_M = 3.0  # metres walked along a new route that end a spell off the route (one answer's walk)
 LOW_CONFIDENCE = 0.5  # below it the pose is low (config.py's default for single answers)
 LOW_ANSWERS = 2  # low answers in a row before "not sure"
 CLEAR_LOW = 0.35  # a confidence under this is "not sure" at once
@@ -338,6 +354,7 @@ def new_state(graph: WalkGraph, place: Mapping[str, Any]) -> dict[str, Any]:
         "low": 0,  # low-confidence answers in a row
         "said": None,  # the last sentence spoken: {"kind", "key", "t", "s"}
         "told": None,  # when the instruction (start, turn, floor change) was last spoken: t
+        "off": None,  # a spell off the route: {"t": its last warning, "way": the last way said}
         "on_route": False,
         "remaining_m": None,
     }
@@ -387,6 +404,7 @@ def guide(
     st["far"] = float(st.get("far", st["s"]))  # a state written before these keys
     st["low"] = int(st.get("low", 0))
     st.setdefault("told", None)
+    st["off"] = _spell(st.get("off"))
     said: dict[str, Any] | None = st.get("said")
     fl = str(pose.floor)
     names = dict(floor_names or {})
@@ -430,6 +448,11 @@ def guide(
             st["said"] = {"kind": kind, "key": key, "t": float(t_now), "s": float(st["s"])}
             if kind in INSTRUCTIONS:
                 st["told"] = float(t_now)
+            # the spell off the route: when it was last said, and the last way said in it
+            if kind == "off_route":
+                st["off"] = {"t": float(t_now), "way": _way(g["bearing_deg"])}
+            elif st["off"] is not None and kind in INSTRUCTIONS and g["bearing_deg"] is not None:
+                st["off"] = {**st["off"], "way": _way(g["bearing_deg"])}
         if not hold:  # a held answer leaves the state as the last sure one left it
             st["on_route"], st["remaining_m"] = g["on_route"], g["remaining_m"]
         return g, st
@@ -447,7 +470,7 @@ def guide(
         cur = route or plan(graph, graph.nearest(pose.x, pose.y, fl), place, place_node, places)
         if cur is None:  # no way from here to there
             return answer("unsure", on_route=False)
-        st.update(started=True, nodes=list(cur.nodes), leg=-1, s=0.0, far=0.0, away=0)
+        st.update(started=True, nodes=list(cur.nodes), leg=-1, s=0.0, far=0.0, away=0, off=None)
 
     # arrived: within ARRIVE_M of the place's node, on its floor (or a route with nowhere to walk)
     px, py = float(place["x"]), float(place["y"])
@@ -457,7 +480,7 @@ def guide(
         new = plan(graph, graph.nearest(pose.x, pose.y, fl), place, place_node, places)
         if new is not None and new.legs:
             cur, fresh = new, True
-            st.update(nodes=list(cur.nodes), leg=-1, s=0.0, far=0.0, away=0)
+            st.update(nodes=list(cur.nodes), leg=-1, s=0.0, far=0.0, away=0, off=None)
     if (there and not hold) or not cur.legs:
         st["away"] = 0
         return answer(
@@ -495,6 +518,8 @@ def guide(
     s = w.along
     if not hold:
         st["s"], st["far"] = s, max(float(st["far"]), s)
+        if not off and st["far"] >= REJOIN_M:  # back on a route: the next departure is news again
+            st["off"] = None
     remaining = max(0.0, cur.length_m - s)
 
     # the instruction: the leg being walked, or the next one when its corner is near
@@ -525,8 +550,17 @@ def guide(
     if fresh:
         st["leg"] = ci
         return answer("start", key=f"start:{ci}", preview=cur.preview(), **common)
-    if off:  # the new route's first leg is announced at the next answer
-        return answer("off_route", key=f"off_route:{cur.nodes[0]}", **common)
+    if off:
+        spell = st["off"]
+        if spell is None or float(t_now) - spell["t"] >= OFF_AGAIN_S:
+            # the new route's first leg is announced at the next answer
+            return answer("off_route", key=f"off_route:{cur.nodes[0]}", **common)
+        # off again within the spell: the new route's way if the walker turned, else nothing
+        st["leg"] = ci
+        way = _way(common["bearing_deg"])
+        if way != spell["way"]:
+            return answer(kind, key=f"{kind}:{ci}:{cur.nodes[0]}:{way}", **common)
+        return answer("continue" if leg.via is None else kind, key=f"continue:{ci}", speak=False, **common)
     # a new leg ahead (never one behind: a pose that wavers about the corner says nothing twice),
     # or the route planned anew; after a spell of "not sure", the same leg again once QUIET_S has
     # passed since it was last said
@@ -543,6 +577,24 @@ def guide(
             return answer("reassure", key=f"reassure:{ci}:{_round(common['walk_m'])}", **common)
     # nothing new: not spoken, but the sentence is there for "What next?"
     return answer("continue" if leg.via is None else kind, key=f"continue:{ci}", speak=False, **common)
+
+
+def _spell(v: Any) -> dict[str, Any] | None:
+    """The state's spell off the route, {"t", "way"}; None for none, for a state written before it
+    (missing keys are defaults: the state's version stays 1), or for one that cannot be read."""
+    try:
+        return None if v is None else {"t": float(v["t"]), "way": int(v["way"])}
+    except (TypeError, ValueError, KeyError):
+        return None
+
+
+def _way(bearing: float) -> int:
+    """A bearing's way, to tell whether the walker turned: its sector (describe.sector: straight
+    ahead, ahead on a side, beside, behind on a side, behind), signed by its side."""
+    from .server.describe import SECTOR_DEG, sector
+
+    k = sector(bearing)
+    return -k if bearing < 0 and 0 < k < len(SECTOR_DEG) else k
 
 
 def floor_change(leg: Leg, names: Mapping[str, str]) -> dict[str, Any]:

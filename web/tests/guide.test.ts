@@ -159,7 +159,6 @@ function rig(script: Step[], o: { screen?: boolean; words?: Words; voice?: Voice
     style: () => style,
     words: o.words ?? { guidance: (x) => x.sentence, preview: (x) => `${x.to.name}: ${x.preview!.length_m} metres.` },
     newSession: () => 'session-1',
-    arrivalNote: (to) => (to.id === 'p3' ? 'The door is on your left.' : null),
     page,
   });
   const states: GuideState[] = [];
@@ -185,7 +184,11 @@ const REASSURE = g('reassure', 'Keep going, 8 metres to the lifts.');
 const QUIET = g('reassure', 'Keep going, 8 metres to the lifts.', { speak: false });
 const OFF = g('off_route', 'You are off the route; turn to 7 o’clock.');
 const TURN = g('turn', 'Turn to 9 o’clock and walk 20 metres, to Room 102.');
-const ARRIVED = g('arrived', 'You have arrived at Room 102; it is at 3 o’clock, 2 metres.');
+/** The server's guidance carries the place's own sentence, and its words say it (once). */
+const SAY = 'The door is on your left.';
+const ARRIVED = g('arrived', `You have arrived at Room 102; it is at 3 o’clock, 2 metres. ${SAY}`, {
+  to: { ...TO, say: SAY },
+});
 
 describe('Guide', () => {
   beforeEach(() => vi.useFakeTimers());
@@ -214,12 +217,9 @@ describe('Guide', () => {
       REASSURE.sentence, // said once: the quiet repeat and the same words again are not
       OFF.sentence,
       TURN.sentence,
-      `${ARRIVED.sentence} The door is on your left.`,
+      'You have arrived at Room 102; it is at 3 o’clock, 2 metres. The door is on your left.',
     ]);
-    expect(r.said.filter((s) => s.urgent).map((s) => s.text)).toEqual([
-      OFF.sentence,
-      `${ARRIVED.sentence} The door is on your left.`,
-    ]);
+    expect(r.said.filter((s) => s.urgent).map((s) => s.text)).toEqual([OFF.sentence, ARRIVED.sentence]);
     expect(r.said.find((s) => s.text === REASSURE.sentence)?.cue).toBeNull();
     // arrival ends the loop: no more filming, sensors off, the screen may lock again
     expect(r.guide.state).toBe('arrived');
@@ -484,6 +484,42 @@ describe('Guide', () => {
     r.setStyle('clock');
     r.guide.whatNext();
     expect(r.texts().at(-1)).toBe("Turn to 2 o'clock and walk 12 metres, to the end of the corridor.");
+  });
+
+  it('on arrival says what the words make, the place’s own sentence once, in each style', async () => {
+    const words: Words = { guidance: guidanceSentence, preview: (x) => previewSentence(x.preview!, x.to) };
+    const to = { ...TO, say: SAY };
+    const start = g('start', '', { to, bearing_deg: 0, walk_m: 12, until: 'Room 102', preview: PREVIEW });
+    const arrived = g('arrived', '', { to, bearing_deg: 90, walk_m: 2, remaining_m: 0 });
+    const heard: Record<Style, string[]> = { clock: [], sides: [], degrees: [] };
+    for (const style of ['clock', 'sides', 'degrees'] as const) {
+      const r = rig([start, { ...start, kind: 'continue', speak: false, preview: undefined }, arrived], { words });
+      r.setStyle(style);
+      const c = r.guide.choose({ id: 'p3', name: 'Room 102' });
+      await vi.advanceTimersByTimeAsync(1000);
+      await c;
+      r.guide.start();
+      await vi.advanceTimersByTimeAsync(1000 + INTERVAL_MS);
+      expect(r.guide.state).toBe('arrived');
+      heard[style] = r.said.filter((s) => s.urgent).map((s) => s.text);
+      expect(r.texts().join(' ').split(SAY).length - 1).toBe(1); // the place's sentence, said once
+    }
+    expect(heard).toEqual({
+      clock: ["You have arrived at Room 102; it is at 3 o'clock, 2 metres. The door is on your left."],
+      sides: ['You have arrived at Room 102; it is to your right, 2 metres. The door is on your left.'],
+      degrees: ['You have arrived at Room 102; it is at 90 degrees right, 2 metres. The door is on your left.'],
+    });
+    // arriving at the preview (the walk began at the place): the same words, once
+    const r = rig([g('arrived', '', { to, bearing_deg: 0, walk_m: 0.3, remaining_m: 0, preview: PREVIEW })], {
+      words,
+    });
+    const c = r.guide.choose({ id: 'p3', name: 'Room 102' });
+    await vi.advanceTimersByTimeAsync(1000);
+    await c;
+    expect(r.guide.state).toBe('arrived');
+    expect(r.said).toEqual([
+      { text: 'You have arrived at Room 102. The door is on your left.', cue: 'ok', urgent: true },
+    ]);
   });
 
   it('a session id the server takes: [A-Za-z0-9_-]{8,64}, a new one each time', () => {

@@ -87,8 +87,6 @@ export interface GuideDeps {
   words: Words;
   /** A new tracking session id; random by default. */
   newSession?: () => string;
-  /** The place's own sentence to add on arrival ("The lifts are on your right."), if any. */
-  arrivalNote?: (to: Target) => string | null | undefined;
   /** Whether the page is on screen, and when that changes: the document by default. */
   page?: PageHost;
 }
@@ -244,12 +242,14 @@ export class Guide extends Emitter<GuideEvents> {
     this.run.spoke = true;
   }
 
-  /** Words for an instruction in the user's style, with the place's own sentence on arrival. */
+  /**
+   * Words for an instruction in the user's style, said as the words make them: on arrival they
+   * carry the place's own sentence (the guidance's `to.say`, from the server), once. Nothing is
+   * added here: a second copy from the venue the app loaded would be said twice, or an old one
+   * beside the new once the place was edited.
+   */
   words(g: Guidance): string {
-    const text = this.d.words.guidance(g, this.d.style());
-    const note = g.kind === 'arrived' ? this.d.arrivalNote?.(g.to) : null;
-    // the words may carry it already (a guidance whose `to` has the place's `say`)
-    return note && !text.includes(note) ? `${text} ${note}` : text;
+    return this.d.words.guidance(g, this.d.style());
   }
 
   /**

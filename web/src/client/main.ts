@@ -35,9 +35,8 @@ const guide = new Guide({
   screen: new ScreenLock(),
   askMotion,
   style: () => session.prefs.style,
+  // the words say the place's own sentence on arrival (the guidance's `to.say`): nothing is added
   words: { guidance: guidanceSentence, preview: (g) => previewSentence(g.preview!, g.to) },
-  // the place's own sentence on arrival ("The lifts are on your right."), from the venue
-  arrivalNote: (to) => session.venue?.places.find((p) => p.id === to.id)?.say,
 });
 
 /** Inside the first gesture: iOS speaks, and gives motion events, only after one. */
