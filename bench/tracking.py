@@ -45,7 +45,16 @@ from omninav.presets import DEFAULTS
 from omninav.synth.families import FAMILIES, _jpeg, family_venue, pano_width
 from omninav.synth.walks import imu_for, poses_from_track, render_frames, with_stops, write_video
 from omninav.track import load_track
-from omninav.tracking import TRACK_CONFIDENCE_INPUTS, Imu, Motion, Tracker, parse_imu
+from omninav.tracking import (
+    ALIKE_K,
+    TRACK_CONFIDENCE_INPUTS,
+    Imu,
+    Motion,
+    Tracker,
+    frame_search,
+    look_alikes,
+    parse_imu,
+)
 from omninav.walkgraph import from_frames
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -68,7 +77,9 @@ class Walk:
 
 def graph_tracker(loc: Locator, conf: dict[str, Any] | None = None) -> Tracker:
     g = from_frames(loc.gen.frames, ["1"] * max(1, len(loc.gen.videos)))
-    return Tracker(g, loc.xy, np.full(len(loc.xy), "1"), {**loc.conf, **(conf or {})})
+    floor = np.full(len(loc.xy), "1")
+    conf = {**loc.conf, **(conf or {})}
+    return Tracker(g, loc.xy, floor, conf, look_alikes(loc.frame_matches, g, loc.xy, floor, conf))
 
 
 def stops_walk(root: Path, family: str, seed: int) -> str:
@@ -174,6 +185,8 @@ def run(
             "ambiguous": pose.ambiguous,
             "mass": pose.mass,
             "far": pose.far,
+            "alike_mass": pose.alike_mass,
+            "alike_far": pose.alike_far,
             "spread_m": pose.spread_m,
             "updates": pose.updates,
             "cpu_s": cpu,
@@ -260,7 +273,8 @@ def calibration_rows(names: list[str], seeds: list[int], over: dict[str, Any]) -
 
 
 def fit_confidence(over: dict[str, Any]) -> None:
-    """Fit track_confidence_coef on the tuning families; judge it on the held-out ones."""
+    """Fit track_confidence_coef on the tuning families (the main belief's inputs); judge it on
+    the held-out ones as the answer takes it: the lower of the two beliefs' confidence."""
     from calibrate import fit, reliability
 
     names = list(DEFAULTS["track_confidence_features"])
@@ -276,6 +290,13 @@ def fit_confidence(over: dict[str, Any]) -> None:
     for split, rows in data.items():
         xs, ys = design(rows)
         p = 1 / (1 + np.exp(-(xs @ w)))
+        # the answer's confidence is the lower of the two beliefs' (the look-alike one's, where
+        # the venue has look-alikes: the same model on its mass near and far from the answer)
+        twin = [
+            {**r, "mass": r["alike_mass"], "far": r["alike_far"]} if r.get("alike_mass") is not None else r
+            for r in rows
+        ]
+        p = np.minimum(p, 1 / (1 + np.exp(-(design(twin)[0] @ w))))
         amb = np.array([r["ambiguous"] for r in rows])
         p = np.where(amb, np.minimum(p, 0.45), p)
         err = np.array([r["err_m"] for r in rows])
@@ -290,25 +311,60 @@ def fit_confidence(over: dict[str, Any]) -> None:
             print(f"| {lo:.2f}-{hi_:.2f} | {n} | {mc:.3f} | {share:.1%} |")
 
 
-def cpu_large(frames: int = 8000, seed: int = 0) -> tuple[int, int, float, float]:
-    """Tracker.update on a made-up venue of `frames` frames (0.12 m apart along a serpentine of
-    corridors 5 m apart, ~1 node a metre) with random matches (10 frames x 16 candidates):
-    -> (frames, nodes, median ms, p95 ms) of CPU per update."""
+def alike_build(frames: int = 8000, seed: int = 0) -> tuple[int, int, float, float]:
+    """What a venue's first tracked request costs to build, on a made-up venue of `frames`
+    frames (the serpentine of cpu_large, random unit-energy spectra of the default record: 12
+    curves x 16 harmonics; the index as the server loads it): -> (frames, nodes, seconds for
+    the graph and the Tracker without look-alikes, seconds for look_alikes' search)."""
+    from omninav.index import Index
+    from omninav.store import key_dims_for
     from omninav.walkgraph import build
 
     rng = np.random.default_rng(seed)
+    vxy, _ = serpentine(frames)
+    spec = rng.normal(size=(frames, 12, 16)) + 1j * rng.normal(size=(frames, 12, 16))
+    spec = (spec / np.linalg.norm(spec.reshape(frames, -1), axis=1)[:, None, None]).astype(np.complex64)
+    index = Index(spec, rng.uniform(0, 360, frames), key_dims=key_dims_for(DEFAULTS, frames))
+    floor = np.full(frames, "1")
+    c0 = time.process_time()
+    g = build([(vxy, "1")])
+    Tracker(g, vxy, floor, DEFAULTS)
+    plain = time.process_time() - c0
+    c0 = time.process_time()
+    look_alikes(frame_search(index.search, spec), g, vxy, floor, DEFAULTS)
+    return frames, len(g.xy), plain, time.process_time() - c0
+
+
+def serpentine(frames: int) -> tuple[np.ndarray, Any]:
+    """Venue frames 0.12 m apart along corridors 100 m long and 5 m apart, and their walk graph."""
+    from omninav.walkgraph import build
+
     length = frames * 0.12
     rows = int(np.ceil(length / 100.0))
     pts = [(0.0, 0.0)]
     for i in range(rows):
         x = 100.0 if i % 2 == 0 else 0.0
         pts += [(x, 5.0 * i), (x, 5.0 * (i + 1))]
-    g = build([(np.array(pts), "1")])
     seg = np.array(pts)
     d = np.r_[0.0, np.cumsum(np.hypot(*np.diff(seg, axis=0).T))]
     s_at = np.linspace(0.0, d[-1], frames)
     vxy = np.stack([np.interp(s_at, d, seg[:, 0]), np.interp(s_at, d, seg[:, 1])], axis=1)
-    tr = Tracker(g, vxy, np.full(frames, "1"), DEFAULTS)
+    return vxy, build([(seg, "1")])
+
+
+def cpu_large(frames: int = 8000, seed: int = 0, alike: bool = True) -> tuple[int, int, float, float]:
+    """Tracker.update on a made-up venue of `frames` frames (0.12 m apart along a serpentine of
+    corridors 5 m apart, ~1 node a metre) with random matches (10 frames x 16 candidates) and,
+    with `alike`, random look-alikes (64 a node, scores 0.3-1: most are kept, more than a real
+    venue has): -> (frames, nodes, median ms, p95 ms) of CPU per update."""
+    rng = np.random.default_rng(seed)
+    vxy, g = serpentine(frames)
+    like = None
+    if alike:
+        li = rng.integers(0, frames, (len(g.xy), ALIKE_K))
+        ls = rng.uniform(0.3, 1.0, li.shape).astype(np.float32)
+        like = Matches(li, ls, ls, np.zeros(li.shape, np.float32))
+    tr = Tracker(g, vxy, np.full(frames, "1"), DEFAULTS, like)
     state = None
     cpu = []
     for u in range(60):
@@ -460,9 +516,17 @@ def main() -> None:
         f"venues of up to {big[0]} frames ({big[1]} graph nodes)"
     )
     for n in (3000, 8000, 20000):
-        f, nodes, med, p95 = cpu_large(n)
+        for alike in (False, True):
+            f, nodes, med, p95 = cpu_large(n, alike=alike)
+            print(
+                f"made-up venue of {f} frames ({nodes} graph nodes), random matches, "
+                f"{'with' if alike else 'without'} look-alikes: median {med:.2f} ms, p95 {p95:.2f} ms"
+            )
+    for n in (3000, 8000, 20000):
+        f, nodes, plain, alike = alike_build(n)
         print(
-            f"made-up venue of {f} frames ({nodes} graph nodes), random matches: median {med:.2f} ms, p95 {p95:.2f} ms"
+            f"made-up venue of {f} frames ({nodes} graph nodes): graph and tracker built in {plain * 1000:.0f} ms, "
+            f"its look-alikes searched in {alike * 1000:.0f} ms more (once per venue generation)"
         )
     if a.json:
         a.json.write_text(json.dumps(runs))

@@ -10,6 +10,8 @@ rendered venue (conftest.py), through Locator.track and the `omninav track` / `e
 from __future__ import annotations
 
 import json
+import struct
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +28,7 @@ from omninav.synth import Dataset
 from omninav.synth.scene import TWIN_RING, twin_routes
 from omninav.synth.walks import imu_for, track_for
 from omninav.track import parse_track
-from omninav.tracking import MAX_STORED, Motion, Tracker, TrackState, parse_imu
+from omninav.tracking import MAX_STORED, Motion, Tracker, TrackState, node_frames, parse_imu
 from omninav.walkgraph import build
 
 CONF = resolve("default")
@@ -267,6 +269,71 @@ def test_a_broad_young_belief_on_a_big_graph_is_kept_whole() -> None:
         assert TrackState.from_bytes(bad, g) is None
 
 
+def test_the_look_alike_belief_is_saved_beside_the_belief_and_a_state_without_it_still_reads() -> None:
+    """A venue with look-alikes (the twin's wings, half turned): the state keeps both beliefs,
+    node by node or whole; a state saved without the look-alike one (before it existed, or a
+    venue without look-alikes) still reads, and the next update starts it as the belief; a
+    damaged look-alike part is refused with the rest."""
+    v = Venue(twin_routes()[0], {"track_alike_cost": 10.0})
+    rows = node_frames(v.graph, v.xy, np.full(len(v.xy), "1"))
+    like = v.matches([[(*half_turn(*v.xy[r]), 0.0, 0.95)] for r in rows], np.random.default_rng(2), per=1)
+    v.tracker = Tracker(v.graph, v.xy, np.full(len(v.xy), "1"), v.conf, like)
+    x0, y0, _, _ = TWIN_RING
+    t, xy, hd = walk_poses([(12.0, y0), (x0, y0), (x0, 16.0)])
+    state = run_walk(v, t, xy, hd, twin_evidence(0.8, 0.8))[-1][-1]
+    assert state.alike is not None and not np.allclose(state.alike, state.belief, atol=1e-3)
+    b = state.to_bytes()
+    back = TrackState.from_bytes(b, v.graph)
+    assert back is not None and back.alike is not None
+    big = state.alike >= 1e-3
+    np.testing.assert_allclose(back.alike[big], state.alike[big], rtol=2e-3)
+    np.testing.assert_allclose(back.belief[state.belief >= 1e-3], state.belief[state.belief >= 1e-3], rtol=2e-3)
+    # without it: read, and the next update makes one
+    old = TrackState(state.t, state.belief, state.graph_key, state.updates, state.heading, state.facing)
+    got = TrackState.from_bytes(old.to_bytes(), v.graph)
+    assert got is not None and got.alike is None and len(old.to_bytes()) < len(b)
+    m = v.matches([[(3.0, 15.0, 180.0, 0.8)]] * 10, np.random.default_rng(1))
+    times = state.t + 1 + np.arange(-0.9, 0.01, 0.1)
+    new, pose = v.tracker.update(got, m, times, float(times[-1]))
+    assert new.alike is not None and new.alike.sum() == pytest.approx(1.0)
+    # whole (a broad belief on a big graph): both kept
+    pts = [(0.0, 0.0)]
+    for i in range(20):
+        pts += [(100.0 if i % 2 == 0 else 0.0, 5.0 * i), (100.0 if i % 2 == 0 else 0.0, 5.0 * (i + 1))]
+    g = build([(np.array(pts), "1")])
+    n = len(g.xy)
+    p = np.linspace(1.0, 2.0, n) / np.linspace(1.0, 2.0, n).sum()
+    q = p[::-1].copy()
+    whole = TrackState.from_bytes(TrackState(1.0, p, g.key, 1, None, None, q).to_bytes(), g)
+    assert whole is not None and whole.alike is not None
+    np.testing.assert_allclose(whole.belief, p, rtol=2e-3)
+    np.testing.assert_allclose(whole.alike, q, rtol=2e-3)
+    # a node-by-node belief with a whole look-alike one, and the other way round
+    sharp = np.zeros(n)
+    sharp[[5, n - 5]] = [0.7, 0.3]
+    for main, like in ((sharp, q), (p, sharp)):
+        mixed = TrackState.from_bytes(TrackState(1.0, main, g.key, 3, None, None, like).to_bytes(), g)
+        assert mixed is not None and mixed.alike is not None
+        np.testing.assert_allclose(mixed.belief[main > 0], main[main > 0], rtol=2e-3)
+        np.testing.assert_allclose(mixed.alike[like > 0], like[like > 0], rtol=2e-3)
+
+    def sealed(body: bytes) -> bytes:
+        return body + struct.pack("<I", zlib.crc32(body))
+
+    # a damaged or cut look-alike part, the checksum made good: refused
+    assert TrackState.from_bytes(sealed(b[:-4][:-3]), v.graph) is None
+    plain_len = len(old.to_bytes()) - 4
+    assert TrackState.from_bytes(sealed(b[: plain_len + 5]), v.graph) is None
+    body = bytearray(b[:-4])
+    at = (
+        len(TrackState(state.t, state.belief, state.graph_key, state.updates, state.heading, state.facing).to_bytes())
+        - 4
+    )
+    assert bytes(body[at : at + 2]) in (b"AS", b"AW")
+    body[at : at + 2] = b"XX"
+    assert TrackState.from_bytes(bytes(body) + struct.pack("<I", zlib.crc32(bytes(body))), v.graph) is None
+
+
 def test_a_state_of_another_graph_starts_over(twin: Venue) -> None:
     m = twin.matches([[(3.0, 14.0, 0.0, 0.8)]], np.random.default_rng(0))
     stale = TrackState(0.0, np.full(7, 1 / 7), "another", 9)
@@ -329,6 +396,89 @@ def test_steps_that_miss_a_walk_cost_a_few_answers_at_most(corridor: Venue) -> N
     out = run_walk(corridor, t, xy, hd, unique, every=2.5, motion=stalled, per=1)
     unsure = [tt for tt, p, _, truth, _ in out[2:] if p.confidence < 0.8 or err(p, truth) > 2.0]
     assert len(unsure) <= 2
+
+
+DOORS_FROM = 6.0  # the corridor below: unique west of this, a door every 4 m from here on
+
+
+def doors(x: float) -> list[float]:
+    """Where the corridor looks as it does at x: x alone west of DOORS_FROM, else every 4 m."""
+    if x < DOORS_FROM:
+        return [x]
+    return [x + 4.0 * k for k in range(-12, 13) if DOORS_FROM <= x + 4.0 * k <= 48.0]
+
+
+def corridor_alikes(v: Venue, score: float) -> Matches:
+    """What the venue's own index says of the corridor's nodes (tracking.look_alikes): each
+    node's frame matches the same spot at every door with `score` (1: the same panorama)."""
+    rows = node_frames(v.graph, v.xy, np.full(len(v.xy), "1"))
+    idx = np.zeros((len(rows), K), np.int64)
+    sc = np.zeros((len(rows), K), np.float32)
+    for i, r in enumerate(rows):
+        spots = doors(float(v.xy[r, 0]))
+        near = [int(np.argmin(np.abs(v.xy[:, 0] - p))) for p in spots][:K]
+        idx[i, : len(near)], sc[i, : len(near)] = near, score
+        idx[i, len(near) :], sc[i, len(near) :] = r, 0.2  # (pad: itself, poorly)
+    return Matches(idx, sc, sc, np.zeros((len(rows), K), np.float32))
+
+
+def test_look_alikes_turn_a_steady_bias_into_not_sure_instead_of_a_wrong_door() -> None:
+    """Past identical doors every 4 m, every clip prefers the door ahead a little (0.82 against
+    0.80: the query's light, the same from one second to the next, not noise that averages out).
+    Compounded clip after clip, that took the track a door ahead, and sure of it (>= 0.9). With
+    the venue's own look-alikes (its model finds the doors the same), a clip no longer tells
+    doors apart: where the walk cannot either (a standing walker and one who walked a door on
+    look the same), the answer says "not sure", never a confident wrong door."""
+    route = [(0.0, 0.0), (48.0, 0.0)]
+    t, xy, hd = walk_poses([(0.5, 0.0), (40.0, 0.0)])
+
+    def ahead(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
+        if x < DOORS_FROM:
+            return [(x, y, h, 0.8)]
+        return [(x, y, h, 0.8)] + [(x + 4.0, y, h, 0.82)] * int(x + 4.0 <= 48.0)
+
+    def wrong(v: Venue) -> tuple[int, int]:
+        """(answers further than 2 m, of them confident)"""
+        out = [(p, truth) for _, p, _, truth, _ in run_walk(v, t, xy, hd, ahead)]
+        bad = [p for p, truth in out if err(p, truth) > 2.0]
+        return len(bad), sum(p.confidence >= 0.8 for p in bad)
+
+    plain = Venue(route, {"track_alike_cost": None})
+    n_wrong, sure = wrong(plain)
+    assert n_wrong >= 20 and sure >= 15  # a door ahead, and sure of it, for most of the walk
+
+    v = Venue(route, {"track_alike_cost": 10.0})
+    v.tracker = Tracker(v.graph, v.xy, np.full(len(v.xy), "1"), v.conf, corridor_alikes(v, 1.0))
+    n_wrong, sure = wrong(v)
+    assert n_wrong >= 20 and sure == 0  # the same answers, but it says it is not sure of them
+    # the answer is the main belief's, unchanged: only its confidence (and "not sure") differ
+    a = run_walk(plain, t, xy, hd, ahead)
+    b = run_walk(v, t, xy, hd, ahead)
+    assert [(p.node, p.x, p.y, p.heading) for _, p, *_ in a] == [(p.node, p.x, p.y, p.heading) for _, p, *_ in b]
+    assert all(q.confidence <= p.confidence + 1e-12 for (_, p, *_), (_, q, *_) in zip(a, b, strict=True))
+
+
+def test_a_look_alike_never_falls_further_below_than_the_model_allows(corridor: Venue) -> None:
+    """with_alikes: a node's log-likelihood is raised to its look-alike's less the pair's cost
+    (track_alike_cost * (1 - score)), either way round; nearer than 3 m is the same place."""
+    v = Venue([(0.0, 0.0), (48.0, 0.0)], {"track_alike_cost": 10.0})
+    tr = Tracker(v.graph, v.xy, np.full(len(v.xy), "1"), v.conf, corridor_alikes(v, 0.9))
+    a, b = v.graph.nearest(10.0, 0.0), v.graph.nearest(14.0, 0.0)
+    ll = np.full(tr.n, -50.0)
+    ll[a] = 0.0
+    out = tr.with_alikes(ll)
+    assert out[a] == 0.0
+    assert out[b] == pytest.approx(-1.0)  # 10 * (1 - 0.9)
+    assert out[v.graph.nearest(11.0, 0.0)] == -50.0  # a neighbour: not a look-alike
+    assert out[v.graph.nearest(12.0, 0.0)] == -50.0  # between doors: nothing alike
+    assert out[v.graph.nearest(2.0, 0.0)] == -50.0  # the distinctive end
+    ll2 = np.full(tr.n, -50.0)
+    ll2[b] = 0.0  # either way round
+    assert tr.with_alikes(ll2)[a] == pytest.approx(-1.0)
+    # off (None), or without the venue's look-alikes: unchanged
+    assert np.array_equal(corridor.tracker.with_alikes(ll), ll)
+    off = Tracker(v.graph, v.xy, np.full(len(v.xy), "1"), {**v.conf, "track_alike_cost": None}, corridor_alikes(v, 0.9))
+    assert np.array_equal(off.with_alikes(ll), ll)
 
 
 def test_standing_still_keeps_the_place(corridor: Venue) -> None:
@@ -463,6 +613,11 @@ def test_locator_track_feeds_the_clip_estimate_and_the_filter(walk_spec) -> None
     assert (est.x, est.y, est.heading) == (same.x, same.y, same.heading)  # the clip's answer, unchanged
     assert state.t == 100.0 and state.updates == 1 and state.graph_key == loc.graph.key
     assert 0.0 <= pose.confidence <= 1.0 and pose.floor == "1"
+    # the venue's own look-alikes, from its index: pairs 3 m or more apart, at a cost in [0, 8]
+    tr = loc.tracker
+    assert len(tr.alike_a) > 0 and state.alike is not None
+    assert (np.hypot(*(tr.xy[tr.alike_a] - tr.xy[tr.alike_b]).T) >= 3.0).all()
+    assert (tr.alike_cost >= 0).all() and (tr.alike_cost <= 8.0).all()
     single, tracked = evaluate_track(loc, spec, t, xy, hd, idx)
     s1, s2 = track_summary(single), track_summary(tracked)
     assert s2["clips"] == s1["clips"] >= 15

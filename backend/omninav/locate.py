@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Sequence
+from dataclasses import fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -28,6 +30,7 @@ DEFAULT_CLIP_FPS = 10.0  # timing assumed for a directory of frames, which carri
 # modelled when a clip was cut to `max_clip_frames` (30) takes 5 s clips as well.
 MAX_CLIP_S = 5.0
 MAX_CLIP_FRAMES = 60
+MATCH_FIELDS = tuple(f.name for f in fields(Matches))
 
 
 def answer_heading(h: float) -> float:
@@ -74,6 +77,9 @@ class Locator:
         self._graph: WalkGraph | None = None
         self._tracker: Tracker | None = None
         self._frame_floor: np.ndarray | None = None  # (V,) each venue frame's floor, with use_floors
+        self._frame_lock = threading.Lock()
+        self._frame_k = 0
+        self._frame_m: dict[int, tuple[np.ndarray, ...]] = {}  # frame_matches, by venue frame row
 
     def extractor(self, lens: Lens | None) -> Extractor:
         """The extractor of a lens (default: the venue's), from a small shared cache."""
@@ -136,11 +142,33 @@ class Locator:
     def tracker(self) -> Tracker:
         """The tracking filter over `graph` (built once: its precomputed neighbourhoods)."""
         if self._tracker is None:
-            from .tracking import Tracker
+            from .tracking import Tracker, look_alikes
 
             floor = np.full(len(self.xy), str(self.floor or "1")) if self._frame_floor is None else self._frame_floor
-            self._tracker = Tracker(self.graph, self.xy, floor, self.conf)
+            alike = look_alikes(self.frame_matches, self.graph, self.xy, floor, self.conf)
+            self._tracker = Tracker(self.graph, self.xy, floor, self.conf, alike)
         return self._tracker
+
+    def frame_matches(self, rows: np.ndarray, k: int) -> Matches:
+        """Venue frames' own matches in this venue's index (tracking.look_alikes: each walk graph
+        node's frame), kept per frame: a server's runtime is rebuilt on every catalogue change
+        (places, floors) with the same Locator, and its new walk graph's nodes mostly sit on the
+        same frames, so only frames not searched before are. Thread-safe (runtimes share it)."""
+        from .tracking import frame_search
+
+        rows = np.asarray(rows, np.int64)
+        with self._frame_lock:
+            if self._frame_k != k:
+                self._frame_k, self._frame_m = k, {}
+            todo = np.unique([r for r in rows.tolist() if r not in self._frame_m]).astype(np.int64)
+            if len(todo):
+                got = frame_search(self.index.search, self.gen.spectra)(todo, k)
+                for i, r in enumerate(todo.tolist()):
+                    self._frame_m[r] = tuple(np.asarray(getattr(got, f))[i] for f in MATCH_FIELDS)
+            kept = [self._frame_m[r] for r in rows.tolist()]
+        if not kept:
+            return Matches(*(np.zeros((0, k)) for _ in MATCH_FIELDS))
+        return Matches(*(np.stack([m[i] for m in kept]) for i in range(len(MATCH_FIELDS))))
 
     def track(
         self,

@@ -7,7 +7,7 @@ walks), so a belief over its few hundred to few thousand nodes is exact where pa
 sample of it. Every node keeps its probability, so a look-alike corridor 40 m away keeps what it
 is owed until the walk rules it out: a particle filter loses such a mode when no particle happens
 to sit there. And the per-update cost is fixed and small (a sparse transition and a sparse
-emission), with a state a few KB long that a server can keep per phone.
+emission), with a state of a few hundred bytes (at most ~21 KB) that a server can keep per phone.
 
 - **Transition** (walking): from node i to node j in dt seconds with probability by their graph
   distance d: any d up to `track_max_mps` * dt + `track_slack_m` (0-1.8 m/s; a stop is d = 0),
@@ -23,6 +23,22 @@ emission), with a state a few KB long that a server can keep per phone.
   one counts the frame's worst kept score (it was not among the best). The mean over the clip's
   last second, tempered by `track_beta`, is the log-likelihood: exp(beta * (E - max E)), mixed
   with `track_outlier` of "this clip says nothing" so one bad clip cannot overturn a track.
+- **Look-alikes** (`track_alike_cost`): the clips' evidence is not independent from one second
+  to the next. In a corridor of identical doors, the query's light or its camera makes a wrong
+  door score a little better than the right one for many seconds running, and compounded clip
+  after clip that made the belief as sure of the wrong door as of a right one. So the venue's
+  own model says which places look alike: each node's nearest modelling frame is searched in
+  the venue's index like a query frame, and a node whose frames it matches (3 m or more away)
+  is its look-alike, as alike as the score (1 = the same panorama). A second belief runs beside
+  the first, the same in every way but that a look-alike b of a node a never gets less
+  log-likelihood than a's less `track_alike_cost` * (1 - score): in it, a clip cannot tell two
+  places apart by more than the model can, and only the walk (and places the model finds
+  distinct) can. The answer is the first belief's (its small differences between look-alikes
+  are right more often than not); its confidence is the lower of the two beliefs' at that
+  answer, and it is ambiguous when either is split. Why two beliefs and not one: one belief
+  with the look-alikes' floor said "not sure" in the right places but also chose among tied
+  look-alikes by chance, and lost a tenth of the answers within 2 m on a repetitive corridor.
+  The cost is a second transition per update and a second belief in the state.
 - **Facing**: the clip also says where the phone faces at each node (its best match's heading
   there). A move that walks backwards from that counts less (`track_backward`): people walk the
   way they hold the phone, and a corridor of repeating doors no longer lets the track slide back
@@ -46,7 +62,7 @@ from __future__ import annotations
 import struct
 import zlib
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -73,8 +89,13 @@ AMBIGUOUS_CAP = 0.45  # the confidence of an ambiguous answer: below the app's "
 MAX_STORED = 1500  # nodes a serialised state keeps one by one (the most probable) ...
 STORE_REL = 1e-6  # ... those with at least this share of the most probable's belief; a broader
 # belief (a young one on a big graph) is kept whole instead, never cut to the lowest-numbered
+ALIKE_K = 64  # candidates of each node's frame searched for its look-alikes (a corridor's doors)
+ALIKE_CELLS = 1 << 24  # node frames x venue frames scored per pass of that search (64 MB of float32)
+ALIKE_FRAMES = 128  # and at most this many node frames a pass (each re-ranks 8 x ALIKE_K full keys)
+ALIKE_MAX_NATS = 8.0  # a look-alike this far below (in log-likelihood) can never matter: not kept
 MAGIC = b"ONT2"  # the nodes kept one by one
 MAGIC_ALL = b"ONTA"  # every node's belief and facing (zlib: a flat or broad belief packs small)
+ALIKE, ALIKE_ALL = b"AS", b"AW"  # then the look-alike belief: its nodes one by one, or whole
 HEADER = "<4sdIfIB"  # magic, t, updates, heading (NaN: none), nodes of the graph, length of its key
 
 
@@ -104,19 +125,22 @@ class TrackState:
     # gyroscope's turn is checked against it node by node, never against one global heading
     facing: np.ndarray | None = None
 
+    # (N,) the look-alike belief (Tracker.with_alikes; the answer's confidence is also read from
+    # it); None when the venue's settings turn look-alikes off or it has none
+    alike: np.ndarray | None = None
+
     def to_bytes(self) -> bytes:
         """A header with the graph's key, the belief (float16 relative to the largest) and facing
-        (float16 degrees), and a CRC-32. The belief's nodes with at least STORE_REL of the
-        largest, when there are at most MAX_STORED of them: each one's index (uint32), belief
-        and facing, 8 bytes a node; more than that (a young belief, flat over much of a big
+        (float16 degrees), then the look-alike belief if any (b"AS" or b"AW" and the same, without
+        facing), and a CRC-32. A belief's nodes with at least STORE_REL of the largest, when
+        there are at most MAX_STORED of them: each one's index (uint32), belief and facing, 8
+        bytes a node (6 without facing); more than that (a young belief, flat over much of a big
         graph): every node's, zlib-compressed, so that the state says as much of every part
         of the building as of the one that happens to be numbered first."""
         p = np.asarray(self.belief, np.float64)
-        big = max(float(p.max()), 1e-300) if len(p) else 1.0
-        keep = np.flatnonzero(p >= STORE_REL * big)
         face = np.full(len(p), np.nan) if self.facing is None else np.asarray(self.facing, np.float64)
         key = self.graph_key.encode()
-        whole = len(keep) > MAX_STORED
+        whole, part = _pack(p, face)
         head = struct.pack(
             HEADER,
             MAGIC_ALL if whole else MAGIC,
@@ -126,18 +150,17 @@ class TrackState:
             len(p),
             len(key),
         )
-        if whole:
-            rel = np.where(p >= STORE_REL * big, p / big, 0.0).astype("<f2")
-            body = head + key + zlib.compress(rel.tobytes() + face.astype("<f2").tobytes())
-        else:
-            rel = (p[keep] / big).astype("<f2")
-            body = head + key + struct.pack("<I", len(keep)) + keep.astype("<u4").tobytes() + rel.tobytes()
-            body += face[keep].astype("<f2").tobytes()
+        body = head + key + part
+        if self.alike is not None:
+            whole, part = _pack(np.asarray(self.alike, np.float64), None)
+            body += (ALIKE_ALL if whole else ALIKE) + part
         return body + struct.pack("<I", zlib.crc32(body))
 
     @staticmethod
     def from_bytes(b: bytes, graph: WalkGraph) -> TrackState | None:
-        """A state saved by to_bytes, or None: corrupt, or saved against another graph."""
+        """A state saved by to_bytes, or None: corrupt, or saved against another graph. A state
+        saved without the look-alike belief (or before it existed) reads with `alike` None (the
+        next update starts it as the belief)."""
         try:
             if len(b) < 4 or zlib.crc32(b[:-4]) != struct.unpack("<I", b[-4:])[0]:
                 return None
@@ -148,31 +171,64 @@ class TrackState:
             off += klen
             if magic not in (MAGIC, MAGIC_ALL) or key != graph.key or n != len(graph.xy) or not np.isfinite(t):
                 return None
-            if magic == MAGIC_ALL:
-                raw = zlib.decompressobj().decompress(b[off:], 4 * n + 1)
-                if len(raw) != 4 * n:
+            got = _unpack(b, off, n, magic == MAGIC_ALL, True)
+            if got is None:
+                return None
+            belief, facing, off = got
+            alike = None
+            if off < len(b):
+                tag = b[off : off + len(ALIKE)]
+                got = _unpack(b, off + len(tag), n, tag == ALIKE_ALL, False) if tag in (ALIKE, ALIKE_ALL) else None
+                if got is None or got[2] != len(b):
                     return None
-                m, idx = n, np.arange(n)
-                rel = np.frombuffer(raw, "<f2", n, 0).astype(np.float64)
-                face = np.frombuffer(raw, "<f2", n, 2 * n).astype(np.float64)
-            else:
-                (m,) = struct.unpack_from("<I", b, off)
-                off += 4
-                if len(b) != off + 8 * m:
-                    return None
-                idx = np.frombuffer(b, "<u4", m, off).astype(np.int64)
-                rel = np.frombuffer(b, "<f2", m, off + 4 * m).astype(np.float64)
-                face = np.frombuffer(b, "<f2", m, off + 6 * m).astype(np.float64)
+                alike = got[0]
         except (struct.error, UnicodeDecodeError, ValueError, zlib.error):
             return None
-        if m == 0 or (idx >= n).any() or not np.isfinite(rel).all() or (rel < 0).any() or rel.sum() <= 0:
-            return None
-        belief = np.zeros(n)
-        belief[idx] = rel
-        facing = np.full(n, np.nan)
-        facing[idx] = face
         h = float(heading) if np.isfinite(heading) else None
-        return TrackState(float(t), belief / belief.sum(), key, int(updates), h, facing)
+        return TrackState(float(t), belief, key, int(updates), h, facing, alike)
+
+
+def _pack(p: np.ndarray, face: np.ndarray | None) -> tuple[bool, bytes]:
+    """A belief (and facing): whether it is kept whole, and its bytes (TrackState.to_bytes)."""
+    big = max(float(p.max()), 1e-300) if len(p) else 1.0
+    keep = np.flatnonzero(p >= STORE_REL * big)
+    if len(keep) > MAX_STORED:
+        rel = np.where(p >= STORE_REL * big, p / big, 0.0).astype("<f2")
+        raw = rel.tobytes() + (b"" if face is None else face.astype("<f2").tobytes())
+        return True, zlib.compress(raw)  # (its end: where the zlib stream ends)
+    out = struct.pack("<I", len(keep)) + keep.astype("<u4").tobytes() + (p[keep] / big).astype("<f2").tobytes()
+    return False, out + (b"" if face is None else face[keep].astype("<f2").tobytes())
+
+
+def _unpack(b: bytes, off: int, n: int, whole: bool, facing: bool) -> tuple[np.ndarray, np.ndarray, int] | None:
+    """_pack's bytes at `off` -> (belief (N,) summing to 1, facing (N,) NaN where unsaid, the
+    offset after them), or None where they do not make a belief of n nodes."""
+    per = 4 if facing else 2
+    if whole:
+        z = zlib.decompressobj()
+        raw = z.decompress(b[off:], per * n + 1)
+        if len(raw) != per * n or not z.eof:
+            return None
+        m, idx, off = n, np.arange(n), len(b) - len(z.unused_data)
+        rel = np.frombuffer(raw, "<f2", n, 0).astype(np.float64)
+        face = np.frombuffer(raw, "<f2", n, 2 * n).astype(np.float64) if facing else np.full(n, np.nan)
+    else:
+        (m,) = struct.unpack_from("<I", b, off)
+        off += 4
+        size = (4 + per) * m
+        if len(b) < off + size:  # (what follows, if anything, is the caller's to read)
+            return None
+        idx = np.frombuffer(b, "<u4", m, off).astype(np.int64)
+        rel = np.frombuffer(b, "<f2", m, off + 4 * m).astype(np.float64)
+        face = np.frombuffer(b, "<f2", m, off + 6 * m).astype(np.float64) if facing else np.full(m, np.nan)
+        off += size
+    if m == 0 or (idx >= n).any() or not np.isfinite(rel).all() or (rel < 0).any() or rel.sum() <= 0:
+        return None
+    belief = np.zeros(n)
+    belief[idx] = rel
+    out = np.full(n, np.nan)
+    out[idx] = face
+    return belief / belief.sum(), out, off
 
 
 @dataclass(frozen=True)
@@ -183,9 +239,9 @@ class TrackPose:
     y: float
     floor: str
     heading: float  # degrees clockwise from plan up, [0, 360)
-    confidence: float  # calibrated P(within 2 m)
+    confidence: float  # P(within 2 m): the lower of the two beliefs' (track_confidence of each)
     node: int
-    ambiguous: bool  # the belief is split between places >= 3 m apart: say "not sure"
+    ambiguous: bool  # a belief is split between places >= 3 m apart: say "not sure"
     spread_m: float  # RMS distance of the belief from the answer (other floors count 50 m)
     mass: float = 0.0  # belief within NEAR_M of the answer
     far: float = 0.0  # belief FAR_M or more from it
@@ -193,6 +249,10 @@ class TrackPose:
     # False: no match near the answer said where the phone faces, nor the gyroscope (heading is a
     # stand-in: the last answer's, else 0; confidence held below 0.5 as an ambiguous answer's)
     heading_known: bool = True
+    # the look-alike belief's mass within NEAR_M of the answer and FAR_M or more from it (None:
+    # the tracker has no look-alikes)
+    alike_mass: float | None = None
+    alike_far: float | None = None
 
 
 # What the confidence model may read from a pose (or a row of bench/tracking.py with its fields)
@@ -220,12 +280,66 @@ def _pairs_within(a: np.ndarray, b: np.ndarray, r: float) -> tuple[np.ndarray, n
     return m.row.astype(np.int64), m.col.astype(np.int64), m.data.astype(np.float64)
 
 
+def node_frames(graph: WalkGraph, venue_xy: np.ndarray, venue_floor: np.ndarray) -> np.ndarray:
+    """(N,) int64: each node's nearest venue frame on its floor (any floor's, if its has none)."""
+    vxy, vfl = np.asarray(venue_xy, np.float64), np.asarray(venue_floor).astype(str)
+    out = np.zeros(len(graph.xy), np.int64)
+    nfl = np.asarray(graph.floor).astype(str)
+    for f in np.unique(nfl):
+        rows = np.flatnonzero(nfl == f)
+        ids = np.flatnonzero(vfl == f)
+        if len(ids) == 0:
+            ids = np.arange(len(vxy))
+        out[rows] = ids[cKDTree(vxy[ids]).query(np.asarray(graph.xy, np.float64)[rows])[1]]
+    return out
+
+
+def frame_search(
+    search: Callable[[np.ndarray, int], Matches], spectra: np.ndarray
+) -> Callable[[np.ndarray, int], Matches]:
+    """Venue frame rows -> their matches in the venue's own index (`search`: index.Index.search),
+    searched in passes of at most ALIKE_FRAMES rows and ALIKE_CELLS row x venue frame scores:
+    bounded memory on any venue."""
+    spec = np.asarray(spectra)
+
+    def run(rows: np.ndarray, k: int) -> Matches:
+        step = max(1, min(ALIKE_FRAMES, ALIKE_CELLS // max(1, len(spec))))
+        parts = [search(spec[rows[s : s + step]], k) for s in range(0, len(rows), step)]
+        return Matches(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(Matches)))
+
+    return run
+
+
+def look_alikes(
+    search_rows: Callable[[np.ndarray, int], Matches],
+    graph: WalkGraph,
+    venue_xy: np.ndarray,
+    venue_floor: np.ndarray,
+    conf: Mapping[str, Any],
+    k: int = ALIKE_K,
+) -> Matches | None:
+    """(N, k) matches of each node's nearest modelling frame searched in the venue's own index
+    (`search_rows`: frame_search, or Locator.frame_matches, which keeps them): what the Tracker
+    takes as `alike`. None when the venue's settings turn look-alikes off, or without nodes."""
+    if _conf(conf, "track_alike_cost") is None or len(graph.xy) == 0:
+        return None
+    return search_rows(node_frames(graph, venue_xy, venue_floor), k)
+
+
 class Tracker:
     """The filter of one walk graph and one venue generation: what can be precomputed is, once."""
 
-    def __init__(self, graph: WalkGraph, venue_xy: np.ndarray, venue_floor: np.ndarray, conf: Mapping[str, Any]):
+    def __init__(
+        self,
+        graph: WalkGraph,
+        venue_xy: np.ndarray,
+        venue_floor: np.ndarray,
+        conf: Mapping[str, Any],
+        alike: Matches | None = None,
+    ):
         """venue_xy (V, 2), venue_floor (V,): every venue frame's position and floor (the index's
-        rows); conf: the venue's settings (tracking keys read with presets.py's defaults)."""
+        rows); conf: the venue's settings (tracking keys read with presets.py's defaults);
+        alike: look_alikes() of this graph and venue (without it, no place is a look-alike)."""
         self.graph = graph
         self.conf = dict(conf)
         self.n = n = len(graph.xy)
@@ -236,6 +350,7 @@ class Tracker:
         vxy = np.asarray(venue_xy, np.float64)
         vfl = np.asarray(venue_floor).astype(str)
         self.venue_xy = vxy
+        self.venue_floor = vfl
         radius = float(_conf(conf, "track_radius_m"))
         # venue frame -> nodes within radius (same floor); node -> nodes within PLACE_M / NEAR_M
         fr, fc, fd = self._by_floor(vxy, vfl, self.xy, self.floor, radius)
@@ -272,6 +387,56 @@ class Tracker:
         # the entry of the edge the other way (distances are symmetric, so every edge has one)
         # (entries are in (row, col) order; the k-th in (col, row) order is the k-th one reversed)
         self.t_rev = np.lexsort((self.t_row, self.t_col))
+        self.alike_a, self.alike_b, self.alike_cost, self.alike_starts = self._alikes(alike)
+
+    def _alikes(self, alike: Matches | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Look-alike pairs (a, b) sorted by b, their cost in log-likelihood (track_alike_cost *
+        (1 - score), the best score of b's frames among a's node frame's matches, either way
+        round: symmetric), and where each b's run starts (for one reduceat per update)."""
+        none = np.zeros(0, np.int64)
+        cost = _conf(self.conf, "track_alike_cost")
+        if alike is None or cost is None:
+            return none, none, np.zeros(0), none
+        if float(cost) < 0 or len(alike.index) != self.n:
+            raise ValueError(f"look-alikes need a cost >= 0 and {self.n} nodes' matches (of this graph)")
+        k = alike.index.shape[1]
+        # a matched frame is its nearest node's look-alike only (not every node within reach: the
+        # score says how alike *that* spot is, and a step away the panorama is another one)
+        node = self.graph.snap(self.venue_xy, self.venue_floor)  # every venue frame's, once
+        near = np.hypot(*(self.xy[node] - self.venue_xy).T) <= float(_conf(self.conf, "track_radius_m"))
+        rows = np.asarray(alike.index).ravel()
+        ok = near[rows]
+        r = np.flatnonzero(ok)
+        a, b = r // k, node[rows[ok]]
+        sc = np.clip(np.asarray(alike.score, np.float64).ravel()[r], 0.0, 1.0)
+        far = (self.floor[a] != self.floor[b]) | (
+            np.hypot(*(self.xy[a] - self.xy[b]).T) >= FAR_M
+        )  # nearer is the same place: the transition's business
+        a, b, c = a[far], b[far], float(cost) * (1.0 - sc[far])
+        use = c <= ALIKE_MAX_NATS
+        if not use.any():
+            return none, none, np.zeros(0), none
+        # each pair once, either way round, at its smallest cost; then sorted by b (b-major keys)
+        key = np.r_[b[use] * self.n + a[use], a[use] * self.n + b[use]]
+        cc = np.r_[c[use], c[use]]
+        order = np.argsort(key, kind="stable")
+        key, cc = key[order], cc[order]
+        first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+        cost_min = np.minimum.reduceat(cc, first)
+        b2, a2 = np.divmod(key[first], self.n)
+        starts = np.flatnonzero(np.r_[True, b2[1:] != b2[:-1]])
+        # (int32 / float32: a big venue's pairs are millions, and a worker keeps a Tracker a revision)
+        return a2.astype(np.int32), b2.astype(np.int32), cost_min.astype(np.float32), starts
+
+    def with_alikes(self, log_lik: np.ndarray) -> np.ndarray:
+        """(N,) log-likelihoods -> each node's raised to its look-alikes' less their cost."""
+        if len(self.alike_a) == 0:
+            return log_lik
+        best = np.maximum.reduceat(log_lik[self.alike_a] - self.alike_cost, self.alike_starts)
+        out = log_lik.copy()
+        nodes = self.alike_b[self.alike_starts]
+        out[nodes] = np.maximum(out[nodes], best)
+        return out
 
     @staticmethod
     def _by_floor(
@@ -295,7 +460,8 @@ class Tracker:
         facing: np.ndarray | None = None,
         turn: tuple[np.ndarray, float] | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """belief (N,) -> the belief dt seconds of walking later (steps: the phone's step count);
+        """belief (N,) or (N, B) (B beliefs moved alike) -> the belief dt seconds of walking later
+        (steps: the phone's step count);
         also the last step's edge weights and the belief it started from (for `_predicted`).
 
         `facing` (N,): where the clip says the phone faces at each node (NaN: it does not say);
@@ -422,6 +588,8 @@ class Tracker:
         # the last answer's heading plus the gyroscope's turn since (True), or alone (False: a
         # stand-in, not a heading the answer may be sure of)
         last: tuple[float, bool] | None = None
+        twin = len(self.alike_a) > 0  # the look-alike belief runs beside the belief
+        prior_a = uniform if twin else None
         if fresh or state is None:
             prior, updates = uniform, 0
         else:
@@ -429,8 +597,15 @@ class Tracker:
             if motion.turn_deg is not None and state.facing is not None and len(state.facing) == self.n:
                 turn = (state.facing, float(motion.turn_deg))
             eps = float(_conf(self.conf, "track_uniform"))
-            prior, kk, start = self._transition(state.belief, t_now - state.t, motion.steps, facing, turn)
-            prior = (1 - eps) * prior / max(prior.sum(), 1e-300) + eps * uniform
+            both = state.belief
+            if twin:  # both beliefs walk alike: one pass (a state saved without it starts it as the belief)
+                a = state.alike if state.alike is not None and len(state.alike) == self.n else state.belief
+                both = np.stack([state.belief, a], axis=1)
+            moved, kk, start = self._transition(both, t_now - state.t, motion.steps, facing, turn)
+            if twin:
+                moved, prior_a, start = moved[:, 0], moved[:, 1], start[:, 0]
+                prior_a = (1 - eps) * prior_a / max(prior_a.sum(), 1e-300) + eps * uniform
+            prior = (1 - eps) * moved / max(moved.sum(), 1e-300) + eps * uniform
             updates = state.updates
             if turn is not None:  # where the phone faces now, by the gyroscope, per hypothesis
                 gyro = (kk, start, turn)
@@ -440,11 +615,18 @@ class Tracker:
         # one clip can be an outlier (people in the way, a turn, a look-alike): it moves the odds
         # between two places by at most 1 / track_outlier
         rho = float(_conf(self.conf, "track_outlier"))
-        post = prior * ((1 - rho) * np.exp(float(_conf(self.conf, "track_beta")) * (e - e.max())) + rho)
+        log_lik = float(_conf(self.conf, "track_beta")) * (e - e.max())
+        post = prior * ((1 - rho) * np.exp(log_lik) + rho)
         post /= post.sum()
-        pose = self.pose(post, matches, times, t_now, gyro, updates + 1, last)
+        post_a = None
+        if prior_a is not None and (fresh or state is None):  # a fresh start: the first clip counts in full
+            post_a = post.copy()
+        elif prior_a is not None:  # then the clips' differences between look-alikes count once
+            post_a = prior_a * ((1 - rho) * np.exp(self.with_alikes(log_lik)) + rho)
+            post_a /= post_a.sum()
+        pose = self.pose(post, matches, times, t_now, gyro, updates + 1, last, post_a)
         heading = pose.heading if pose.heading_known else None
-        return TrackState(float(t_now), post, self.graph.key, updates + 1, heading, facing), pose
+        return TrackState(float(t_now), post, self.graph.key, updates + 1, heading, facing, post_a), pose
 
     def pose(
         self,
@@ -455,18 +637,24 @@ class Tracker:
         gyro: tuple[np.ndarray, np.ndarray, tuple[np.ndarray, float]] | None = None,
         updates: int = 1,
         last: tuple[float, bool] | None = None,
+        alike: np.ndarray | None = None,
     ) -> TrackPose:
         """The belief p (N,) after `updates` clips -> the answer. `gyro`: the last transition's
         weights, the belief it started from and (the last clip's facing per node, the turn), for
         the gyroscope's heading at the answer (_predicted); `last`: the last answer's heading plus
         the gyroscope's turn since, and whether the turn was known (the heading when the clip's
-        matches do not give one there)."""
+        matches do not give one there); `alike`: the look-alike belief, whose own confidence at
+        the answer caps the answer's (and whose split makes it ambiguous)."""
         place_mass = np.asarray(self.place @ p)
         node = int(np.argmax(place_mass))
         on = self.floor == self.floor[node]
         d = np.where(on, np.hypot(self.xy[:, 0] - self.xy[node, 0], self.xy[:, 1] - self.xy[node, 1]), np.inf)
         mass = float(p[d <= NEAR_M].sum())
         far = float(p[d >= FAR_M].sum())
+        # the look-alike belief at the same answer: as sure, once the clips' differences between
+        # places the venue's model finds alike are set aside?
+        alike_mass = None if alike is None else float(alike[d <= NEAR_M].sum())
+        alike_far = None if alike is None else float(alike[d >= FAR_M].sum())
         guess = None
         if gyro is not None:  # the gyroscope's heading here: of the nearest node that has one
             near = np.flatnonzero(d <= FIT_M)
@@ -478,12 +666,15 @@ class Tracker:
         x, y, h, known = self._fit(node, matches, times, t_now, guess, last)
         dx = np.where(on, np.hypot(self.xy[:, 0] - x, self.xy[:, 1] - y), 50.0)
         spread = float(np.sqrt((p * np.minimum(dx, 50.0) ** 2).sum()))
-        ambiguous = far >= float(_conf(self.conf, "track_ambiguous"))
+        ambiguous = max(far, alike_far or 0.0) >= float(_conf(self.conf, "track_ambiguous"))
         pose = TrackPose(x, y, str(self.floor[node]), h, 0.0, node, ambiguous, spread, mass, far, updates, known)
+        pose = replace(pose, alike_mass=alike_mass, alike_far=alike_far)
         c = track_confidence(pose, self.conf)
+        if alike_mass is not None and alike_far is not None:
+            c = min(c, track_confidence(replace(pose, mass=alike_mass, far=alike_far), self.conf))
         if ambiguous or not known:  # "not sure": of the place, or of which way the phone faces
             c = min(c, AMBIGUOUS_CAP)
-        return TrackPose(x, y, pose.floor, h, c, node, ambiguous, spread, mass, far, updates, known)
+        return replace(pose, confidence=c)
 
     def _fit(
         self,
