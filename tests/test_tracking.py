@@ -334,6 +334,31 @@ def test_the_look_alike_belief_is_saved_beside_the_belief_and_a_state_without_it
     assert TrackState.from_bytes(bytes(body) + struct.pack("<I", zlib.crc32(bytes(body))), v.graph) is None
 
 
+# States as the filter saved them before the look-alike belief (7f7ef8a's TrackState.to_bytes,
+# checked byte for byte against it): a server updated in the middle of a walk reads them on
+OLD_SPARSE = (
+    "4f4e54320000000000002940070000000000344207000000106662303366353731643135366435623302000000010000"
+    "0004000000003c5535a055007e68b27665"
+)
+OLD_WHOLE = (
+    "4f4e54410000000000000840020000000000c07fa50600001065353131656263633735323134323562789cedc3310d00"
+    "000803b0c9e2401bdad1b0bf699acd445555d5e6010000d0793afec6d789ca1aaa"
+)
+
+
+def test_states_saved_before_the_look_alike_belief_still_read() -> None:
+    g = build([(np.array([(0.0, 0.0), (6.0, 0.0)]), "1")])
+    st = TrackState.from_bytes(bytes.fromhex(OLD_SPARSE), g)
+    assert st is not None and st.alike is None
+    assert (st.t, st.updates, st.heading) == (12.5, 7, 45.0)
+    assert st.belief[1] == pytest.approx(0.75, abs=1e-3) and st.belief[4] == pytest.approx(0.25, abs=1e-3)
+    assert st.facing is not None and st.facing[1] == 90.0 and np.isnan(st.facing[0])
+    big = build([(np.array([(0.0, 0.0), (0.0, 1700.0)]), "1")])
+    st = TrackState.from_bytes(bytes.fromhex(OLD_WHOLE), big)
+    assert st is not None and st.alike is None and st.heading is None and len(st.belief) == len(big.xy)
+    assert st.belief[0] == pytest.approx(2 * st.belief[1], rel=1e-3)
+
+
 def test_a_state_of_another_graph_starts_over(twin: Venue) -> None:
     m = twin.matches([[(3.0, 14.0, 0.0, 0.8)]], np.random.default_rng(0))
     stale = TrackState(0.0, np.full(7, 1 / 7), "another", 9)

@@ -73,6 +73,7 @@ from .aggregate import SPAN_S, Estimate, field_of, logistic, sequence
 from .heading import wrap_deg
 from .index import Matches
 from .presets import DEFAULTS
+from .walkgraph import nearest_on_floor
 
 if TYPE_CHECKING:
     from .walkgraph import WalkGraph
@@ -282,16 +283,7 @@ def _pairs_within(a: np.ndarray, b: np.ndarray, r: float) -> tuple[np.ndarray, n
 
 def node_frames(graph: WalkGraph, venue_xy: np.ndarray, venue_floor: np.ndarray) -> np.ndarray:
     """(N,) int64: each node's nearest venue frame on its floor (any floor's, if its has none)."""
-    vxy, vfl = np.asarray(venue_xy, np.float64), np.asarray(venue_floor).astype(str)
-    out = np.zeros(len(graph.xy), np.int64)
-    nfl = np.asarray(graph.floor).astype(str)
-    for f in np.unique(nfl):
-        rows = np.flatnonzero(nfl == f)
-        ids = np.flatnonzero(vfl == f)
-        if len(ids) == 0:
-            ids = np.arange(len(vxy))
-        out[rows] = ids[cKDTree(vxy[ids]).query(np.asarray(graph.xy, np.float64)[rows])[1]]
-    return out
+    return nearest_on_floor(graph.xy, graph.floor, venue_xy, venue_floor)
 
 
 def frame_search(

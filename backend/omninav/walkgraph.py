@@ -63,19 +63,9 @@ class WalkGraph:
         """(M, 2) plan points [and (M,) floors] -> (M,) int64 nearest nodes (on the point's floor
         where that floor has nodes): `nearest` for many points at once."""
         pts = np.asarray(xy, np.float64).reshape(-1, 2)
-        out = np.zeros(len(pts), np.int64)
-        if len(pts) == 0:
-            return out
         if floor is None:
-            return np.asarray(_tree(self.xy).query(pts)[1], np.int64)
-        fl = np.asarray(floor).astype(str).reshape(-1)
-        for f in np.unique(fl):
-            rows = fl == f
-            ids = np.flatnonzero(self.floor == f)
-            if len(ids) == 0:
-                ids = np.arange(len(self.xy))
-            out[rows] = ids[_tree(self.xy[ids]).query(pts[rows])[1]]
-        return out
+            return np.asarray(_tree(self.xy).query(pts)[1], np.int64) if len(pts) else np.zeros(0, np.int64)
+        return nearest_on_floor(pts, floor, self.xy, self.floor)
 
     def distances(self, sources: int | Sequence[int] | np.ndarray, limit: float = np.inf) -> np.ndarray:
         """(S, N) float64 graph metres from each source node; inf where unreachable or beyond limit."""
@@ -101,6 +91,23 @@ class WalkGraph:
         """The weight of edge i-j (metres, or a floor change's cost); inf if there is none."""
         w = self.adj[int(i), int(j)]
         return float(w) if w else math.inf
+
+
+def nearest_on_floor(pts: np.ndarray, floor: np.ndarray, to_xy: np.ndarray, to_floor: np.ndarray) -> np.ndarray:
+    """(M, 2) points on (M,) floors -> (M,) int64 index of the nearest of `to_xy` on the point's
+    floor (of any floor where that floor has none)."""
+    pts = np.asarray(pts, np.float64).reshape(-1, 2)
+    to_xy = np.asarray(to_xy, np.float64)
+    out = np.zeros(len(pts), np.int64)
+    fl = np.asarray(floor).astype(str).reshape(-1)
+    tf = np.asarray(to_floor).astype(str)
+    for f in np.unique(fl):
+        rows = fl == f
+        ids = np.flatnonzero(tf == f)
+        if len(ids) == 0:
+            ids = np.arange(len(to_xy))
+        out[rows] = ids[_tree(to_xy[ids]).query(pts[rows])[1]]
+    return out
 
 
 def _tree(xy: np.ndarray) -> Any:
