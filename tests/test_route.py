@@ -305,10 +305,13 @@ def test_walking_on_the_wrong_way_hears_off_the_route_once_per_spell_not_at_ever
         ("continue", False, 37.0, 180.0),
         ("continue", False, 43.0, 180.0),
     ]
-    assert state is not None and state["off"] == {"t": 20.0, "way": 4}
-    # while the walker is off, never silent for longer than OFF_AGAIN_S
-    said_at = [t * 2.5 for t, g in enumerate(gs) if g["speak"]][1:]
-    assert max(b - a for a, b in zip(said_at[:-1], said_at[1:], strict=True)) <= rt.OFF_AGAIN_S
+    assert state is not None and state["off"] == {"t": 20.0, "b": 180.0, "f": None}
+    # while the walker is off, never silent for much longer than OFF_AGAIN_S (the warning comes at
+    # the first answer off the route after it): at the 2 s the app answers at, too
+    for dt in (2.5, 2.0):
+        gs, _ = follow(graph, end, poses, dt=dt)
+        said_at = [t * dt for t, g in enumerate(gs) if g["speak"]][1:]
+        assert max(b - a for a, b in zip(said_at[:-1], said_at[1:], strict=True)) <= rt.OFF_AGAIN_S + 2 * dt
 
 
 def test_back_on_the_new_route_a_new_departure_is_said_at_once():
@@ -344,15 +347,41 @@ def test_a_wrong_turn_that_finds_another_way_says_the_new_way_not_another_warnin
     assert state is not None and state["off"] is None  # on the new route since: the spell is over
 
 
+def test_off_the_graph_the_warning_is_said_again_though_its_words_are_the_same():
+    # into a room at right angles to the corridor: every answer plans from the same nearest node,
+    # so the repeat's words are the last warning's, and still it is said about every 15 s
+    graph, end = corridor()
+    poses = [Pose(30.0, 0.0, "1", 90.0)] + [Pose(30.0, 4.0 + 0.5 * k, "1", 180.0) for k in range(20)]
+    gs, _ = follow(graph, end, poses, dt=2.0)
+    warned = [t * 2.0 for t, g in enumerate(gs) if g["speak"] and g["kind"] == "off_route"]
+    assert len(warned) >= 3 and warned[0] == 2.0
+    assert all(b - a <= rt.OFF_AGAIN_S + 2.0 for a, b in zip(warned[:-1], warned[1:], strict=True))
+
+
+def test_a_bearing_that_wavers_across_a_sector_edge_is_not_said_again():
+    # off the route, the walker's heading wavering by 2 degrees about a sector's edge (60 degrees
+    # from the way to go): one warning, and nothing more until OFF_AGAIN_S, not an instruction at
+    # every answer
+    graph, end = corridor()
+    poses = [Pose(30.0, 0.0, "1", 90.0)] + [
+        Pose(30.0 - 2.0 * k, 0.0, "1", 270.0 - 60.0 + (2.0 if k % 2 else -2.0)) for k in range(1, 8)
+    ]
+    gs, _ = follow(graph, end, poses, dt=2.0)
+    spoken_kinds = [(t * 2.0, g["kind"]) for t, g in enumerate(gs) if g["speak"]]
+    assert spoken_kinds[0] == (0.0, "start") and spoken_kinds[1][1] == "off_route"
+    assert len(spoken_kinds) <= 3, spoken_kinds
+
+
 def test_a_guide_state_without_the_off_route_spell_is_read_as_none():
     # a state written before the spell was kept (or one with junk in it) goes on from where it was
     graph, end = corridor()
     _, state = follow(graph, end, walk([(30.0, 0.0), (24.0, 0.0)]))
-    assert state is not None and state["off"] == {"t": 5.0, "way": 4} and state["v"] == 1
-    for old in ({k: v for k, v in state.items() if k != "off"}, {**state, "off": {"t": "junk"}}):
+    assert state is not None and state["off"] == {"t": 5.0, "b": 180.0, "f": None} and state["v"] == 1
+    junk = ({"t": "junk"}, {"t": 5.0, "b": 1e400}, {"t": float("nan")}, {"t": 5.0, "b": "x"}, [1, 2], "x")
+    for old in ({k: v for k, v in state.items() if k != "off"}, *({**state, "off": j} for j in junk)):
         gs, st = follow(graph, end, [Pose(21.0, 0.0, "1", 270.0), Pose(15.0, 0.0, "1", 270.0)], old, t0=7.5)
         assert [(g["kind"], g["speak"]) for g in gs] == [("turn", True), ("off_route", True)]
-        assert st is not None and st["off"] == {"t": 10.0, "way": 4}
+        assert st is not None and st["off"] == {"t": 10.0, "b": 180.0, "f": None}
     # the state as it is: still in the spell, so the second departure says nothing
     gs, _ = follow(graph, end, [Pose(21.0, 0.0, "1", 270.0), Pose(15.0, 0.0, "1", 270.0)], state, t0=7.5)
     assert [(g["kind"], g["speak"]) for g in gs] == [("turn", True), ("continue", False)]

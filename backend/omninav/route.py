@@ -34,15 +34,17 @@ instruction is said again only when its leg changed or QUIET_S has passed since 
 Off the route is said once per spell, not at every departure: a walker who goes on the wrong way
 leaves each new route within an answer or two, and hearing "You are off the route" every 4 s is
 noise that hides the instructions. The first departure says it (urgent) and starts a spell; the
-answer after it says the new route's instruction, as ever. While the spell lasts, a further
-departure plans a new route from where the walker is (the plan and the bearings follow them) but
-says "off the route" again only once OFF_AGAIN_S (15 s) has passed since the spell's last warning,
-so a walker who keeps going still hears it, and never less often than that; in between it says the
-new route's instruction instead (not urgent) when its way differs from the last way said in the
-spell (the walker turned: another sector of `describe.sector`, so that a bearing that wavers by a
-few degrees is not news), and else nothing (the instruction stays in the answer for "What next?").
-The spell ends when the walker is back on a route: a sure answer within OFF_ROUTE_M of it, having
-walked REJOIN_M along it; a departure after that is news again and is said at once.
+next answer that finds the walker on the new route says its instruction, as ever. While the spell
+lasts, a further departure plans a new route from where the walker is (the plan and the bearings
+follow them) but says "off the route" again only at the first departure OFF_AGAIN_S (15 s) or more
+after the spell's last warning (the same words as that one, said all the same: a walker who keeps
+going hears it about every 15 s); in between it says the new route's instruction instead (not
+urgent) when its way is news: a bearing TURNED_DEG (45 degrees) or more from the last one said in
+the spell (the walker turned; a bearing that wavers by a few degrees is not news), another floor
+change, or anything after a "not sure"; else nothing (the instruction stays in the answer for
+"What next?"). The spell ends when the walker is back on a route: a sure answer within
+OFF_ROUTE_M of it, having walked REJOIN_M along it; a departure after that is news again and is
+said at once.
 """
 
 from __future__ import annotations
@@ -70,6 +72,7 @@ TURN_AHEAD_M = 3.0
 REASSURE_M = 10.0
 QUIET_S = 6.0
 OFF_AGAIN_S = 15.0  # "off the route" again, in one spell, no sooner than this after the last
+TURNED_DEG = 45.0  # in a spell off the route, a new way this far from the last one said is news
 REJOIN_M = 3.0  # metres walked along a new route that end a spell off the route (one answer's walk)
 LOW_CONFIDENCE = 0.5  # below it the pose is low (config.py's default for single answers)
 LOW_ANSWERS = 2  # low answers in a row before "not sure"
@@ -450,9 +453,9 @@ def guide(
                 st["told"] = float(t_now)
             # the spell off the route: when it was last said, and the last way said in it
             if kind == "off_route":
-                st["off"] = {"t": float(t_now), "way": _way(g["bearing_deg"])}
-            elif st["off"] is not None and kind in INSTRUCTIONS and g["bearing_deg"] is not None:
-                st["off"] = {**st["off"], "way": _way(g["bearing_deg"])}
+                st["off"] = {"t": float(t_now), **_way(g)}
+            elif st["off"] is not None and kind in INSTRUCTIONS:
+                st["off"] = {**st["off"], **_way(g)}
         if not hold:  # a held answer leaves the state as the last sure one left it
             st["on_route"], st["remaining_m"] = g["on_route"], g["remaining_m"]
         return g, st
@@ -550,21 +553,23 @@ def guide(
     if fresh:
         st["leg"] = ci
         return answer("start", key=f"start:{ci}", preview=cur.preview(), **common)
+    said_kind = said.get("kind") if said is not None else None
     if off:
         spell = st["off"]
         if spell is None or float(t_now) - spell["t"] >= OFF_AGAIN_S:
-            # the new route's first leg is announced at the next answer
-            return answer("off_route", key=f"off_route:{cur.nodes[0]}", **common)
-        # off again within the spell: the new route's way if the walker turned, else nothing
+            # the new route's first leg is announced at the next answer on it; a repeat is its own
+            # sentence (the same words as the last warning, which may be all that was said since)
+            key = f"off_route:{cur.nodes[0]}" + ("" if spell is None else f":{float(t_now)}")
+            return answer("off_route", key=key, **common)
+        # off again within the spell: the new route's instruction if the walker turned (or it has
+        # not been said since a "not sure"), else nothing
         st["leg"] = ci
-        way = _way(common["bearing_deg"])
-        if way != spell["way"]:
-            return answer(kind, key=f"{kind}:{ci}:{cur.nodes[0]}:{way}", **common)
+        if said_kind == "unsure" or _turned(spell, _way(common)):
+            return answer(kind, key=f"{kind}:{ci}:{cur.nodes[0]}:{float(t_now)}", **common)
         return answer("continue" if leg.via is None else kind, key=f"continue:{ci}", speak=False, **common)
     # a new leg ahead (never one behind: a pose that wavers about the corner says nothing twice),
     # or the route planned anew; after a spell of "not sure", the same leg again once QUIET_S has
     # passed since it was last said
-    said_kind = said.get("kind") if said is not None else None
     told = st["told"]
     again = said_kind == "unsure" and (told is None or float(t_now) - float(told) >= QUIET_S)
     if ci > st["leg"] or said_kind == "off_route" or again:
@@ -580,21 +585,36 @@ def guide(
 
 
 def _spell(v: Any) -> dict[str, Any] | None:
-    """The state's spell off the route, {"t", "way"}; None for none, for a state written before it
-    (missing keys are defaults: the state's version stays 1), or for one that cannot be read."""
+    """The state's spell off the route, {"t", "b", "f"}; None for none, for a state written before
+    it (missing keys are defaults: the state's version stays 1), or for one that cannot be read."""
     try:
-        return None if v is None else {"t": float(v["t"]), "way": int(v["way"])}
-    except (TypeError, ValueError, KeyError):
+        if v is None or not math.isfinite(t := float(v["t"])):
+            return None
+        b = None if v.get("b") is None else float(v["b"])
+        f = None if v.get("f") is None else str(v["f"])
+        return None if b is not None and not math.isfinite(b) else {"t": t, "b": b, "f": f}
+    except (TypeError, ValueError, KeyError, AttributeError, OverflowError):
         return None
 
 
-def _way(bearing: float) -> int:
-    """A bearing's way, to tell whether the walker turned: its sector (describe.sector: straight
-    ahead, ahead on a side, beside, behind on a side, behind), signed by its side."""
-    from .server.describe import SECTOR_DEG, sector
+def _way(g: Mapping[str, Any]) -> dict[str, Any]:
+    """The way an instruction sends the walker, to tell whether they turned: its bearing, or the
+    floor change it names (a floor change's words have no bearing)."""
+    fc = g.get("floor_change")
+    if fc:
+        return {"b": None, "f": f"{fc['via']}:{fc['to_floor']}"}
+    b = g.get("bearing_deg")
+    return {"b": None if b is None else float(b), "f": None}
 
-    k = sector(bearing)
-    return -k if bearing < 0 and 0 < k < len(SECTOR_DEG) else k
+
+def _turned(spell: Mapping[str, Any], way: Mapping[str, Any]) -> bool:
+    """Whether an instruction's way is news to the spell: another floor change, or a bearing at
+    least TURNED_DEG from the last one said (a bearing that wavers by a few degrees is not)."""
+    if way["f"] is not None or spell["f"] is not None:
+        return bool(way["f"] != spell["f"])
+    if way["b"] is None or spell["b"] is None:
+        return way["b"] is not None
+    return abs(_signed(way["b"] - spell["b"])) >= TURNED_DEG
 
 
 def floor_change(leg: Leg, names: Mapping[str, str]) -> dict[str, Any]:

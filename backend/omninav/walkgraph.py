@@ -95,7 +95,7 @@ class WalkGraph:
 
 def nearest_on_floor(pts: np.ndarray, floor: np.ndarray, to_xy: np.ndarray, to_floor: np.ndarray) -> np.ndarray:
     """(M, 2) points on (M,) floors -> (M,) int64 index of the nearest of `to_xy` on the point's
-    floor (of any floor where that floor has none)."""
+    floor (or of any floor, where that floor has none)."""
     pts = np.asarray(pts, np.float64).reshape(-1, 2)
     to_xy = np.asarray(to_xy, np.float64)
     out = np.zeros(len(pts), np.int64)
