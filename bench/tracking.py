@@ -77,9 +77,7 @@ class Walk:
 
 def graph_tracker(loc: Locator, conf: dict[str, Any] | None = None) -> Tracker:
     g = from_frames(loc.gen.frames, ["1"] * max(1, len(loc.gen.videos)))
-    floor = np.full(len(loc.xy), "1")
-    conf = {**loc.conf, **(conf or {})}
-    return Tracker(g, loc.xy, floor, conf, look_alikes(loc.frame_matches, g, loc.xy, floor, conf))
+    return loc.new_tracker(g, np.full(len(loc.xy), "1"), conf)
 
 
 def stops_walk(root: Path, family: str, seed: int) -> str:

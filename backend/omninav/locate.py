@@ -142,12 +142,18 @@ class Locator:
     def tracker(self) -> Tracker:
         """The tracking filter over `graph` (built once: its precomputed neighbourhoods)."""
         if self._tracker is None:
-            from .tracking import Tracker, look_alikes
-
             floor = np.full(len(self.xy), str(self.floor or "1")) if self._frame_floor is None else self._frame_floor
-            alike = look_alikes(self.frame_matches, self.graph, self.xy, floor, self.conf)
-            self._tracker = Tracker(self.graph, self.xy, floor, self.conf, alike)
+            self._tracker = self.new_tracker(self.graph, floor)
         return self._tracker
+
+    def new_tracker(self, graph: WalkGraph, floor: np.ndarray, conf: dict[str, Any] | None = None) -> Tracker:
+        """A tracking filter over `graph` (each venue frame's floor: `floor`) with this venue's
+        look-alikes (frame_matches, kept here); `conf` over the venue's settings. For a caller
+        with its own graph (the server's runtime of a catalogue revision), the Locator unchanged."""
+        from .tracking import Tracker, look_alikes
+
+        conf = {**self.conf, **(conf or {})}
+        return Tracker(graph, self.xy, floor, conf, look_alikes(self.frame_matches, graph, self.xy, floor, conf))
 
     def frame_matches(self, rows: np.ndarray, k: int) -> Matches:
         """Venue frames' own matches in this venue's index (tracking.look_alikes: each walk graph

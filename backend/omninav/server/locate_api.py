@@ -37,7 +37,7 @@ from ..media import decode_image, iter_sampled, probe_image, probe_mp4, same_siz
 from ..presets import n_curves
 from ..route import guide
 from ..spectrum import HEADER_BYTES, decode_binary, decode_json, record_bytes_per_frame
-from ..tracking import Motion, Tracker, TrackState, look_alikes
+from ..tracking import Motion, Tracker, TrackState
 from ..walkgraph import WalkGraph, attach, from_frames
 from .describe import DEFAULT_STYLE, Style, describe
 from .http import ApiError, client_address, json_body
@@ -88,9 +88,7 @@ class Runtime:
                     graph = from_frames(loc.gen.frames, self.video_floor, places)
                     floor = frame_floors(loc.gen.frames, self.video_floor)
                     # (the search, kept on the Locator, is shared with the runtimes of later revisions)
-                    alike = look_alikes(loc.frame_matches, graph, loc.xy, floor, loc.conf)
-                    tracker = Tracker(graph, loc.xy, floor, loc.conf, alike)
-                    self._walk = Walk(graph, tracker, attach(graph, places))
+                    self._walk = Walk(graph, loc.new_tracker(graph, floor), attach(graph, places))
         return self._walk
 
     def destinations(self, key: str) -> list[dict[str, Any]]:
