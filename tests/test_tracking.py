@@ -468,11 +468,12 @@ def test_look_alikes_turn_a_steady_bias_into_not_sure_instead_of_a_wrong_door() 
         bad = [p for p, truth in out if err(p, truth) > 2.0]
         return len(bad), sum(p.confidence >= 0.8 for p in bad)
 
-    plain = Venue(route, {"track_alike_cost": None})
+    # (the clips' evidence untempered, so that the look-alikes alone are what differs)
+    plain = Venue(route, {"track_alike_cost": None, "track_beta_ref": None})
     n_wrong, sure = wrong(plain)
     assert n_wrong >= 20 and sure >= 15  # a door ahead, and sure of it, for most of the walk
 
-    v = Venue(route, {"track_alike_cost": 10.0})
+    v = Venue(route, {"track_alike_cost": 10.0, "track_beta_ref": None})
     v.tracker = Tracker(v.graph, v.xy, np.full(len(v.xy), "1"), v.conf, corridor_alikes(v, 1.0))
     n_wrong, sure = wrong(v)
     assert n_wrong >= 20 and sure == 0  # the same answers, but it says it is not sure of them
@@ -481,6 +482,57 @@ def test_look_alikes_turn_a_steady_bias_into_not_sure_instead_of_a_wrong_door() 
     b = run_walk(v, t, xy, hd, ahead)
     assert [(p.node, p.x, p.y, p.heading) for _, p, *_ in a] == [(p.node, p.x, p.y, p.heading) for _, p, *_ in b]
     assert all(q.confidence <= p.confidence + 1e-12 for (_, p, *_), (_, q, *_) in zip(a, b, strict=True))
+
+
+def test_clips_that_match_poorly_are_not_stood_by_until_the_walk_agrees() -> None:
+    """Clips that match every place poorly (best 0.5: another hour's daylight on glass, people,
+    a tilt) and favour a spot 5 m ahead a little (0.53, the same second after second: the same
+    conditions, not noise that averages out). Compounded, that made the track sure of the wrong
+    spot. With track_beta_ref the second belief weighs such clips (1 - 0.85) / (1 - 0.5) as much:
+    the answers are the same, but none is given as sure. Clips that match as poorly but point to
+    one place are stood by after a few seconds; clips that match well are not touched."""
+    route = [(0.0, 0.0), (48.0, 0.0)]
+    t, xy, hd = walk_poses([(0.5, 0.0), (40.0, 0.0)])
+
+    def biased(s: float):
+        def ev(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
+            return [(x, y, h, s)] + [(x + 5.0, y, h, s + 0.03)] * int(x + 5.0 <= 48.0)
+
+        return ev
+
+    def walk(ref: float | None, evidence) -> list:
+        return run_walk(Venue(route, {"track_alike_cost": None, "track_beta_ref": ref}), t, xy, hd, evidence)
+
+    plain, tempered = walk(None, biased(0.5)), walk(0.85, biased(0.5))
+    assert sum(err(p, truth) > 2.0 and p.confidence >= 0.8 for _, p, _, truth, _ in plain) >= 25
+    assert all(err(p, truth) > 2.0 for _, p, _, truth, _ in tempered)  # the same wrong spot...
+    assert max(p.confidence for _, p, *_ in tempered) < 0.8  # ...never given as sure
+    answers = [[(p.node, p.x, p.y, p.heading) for _, p, *_ in out] for out in (plain, tempered)]
+    assert answers[0] == answers[1]
+    # a venue without look-alikes runs the second belief for this alone
+    assert tempered[-1][1].alike_mass is not None and plain[-1][1].alike_mass is None
+
+    def one_place(s: float):
+        return lambda x, y, h: [(x, y, h, s)]
+
+    poor = walk(0.85, one_place(0.5))
+    assert all(err(p, truth) <= 2.0 for _, p, _, truth, _ in poor)
+    first = next(tt for tt, p, *_ in poor if p.confidence >= 0.8)
+    assert first <= 5.0 and sum(p.confidence >= 0.8 for _, p, *_ in poor) >= len(poor) - 4
+    # clips that match well (best >= 0.85) count in full: the same bias is as sure as before
+    good_plain, good = walk(None, biased(0.9)), walk(0.85, biased(0.9))
+    assert [p.confidence for _, p, *_ in good] == pytest.approx([p.confidence for _, p, *_ in good_plain])
+
+
+def test_the_second_beliefs_weight_of_a_clip_falls_with_its_best_score() -> None:
+    """Tracker.beta: track_beta at or above track_beta_ref, times (1 - ref) / (1 - best) below."""
+    v = Venue([(0.0, 0.0), (10.0, 0.0)], {"track_beta": 25.0, "track_beta_ref": 0.85})
+    assert v.tracker.beta(0.95) == 25.0
+    assert v.tracker.beta(0.85) == 25.0
+    assert v.tracker.beta(0.55) == pytest.approx(25.0 * 0.15 / 0.45)
+    assert v.tracker.beta(0.0) == pytest.approx(25.0 * 0.15)
+    off = Venue([(0.0, 0.0), (10.0, 0.0)], {"track_beta_ref": None})
+    assert off.tracker.beta(0.3) == off.conf["track_beta"]
 
 
 def test_a_look_alike_never_falls_further_below_than_the_model_allows(corridor: Venue) -> None:

@@ -59,6 +59,9 @@ DEFAULTS: dict[str, Any] = {
     "track_radius_m": 1.5,
     "track_dist_penalty": 0.05,
     "track_beta": 25.0,
+    # in the second (cautious) belief, a clip whose best node scores below track_beta_ref counts
+    # (1 - ref) / (1 - best) as much: 0.85 is the tuning families' median best score; None: off
+    "track_beta_ref": 0.85,
     "track_outlier": 0.02,
     "track_max_mps": 1.8,
     "track_slack_m": 1.0,

@@ -39,6 +39,14 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
   with the look-alikes' floor said "not sure" in the right places but also chose among tied
   look-alikes by chance, and lost a tenth of the answers within 2 m on a repetitive corridor.
   The cost is a second transition per update and a second belief in the state.
+- **Clips that match poorly** (`track_beta_ref`): a clip whose best node scores well below what
+  a clip in the model's own conditions does (another hour's daylight on glass, people, a tilted
+  phone) differs from every place by its conditions about as much as by place, and the same
+  conditions favour the same wrong spot for many seconds running (an open hall's other side). In
+  the second belief such a clip counts (1 - ref) / (1 - best) as much (ref: the tuning families'
+  median best score): the main belief, and so the answer, is unchanged; its confidence is not
+  stood by until the walk and clips that match well agree. The second belief runs for this
+  alone where a venue has no look-alikes.
 - **Facing**: the clip also says where the phone faces at each node (its best match's heading
   there). A move that walks backwards from that counts less (`track_backward`): people walk the
   way they hold the phone, and a corridor of repeating doors no longer lets the track slide back
@@ -126,8 +134,9 @@ class TrackState:
     # gyroscope's turn is checked against it node by node, never against one global heading
     facing: np.ndarray | None = None
 
-    # (N,) the look-alike belief (Tracker.with_alikes; the answer's confidence is also read from
-    # it); None when the venue's settings turn look-alikes off or it has none
+    # (N,) the second, cautious belief (look-alikes: Tracker.with_alikes; poor clips tempered:
+    # Tracker.beta; the answer's confidence is also read from it); None when the venue has no
+    # look-alikes and its settings turn the tempering off
     alike: np.ndarray | None = None
 
     def to_bytes(self) -> bytes:
@@ -250,8 +259,8 @@ class TrackPose:
     # False: no match near the answer said where the phone faces, nor the gyroscope (heading is a
     # stand-in: the last answer's, else 0; confidence held below 0.5 as an ambiguous answer's)
     heading_known: bool = True
-    # the look-alike belief's mass within NEAR_M of the answer and FAR_M or more from it (None:
-    # the tracker has no look-alikes)
+    # the second (cautious) belief's mass within NEAR_M of the answer and FAR_M or more from it
+    # (None: the tracker runs no second belief)
     alike_mass: float | None = None
     alike_far: float | None = None
 
@@ -554,6 +563,16 @@ class Tracker:
             facing[col[order][last]] = h[order][last]
         return np.asarray(b.mean(axis=0)), facing
 
+    def beta(self, best: float) -> float:
+        """The second belief's evidence weight for a clip whose best node scores `best`:
+        track_beta, times (1 - track_beta_ref) / (1 - best) below track_beta_ref (the scores of
+        a clip that matches poorly differ by its conditions as much as by place)."""
+        beta = float(_conf(self.conf, "track_beta"))
+        ref = _conf(self.conf, "track_beta_ref")
+        if ref is None or best >= ref:
+            return beta
+        return beta * (1.0 - float(ref)) / max(1.0 - best, 1e-6)
+
     def update(
         self,
         state: TrackState | None,
@@ -580,7 +599,9 @@ class Tracker:
         # the last answer's heading plus the gyroscope's turn since (True), or alone (False: a
         # stand-in, not a heading the answer may be sure of)
         last: tuple[float, bool] | None = None
-        twin = len(self.alike_a) > 0  # the look-alike belief runs beside the belief
+        # the cautious belief runs beside the belief (where the venue has look-alikes, or the
+        # clips' evidence is tempered by how well they match)
+        twin = len(self.alike_a) > 0 or _conf(self.conf, "track_beta_ref") is not None
         prior_a = uniform if twin else None
         if fresh or state is None:
             prior, updates = uniform, 0
@@ -611,10 +632,14 @@ class Tracker:
         post = prior * ((1 - rho) * np.exp(log_lik) + rho)
         post /= post.sum()
         post_a = None
-        if prior_a is not None and (fresh or state is None):  # a fresh start: the first clip counts in full
-            post_a = post.copy()
-        elif prior_a is not None:  # then the clips' differences between look-alikes count once
-            post_a = prior_a * ((1 - rho) * np.exp(self.with_alikes(log_lik)) + rho)
+        if prior_a is not None:
+            # the cautious belief weighs a clip that matches poorly less (beta), and then the
+            # clips' differences between look-alikes count once; a fresh start's first clip
+            # counts in full in it (the look-alike floor is for clips that repeat one another)
+            cautious = self.beta(float(e.max())) * (e - e.max())
+            if not (fresh or state is None):
+                cautious = self.with_alikes(cautious)
+            post_a = prior_a * ((1 - rho) * np.exp(cautious) + rho)
             post_a /= post_a.sum()
         pose = self.pose(post, matches, times, t_now, gyro, updates + 1, last, post_a)
         heading = pose.heading if pose.heading_known else None
