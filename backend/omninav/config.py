@@ -38,6 +38,7 @@ DEFAULTS: dict[str, Any] = {
     "JOB_STALE_S": 30.0,  # a running job with no heartbeat for this long died with its server
     "DEVICE": "auto",  # array device for the search: auto (the GPU when CuPy finds one), cpu or gpu
     "VENUE_CACHE_S": 1.0,  # how long a worker trusts its cached venue before checking for edits
+    "WARM_VENUES": True,  # build each venue's walk graph and tracker in the background, at start and on load
     "TRACK_SESSION_S": 900.0,  # a tracking session (locate ?session=) ends this long after its last request
     "WEB_DIST": str(REPO / "web" / "dist"),  # the built web app served at /
 }

@@ -634,8 +634,8 @@ class Tracker:
         post_a = None
         if prior_a is not None:
             # the cautious belief weighs a clip that matches poorly less (beta), and then the
-            # clips' differences between look-alikes count once; a fresh start's first clip
-            # counts in full in it (the look-alike floor is for clips that repeat one another)
+            # clips' differences between look-alikes count once; a fresh start's first clip is
+            # not floored (the look-alike floor is for clips that repeat one another)
             cautious = self.beta(float(e.max())) * (e - e.max())
             if not (fresh or state is None):
                 cautious = self.with_alikes(cautious)

@@ -48,7 +48,7 @@ def create_app(overrides: dict[str, Any] | None = None) -> Flask:
         db,
         catalog,
         jobs,
-        Runtimes(catalog, conf["VENUE_CACHE_S"], device),
+        Runtimes(catalog, conf["VENUE_CACHE_S"], device, warm=conf["WARM_VENUES"]),
         RateLimiter(conf["LOCATE_RATE"], conf["LOCATE_BURST"]),
     )
     install_error_handlers(app)
@@ -81,4 +81,6 @@ def create_app(overrides: dict[str, Any] | None = None) -> Flask:
         jobs.start()
     else:
         jobs.reap()
+    if conf["WARM_VENUES"]:
+        app.extensions["omninav"].runtimes.warm_all()
     return app

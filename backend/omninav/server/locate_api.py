@@ -6,7 +6,8 @@ server then extracts the same features itself. Each worker keeps the venues it h
 loaded (a memory map of one shared copy) and checks for edits at most every VENUE_CACHE_S.
 
 With ?session= the clip is one step of a walk: the venue's walk graph and tracking filter (built
-once per generation and revision, on the first tracked request) update the session's state, which
+once per generation and revision: in the background as soon as a worker loads the venue, with
+WARM_VENUES, else on the first tracked request) update the session's state, which
 lives in the catalogue database (catalog/sessions.py) so that the walk continues on any worker and
 after a restart; the answer's pose and words are the filter's. With ?to= the route guide adds the
 next instruction towards a place (route.py), its state kept beside the filter's.
@@ -20,6 +21,7 @@ import math
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -79,7 +81,8 @@ class Runtime:
 
     def walk(self) -> Walk:
         """The walk graph of this generation and revision (its places join floors), and its
-        tracker: built on the first request that tracks or guides, once."""
+        tracker: built once, by a warm-up thread (WARM_VENUES) or else by the first request
+        that tracks or guides; whoever comes meanwhile waits for that build."""
         if self._walk is None:
             with self._walk_lock:
                 if self._walk is None:
@@ -100,31 +103,65 @@ class Runtime:
 
 
 class Runtimes:
-    def __init__(self, catalog: Catalog, cache_s: float, device: str | None):
+    def __init__(self, catalog: Catalog, cache_s: float, device: str | None, warm: bool = False):
         self.cat = catalog
         self.cache_s = cache_s
         self.device = device
+        # build each loaded venue's walk in the background (WARM_VENUES): its look-alike search
+        # costs seconds of CPU on a big venue, which the first person tracked would otherwise wait
+        self.warm = warm
+        self.warmer: threading.Thread | None = None  # warm_all's thread, once started
         self._rt: dict[str, Runtime] = {}
         self._lock = threading.Lock()
 
     def get(self, venue_id: str) -> Runtime:
+        rt, loaded = self._get(venue_id)
+        if loaded and self.warm:
+            _start_thread(f"omninav-warm-{venue_id}", _build_walk, venue_id, rt)
+        return rt
+
+    def warm_all(self) -> threading.Thread:
+        """Load every venue that has modelled frames and build its walk, one venue after another
+        in one daemon thread (at app start: the first request after a restart finds them ready)."""
+        self.warmer = _start_thread("omninav-warm", self._warm_each)
+        return self.warmer
+
+    def _warm_each(self) -> None:
+        try:
+            venues = [v["id"] for v in self.cat.venues.all()]
+        except Exception:  # e.g. the database unreachable: each request then loads its venue itself
+            log.exception("warming venues: listing them")
+            return
+        for venue_id in venues:
+            try:
+                rt, _ = self._get(venue_id)  # not get(): this thread builds the walk itself
+            except (Conflict, NotFound):  # no modelled frames yet, or deleted meanwhile
+                continue
+            except Exception:  # the venue's first request will report it; the others still warm
+                log.exception("warming venue %r", venue_id)
+                continue
+            _build_walk(venue_id, rt)
+
+    def _get(self, venue_id: str) -> tuple[Runtime, bool]:
+        """The venue's runtime, and whether this call loaded it."""
         rt = self._rt.get(venue_id)
         now = time.monotonic()
         if rt is not None and now - rt.checked < self.cache_s:
-            return rt
+            return rt, False
         v = self.cat.venues.get(venue_id)  # 404 for an unknown venue
         gen = self.cat.store.generation(venue_id)
         if gen is None:
             raise Conflict(f"venue {venue_id!r} has no modelled frames yet; upload a video and model it first")
         if rt is not None and rt.revision == v["revision"] and rt.generation == gen:
             rt.checked = now
-            return rt
+            return rt, False
         with self._lock:  # one load per venue, however many requests wait for it
             rt = self._rt.get(venue_id)
-            if rt is None or rt.revision != v["revision"] or rt.generation != gen:
-                rt = self._load(venue_id, v["revision"], gen, rt)
-                self._rt[venue_id] = rt
-        return rt
+            if rt is not None and rt.revision == v["revision"] and rt.generation == gen:
+                return rt, False  # another thread loaded it while this one waited
+            rt = self._load(venue_id, v["revision"], gen, rt)
+            self._rt[venue_id] = rt
+        return rt, True
 
     def _load(self, venue_id: str, revision: int, gen: str, old: Runtime | None) -> Runtime:
         if old is not None and old.generation == gen:
@@ -137,6 +174,22 @@ class Runtimes:
             places.setdefault(p["floor"], []).append(p)
         video_floor = self.cat.videos.floor_list(venue_id, loc.gen.videos, list(floors))
         return Runtime(loc, revision, loc.generation, floors, places, video_floor)
+
+
+def _start_thread(name: str, target: Callable[..., None], *args: Any) -> threading.Thread:
+    # a daemon: a warm-up still running must not keep a stopping server (or a test run) alive
+    t = threading.Thread(target=target, args=args, name=name, daemon=True)
+    t.start()
+    return t
+
+
+def _build_walk(venue_id: str, rt: Runtime) -> None:
+    """rt.walk() ahead of need. A failure is only logged: the request that needs the walk then
+    builds it itself and answers with its own error, as without the warm-up."""
+    try:
+        rt.walk()
+    except Exception:
+        log.exception("warming venue %r: building its walk graph and tracker", venue_id)
 
 
 def _float_arg(name: str, lo: float, hi: float) -> float | None:
