@@ -11,8 +11,9 @@ on all alike:
   guided   POST /locate?session=B&t=&to=Goal    + the route guide (plan, instruction, its state)
 
 per request: wall time and CPU time of this process (the search, the filter, the database, the
-JSON), median and 90th percentile; the first tracked request, which builds the venue's walk graph
-and tracker, on its own; the stored state's size; and the share of the filtered answers within
+JSON), median and 90th percentile; how long after the venue's first request its walk graph and
+tracker are ready (built in the background, WARM_VENUES) and the first tracked request after
+that, on its own; the stored state's size; and the share of the filtered answers within
 2 m against the single-clip ones on the same clips.
 
 The same again on the venue padded with `--pad` synthetic frames (default 8,000: a serpentine
@@ -146,9 +147,13 @@ def measure(app: object, vid: str, walk: list[tuple[bytes, float, np.ndarray]]) 
         assert r.status_code == 200, r.get_json()
         return r.get_json(), (w1 - w0) * 1e3, (c1 - c0) * 1e3
 
-    post(walk[0][0], "")  # loads the venue (index, memory maps)
-    _, first_wall, first_cpu = post(walk[0][0], "session=warmupwalk&t=0")  # builds the walk graph and tracker
+    post(walk[0][0], "")  # loads the venue (index, memory maps); WARM_VENUES builds its walk meanwhile
     rt = app.extensions["omninav"].runtimes.get(vid)  # type: ignore[attr-defined]
+    w0 = time.perf_counter()
+    while rt._walk is None and time.perf_counter() - w0 < 300:  # the background build, as a phone waits
+        time.sleep(0.01)
+    warm_wall = (time.perf_counter() - w0) * 1e3
+    _, first_wall, first_cpu = post(walk[0][0], "session=warmupwalk&t=0")  # the walk graph and tracker ready
     frames, nodes = len(rt.locator.gen.frames), len(rt.walk().graph.xy)
     times: dict[str, tuple[list[float], list[float]]] = {k: ([], []) for k in ("plain", "tracked", "guided")}
     near = {"single": 0, "tracked": 0}
@@ -171,7 +176,8 @@ def measure(app: object, vid: str, walk: list[tuple[bytes, float, np.ndarray]]) 
     row = app.extensions["omninav"].catalog.sessions.get(vid, "benchwalkA")  # type: ignore[attr-defined]
     print(f"\n## venue '{vid}': {frames} frames, a walk graph of {nodes} nodes")
     print(
-        f"first tracked request (builds the walk graph and tracker): {first_wall:.0f} ms wall, {first_cpu:.0f} ms CPU"
+        f"walk graph and tracker built in the background (WARM_VENUES) within {warm_wall:.0f} ms of the venue's "
+        f"first request; the first tracked request then: {first_wall:.0f} ms wall, {first_cpu:.0f} ms CPU"
     )
     print("\n| request | wall p50 (ms) | wall p90 (ms) | CPU p50 (ms) | CPU p90 (ms) |")
     print("| --- | --- | --- | --- | --- |")
