@@ -117,7 +117,14 @@ def main() -> None:
     try:
         data = tmp / "data"
         app = create_app(
-            {"DATA": str(data), "ADMIN_TOKEN": TOKEN, "LOCATE_RATE": 0.0, "JOB_RUNNER": False, "DEVICE": "cpu"}
+            {
+                "DATA": str(data),
+                "ADMIN_TOKEN": TOKEN,
+                "LOCATE_RATE": 0.0,
+                "JOB_RUNNER": False,
+                "DEVICE": "cpu",
+                "WARM_VENUES": True,
+            }
         )
         c = app.test_client()
         goal = json.loads((root / "query_track.json").read_text())["waypoints"][-1]
@@ -148,11 +155,11 @@ def measure(app: object, vid: str, walk: list[tuple[bytes, float, np.ndarray]]) 
         return r.get_json(), (w1 - w0) * 1e3, (c1 - c0) * 1e3
 
     post(walk[0][0], "")  # loads the venue (index, memory maps); WARM_VENUES builds its walk meanwhile
-    rt = app.extensions["omninav"].runtimes.get(vid)  # type: ignore[attr-defined]
+    runtimes = app.extensions["omninav"].runtimes  # type: ignore[attr-defined]
     w0 = time.perf_counter()
-    while rt._walk is None and time.perf_counter() - w0 < 300:  # the background build, as a phone waits
-        time.sleep(0.01)
+    assert runtimes.warm_idle(300.0), "the background build did not end"  # as a phone would wait
     warm_wall = (time.perf_counter() - w0) * 1e3
+    rt = runtimes.get(vid)
     _, first_wall, first_cpu = post(walk[0][0], "session=warmupwalk&t=0")  # the walk graph and tracker ready
     frames, nodes = len(rt.locator.gen.frames), len(rt.walk().graph.xy)
     times: dict[str, tuple[list[float], list[float]]] = {k: ([], []) for k in ("plain", "tracked", "guided")}

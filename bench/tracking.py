@@ -288,8 +288,8 @@ def fit_confidence(over: dict[str, Any]) -> None:
     for split, rows in data.items():
         xs, ys = design(rows)
         p = 1 / (1 + np.exp(-(xs @ w)))
-        # the answer's confidence is the lower of the two beliefs' (the look-alike one's, where
-        # the venue has look-alikes: the same model on its mass near and far from the answer)
+        # the answer's confidence is the lower of the two beliefs' (the cautious one's, where the
+        # tracker runs it: the same model on its mass near and far from the answer)
         twin = [
             {**r, "mass": r["alike_mass"], "far": r["alike_far"]} if r.get("alike_mass") is not None else r
             for r in rows

@@ -533,6 +533,9 @@ def test_the_second_beliefs_weight_of_a_clip_falls_with_its_best_score() -> None
     assert v.tracker.beta(0.0) == pytest.approx(25.0 * 0.15)
     off = Venue([(0.0, 0.0), (10.0, 0.0)], {"track_beta_ref": None})
     assert off.tracker.beta(0.3) == off.conf["track_beta"]
+    for bad in (1.0, 1.5, -0.1):  # at 1 or more the weight would be 0 or turn the evidence over
+        with pytest.raises(ValueError, match="track_beta_ref"):
+            Venue([(0.0, 0.0), (10.0, 0.0)], {"track_beta_ref": bad})
 
 
 def test_a_look_alike_never_falls_further_below_than_the_model_allows(corridor: Venue) -> None:

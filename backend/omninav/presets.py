@@ -75,7 +75,7 @@ DEFAULTS: dict[str, Any] = {
     "track_ambiguous": 0.35,
     # a place the venue's own model finds alike to another (its node's frame matches there with
     # score s) keeps at least the other's log-likelihood less track_alike_cost * (1 - s) in the
-    # look-alike belief, whose confidence caps the answer's (tracking.py); None: off
+    # second (cautious) belief, whose confidence caps the answer's (tracking.py); None: off
     "track_alike_cost": 10.0,
     # logistic(w0 + w . inputs) -> P(filtered pose within 2 m), inputs named in
     # tracking.TRACK_CONFIDENCE_INPUTS; fit by bench/tracking.py on the tuning families' walks

@@ -104,7 +104,7 @@ ALIKE_FRAMES = 128  # and at most this many node frames a pass (each re-ranks 8 
 ALIKE_MAX_NATS = 8.0  # a look-alike this far below (in log-likelihood) can never matter: not kept
 MAGIC = b"ONT2"  # the nodes kept one by one
 MAGIC_ALL = b"ONTA"  # every node's belief and facing (zlib: a flat or broad belief packs small)
-ALIKE, ALIKE_ALL = b"AS", b"AW"  # then the look-alike belief: its nodes one by one, or whole
+ALIKE, ALIKE_ALL = b"AS", b"AW"  # then the second belief: its nodes one by one, or whole
 HEADER = "<4sdIfIB"  # magic, t, updates, heading (NaN: none), nodes of the graph, length of its key
 
 
@@ -141,7 +141,7 @@ class TrackState:
 
     def to_bytes(self) -> bytes:
         """A header with the graph's key, the belief (float16 relative to the largest) and facing
-        (float16 degrees), then the look-alike belief if any (b"AS" or b"AW" and the same, without
+        (float16 degrees), then the second (cautious) belief if any (b"AS" or b"AW" and the same, without
         facing), and a CRC-32. A belief's nodes with at least STORE_REL of the largest, when
         there are at most MAX_STORED of them: each one's index (uint32), belief and facing, 8
         bytes a node (6 without facing); more than that (a young belief, flat over much of a big
@@ -169,7 +169,7 @@ class TrackState:
     @staticmethod
     def from_bytes(b: bytes, graph: WalkGraph) -> TrackState | None:
         """A state saved by to_bytes, or None: corrupt, or saved against another graph. A state
-        saved without the look-alike belief (or before it existed) reads with `alike` None (the
+        saved without the second belief (or before it existed) reads with `alike` None (the
         next update starts it as the belief)."""
         try:
             if len(b) < 4 or zlib.crc32(b[:-4]) != struct.unpack("<I", b[-4:])[0]:
@@ -346,6 +346,9 @@ class Tracker:
         self.n = n = len(graph.xy)
         if n == 0:
             raise ValueError("a walk graph without nodes cannot be tracked on")
+        ref = _conf(conf, "track_beta_ref")
+        if ref is not None and not 0.0 <= float(ref) < 1.0:  # 1 or more would turn the evidence over
+            raise ValueError(f"track_beta_ref must be in [0, 1) or None, got {ref!r}")
         self.xy = np.asarray(graph.xy, np.float64)
         self.floor = np.asarray(graph.floor).astype(str)
         vxy = np.asarray(venue_xy, np.float64)
@@ -660,7 +663,7 @@ class Tracker:
         weights, the belief it started from and (the last clip's facing per node, the turn), for
         the gyroscope's heading at the answer (_predicted); `last`: the last answer's heading plus
         the gyroscope's turn since, and whether the turn was known (the heading when the clip's
-        matches do not give one there); `alike`: the look-alike belief, whose own confidence at
+        matches do not give one there); `alike`: the second (cautious) belief, whose own confidence at
         the answer caps the answer's (and whose split makes it ambiguous)."""
         place_mass = np.asarray(self.place @ p)
         node = int(np.argmax(place_mass))
@@ -668,8 +671,8 @@ class Tracker:
         d = np.where(on, np.hypot(self.xy[:, 0] - self.xy[node, 0], self.xy[:, 1] - self.xy[node, 1]), np.inf)
         mass = float(p[d <= NEAR_M].sum())
         far = float(p[d >= FAR_M].sum())
-        # the look-alike belief at the same answer: as sure, once the clips' differences between
-        # places the venue's model finds alike are set aside?
+        # the cautious belief at the same answer: as sure, once the clips' differences between
+        # places the venue's model finds alike are set aside and poorly matching clips tempered?
         alike_mass = None if alike is None else float(alike[d <= NEAR_M].sum())
         alike_far = None if alike is None else float(alike[d >= FAR_M].sum())
         guess = None

@@ -21,6 +21,7 @@ import math
 import tempfile
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -109,38 +110,80 @@ class Runtimes:
         self.device = device
         # build each loaded venue's walk in the background (WARM_VENUES): its look-alike search
         # costs seconds of CPU on a big venue, which the first person tracked would otherwise wait
+        # for. One thread a worker, fed venue ids: edits in a row queue builds, never pile up
+        # threads, and a build is always of the venue's current runtime (a replaced one is skipped)
         self.warm = warm
-        self.warmer: threading.Thread | None = None  # warm_all's thread, once started
+        self.warmer: threading.Thread | None = None  # the latest warm-up thread
+        self._warm_q: deque[str | None] = deque()  # venue ids; None: every modelled venue
+        self._warm_lock = threading.Lock()
+        self._warming = False
         self._rt: dict[str, Runtime] = {}
         self._lock = threading.Lock()
 
     def get(self, venue_id: str) -> Runtime:
         rt, loaded = self._get(venue_id)
         if loaded and self.warm:
-            _start_thread(f"omninav-warm-{venue_id}", _build_walk, venue_id, rt)
+            self._queue_warm(venue_id)
         return rt
 
-    def warm_all(self) -> threading.Thread:
-        """Load every venue that has modelled frames and build its walk, one venue after another
-        in one daemon thread (at app start: the first request after a restart finds them ready)."""
-        self.warmer = _start_thread("omninav-warm", self._warm_each)
-        return self.warmer
+    def warm_all(self) -> None:
+        """Load every venue that has modelled frames and build its walk, in the background (at
+        app start: the first request after a restart finds them ready)."""
+        self._queue_warm(None)
 
-    def _warm_each(self) -> None:
+    def warm_idle(self, timeout: float) -> bool:
+        """Wait (up to `timeout` s) until no warm-up is queued or running: True if none is."""
+        end = time.monotonic() + timeout
+        while True:
+            with self._warm_lock:
+                if not self._warming:
+                    return True
+                t = self.warmer
+            if t is None or time.monotonic() >= end:
+                return False
+            t.join(max(0.0, end - time.monotonic()))
+
+    def _queue_warm(self, item: str | None) -> None:
+        with self._warm_lock:
+            self._warm_q.append(item)
+            if not self._warming:  # the thread takes the lock to look for work, so none is lost
+                self._warming = True
+                self.warmer = _start_thread("omninav-warm", self._warm_loop)
+
+    def _warm_loop(self) -> None:
         try:
-            venues = [v["id"] for v in self.cat.venues.all()]
+            while True:
+                with self._warm_lock:
+                    if not self._warm_q:
+                        self._warming = False
+                        return
+                    item = self._warm_q.popleft()
+                for venue_id in self._to_warm(item):
+                    self._warm_one(venue_id)
+        except BaseException:  # (each venue's errors are caught below) a later load starts a new thread
+            with self._warm_lock:
+                self._warming = False
+            raise
+
+    def _to_warm(self, item: str | None) -> list[str]:
+        if item is not None:
+            return [item]
+        try:
+            return [v["id"] for v in self.cat.venues.all()]
         except Exception:  # e.g. the database unreachable: each request then loads its venue itself
             log.exception("warming venues: listing them")
-            return
-        for venue_id in venues:
-            try:
-                rt, _ = self._get(venue_id)  # not get(): this thread builds the walk itself
-            except (Conflict, NotFound):  # no modelled frames yet, or deleted meanwhile
-                continue
-            except Exception:  # the venue's first request will report it; the others still warm
-                log.exception("warming venue %r", venue_id)
-                continue
-            _build_walk(venue_id, rt)
+            return []
+
+    def _warm_one(self, venue_id: str) -> None:
+        """The venue's current runtime (loaded if need be) and its walk. A failure is only logged:
+        the request that needs the walk then builds it itself and answers with its own error."""
+        try:
+            rt, _ = self._get(venue_id)  # not get(): it would queue this venue again
+            rt.walk()
+        except (Conflict, NotFound):  # no modelled frames yet, or deleted meanwhile
+            pass
+        except Exception:  # the venue's own requests will report it; the others still warm
+            log.exception("warming venue %r: its runtime, walk graph and tracker", venue_id)
 
     def _get(self, venue_id: str) -> tuple[Runtime, bool]:
         """The venue's runtime, and whether this call loaded it."""
@@ -181,15 +224,6 @@ def _start_thread(name: str, target: Callable[..., None], *args: Any) -> threadi
     t = threading.Thread(target=target, args=args, name=name, daemon=True)
     t.start()
     return t
-
-
-def _build_walk(venue_id: str, rt: Runtime) -> None:
-    """rt.walk() ahead of need. A failure is only logged: the request that needs the walk then
-    builds it itself and answers with its own error, as without the warm-up."""
-    try:
-        rt.walk()
-    except Exception:
-        log.exception("warming venue %r: building its walk graph and tracker", venue_id)
 
 
 def _float_arg(name: str, lo: float, hi: float) -> float | None:
