@@ -1,7 +1,7 @@
 // What the specs share: a spy on speech and vibration, and axe-core run in the page.
 import { readFileSync } from 'node:fs';
 import { createRequire } from 'node:module';
-import { expect, type Page } from '@playwright/test';
+import { expect, type Locator, type Page } from '@playwright/test';
 
 declare global {
   interface Window {
@@ -56,6 +56,15 @@ export async function expectNoAxeViolations(page: Page, what: string): Promise<v
     return r.violations.map((v) => `${v.id}: ${v.help} (${v.nodes.map((n) => JSON.stringify(n.target)).join(', ')})`);
   });
   expect(violations, `axe on ${what}`).toEqual([]);
+}
+
+/** Tab (only) until `target` has the focus. */
+export async function tabTo(page: Page, target: Locator, what: string): Promise<void> {
+  for (let i = 0; i < 40; i++) {
+    if (await target.evaluate((el) => el === document.activeElement).catch(() => false)) return;
+    await page.keyboard.press('Tab');
+  }
+  throw new Error(`Tab never reached ${what}`);
 }
 
 /** How many locate requests the page has sent so far (a live count). */

@@ -3,7 +3,7 @@ import { readFileSync } from 'node:fs';
 import { resolve } from 'node:path';
 import { expect, test } from '@playwright/test';
 import { TOKEN, WORK, base } from './env';
-import { expectNoAxeViolations, spoken, spyOnSpeech } from './helpers';
+import { expectNoAxeViolations, spoken, spyOnSpeech, tabTo } from './helpers';
 
 test('settings and about screens: reachable by role and name, no axe violation', async ({ page }) => {
   await page.goto(`${base()}/?venue=demo`);
@@ -17,6 +17,61 @@ test('settings and about screens: reachable by role and name, no axe violation',
   await page.getByRole('button', { name: 'About' }).click();
   await expect(page.getByRole('heading', { name: 'About omninav' })).toBeVisible();
   await expectNoAxeViolations(page, 'the about screen');
+});
+
+test('a screen-reader user, keyboard only: the app stays silent, the answer is in the live region', async ({
+  page,
+}) => {
+  await spyOnSpeech(page);
+  await page.goto(`${base()}/?venue=demo`);
+  await expect(page.locator('#venue-line')).toContainText('Ready');
+  await tabTo(page, page.getByRole('button', { name: 'Settings' }), 'the Settings tab');
+  await page.keyboard.press('Enter');
+  await expect(page.getByRole('heading', { name: 'Settings' })).toBeFocused();
+  // Tab enters the radio group on its checked button, the app's voice (the default); an arrow chooses
+  await tabTo(page, page.getByRole('radio', { name: 'The app, in its own voice' }), 'the app voice option');
+  await page.keyboard.press('ArrowDown');
+  const reader = page.getByRole('radio', { name: /^My screen reader \(VoiceOver, TalkBack\)/ });
+  await expect(reader).toBeChecked();
+  // rate and voice tune only the app's voice: off now, and say why
+  for (const c of [page.getByLabel(/Speech rate/), page.getByLabel('Voice', { exact: true })]) {
+    await expect(c).toBeDisabled();
+    await expect(c).toHaveAccessibleDescription(/app’s own voice only/);
+  }
+  await expectNoAxeViolations(page, 'the settings screen, the screen reader reading');
+  // what the app says from here on goes to the live region only (the first key press unlocked speech)
+  const before = await page.evaluate(() => window.__utterances.length);
+  const live = page.locator('#live');
+  await tabTo(page, page.getByRole('button', { name: 'Test speech' }), 'Test speech');
+  await page.keyboard.press('Enter');
+  await expect(live).toContainText('This is how omninav sounds.');
+
+  await tabTo(page, page.getByRole('button', { name: 'Locate' }), 'the Locate tab');
+  await page.keyboard.press('Enter');
+  await tabTo(page, page.getByRole('button', { name: 'Where am I?' }), 'Where am I?');
+  await page.keyboard.press('Enter');
+  await expect(live).toContainText('You are in', { timeout: 30_000 });
+  const sentence = (await live.textContent())!;
+  await expect(page.locator('#answer-text')).toHaveText(sentence);
+  expect(await page.evaluate(() => window.__vibrated.length)).toBeGreaterThan(0); // the cue still comes
+  await tabTo(page, page.getByRole('button', { name: 'Repeat' }), 'Repeat');
+  await page.keyboard.press('Enter');
+  await expect(live).toHaveText(sentence);
+  expect(await page.evaluate((n) => window.__utterances.slice(n), before)).toEqual([]);
+
+  // the choice is kept: after a reload the app is still silent
+  await page.reload();
+  await expect(page.locator('#venue-line')).toContainText('Ready');
+  await page.getByRole('button', { name: 'Settings' }).click();
+  await expect(reader).toBeChecked();
+  await page.getByRole('button', { name: 'Test speech' }).click();
+  await expect(live).toContainText('This is how omninav sounds.');
+  expect(await spoken(page)).toEqual([]);
+  // and the app's voice, chosen again, speaks at once
+  await page.getByRole('radio', { name: 'The app, in its own voice' }).check();
+  await expect(page.getByLabel(/Speech rate/)).toBeEnabled();
+  await page.getByRole('button', { name: 'Test speech' }).click();
+  await expect.poll(() => spoken(page)).toContainEqual(expect.stringContaining('This is how omninav sounds.'));
 });
 
 test('the Go to screen: places by floor, a filter, reachable by role and name, no axe violation', async ({ page }) => {

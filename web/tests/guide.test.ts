@@ -466,6 +466,42 @@ describe('Guide', () => {
     }
   });
 
+  it('with the Speaker and the screen reader reading: paced by the live region alone, never spoken', async () => {
+    // a synthesiser that would never report an end: the guide must not wait for one
+    const spoken: string[] = [];
+    vi.stubGlobal('speechSynthesis', { speak: (u: { text: string }) => spoken.push(u.text), cancel: () => 0 });
+    vi.stubGlobal('SpeechSynthesisUtterance', class {});
+    vi.stubGlobal('navigator', {});
+    try {
+      const { Speaker } = await import('../src/client/speech');
+      const heard: string[] = [];
+      const region = () =>
+        ({
+          set textContent(t: string) {
+            if (t) heard.push(t);
+          },
+          get textContent() {
+            return '';
+          },
+        }) as unknown as HTMLElement;
+      const speaker = new Speaker(region(), region());
+      speaker.screenReader = true;
+      const r = rig([START, GO, QUIET], { screen: false, voice: speaker });
+      const c = r.guide.choose({ id: 'p3', name: 'Room 102' });
+      await vi.advanceTimersByTimeAsync(1000);
+      await c;
+      r.guide.start();
+      await vi.advanceTimersByTimeAsync(1000 + NOTE_QUIET_MS + 500);
+      expect(heard).toEqual(['Room 102: 45 metres.', GO.sentence, SCREEN_ON]);
+      r.guide.whatNext(); // What next? puts the latest instruction in the live region again
+      await vi.advanceTimersByTimeAsync(100);
+      expect(heard.at(-1)).toBe(QUIET.sentence);
+      expect(spoken).toEqual([]);
+    } finally {
+      vi.unstubAllGlobals();
+    }
+  });
+
   it('speaks the app words in the user style: the preview, then the instruction for where they face', async () => {
     const words: Words = { guidance: guidanceSentence, preview: (x) => previewSentence(x.preview!, x.to) };
     const start = g('start', '', { bearing_deg: 60, walk_m: 12, until: 'the end of the corridor', preview: PREVIEW });

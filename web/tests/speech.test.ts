@@ -1,5 +1,6 @@
 // Speech never talks over itself: while a sentence is spoken, only the latest new one waits;
-// urgent sentences (errors) cut in. A fake synthesiser stands in for the platform's voice.
+// urgent sentences (errors) cut in. With the user's screen reader reading, the app stays silent.
+// A fake synthesiser stands in for the platform's voice.
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
 
 class FakeUtterance {
@@ -103,5 +104,77 @@ describe('Speaker', () => {
     s.say('next');
     vi.advanceTimersByTime(10_000);
     expect(synth.spoken.map((u) => u.text)).toEqual(['a sentence that never ends', 'next']);
+  });
+
+  describe('with the screen reader reading the answers', () => {
+    it('never speaks, yet writes the live and alert regions, cues, and is never busy', async () => {
+      const { Speaker } = await import('../src/client/speech');
+      const vibrated: number[][] = [];
+      vi.stubGlobal('navigator', { vibrate: (p: number[]) => vibrated.push(p) > 0 });
+      const live = region();
+      const alert = region();
+      const s = new Speaker(live, alert);
+      s.screenReader = true;
+      s.prime(); // the first tap: nothing to unlock for a voice that never speaks
+      s.say('You are in Corridor 1.');
+      expect(s.busy).toBe(false); // "Keep telling me" and the guide's note wait for nothing
+      vi.advanceTimersByTime(60);
+      expect(live.textContent).toBe('You are in Corridor 1.');
+      s.say('The camera is blocked.', 'error', true);
+      vi.advanceTimersByTime(60);
+      expect([live.textContent, alert.textContent]).toEqual(['', 'The camera is blocked.']);
+      expect(vibrated).toEqual([[80], [300]]);
+      expect(synth.spoken).toEqual([]);
+      expect(synth.cancelled).toBe(0);
+    });
+
+    it('Repeat announces the last answer again: the region is emptied, then set', async () => {
+      const { Speaker } = await import('../src/client/speech');
+      const live = region();
+      const s = new Speaker(live, region());
+      s.screenReader = true;
+      s.say('You are in Corridor 1.');
+      s.say('Stopped.', null, false, false);
+      vi.advanceTimersByTime(60);
+      s.repeat();
+      expect(live.textContent).toBe(''); // a screen reader announces a change, not the same text
+      vi.advanceTimersByTime(60);
+      expect(live.textContent).toBe('You are in Corridor 1.');
+      s.repeat();
+      expect(live.textContent).toBe('');
+      vi.advanceTimersByTime(60);
+      expect(live.textContent).toBe('You are in Corridor 1.');
+      expect(synth.spoken).toEqual([]);
+    });
+
+    it('switched on mid-sentence, the voice stops; switched back off, the app speaks again', async () => {
+      const { Speaker } = await import('../src/client/speech');
+      const s = new Speaker(region(), region());
+      s.say('one');
+      s.say('waiting');
+      s.screenReader = true;
+      expect(synth.cancelled).toBe(1);
+      expect(s.busy).toBe(false);
+      synth.spoken[0].onend!(); // the cancelled sentence's late end does not bring the waiting one
+      s.say('quiet');
+      expect(synth.spoken.map((u) => u.text)).toEqual(['one']);
+      s.screenReader = false;
+      s.say('aloud');
+      expect(synth.spoken.map((u) => u.text)).toEqual(['one', 'aloud']);
+      expect(s.busy).toBe(true);
+    });
+
+    it('a first tap in screen-reader mode: choosing the app voice later unlocks speech then', async () => {
+      const { Speaker } = await import('../src/client/speech');
+      const s = new Speaker(region(), region());
+      s.screenReader = true;
+      s.prime();
+      expect(synth.spoken).toEqual([]);
+      s.screenReader = false; // from Settings: inside a gesture, as iOS needs
+      expect(synth.spoken.map((u) => [u.text, u.volume])).toEqual([[' ', 0]]);
+      s.screenReader = true;
+      s.screenReader = false; // once is enough
+      expect(synth.spoken).toHaveLength(1);
+    });
   });
 });

@@ -2,10 +2,17 @@
 import type { Style } from './directions';
 import type { Lens } from '../shared/lens';
 
+/**
+ * Who reads the answers aloud: the app in its own voice (works for everyone), or the user's screen
+ * reader from the live regions, the app silent (else both would speak at once).
+ */
+export type ReadBy = 'app' | 'screen-reader';
+
 export interface Prefs {
   venue: string;
   lens: string;
   style: Style;
+  readBy: ReadBy;
   rate: number;
   voice: string;
   vibrate: boolean;
@@ -19,6 +26,7 @@ export const DEFAULTS: Prefs = {
   venue: '',
   lens: '',
   style: 'clock',
+  readBy: 'app',
   rate: 1,
   voice: '',
   vibrate: true,

@@ -2,6 +2,10 @@
  * Speech, vibration and earcons. Speech never talks over itself: a new sentence while one is being
  * spoken waits, and only the latest waiting sentence is kept. iOS speaks only after a first
  * utterance made inside a user gesture, so `prime()` runs on the first tap.
+ *
+ * A screen reader reads the live regions aloud; the app's own voice on top of it would say every
+ * sentence twice, at once. Browsers cannot tell whether a screen reader runs, so the user chooses
+ * (Settings): with `screenReader` on, the app only writes the regions and cues, and stays silent.
  */
 
 export type Cue = 'ok' | 'unsure' | 'error' | 'start';
@@ -28,6 +32,9 @@ export class Speaker {
   private current: SpeechSynthesisUtterance | null = null;
   private pendingText: ReturnType<typeof setTimeout> | undefined;
   private primed = false;
+  /** The silent first utterance went out inside a gesture (iOS speaks only after one). */
+  private unlocked = false;
+  private reader = false;
   private audio: AudioContext | null = null;
   private readonly synth: SpeechSynthesis | null = 'speechSynthesis' in globalThis ? speechSynthesis : null;
 
@@ -40,15 +47,30 @@ export class Speaker {
     return this.synth !== null;
   }
 
+  /** The user's screen reader reads the answers: the app never speaks (see the module's comment). */
+  get screenReader(): boolean {
+    return this.reader;
+  }
+
+  /**
+   * Switched from Settings, so inside a gesture: turned on, what the app is saying stops (the
+   * screen reader says it); turned off, speech is unlocked now if the first tap did not.
+   */
+  set screenReader(on: boolean) {
+    if (on === this.reader) return;
+    this.reader = on;
+    if (on) {
+      this.waiting = null;
+      if (this.current) this.synth?.cancel();
+      this.current = null; // its late end is ignored: only the current utterance's end counts
+    } else if (this.primed) this.unlock();
+  }
+
   /** Inside the first user gesture: unlock speech (iOS) and audio. */
   prime(): void {
     if (this.primed) return;
     this.primed = true;
-    if (this.synth) {
-      const u = new SpeechSynthesisUtterance(' ');
-      u.volume = 0;
-      this.synth.speak(u);
-    }
+    if (!this.reader) this.unlock();
     const AC =
       globalThis.AudioContext ??
       (globalThis as unknown as { webkitAudioContext?: typeof AudioContext }).webkitAudioContext;
@@ -58,15 +80,24 @@ export class Speaker {
     }
   }
 
+  /** A silent utterance, inside a gesture: iOS speaks only after one. */
+  private unlock(): void {
+    if (!this.synth || this.unlocked) return;
+    this.unlocked = true;
+    const u = new SpeechSynthesisUtterance(' ');
+    u.volume = 0;
+    this.synth.speak(u);
+  }
+
   voices(): SpeechSynthesisVoice[] {
     return this.synth?.getVoices() ?? [];
   }
 
   /**
-   * Say a sentence: in the live region (screen readers read it), aloud, with a cue. `urgent`
-   * sentences (errors) go to the assertive region and are spoken at once, cutting a waiting one.
-   * `remember` false: a passing word ("Keep turning slowly", "Stopped") that Repeat skips, so that
-   * it still says the last answer.
+   * Say a sentence: in the live region (screen readers read it), aloud unless the user's screen
+   * reader reads it, with a cue. `urgent` sentences (errors) go to the assertive region and are
+   * spoken at once, cutting a waiting one. `remember` false: a passing word ("Keep turning slowly",
+   * "Stopped") that Repeat skips, so that it still says the last answer.
    */
   say(text: string, cue: Cue | null = 'ok', urgent = false, remember = true): void {
     if (remember) this.last = text;
@@ -89,7 +120,8 @@ export class Speaker {
 
   private speak(text: string, now: boolean): void {
     const synth = this.synth;
-    if (!synth) return;
+    // the screen reader reads the live region; `busy` stays false, so nothing waits for an end
+    if (!synth || this.reader) return;
     if (this.current && !now) {
       this.waiting = text;
       return;
@@ -116,6 +148,7 @@ export class Speaker {
     synth.speak(u);
   }
 
+  /** The app's voice is saying a sentence (never with a screen reader: its reading is not known). */
   get busy(): boolean {
     return this.current !== null;
   }

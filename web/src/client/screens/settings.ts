@@ -1,7 +1,8 @@
 /**
- * The settings screen: venue, lens profile (or the user's own), direction style, speech rate and
- * voice, vibration, interval. Each control edits one preference through one table; the session
- * keeps them and tells every screen.
+ * The settings screen: venue, lens profile (or the user's own), direction style, who reads the
+ * answers aloud (the app or the user's screen reader), the app's speech rate and voice, vibration,
+ * interval. Each control edits one preference through one table; the session keeps them and
+ * tells every screen.
  */
 import { byId, fillSelect } from '../dom';
 import { lensProblem, type Lens } from '../../shared/lens';
@@ -13,6 +14,7 @@ import type { Speaker } from '../speech';
 export interface Control {
   value: string;
   checked?: boolean;
+  disabled?: boolean;
   addEventListener(type: 'input' | 'change', fn: () => void): void;
 }
 
@@ -48,6 +50,13 @@ export const SETTINGS: Setting<keyof Prefs>[] = [
     read: (c) => c.value as Prefs['style'],
     show: (c, v) => (c.checked = c.value === v),
   }),
+  setting({
+    selector: 'input[name=read-by]',
+    key: 'readBy',
+    event: 'change',
+    read: (c) => c.value as Prefs['readBy'],
+    show: (c, v) => (c.checked = c.value === v),
+  }),
   setting({ selector: '#rate', key: 'rate', event: 'input', read: num, show: showNum }),
   setting({ selector: '#voice', key: 'voice', event: 'change', read: text }),
   setting({
@@ -59,6 +68,14 @@ export const SETTINGS: Setting<keyof Prefs>[] = [
   }),
   setting({ selector: '#interval', key: 'interval', event: 'change', read: num, show: showNum }),
 ];
+
+/** The controls that tune only the app's own voice: off while the screen reader reads instead. */
+export const APP_VOICE_CONTROLS = ['#rate', '#voice'];
+
+export function showAppVoiceControls(root: Controls, prefs: Prefs): void {
+  const off = prefs.readBy === 'screen-reader';
+  for (const sel of APP_VOICE_CONTROLS) for (const c of root.querySelectorAll(sel)) c.disabled = off;
+}
 
 /**
  * Wire each control to its preference: a change is `set`; returns a function that shows the
@@ -90,10 +107,12 @@ export function settingsScreen(session: Session, speaker: Speaker): void {
 
   /** The preferences into the speaker and onto the controls. */
   function apply(): void {
+    speaker.screenReader = prefs.readBy === 'screen-reader';
     speaker.rate = prefs.rate;
     speaker.voiceName = prefs.voice;
     speaker.cues = prefs.vibrate;
     showControls();
+    showAppVoiceControls(controls, prefs);
     rateValue.textContent = prefs.rate.toFixed(1);
   }
 
