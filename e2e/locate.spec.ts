@@ -76,9 +76,21 @@ test('Where am I? answers within 2 m and 10 degrees, spoken and in the live regi
   await expect(page.locator('#answer-text')).toContainText(/ahead|right|left|behind/);
 });
 
-test('continuous mode re-locates and speaks only when something changed', async ({ page }) => {
+test('continuous mode tracks one session, re-locates and speaks only when something changed', async ({ page }) => {
   await spyOnSpeech(page);
   const posts = countLocates(page);
+  // each request's query, and the server's tracking state in its answer
+  const queries: URLSearchParams[] = [];
+  const frames: number[] = [];
+  const tracking: { session: string; restarted: boolean; updates: number }[] = [];
+  page.on('request', (r) => {
+    if (!r.url().includes('/locate')) return;
+    queries.push(new URL(r.url()).searchParams);
+    frames.push(r.postDataBuffer()!.readUInt32LE(10));
+  });
+  page.on('response', async (r) => {
+    if (r.url().includes('/locate') && r.ok()) tracking.push((await r.json()).tracking);
+  });
   await page.goto(`${base()}/?venue=demo`);
   await page.getByRole('button', { name: 'Settings' }).click();
   await page.getByLabel(/When telling continuously/).selectOption('2');
@@ -87,11 +99,34 @@ test('continuous mode re-locates and speaks only when something changed', async 
   await toggle.click();
   await expect(toggle).toHaveAttribute('aria-pressed', 'true');
   await expect.poll(posts, { timeout: 60_000 }).toBeGreaterThanOrEqual(3);
+  await expectNoAxeViolations(page, 'the locate screen while telling continuously');
   await toggle.click();
   await expect(toggle).toHaveAttribute('aria-pressed', 'false');
   // the user stood still: three answers, one sentence (then "Stopped telling you.")
   const said = (await spoken(page)).filter((s) => s.startsWith('You are'));
   expect(said).toHaveLength(1);
+  await expect(page.locator('#answer-text')).toHaveText(said[0]);
+
+  // consecutive answers come from the tracking filter: one session, the phone's clock going on,
+  // and no 3-s clip (every record ~1 s)
+  const session = queries[0].get('session')!;
+  expect(session).toMatch(/^[A-Za-z0-9_-]{8,64}$/);
+  expect(queries.map((q) => q.get('session'))).toEqual(queries.map(() => session));
+  const t = queries.map((q) => Number(q.get('t')));
+  for (let i = 1; i < t.length; i++) expect(t[i], `t of request ${i}`).toBeGreaterThan(t[i - 1]);
+  for (const n of frames) expect(n, 'frames per record').toBeLessThanOrEqual(12);
+  await expect.poll(() => tracking.length).toBeGreaterThanOrEqual(3);
+  expect(tracking[0]).toMatchObject({ session, restarted: true, updates: 1 });
+  expect(tracking[1]).toMatchObject({ session, restarted: false, updates: 2 });
+
+  // started again: a new session
+  const before = queries.length;
+  await toggle.click();
+  await expect.poll(() => queries.length, { timeout: 60_000 }).toBeGreaterThan(before);
+  await toggle.click();
+  const next = queries[before].get('session');
+  expect(next).toMatch(/^[A-Za-z0-9_-]{8,64}$/);
+  expect(next).not.toBe(session);
 });
 
 test('a clip from a building the venue has never seen: "not sure", not a wrong place', async ({ playwright }) => {

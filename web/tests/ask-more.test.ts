@@ -1,6 +1,7 @@
 // "Ask for more": a press films on while its first second is answered; when that answer is not
 // sure it says so and sends the 30 frames (the first 10 and the 20 filmed on) as one record: one
 // more request, answered from all of it. Once per press; Stop ends it; a sure answer ends the filming.
+// ("Keep telling me" never films on: its turns are tracked, session.test.ts.)
 // The camera, the worker and the server are fakes: this is the session's logic, not the locating.
 import { beforeEach, describe, expect, it, vi } from 'vitest';
 import { UNSURE } from '../src/client/directions';
@@ -58,6 +59,8 @@ describe('asking for more when the first second is not sure', () => {
     const recs = sent();
     expect(recs.map((r) => r.frames)).toEqual([10, 30]);
     expect(recs[1].fps).toBeCloseTo(10, 6); // 30 frames, 100 ms apart: no gap for the first answer
+    // a press is a single question: no tracking session (only "Keep telling me" and the guide track)
+    expect(api.locate.mock.calls.map((c) => c[4])).toEqual([undefined, undefined]);
     expect(said).toEqual([KEEP_TURNING, s.sentence(answer(false), VENUE)]);
     expect(asking).toEqual([true, false]);
     expect(answers).toEqual([30]); // only the answer that was said is shown
@@ -115,27 +118,5 @@ describe('asking for more when the first second is not sure', () => {
     expect(s.asking).toBe(false);
     s.stop(); // nothing to stop now: nothing said
     expect(said).toHaveLength(2);
-  });
-
-  it('continuous mode asks for more without saying so', async () => {
-    api.locate.mockResolvedValue(answer(true));
-    const { s, said, asking } = session();
-    await s.whereAmI(true);
-    expect(sent().map((r) => r.frames)).toEqual([10, 30]);
-    expect(said).toEqual([UNSURE]);
-    expect(asking).toEqual([]); // the button does not turn into a Stop that would leave the loop running
-  });
-
-  it('turning "Keep telling me" off while the first second is answered: nothing more is sent', async () => {
-    const { s, said, asking } = session();
-    api.locate.mockImplementation(async () => {
-      s.toggleContinuous(); // on
-      s.toggleContinuous(); // and off again while the first second is being answered
-      return answer(true);
-    });
-    await s.whereAmI(true);
-    expect(sent().map((r) => r.frames)).toEqual([10]);
-    expect(said).toEqual(['Stopped telling you.']);
-    expect(asking).toEqual([]);
   });
 });

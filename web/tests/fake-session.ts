@@ -1,11 +1,11 @@
-// The fake venue, answers, clips and session shared by the Session tests (ask-more, track). The
+// The fake venue, answers, clips and session shared by the Session tests (ask-more, track, session). The
 // camera, the feature worker and the server are mocked by each test file itself (vi.mock is
 // hoisted only there): this module is imported after those mocks, so its Session uses them.
 import { vi } from 'vitest';
 import type { Answer, Venue } from '../src/client/api';
 import type { Clip } from '../src/client/camera';
 import { DEFAULTS } from '../src/client/prefs';
-import { Session } from '../src/client/session';
+import { Session, type SessionOptions } from '../src/client/session';
 
 /** Curves x harmonics of the fake venue: small records. */
 export const CK = 2;
@@ -52,8 +52,8 @@ export function clip(n: number, at: number): Clip {
   return { frames, fps: 10, startMs: at, endMs: at + 100 * (n - 1) };
 }
 
-/** A Session on a fake video with a fake voice; what it says, asks and answers, in order. */
-export function session() {
+/** A Session on a fake video with a fake voice (and `more` options); what it says, asks and answers, in order. */
+export function session(more: Partial<SessionOptions> = {}) {
   const said: string[] = [];
   const voice = { busy: false, say: vi.fn((text: string) => said.push(text)), cue: vi.fn() };
   const s = new Session({
@@ -62,6 +62,7 @@ export function session() {
     voice,
     video: { videoWidth: 640, videoHeight: 320 } as HTMLVideoElement,
     askedVenue: null,
+    ...more,
   });
   const asking: boolean[] = [];
   s.on('asking', (on) => asking.push(on));

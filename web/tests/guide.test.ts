@@ -5,7 +5,7 @@
 // screen lock; a hidden page pauses the loop, a camera taken by a call does not end it; the
 // screen-lock note never takes the instruction's place in the live region.
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
-import { ApiProblem, Unreachable, type Answer, type Guidance } from '../src/client/api';
+import { ApiProblem, Unreachable, newSessionId, type Answer, type Guidance } from '../src/client/api';
 import { CameraProblem } from '../src/client/camera';
 import {
   GUIDE_CAMERA_BUSY,
@@ -17,7 +17,6 @@ import {
   NO_GUIDANCE,
   SCREEN_ON,
   STOPPED_GUIDANCE,
-  newSessionId,
   type GuideState,
   type PageHost,
   type Words,

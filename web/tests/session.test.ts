@@ -1,79 +1,269 @@
 // "Keep telling me": the session asks every few seconds, never while a sentence is being spoken,
-// and a stop ends its loop for good. whereAmI is stubbed: this is the loop, not the locating.
+// and a stop ends its loop for good. It is a walk: each turn locates ~1 s in one tracking session
+// per start (the server's filter remembers where the user was), with the clip's last frame on the
+// phone's clock and the phone's motion since the previous answered turn when it has it; it never
+// films on to 3 s, and says only what changed. The camera, the worker and the server are fakes.
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
-import { DEFAULTS } from '../src/client/prefs';
-import { Session } from '../src/client/session';
+import { Unreachable, trackedQuery, type Answer, type Tracked } from '../src/client/api';
+import { CameraProblem } from '../src/client/camera';
+import { UNSURE } from '../src/client/directions';
+import type { MotionReading } from '../src/client/motion';
+import { VENUE, answer, clip, session } from './fake-session';
 
-function session() {
-  const voice = { busy: false, say: vi.fn(), cue: vi.fn() };
-  const s = new Session({
-    prefs: { ...DEFAULTS, interval: 3 },
-    save: vi.fn(),
-    voice,
-    video: {} as HTMLVideoElement,
-    askedVenue: null,
-  });
-  const asked = vi.spyOn(s, 'whereAmI').mockResolvedValue();
-  const pressed: boolean[] = [];
-  s.on('continuous', (on) => pressed.push(on));
-  return { s, voice, asked, pressed };
+const api = vi.hoisted(() => ({ venues: vi.fn(), venue: vi.fn(), locate: vi.fn() }));
+const cam = vi.hoisted(() => ({ captureClip: vi.fn(), openCamera: vi.fn() }));
+vi.mock('../src/client/api', async (orig) => ({ ...(await orig<object>()), ...api }));
+vi.mock('../src/client/camera', async (orig) => ({ ...(await orig<object>()), ...cam }));
+vi.mock('../src/client/bridge', () => ({
+  ExtractorClient: class {
+    configured = 'fake';
+    configure = () => Promise.resolve(1);
+  },
+}));
+
+const STOPPED_TELLING = 'Stopped telling you.';
+const SESSION_ID = /^[A-Za-z0-9_-]{8,64}$/;
+
+/** Each locate request's tracked part (undefined: a single clip), in order. */
+const tracked = () => api.locate.mock.calls.map((c) => c[4] as Tracked | undefined);
+
+/** A tracked answer: the single-clip fields, filtered, and the filter's state beside them. */
+function trackedAnswer(low: boolean, updates = 1): Answer {
+  const a = answer(low);
+  const tracking = { session: 's', restarted: updates === 1, reason: updates === 1 ? ('new' as const) : null };
+  return { ...a, tracking: { ...tracking, updates, single: { x: 3, y: 4, heading_deg: 90, confidence: 0.5 } } };
+}
+
+/** A fake motion feed: the readings it hands out in turn, and what was committed. */
+function motionFeed(readings: Omit<MotionReading, 'mark'>[]) {
+  let n = 0;
+  return {
+    start: vi.fn(),
+    stop: vi.fn(),
+    peek: vi.fn(
+      (): MotionReading => ({ ...readings[Math.min(n, readings.length - 1)], mark: null, n: n++ }) as MotionReading,
+    ),
+    commit: vi.fn(),
+  };
 }
 
 describe('continuous mode', () => {
-  beforeEach(() => vi.useFakeTimers());
+  beforeEach(() => {
+    vi.useFakeTimers();
+    vi.resetAllMocks(); // and the answers queued by a test that failed early
+    api.venues.mockResolvedValue([{ id: 'lab', name: 'Lab' }]);
+    api.venue.mockResolvedValue(VENUE);
+    api.locate.mockResolvedValue(trackedAnswer(false));
+    cam.openCamera.mockResolvedValue({ getVideoTracks: () => [{ readyState: 'live' }] });
+    // each clip is filmed a second after the last on the phone's clock: 0-900 ms, 1000-1900 ms, ...
+    let at = 0;
+    cam.captureClip.mockImplementation((_v, _e, n: number) => {
+      const c = clip(n, at);
+      at += 1000;
+      return Promise.resolve(c);
+    });
+  });
   afterEach(() => vi.useRealTimers());
 
   it('asks at once, then every interval, quietly; skips a turn while speech is busy; stops when told', async () => {
-    const { s, voice, asked, pressed } = session();
+    const { s, voice, said } = session();
+    const pressed: boolean[] = [];
+    s.on('continuous', (on) => pressed.push(on));
     s.toggleContinuous();
     expect(pressed).toEqual([true]);
     expect(s.continuous).toBe(true);
     await vi.advanceTimersByTimeAsync(0);
-    expect(asked.mock.calls).toEqual([[true]]);
+    expect(api.locate).toHaveBeenCalledTimes(1);
     await vi.advanceTimersByTimeAsync(2999);
-    expect(asked).toHaveBeenCalledTimes(1);
+    expect(api.locate).toHaveBeenCalledTimes(1);
     await vi.advanceTimersByTimeAsync(1);
-    expect(asked).toHaveBeenCalledTimes(2);
+    expect(api.locate).toHaveBeenCalledTimes(2);
     voice.busy = true;
     await vi.advanceTimersByTimeAsync(3000);
-    expect(asked).toHaveBeenCalledTimes(2);
+    expect(api.locate).toHaveBeenCalledTimes(2);
     voice.busy = false;
     await vi.advanceTimersByTimeAsync(3000);
-    expect(asked).toHaveBeenCalledTimes(3);
+    expect(api.locate).toHaveBeenCalledTimes(3);
     s.toggleContinuous();
     expect(pressed).toEqual([true, false]);
-    expect(voice.say).toHaveBeenCalledWith('Stopped telling you.', null);
+    expect(voice.say).toHaveBeenCalledWith(STOPPED_TELLING, null);
     await vi.advanceTimersByTimeAsync(30_000);
-    expect(asked).toHaveBeenCalledTimes(3);
+    expect(api.locate).toHaveBeenCalledTimes(3);
+    // the user stood still: three answers, one sentence, and no "start" cue per turn
+    expect(said).toEqual([s.sentence(answer(false), VENUE), STOPPED_TELLING]);
+    expect(voice.cue).not.toHaveBeenCalled();
   });
 
-  it('a new interval applies to the running loop from its next wait', async () => {
-    const { s, asked } = session();
+  it('each turn is tracked in one session with the clip clock increasing; a stop and a start begin a new session', async () => {
+    const { s } = session();
     s.toggleContinuous();
-    await vi.advanceTimersByTimeAsync(0); // first turn; the next one is due in 3 s
-    s.prefs.interval = 10;
+    await vi.advanceTimersByTimeAsync(0);
     await vi.advanceTimersByTimeAsync(3000);
-    expect(asked).toHaveBeenCalledTimes(2);
-    await vi.advanceTimersByTimeAsync(9999);
-    expect(asked).toHaveBeenCalledTimes(2);
-    await vi.advanceTimersByTimeAsync(1);
-    expect(asked).toHaveBeenCalledTimes(3);
+    await vi.advanceTimersByTimeAsync(3000);
+    const first = tracked();
+    expect(first).toHaveLength(3);
+    const id = first[0]!.session;
+    expect(id).toMatch(SESSION_ID);
+    expect(first.map((q) => q!.session)).toEqual([id, id, id]);
+    // t: each clip's last frame, in seconds on the phone's clock
+    expect(first.map((q) => q!.t)).toEqual([0.9, 1.9, 2.9]);
+    // without motion sensors nothing but the session and the clock is sent: no place, no steps
+    expect(trackedQuery(first[0]!)).toEqual({ session: id, t: '0.900' });
+    expect(cam.captureClip.mock.calls.map((c) => c[2])).toEqual([10, 10, 10]);
+    s.toggleContinuous();
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0);
+    const again = tracked()[3]!;
+    expect(again.session).toMatch(SESSION_ID);
+    expect(again.session).not.toBe(id);
     s.stopContinuous();
   });
 
+  it('an unsure turn sends no 3-s clip and is said as "not sure", once while it lasts', async () => {
+    api.locate
+      .mockResolvedValueOnce(trackedAnswer(true, 1))
+      .mockResolvedValueOnce(trackedAnswer(true, 2))
+      .mockResolvedValueOnce(trackedAnswer(false, 3));
+    const { s, said, asking, voice } = session();
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0);
+    await vi.advanceTimersByTimeAsync(3000);
+    await vi.advanceTimersByTimeAsync(3000);
+    expect(cam.captureClip.mock.calls.map((c) => c[2])).toEqual([10, 10, 10]);
+    expect(api.locate).toHaveBeenCalledTimes(3);
+    expect(said).toEqual([UNSURE, s.sentence(answer(false), VENUE)]);
+    expect(voice.say).toHaveBeenNthCalledWith(1, UNSURE, 'unsure');
+    expect(voice.say).toHaveBeenNthCalledWith(2, s.sentence(answer(false), VENUE), 'ok');
+    expect(asking).toEqual([]); // the Where am I? button never turns into a Stop
+    s.stopContinuous();
+  });
+
+  it('sends the motion since the previous answered turn, asked for inside the tap', async () => {
+    const motion = motionFeed([
+      { steps: null, turn_deg: null }, // the first reading after start: unknown
+      { steps: 3, turn_deg: -20.5 },
+      { steps: 5, turn_deg: 10 },
+      { steps: 7, turn_deg: 12 },
+    ]);
+    const askMotion = vi.fn(() => Promise.resolve());
+    const { s } = session({ motion, askMotion });
+    api.locate
+      .mockResolvedValueOnce(trackedAnswer(false, 1))
+      .mockResolvedValueOnce(trackedAnswer(false, 2))
+      .mockRejectedValueOnce(new Unreachable('Cannot reach the server.'))
+      .mockResolvedValue(trackedAnswer(false, 3));
+    s.toggleContinuous();
+    expect(askMotion).toHaveBeenCalledTimes(1); // still inside the user's tap
+    await vi.advanceTimersByTimeAsync(0);
+    expect(motion.start).toHaveBeenCalledTimes(1);
+    for (let i = 0; i < 3; i++) await vi.advanceTimersByTimeAsync(3000);
+    const qs = tracked().map((q) => trackedQuery(q!));
+    expect(qs.map((q) => [q.steps, q.turn_deg])).toEqual([
+      [undefined, undefined],
+      ['3', '-20.5'],
+      ['5', '10'],
+      ['7', '12'],
+    ]);
+    // a reading counts as sent only once its request was answered: not the failed third one's
+    const committed = motion.commit.mock.calls.map((c) => (c[0] as unknown as { n: number }).n);
+    expect(committed).toEqual([0, 1, 3]);
+    s.toggleContinuous();
+    expect(motion.stop).toHaveBeenCalledTimes(1);
+  });
+
+  it('a server error mid-loop is said once while it lasts, and the loop goes on', async () => {
+    const gone = new Unreachable('Cannot reach the server.');
+    api.locate.mockRejectedValueOnce(gone).mockRejectedValueOnce(gone).mockResolvedValue(trackedAnswer(false, 1));
+    const { s, said, voice } = session();
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0);
+    await vi.advanceTimersByTimeAsync(3000);
+    await vi.advanceTimersByTimeAsync(3000);
+    expect(said).toEqual([gone.message, s.sentence(answer(false), VENUE)]);
+    expect(voice.say).toHaveBeenNthCalledWith(1, gone.message, 'error', true);
+    expect(s.continuous).toBe(true);
+    s.stopContinuous();
+  });
+
+  it('a camera refused ends the loop, said once', async () => {
+    cam.openCamera.mockRejectedValue(new CameraProblem('denied', 'Camera access was refused.'));
+    const { s, said } = session();
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0);
+    await vi.advanceTimersByTimeAsync(30_000);
+    expect(said).toEqual(['Camera access was refused.']);
+    expect(s.continuous).toBe(false);
+    expect(api.locate).not.toHaveBeenCalled();
+  });
+
+  it('turning it off while a turn is answered: that answer is not said, no more requests', async () => {
+    const motion = motionFeed([{ steps: null, turn_deg: null }]);
+    const { s, said } = session({ motion });
+    api.locate.mockImplementationOnce(async () => {
+      s.toggleContinuous(); // off while the turn is being answered
+      return trackedAnswer(false);
+    });
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0);
+    await vi.advanceTimersByTimeAsync(30_000);
+    expect(api.locate).toHaveBeenCalledTimes(1);
+    expect(said).toEqual([STOPPED_TELLING]);
+    expect(motion.stop).toHaveBeenCalledTimes(1);
+  });
+
   it('a stop and a new start while a turn is still locating leave one loop, not two', async () => {
-    const { s, asked } = session();
+    const { s } = session();
     let finish = () => {};
-    asked.mockImplementationOnce(() => new Promise<void>((r) => (finish = r)));
+    api.locate.mockImplementationOnce(() => new Promise<Answer>((r) => (finish = () => r(trackedAnswer(false)))));
     s.toggleContinuous();
     await vi.advanceTimersByTimeAsync(0); // the first turn is now locating
     s.toggleContinuous();
     s.toggleContinuous();
     finish();
     await vi.advanceTimersByTimeAsync(0); // the new loop's first turn
-    expect(asked).toHaveBeenCalledTimes(2);
+    expect(api.locate).toHaveBeenCalledTimes(2);
     await vi.advanceTimersByTimeAsync(3000);
-    expect(asked).toHaveBeenCalledTimes(3);
+    expect(api.locate).toHaveBeenCalledTimes(3);
     s.stopContinuous();
+  });
+
+  it('a new interval applies to the running loop from its next wait', async () => {
+    const { s } = session();
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0); // first turn; the next one is due in 3 s
+    s.prefs.interval = 10;
+    await vi.advanceTimersByTimeAsync(3000);
+    expect(api.locate).toHaveBeenCalledTimes(2);
+    await vi.advanceTimersByTimeAsync(9999);
+    expect(api.locate).toHaveBeenCalledTimes(2);
+    await vi.advanceTimersByTimeAsync(1);
+    expect(api.locate).toHaveBeenCalledTimes(3);
+    s.stopContinuous();
+  });
+});
+
+describe('a single "Where am I?"', () => {
+  beforeEach(() => {
+    vi.useFakeTimers();
+    vi.resetAllMocks(); // and the answers queued by a test that failed early
+    api.venues.mockResolvedValue([{ id: 'lab', name: 'Lab' }]);
+    api.venue.mockResolvedValue(VENUE);
+    api.locate.mockResolvedValue(answer(false));
+    cam.openCamera.mockResolvedValue({ getVideoTracks: () => [{ readyState: 'live' }] });
+    cam.captureClip.mockImplementation((_v, _e, n: number) => Promise.resolve(clip(n, 0)));
+  });
+  afterEach(() => vi.useRealTimers());
+
+  it('after "Keep telling me" was stopped: no tracking session, the start cue, the answer said', async () => {
+    const { s, said, voice } = session();
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0);
+    s.toggleContinuous();
+    await s.whereAmI();
+    expect(tracked().map((q) => q?.session === undefined)).toEqual([false, true]);
+    expect(voice.cue).toHaveBeenCalledWith('start');
+    // the same place again: a press always says it
+    const sentence = s.sentence(answer(false), VENUE);
+    expect(said).toEqual([sentence, STOPPED_TELLING, sentence]);
   });
 });

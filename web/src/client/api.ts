@@ -83,6 +83,21 @@ export interface Tracked {
   style?: Style;
 }
 
+/**
+ * A new tracking session's id (a guided walk, a run of "Keep telling me"), random and as the server
+ * takes it, [A-Za-z0-9_-]{8,64}: a UUID without dashes, else 16 random bytes in base64url.
+ */
+export function newSessionId(): string {
+  const c = globalThis.crypto;
+  if (typeof c?.randomUUID === 'function') return c.randomUUID().replace(/-/g, '');
+  const b = new Uint8Array(16);
+  c.getRandomValues(b);
+  return btoa(String.fromCharCode(...b))
+    .replace(/\+/g, '-')
+    .replace(/\//g, '_')
+    .replace(/=+$/, '');
+}
+
 /** The query of a tracked request, each value within the server's bounds. */
 export function trackedQuery(o: Tracked): Record<string, string> {
   const q: Record<string, string> = { session: o.session };

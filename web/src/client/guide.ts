@@ -21,7 +21,7 @@
  * Voice speaks, the screen (screens/goto.ts) listens to its events. Every dependency is passed in,
  * so that Vitest drives it with fake timers, a fake server and a fake voice.
  */
-import { ApiProblem, Unreachable, type Answer, type Guidance } from './api';
+import { ApiProblem, Unreachable, newSessionId, type Answer, type Guidance } from './api';
 import { CameraProblem } from './camera';
 import type { Style } from './directions';
 import type { Motion, MotionReading } from './motion';
@@ -119,18 +119,6 @@ export interface GuideEvents {
   guidance: { guidance: Guidance; answer: Answer };
   /** What was said about a problem, or '' once requests answer again. */
   problem: string;
-}
-
-/** A random session id, [A-Za-z0-9_-]{8,64}: a UUID without dashes, else 16 random bytes in base64url. */
-export function newSessionId(): string {
-  const c = globalThis.crypto;
-  if (typeof c?.randomUUID === 'function') return c.randomUUID().replace(/-/g, '');
-  const b = new Uint8Array(16);
-  c.getRandomValues(b);
-  return btoa(String.fromCharCode(...b))
-    .replace(/\+/g, '-')
-    .replace(/\//g, '_')
-    .replace(/=+$/, '');
 }
 
 const URGENT_KINDS = new Set<Guidance['kind']>(['off_route', 'arrived']);

@@ -27,6 +27,9 @@ const session = new Session({
   voice: speaker,
   video: byId<HTMLVideoElement>('camera'),
   askedVenue: new URLSearchParams(location.search).get('venue'),
+  // "Keep telling me" is a walk too: its own feed, so that the guide's counts stay its own
+  motion: new MotionFeed(),
+  askMotion,
 });
 const guide = new Guide({
   voice: speaker,

@@ -9,13 +9,18 @@
  * up to 5 s). Once per press; Stop ends it. A sure answer ends the filming on, unsent.
  *
  * A guided walk (guide.ts) asks `track()` instead: one second, located in a tracking session with
- * the phone's clock and motion; the guide says what is to be said.
+ * the phone's clock and motion; the guide says what is to be said. "Keep telling me" is such a walk
+ * too: each turn locates its second with `track()` in one tracking session per start, so that the
+ * server's filter remembers where the user was (on venues it was never tuned on, far fewer
+ * confident answers far off than single clips). It does not film on when unsure (the walk itself
+ * settles an unsure start) and says only what changed.
  */
 import {
   ApiProblem,
   UNREACHABLE,
   Unreachable,
   locate,
+  newSessionId,
   type Tracked,
   venue as fetchVenue,
   venues as fetchVenues,
@@ -25,7 +30,7 @@ import { CameraProblem, captureClip, joinClips, lensMismatch, openCamera, type C
 import { describe, gist, type Answer } from './directions';
 import { ExtractorClient } from './bridge';
 import { LensWatch, checkLensOn, lensWords } from './lenscheck';
-import type { Motion } from './motion';
+import type { Motion, MotionFeed, MotionReading } from './motion';
 import type { Lens } from '../shared/lens';
 import type { LensCheck } from '../shared/protocol';
 import { encodeRecord, recordMismatch } from '../shared/record';
@@ -68,6 +73,20 @@ export interface SessionOptions {
   video: HTMLVideoElement;
   /** `?venue=` in the page's address: it wins over the saved choice. */
   askedVenue: string | null;
+  /**
+   * The phone's motion for "Keep telling me" (a MotionFeed of its own, not the guide's): `peek`
+   * once a turn's clip is filmed, `commit` once it was answered. None: no steps or turn are sent.
+   */
+  motion?: Pick<MotionFeed, 'start' | 'stop' | 'peek' | 'commit'>;
+  /** Asks for the motion sensors; called inside the tap that starts "Keep telling me" (iOS). */
+  askMotion?: () => Promise<void>;
+}
+
+/** A run of "Keep telling me": a new object per start, so that a stopped loop cannot revive. */
+interface Loop {
+  timer?: ReturnType<typeof setTimeout>;
+  /** Its tracking session: a new one per start, so that the server starts over. */
+  session: string;
 }
 
 /** An answer and how it was made (for the helpers' details). */
@@ -146,9 +165,9 @@ export class Session extends Emitter<SessionEvents> {
   private busy = false;
   /** What was last said (or would have been): continuous mode speaks only when it changes. */
   private lastGist = '';
-  /** The running continuous loop; a new object per start, so that a stopped loop cannot revive. */
-  private loop: { timer?: ReturnType<typeof setTimeout> } | null = null;
-  /** The filming on after a press's first second; `stopped` ends it (an answer, Stop, a stopped loop). */
+  /** The running continuous loop. */
+  private loop: Loop | null = null;
+  /** The filming on after a press's first second; `stopped` ends it (an answer, Stop). */
   private filming: { stopped: boolean } | null = null;
   /** The first second was not sure: that filming goes on for an answer (Stop would end it). */
   private askingMore = false;
@@ -293,7 +312,7 @@ export class Session extends Emitter<SessionEvents> {
    * One "Where am I?": capture ~1 s, extract in the worker, send features only, say the answer;
    * when that answer is not sure, answer once more from the 3 s filmed (see the top of the file).
    */
-  async whereAmI(quietIfSame = false): Promise<void> {
+  async whereAmI(): Promise<void> {
     if (this.busy) return;
     this.busy = true;
     this.emit('busy', true);
@@ -302,7 +321,7 @@ export class Session extends Emitter<SessionEvents> {
     try {
       const r = await this.ready();
       const { v, ext } = r;
-      if (!quietIfSame) voice.cue('start');
+      voice.cue('start');
       let clip = await this.firstClip(r);
       let record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id);
       // film on while the first second is answered: an unsure answer then needs no gap in the clip
@@ -314,7 +333,7 @@ export class Session extends Emitter<SessionEvents> {
       let a = await locate(v.id, record, clip.fps, `web-${Date.now()}`);
       if (trusted(a)) more.stopped = true;
       else {
-        const longer = await this.filmMore(clip, rest, more, quietIfSame);
+        const longer = await this.filmMore(clip, rest, more);
         if (!longer) return; // stopped: nothing sent, nothing more said
         clip = longer;
         record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id);
@@ -324,15 +343,10 @@ export class Session extends Emitter<SessionEvents> {
       const rttMs = performance.now() - t0;
       this.lastAnswer = a;
       this.emit('answer', this.located(a, r, clip, record.length, rttMs));
-      const g = gist(a, this.prefs.style);
-      if (!quietIfSame || g !== this.lastGist) voice.say(this.sentence(a, v), a.low_confidence ? 'unsure' : 'ok');
-      this.lastGist = g;
+      this.tell(a, v, false);
     } catch (e) {
       this.forgetVenueOn(e);
-      const text = problemText(e);
-      if (!quietIfSame || this.lastGist !== text) voice.say(text, 'error', true);
-      this.lastGist = text;
-      if (e instanceof CameraProblem && e.kind !== 'lens') this.stopContinuous();
+      this.sayProblem(e, false);
     } finally {
       if (filming) filming.stopped = true;
       if (this.filming === filming) this.filming = null;
@@ -341,19 +355,34 @@ export class Session extends Emitter<SessionEvents> {
     }
   }
 
+  /** Say an answer; `quiet` (continuous mode): only when what it is about changed since the last said. */
+  private tell(a: Answer, v: Venue, quiet: boolean): void {
+    const g = gist(a, this.prefs.style);
+    if (!quiet || g !== this.lastGist) this.o.voice.say(this.sentence(a, v), a.low_confidence ? 'unsure' : 'ok');
+    this.lastGist = g;
+  }
+
+  /** Say a problem (`quiet`: not again while it lasts); a camera gone ends "Keep telling me". */
+  private sayProblem(e: unknown, quiet: boolean): void {
+    const text = problemText(e);
+    if (!quiet || this.lastGist !== text) this.o.voice.say(text, 'error', true);
+    this.lastGist = text;
+    if (e instanceof CameraProblem && e.kind !== 'lens') this.stopContinuous();
+  }
+
   /** The venue changed under us (re-modelled with other settings, emptied): reload it next time. */
   private forgetVenueOn(e: unknown): void {
     if (e instanceof ApiProblem && (e.status === 400 || e.status === 409)) this.venue = null;
   }
 
   /**
-   * One request of a guided walk (guide.ts): film ~1 s and locate it in tracking session
-   * `q.session` (with `q.to`: guidance), `t` the clip's last frame on the phone's clock, and the
-   * phone's motion since the session's previous answered request, asked of `motion` once the
-   * clip is filmed (the guide counts that reading as sent only when this resolves with an
-   * answer). Nothing is said here: errors are thrown, for the guide to say. Null when the camera
-   * is taken (a "Where am I?" is filming; `motion` is not asked): the guide tries again at its
-   * next turn.
+   * One request of a guided walk (guide.ts; of "Keep telling me" too, tellTracked): film ~1 s and
+   * locate it in tracking session `q.session` (with `q.to`: guidance), `t` the clip's last frame on
+   * the phone's clock, and the phone's motion since the session's previous answered request, asked
+   * of `motion` once the clip is filmed (the caller counts that reading as sent only when this
+   * resolves with an answer). Nothing is said here: errors are thrown, for the caller to say. Null
+   * when the camera is taken (a "Where am I?" is filming; `motion` is not asked): the caller tries
+   * again at its next turn.
    */
   async track(q: Omit<Tracked, 't' | 'steps' | 'turn_deg'>, motion?: () => Motion): Promise<Located | null> {
     if (this.busy) return null;
@@ -385,31 +414,19 @@ export class Session extends Emitter<SessionEvents> {
   }
 
   /**
-   * The first second was not sure: say so (not in continuous mode, which speaks only answers that
-   * changed), wait for the MORE_FRAMES filmed on and -> the whole clip, or null when stopped.
+   * The first second was not sure: say so, wait for the MORE_FRAMES filmed on and -> the whole
+   * clip, or null when stopped.
    */
-  private async filmMore(
-    first: Clip,
-    rest: Promise<Clip>,
-    more: { stopped: boolean },
-    quiet: boolean,
-  ): Promise<Clip | null> {
-    if (more.stopped) return null; // "Keep telling me" was turned off meanwhile
-    // in continuous mode nothing is said and the button stays as it is: the loop's own button
-    // stops it ("Stopped telling you."), and a Stop here would leave the loop running
-    if (!quiet) {
-      this.o.voice.say(KEEP_TURNING, null, false, false);
-      this.askingMore = true;
-      this.emit('asking', true);
-    }
+  private async filmMore(first: Clip, rest: Promise<Clip>, more: { stopped: boolean }): Promise<Clip | null> {
+    this.o.voice.say(KEEP_TURNING, null, false, false);
+    this.askingMore = true;
+    this.emit('asking', true);
     try {
       const after = await rest;
       return more.stopped ? null : joinClips(first, after);
     } finally {
-      if (!quiet) {
-        this.askingMore = false;
-        this.emit('asking', false);
-      }
+      this.askingMore = false;
+      this.emit('asking', false);
     }
   }
 
@@ -447,29 +464,60 @@ export class Session extends Emitter<SessionEvents> {
     return this.loop !== null;
   }
 
-  /** "Keep telling me": ask every `prefs.interval` seconds, speak only what changed; or stop. */
+  /**
+   * "Keep telling me" (called inside the user's tap: iOS asks for the motion sensors only then):
+   * locate every `prefs.interval` seconds in a new tracking session, speak only what changed; or stop.
+   */
   toggleContinuous(): void {
     if (this.loop) {
       this.stopContinuous();
       this.o.voice.say('Stopped telling you.', null);
       return;
     }
-    const loop: { timer?: ReturnType<typeof setTimeout> } = {};
+    const asked = this.o.askMotion?.() ?? Promise.resolve(); // first, still inside the tap
+    const loop: Loop = { session: newSessionId() };
     this.loop = loop;
     this.emit('continuous', true);
     this.lastGist = '';
+    // denied or no sensors: the feed reads "unknown", and the filter goes on from the pictures alone
+    void asked.finally(() => {
+      if (this.loop === loop) this.o.motion?.start();
+    });
     const tick = async () => {
       // never talk over itself: wait while a sentence is still being spoken
-      if (!this.o.voice.busy) await this.whereAmI(true);
+      if (!this.o.voice.busy) await this.tellTracked(loop);
       if (this.loop === loop) loop.timer = setTimeout(tick, this.prefs.interval * 1000);
     };
     loop.timer = setTimeout(tick, 0);
   }
 
+  /**
+   * One turn of "Keep telling me": ~1 s located in the loop's tracking session with the phone's
+   * motion since the previous answered turn (the feed counts a reading as sent only once its
+   * request was answered). Said only when it changed; nothing once the loop was stopped meanwhile
+   * ("Stopped telling you." stays the last word). The camera taken by a press: the next turn.
+   */
+  private async tellTracked(loop: Loop): Promise<void> {
+    const feed = this.o.motion;
+    const read: { reading?: MotionReading } = {};
+    try {
+      const r = await this.track({ session: loop.session }, () => {
+        const m = feed?.peek();
+        read.reading = m;
+        return { steps: m?.steps ?? null, turn_deg: m?.turn_deg ?? null };
+      });
+      if (!r || this.loop !== loop) return;
+      if (read.reading) feed?.commit(read.reading);
+      this.tell(r.answer, r.venue, true);
+    } catch (e) {
+      if (this.loop === loop) this.sayProblem(e, true);
+    }
+  }
+
   stopContinuous(): void {
-    if (this.filming) this.filming.stopped = true; // its own sentence says it stopped
     clearTimeout(this.loop?.timer);
     this.loop = null;
+    this.o.motion?.stop();
     this.emit('continuous', false);
   }
 }
