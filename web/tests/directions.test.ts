@@ -68,4 +68,12 @@ group('the gist', () => {
     expect(gist(answer({ area: 'Corridor 2' }), 'clock')).not.toBe(a);
     expect(gist(answer({ low_confidence: true }), 'clock')).toBe('unsure');
   });
+
+  it('standing at a place (under a metre): the same gist whichever way the noise points, until the user leaves it', () => {
+    const at = (distance_m: number, bearing_deg: number) =>
+      gist(answer({ nearest: { name: 'the entrance', distance_m, bearing_deg } }), 'clock');
+    const here = at(0.3, 90);
+    expect([at(0.6, 0), at(0.1, 180), at(0.9, -90)]).toEqual([here, here, here]);
+    expect(at(1.4, 90)).not.toBe(here);
+  });
 });

@@ -20,6 +20,10 @@ from collections.abc import Mapping
 from typing import Any, Literal
 
 NEAR_M = 10.0  # a landmark further than this is not "near"
+# nor one nearer than this "near ... at 3 o'clock": the user is *at* it. Under a metre the way to
+# it is noise (the answer's own error is about that), and, said every few seconds to someone
+# standing there, it turned round the clock and was said again each time
+AT_M = 1.0
 FACING_M = 30.0  # nor one this far "faced"
 FACING_DEG = 30.0  # and "facing" means within this angle of the heading
 UNSURE = "Not sure where you are; turn slowly and try again."
@@ -108,7 +112,9 @@ def sentence(answer: Mapping[str, Any], style: Style = DEFAULT_STYLE, floor_name
     parts = []
     if answer["area"]:
         parts.append(f"in {with_article(answer['area'])}")
-    if near:
+    if near and near["distance_m"] < AT_M:
+        parts.append(f"at {near['name']}")
+    elif near:
         parts.append(f"near {near['name']} {direction(near['bearing_deg'], style)}, {metres(near['distance_m'])}")
     if not parts:
         parts.append(f"on {floor_name if floor_name is not None else 'floor ' + answer['floor']}")

@@ -16,6 +16,11 @@ export const DEFAULT_STYLE: Style = 'clock';
 export const UNSURE = 'Not sure where you are; turn slowly and try again.';
 /** A place further than this (metres) is not "near". */
 export const NEAR_M = 10;
+/**
+ * Nor one nearer than this "near ... at 3 o'clock": the user is *at* it (under a metre the way to
+ * it is noise, and said every few seconds to someone standing there it turned round the clock).
+ */
+export const AT_M = 1;
 
 /** Any angle -> (-180, 180], computed as Python's float % does, so both sides agree to the bit. */
 export function signed(b: number): number {
@@ -97,7 +102,8 @@ export function describe(a: Said, style: Style, floorName?: string | null): stri
   const near = nearOf(a);
   const parts: string[] = [];
   if (a.area) parts.push(`in ${withArticle(a.area)}`);
-  if (near) parts.push(`near ${near.name} ${direction(near.bearing_deg, style)}, ${metres(near.distance_m)}`);
+  if (near && near.distance_m < AT_M) parts.push(`at ${near.name}`);
+  else if (near) parts.push(`near ${near.name} ${direction(near.bearing_deg, style)}, ${metres(near.distance_m)}`);
   if (parts.length === 0) parts.push(`on ${floorName ?? `floor ${a.floor}`}`);
   if (a.facing && !(near && a.facing === near.name)) parts.push(`facing ${a.facing}`);
   return `You are ${parts.join(', ')}.`;
@@ -110,7 +116,8 @@ export function describe(a: Said, style: Style, floorName?: string | null): stri
 export function gist(a: Said, style: Style): string {
   if (a.low_confidence) return 'unsure';
   const n = nearOf(a);
-  return [a.floor, a.area, n?.name, n ? direction(n.bearing_deg, style) : '', a.facing].join('|');
+  const way = !n ? '' : n.distance_m < AT_M ? 'at' : direction(n.bearing_deg, style);
+  return [a.floor, a.area, n?.name, way, a.facing].join('|');
 }
 
 // --- route guidance: the words of backend/omninav/server/describe.py's guidance_sentence and
