@@ -8,6 +8,7 @@ import { Unreachable, trackedQuery, type Answer, type Tracked } from '../src/cli
 import { CameraProblem } from '../src/client/camera';
 import { UNSURE } from '../src/client/directions';
 import type { MotionReading } from '../src/client/motion';
+import { GUIDING_NOW } from '../src/client/session';
 import { VENUE, answer, clip, session } from './fake-session';
 
 const api = vi.hoisted(() => ({ venues: vi.fn(), venue: vi.fn(), locate: vi.fn() }));
@@ -64,6 +65,22 @@ describe('continuous mode', () => {
     });
   });
   afterEach(() => vi.useRealTimers());
+
+  it('pressed during a guided walk: says so and starts nothing (the two would fight over the camera)', async () => {
+    let guiding = true;
+    const { s, said } = session({ guiding: () => guiding });
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(10_000);
+    expect(s.continuous).toBe(false);
+    expect(api.locate).not.toHaveBeenCalled();
+    expect(said).toEqual([GUIDING_NOW]);
+    guiding = false; // guidance stopped: it starts
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0);
+    expect(s.continuous).toBe(true);
+    expect(api.locate).toHaveBeenCalledTimes(1);
+    s.stopContinuous();
+  });
 
   it('asks at once, then every interval, quietly; skips a turn while speech is busy; stops when told', async () => {
     const { s, voice, said } = session();

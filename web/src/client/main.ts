@@ -30,6 +30,7 @@ const session = new Session({
   // "Keep telling me" is a walk too: its own feed, so that the guide's counts stay its own
   motion: new MotionFeed(),
   askMotion,
+  guiding: (): boolean => guide.state === 'guiding', // (the guide is made next; asked only on a press)
 });
 const guide = new Guide({
   voice: speaker,

@@ -51,6 +51,9 @@ export const TRUSTED_CONFIDENCE = 0.8;
 const trusted = (a: Answer): boolean => !a.low_confidence && a.confidence >= TRUSTED_CONFIDENCE;
 /** Said (polite, no cue) when the first second was not enough and the phone films on. */
 export const KEEP_TURNING = 'Not sure yet. Keep turning slowly.';
+/** Said, and nothing started, when "Keep telling me" is pressed while a guided walk is on. */
+export const GUIDING_NOW =
+  'You are being guided, and guidance tells you as you walk. To hear where you are instead, stop guidance on the Go to screen.';
 /** Said when Stop ends that filming: nothing is sent. */
 export const STOPPED = 'Stopped.';
 const RECHECK_MS = 500;
@@ -80,6 +83,11 @@ export interface SessionOptions {
   motion?: Pick<MotionFeed, 'start' | 'stop' | 'peek' | 'commit'>;
   /** Asks for the motion sensors; called inside the tap that starts "Keep telling me" (iOS). */
   askMotion?: () => Promise<void>;
+  /**
+   * A guided walk is on (guide.ts): it already tells the user as they walk, and "Keep telling me"
+   * beside it would take the camera from it every other turn and talk over it.
+   */
+  guiding?: () => boolean;
 }
 
 /** A run of "Keep telling me": a new object per start, so that a stopped loop cannot revive. */
@@ -472,6 +480,10 @@ export class Session extends Emitter<SessionEvents> {
     if (this.loop) {
       this.stopContinuous();
       this.o.voice.say('Stopped telling you.', null);
+      return;
+    }
+    if (this.o.guiding?.()) {
+      this.o.voice.say(GUIDING_NOW, 'unsure');
       return;
     }
     const asked = this.o.askMotion?.() ?? Promise.resolve(); // first, still inside the tap
