@@ -189,6 +189,18 @@ const ARRIVED = g('arrived', `You have arrived at Room 102; it is at 3 o’clock
   to: { ...TO, say: SAY },
 });
 
+/** A live region as a screen reader gets it: each text it held, into `heard` (the Speaker clears it first). */
+function liveRegion(heard: string[]): HTMLElement {
+  return {
+    set textContent(t: string) {
+      if (t) heard.push(t);
+    },
+    get textContent() {
+      return '';
+    },
+  } as unknown as HTMLElement;
+}
+
 describe('Guide', () => {
   beforeEach(() => vi.useFakeTimers());
   afterEach(() => vi.useRealTimers());
@@ -442,17 +454,8 @@ describe('Guide', () => {
     vi.stubGlobal('navigator', {});
     try {
       const { Speaker } = await import('../src/client/speech');
-      /** What a screen reader gets: each text a live region held (the Speaker clears it first). */
       const heard: string[] = [];
-      const region = () =>
-        ({
-          set textContent(t: string) {
-            if (t) heard.push(t);
-          },
-          get textContent() {
-            return '';
-          },
-        }) as unknown as HTMLElement;
+      const region = () => liveRegion(heard);
       const r = rig([START, GO, QUIET], { screen: false, voice: new Speaker(region(), region()) });
       const c = r.guide.choose({ id: 'p3', name: 'Room 102' });
       await vi.advanceTimersByTimeAsync(1000);
@@ -474,15 +477,7 @@ describe('Guide', () => {
     try {
       const { Speaker } = await import('../src/client/speech');
       const heard: string[] = [];
-      const region = () =>
-        ({
-          set textContent(t: string) {
-            if (t) heard.push(t);
-          },
-          get textContent() {
-            return '';
-          },
-        }) as unknown as HTMLElement;
+      const region = () => liveRegion(heard);
       const speaker = new Speaker(region(), region());
       speaker.screenReader = true;
       const r = rig([START, GO, QUIET], { screen: false, voice: speaker });

@@ -48,14 +48,19 @@ function motionFeed(readings: Omit<MotionReading, 'mark'>[]) {
   };
 }
 
+/** Fake timers; the venue, the camera and `first` as every locate answer (a test queues others). */
+function fakes(first: Answer): void {
+  vi.useFakeTimers();
+  vi.resetAllMocks(); // and the answers queued by a test that failed early
+  api.venues.mockResolvedValue([{ id: 'lab', name: 'Lab' }]);
+  api.venue.mockResolvedValue(VENUE);
+  api.locate.mockResolvedValue(first);
+  cam.openCamera.mockResolvedValue({ getVideoTracks: () => [{ readyState: 'live' }] });
+}
+
 describe('continuous mode', () => {
   beforeEach(() => {
-    vi.useFakeTimers();
-    vi.resetAllMocks(); // and the answers queued by a test that failed early
-    api.venues.mockResolvedValue([{ id: 'lab', name: 'Lab' }]);
-    api.venue.mockResolvedValue(VENUE);
-    api.locate.mockResolvedValue(trackedAnswer(false));
-    cam.openCamera.mockResolvedValue({ getVideoTracks: () => [{ readyState: 'live' }] });
+    fakes(trackedAnswer(false));
     // each clip is filmed a second after the last on the phone's clock: 0-900 ms, 1000-1900 ms, ...
     let at = 0;
     cam.captureClip.mockImplementation((_v, _e, n: number) => {
@@ -261,12 +266,7 @@ describe('continuous mode', () => {
 
 describe('a single "Where am I?"', () => {
   beforeEach(() => {
-    vi.useFakeTimers();
-    vi.resetAllMocks(); // and the answers queued by a test that failed early
-    api.venues.mockResolvedValue([{ id: 'lab', name: 'Lab' }]);
-    api.venue.mockResolvedValue(VENUE);
-    api.locate.mockResolvedValue(answer(false));
-    cam.openCamera.mockResolvedValue({ getVideoTracks: () => [{ readyState: 'live' }] });
+    fakes(answer(false));
     cam.captureClip.mockImplementation((_v, _e, n: number) => Promise.resolve(clip(n, 0)));
   });
   afterEach(() => vi.useRealTimers());
