@@ -349,6 +349,7 @@ class Tracker:
         ref = _conf(conf, "track_beta_ref")
         if ref is not None and not 0.0 <= float(ref) < 1.0:  # 1 or more would turn the evidence over
             raise ValueError(f"track_beta_ref must be in [0, 1) or None, got {ref!r}")
+        self.beta_ref = None if ref is None else float(ref)  # (beta; None: no tempering)
         self.xy = np.asarray(graph.xy, np.float64)
         self.floor = np.asarray(graph.floor).astype(str)
         vxy = np.asarray(venue_xy, np.float64)
@@ -571,10 +572,9 @@ class Tracker:
         track_beta, times (1 - track_beta_ref) / (1 - best) below track_beta_ref (the scores of
         a clip that matches poorly differ by its conditions as much as by place)."""
         beta = float(_conf(self.conf, "track_beta"))
-        ref = _conf(self.conf, "track_beta_ref")
-        if ref is None or best >= ref:
+        if self.beta_ref is None or best >= self.beta_ref:
             return beta
-        return beta * (1.0 - float(ref)) / max(1.0 - best, 1e-6)
+        return beta * (1.0 - self.beta_ref) / max(1.0 - best, 1e-6)
 
     def update(
         self,
@@ -604,7 +604,7 @@ class Tracker:
         last: tuple[float, bool] | None = None
         # the cautious belief runs beside the belief (where the venue has look-alikes, or the
         # clips' evidence is tempered by how well they match)
-        twin = len(self.alike_a) > 0 or _conf(self.conf, "track_beta_ref") is not None
+        twin = len(self.alike_a) > 0 or self.beta_ref is not None
         prior_a = uniform if twin else None
         if fresh or state is None:
             prior, updates = uniform, 0

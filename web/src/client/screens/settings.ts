@@ -38,25 +38,22 @@ const setting = <K extends keyof Prefs>(s: Setting<K>): Setting<keyof Prefs> => 
 const text = (c: Control) => c.value;
 const num = (c: Control) => Number(c.value);
 const showNum = (c: Control, v: number) => (c.value = String(v));
+/** A radio group named `name`: its checked button's value is the preference. */
+const radios = <K extends 'style' | 'readBy'>(name: string, key: K) =>
+  setting<K>({
+    selector: `input[name=${name}]`,
+    key,
+    event: 'change',
+    read: (c) => c.value as Prefs[K],
+    show: (c, v) => (c.checked = c.value === v),
+  });
 
 export const SETTINGS: Setting<keyof Prefs>[] = [
   // venue, lens and voice lists are filled by the session and the speech engine, their choice with them
   setting({ selector: '#venue', key: 'venue', event: 'change', read: text }),
   setting({ selector: '#lens', key: 'lens', event: 'change', read: text }),
-  setting({
-    selector: 'input[name=style]',
-    key: 'style',
-    event: 'change',
-    read: (c) => c.value as Prefs['style'],
-    show: (c, v) => (c.checked = c.value === v),
-  }),
-  setting({
-    selector: 'input[name=read-by]',
-    key: 'readBy',
-    event: 'change',
-    read: (c) => c.value as Prefs['readBy'],
-    show: (c, v) => (c.checked = c.value === v),
-  }),
+  radios('style', 'style'),
+  radios('read-by', 'readBy'),
   setting({ selector: '#rate', key: 'rate', event: 'input', read: num, show: showNum }),
   setting({ selector: '#voice', key: 'voice', event: 'change', read: text }),
   setting({
