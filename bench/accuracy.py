@@ -38,7 +38,8 @@ CONFIGS = [  # label, preset, overrides, aggregation
     ("six curves, sequence", "six", {}, "sequence"),
     ("+ gray world", "six", {"gray_world": True}, "sequence"),
     ("+ opponent colours", "six", {"gray_world": True, "channels": O}, "sequence"),
-    ("default: + two bands, K=16", "default", {}, "sequence"),
+    ("+ two bands, K=16", "default", {"soft_clip_sd": None}, "sequence"),
+    ("default: + soft clipping", "default", {}, "sequence"),
 ]
 
 
@@ -53,7 +54,10 @@ def dataset(root: Path, seed: int, equirect: bool = False) -> Path:
 
 def run(root: Path, label: str, preset: str, over: dict, agg: str, tag: str, clip_s: float = 1.0) -> Evaluation:
     st = Store(root / "bench-data")
-    key = json.dumps([preset, over], sort_keys=True).encode()
+    # keyed by what is modelled, not by the preset's name: a default that changes is another venue
+    settings = {**resolve(preset), **over}
+    # (the confidence model is stored with the venue and answered with, so it is part of the key)
+    key = json.dumps({k: v for k, v in settings.items() if not k.startswith("track_")}, sort_keys=True).encode()
     vid = f"{tag}-{hashlib.sha1(key).hexdigest()[:10]}"
     if st.generation(vid) is None:  # the venue keeps the settings it was modelled with
         model_video(
@@ -62,7 +66,7 @@ def run(root: Path, label: str, preset: str, over: dict, agg: str, tag: str, cli
             root / "model.mp4",
             load_track(root / "model_track.json"),
             load_lens(root / "model_lens.json"),
-            settings={**resolve(preset), **over},
+            settings=settings,
         )
     loc = Locator(st, vid, device="cpu")
     ev = evaluate(

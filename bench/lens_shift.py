@@ -29,7 +29,7 @@ from omninav.heading import wrap_deg
 from omninav.lens import load_lens
 from omninav.locate import Locator
 from omninav.model_venue import model_video
-from omninav.presets import resolve
+from omninav.presets import resolve, settings_id
 from omninav.store import Store
 from omninav.synth import QUERY, make_dataset
 from omninav.synth.scene import build_scene
@@ -57,10 +57,11 @@ def main() -> None:
             make_dataset(root, seed=a.seed, layout=a.layout)
     lens = load_lens(root / "lens.json")
     st = Store(root / "bench-data")
-    vid = "lens-shift"
+    settings = resolve("default")
+    vid = f"lens-shift-{settings_id(settings)}"  # the default's features: a new default is a new venue
     if st.generation(vid) is None:
         track = load_track(root / "model_track.json")
-        model_video(st, vid, root / "model.mp4", track, lens, settings=resolve("default"))
+        model_video(st, vid, root / "model.mp4", track, lens, settings=settings)
     loc = Locator(st, vid, device="cpu")
     conf = loc.conf
     scene = build_scene(a.seed, a.layout)

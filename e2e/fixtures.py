@@ -64,7 +64,7 @@ def _case(out: Path, name: str, lens, preset: str, frames: list[np.ndarray]) -> 
     return {
         "name": name,
         "lens": lens.to_dict(),
-        "settings": {k: conf[k] for k in FEATURE_KEYS},
+        "settings": {k: conf.get(k) for k in FEATURE_KEYS},
         "settings_id": settings_id(conf),
         "pano_shape": [int(ext.map.map_x.shape[0]), int(ext.map.map_x.shape[1]), 3],
         "frames": items,

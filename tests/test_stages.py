@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from omninav.curves import extract_curves, gray_world, normalise
+from omninav.curves import extract_curves, gray_world, normalise, soft_clip
 from omninav.errors import OmninavError
 from omninav.extract import Extractor
 from omninav.heading import correlation, peak, relative_heading, wrap_deg
-from omninav.presets import n_curves, resolve
+from omninav.presets import n_curves, resolve, settings_id
 from omninav.spectrum import (
     HEADER_BYTES,
     MAX_RECORD_BYTES,
@@ -79,6 +79,42 @@ def test_gray_world_removes_a_colour_cast():
     rgb = rng.uniform(0.2, 0.8, (20, 50, 3)).astype(np.float32)
     cast = rgb * np.array([1.2, 0.9, 0.7], np.float32)
     assert np.allclose(gray_world(rgb), gray_world(cast), atol=1e-5)
+
+
+def test_soft_clip_bounds_outlying_columns_and_keeps_their_order():
+    rng = np.random.default_rng(3)
+    raw = rng.normal(size=(2, 360)).astype(np.float32)
+    raw[0, 100:104] += 12.0  # a sunlit window: four columns far out
+    z = normalise(raw)
+    out = soft_clip(z, 1.25)
+    assert np.allclose(out.mean(axis=1), 0, atol=1e-5) and np.allclose(out.std(axis=1), 1, atol=1e-4)
+    # the window carried most of the first curve's variance; clipped, about its share of columns
+    share = lambda c: float((c[0, 100:104] ** 2).sum() / (c[0] ** 2).sum())  # noqa: E731
+    assert share(z) > 0.3 and share(out) < 0.1
+    # monotonic: where the edges are (the columns' order) is kept, so is a rotation's shift
+    assert np.array_equal(np.argsort(z, axis=1, kind="stable"), np.argsort(out, axis=1, kind="stable"))
+    assert np.allclose(soft_clip(np.roll(z, 7, axis=1), 1.25), np.roll(out, 7, axis=1), atol=1e-5)
+
+
+def test_soft_clip_is_the_default_and_venues_modelled_before_it_keep_their_curves_and_id():
+    conf = resolve("default")
+    assert conf["soft_clip_sd"] == 1.25 and resolve("paper")["soft_clip_sd"] is None
+    pano = smooth_pano(41, 1440)
+    el = np.linspace(20, -20, 41)
+    old = {k: v for k, v in conf.items() if k != "soft_clip_sd"}  # a settings.json from before
+    assert np.array_equal(extract_curves(pano, el, old), extract_curves(pano, el, {**old, "soft_clip_sd": None}))
+    assert np.allclose(extract_curves(pano, el, conf), soft_clip(extract_curves(pano, el, old), 1.25), atol=1e-6)
+    # records carry the settings id: the one phones made for such a venue before this release
+    assert settings_id(old) == settings_id({**old, "soft_clip_sd": None}) == 2019879380
+    assert settings_id(conf) != settings_id(old)
+
+
+@pytest.mark.parametrize("bad", [0, 0.0, -1.0, False, True, "1.25", float("nan"), float("inf")])
+def test_soft_clip_settings_are_refused_unless_a_positive_number_or_null(bad):
+    with pytest.raises(OmninavError, match="soft_clip_sd"):
+        resolve("default", {"soft_clip_sd": bad})
+    assert resolve("default", {"soft_clip_sd": None})["soft_clip_sd"] is None
+    assert resolve("default", {"soft_clip_sd": 2})["soft_clip_sd"] == 2
 
 
 def test_normalise_flat_curve_stays_zero():

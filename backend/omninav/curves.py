@@ -4,7 +4,9 @@ A panorama's columns are azimuths, so summing each column over a band around the
 1-D curve per channel whose circular shift is the camera's rotation. The paper's six curves are
 the column sums of H, S, I and of their horizontal gradients; we can add opponent colours and more
 bands (see presets.py). Each curve is normalised to zero mean and unit variance, which removes
-brightness gain and offset.
+brightness gain and offset, and then, in the default preset, softly clipped (`soft_clip`): a few
+columns far from the curve's mean (a window in the sun, one strong door edge) no longer carry most
+of its variance, so a change of light on them moves the spectrum less.
 """
 
 from __future__ import annotations
@@ -99,6 +101,18 @@ def normalise(curves: np.ndarray) -> np.ndarray:
     return out
 
 
+def soft_clip(curves: np.ndarray, sd: float) -> np.ndarray:
+    """Normalised curves -> sd * tanh(curve / sd), normalised again.
+
+    A daylit window or one high-contrast edge makes a few columns several standard deviations
+    out; they then dominate the curve's low harmonics and change with the hour or the exposure.
+    tanh keeps the order of the columns (where the edges are) and bounds how much any one can
+    weigh. Measured on the tuning families only (docs/benchmarks.md, "Softly clipped curves").
+    """
+    out: np.ndarray = normalise(np.float32(sd) * np.tanh(curves / np.float32(sd)))
+    return out
+
+
 def extract_curves(
     pano: np.ndarray, elevations: np.ndarray, conf: dict[str, Any], valid: np.ndarray | None = None
 ) -> np.ndarray:
@@ -125,4 +139,7 @@ def extract_curves(
             col = imgs[ch][rows].mean(axis=0)
             out[k] = col.reshape(width, os_).mean(axis=1)
             k += 1
-    return normalise(out)
+    out = normalise(out)
+    if conf.get("soft_clip_sd"):  # absent in venues modelled before it: their curves as they were
+        out = soft_clip(out, float(conf["soft_clip_sd"]))
+    return out

@@ -8,6 +8,7 @@ over the defaults, as hloc's `confs` do.
 from __future__ import annotations
 
 import copy
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -24,6 +25,8 @@ DEFAULTS: dict[str, Any] = {
     # O1/O2 are opponent colours, added because hue is unstable at low saturation.
     "channels": ["H", "S", "I", "dH", "dS", "dI"],
     "gray_world": False,  # divide each colour channel by its frame mean: removes casts and gain
+    # after normalising, each curve becomes sd * tanh(curve / sd) (curves.soft_clip); None: off
+    "soft_clip_sd": None,
     "n_harmonics": 32,  # leading FFT harmonics kept (1..K; the DC term carries no shape)
     # Search
     "candidates": 16,  # venue frames kept per query frame by the magnitude stage, then verified
@@ -92,13 +95,15 @@ PRESETS: dict[str, dict[str, Any]] = {
     # - gray-world colour constancy: a colour cast no longer moves hue and saturation;
     # - opponent colours (R-G, R+G-2B) instead of hue and saturation: stable at low saturation;
     # - two bands, below and above the horizon: doors and floor vs. boards, windows and lights;
-    # - 16 harmonics x 12 curves: the same 768 bytes a frame, the fine detail traded for bands.
+    # - 16 harmonics x 12 curves: the same 768 bytes a frame, the fine detail traded for bands;
+    # - curves softly clipped at 1.25 sd: a sunlit window or one strong edge weighs less.
     "default": {
         "gray_world": True,
         "channels": ["I", "O1", "O2", "dI", "dO1", "dO2"],
         "bands": [[-25.0, 0.0], [0.0, 25.0]],
         "n_harmonics": 16,
         "candidates": 16,
+        "soft_clip_sd": 1.25,
     },
 }
 
@@ -111,7 +116,19 @@ def resolve(name: str = "default", overrides: dict[str, Any] | None = None) -> d
     conf.update(copy.deepcopy(overrides or {}))
     conf["preset"] = name
     _check_confidence(conf)
+    _check_soft_clip(conf)
     return conf
+
+
+def _check_soft_clip(conf: dict[str, Any]) -> None:
+    """None (off) or a finite number of standard deviations > 0: anything else would clip one way
+    here and another on the phone, or give the same features two settings ids."""
+    sd = conf.get("soft_clip_sd")
+    if sd is None:
+        return
+    ok = isinstance(sd, (int, float)) and not isinstance(sd, bool) and math.isfinite(sd) and sd > 0
+    if not ok:
+        raise OmninavError(f"soft_clip_sd must be a number of standard deviations > 0, or null (off); got {sd!r}")
 
 
 def _check_confidence(conf: dict[str, Any]) -> None:
@@ -135,7 +152,12 @@ def _check_model(conf: dict[str, Any], prefix: str, known: Mapping[str, Any], wh
 
 # The settings that change what a feature record contains: a record made with other values of
 # these cannot be compared with a venue's frames.
-FEATURE_KEYS = ("pano_width", "oversample", "row_step_deg", "bands", "channels", "gray_world", "n_harmonics")
+FEATURE_KEYS = (
+    "pano_width", "oversample", "row_step_deg", "bands", "channels", "gray_world", "n_harmonics", "soft_clip_sd",
+)  # fmt: skip
+# Keys added after venues were modelled without them: they count in the settings id only when set,
+# so a record for such a venue keeps the id it had (and a venue's settings need not carry them).
+_LATER_KEYS = ("soft_clip_sd",)
 
 
 def settings_id(conf: dict[str, Any]) -> int:
@@ -143,7 +165,8 @@ def settings_id(conf: dict[str, Any]) -> int:
     import json
     import zlib
 
-    canon = json.dumps({k: conf[k] for k in FEATURE_KEYS}, sort_keys=True, separators=(",", ":"))
+    keys = [k for k in FEATURE_KEYS if k not in _LATER_KEYS or conf.get(k) is not None]
+    canon = json.dumps({k: conf[k] for k in keys}, sort_keys=True, separators=(",", ":"))
     return zlib.crc32(canon.encode())
 
 

@@ -331,7 +331,9 @@ def suggest_waypoints(
     `progress(done, total, elapsed_s)` after every sampled frame; it may raise to stop the work.
     """
     s = settings_for(settings)
-    conf = resolve(s["preset"])
+    # the heading track's thresholds (min_sector_peak, the tolerances in docs/benchmarks.md) were
+    # measured on unclipped curves: the suggestions keep them whatever the preset clips
+    conf = resolve(s["preset"], {"soft_clip_sd": None})
     info = VideoInfo(video, label=video.name)
     w, h = lens.image_size
     if (info.width, info.height) != (w, h):

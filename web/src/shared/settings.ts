@@ -7,6 +7,8 @@ export interface FeatureSettings {
   channels: string[];
   gray_world: boolean;
   n_harmonics: number;
+  /** each normalised curve becomes sd * tanh(curve / sd), normalised again; absent or null: off */
+  soft_clip_sd?: number | null;
 }
 
 export interface VenueFeatures {

@@ -1,6 +1,7 @@
 /**
  * Omni-projection curves (the paper's Eq. 3), as the engine's curves.py computes them: column means
- * of colour channels over elevation bands, normalised to zero mean and unit variance.
+ * of colour channels over elevation bands, normalised to zero mean and unit variance, then softly
+ * clipped where the venue's settings say so (`soft_clip_sd`).
  * Input is the unwarped band panorama as RGBA bytes (what canvas and opencv.js give us).
  */
 import type { FeatureSettings } from '../shared/settings';
@@ -128,6 +129,13 @@ export function normalise(curves: Float32Array, n: number, width: number): void 
   }
 }
 
+/** sd * tanh(curve / sd), normalised again (curves.py `soft_clip`): no few columns dominate. */
+export function softClip(curves: Float32Array, n: number, width: number, sd: number): void {
+  const c = f32(sd);
+  for (let i = 0; i < n * width; i++) curves[i] = c * Math.tanh(curves[i] / c);
+  normalise(curves, n, width);
+}
+
 /**
  * Band panorama (RGBA, rows x cols*oversample) -> (bands*channels) x pano_width normalised curves,
  * band-major, each band's channels in the settings' order.
@@ -168,5 +176,6 @@ export function extractCurves(
     }
   }
   normalise(out, k, width);
+  if (s.soft_clip_sd) softClip(out, k, width, s.soft_clip_sd);
   return out;
 }
