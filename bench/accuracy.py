@@ -12,22 +12,18 @@ modelling path and evaluates 1 s clips (10 frames at 10 fps) of the query walk.
 from __future__ import annotations
 
 import argparse
-import hashlib
-import json
 import sys
 import time
 from pathlib import Path
 
 from omninav.evaluate import Evaluation, evaluate, plot
 from omninav.lens import load_lens
-from omninav.locate import Locator
-from omninav.model_venue import model_video
 from omninav.presets import resolve
-from omninav.store import Store
 from omninav.synth import equirect_lens, make_dataset
 from omninav.track import load_track
 
 sys.path.insert(0, str(Path(__file__).parent))
+from families import cached_venue  # noqa: E402
 from search_speed import machine  # noqa: E402
 
 O = ["I", "O1", "O2", "dI", "dO1", "dO2"]
@@ -53,26 +49,11 @@ def dataset(root: Path, seed: int, equirect: bool = False) -> Path:
 
 
 def run(root: Path, label: str, preset: str, over: dict, agg: str, tag: str, clip_s: float = 1.0) -> Evaluation:
-    st = Store(root / "bench-data")
-    # keyed by what is modelled, not by the preset's name: a default that changes is another venue
-    settings = {**resolve(preset), **over}
-    # (the confidence model is stored with the venue and answered with, so it is part of the key)
-    key = json.dumps({k: v for k, v in settings.items() if not k.startswith("track_")}, sort_keys=True).encode()
-    vid = f"{tag}-{hashlib.sha1(key).hexdigest()[:10]}"
-    if st.generation(vid) is None:  # the venue keeps the settings it was modelled with
-        model_video(
-            st,
-            vid,
-            root / "model.mp4",
-            load_track(root / "model_track.json"),
-            load_lens(root / "model_lens.json"),
-            settings=settings,
-        )
-    loc = Locator(st, vid, device="cpu")
+    loc = cached_venue(root, tag, {**resolve(preset), **over})
     ev = evaluate(
         loc, root / "query.mp4", load_track(root / "query_track.json"), load_lens(root / "lens.json"), agg, clip_s
     )
-    plot(ev, loc, root / f"{vid}-{agg}.png", title=label)
+    plot(ev, loc, root / f"{loc.venue_id}-{agg}.png", title=label)
     return ev
 
 

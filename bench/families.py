@@ -82,15 +82,22 @@ def venue(root: Path, config: str, overrides: dict[str, Any] | None = None) -> L
     """The family's venue modelled with a configuration (cached: a venue keeps its settings)."""
     preset, over, _ = CONFIGS[config]
     settings = {**resolve(preset), **over, **(overrides or {})}
+    return cached_venue(root, config, settings)
+
+
+def cached_venue(root: Path, tag: str, settings: dict[str, Any], lens: str = "model_lens.json") -> Locator:
+    """root's model.mp4 modelled with `settings` into root/bench-data, once per settings: the venue
+    id is `tag` and a hash of what is modelled, so a changed default is another venue, never a
+    stale one (bench/accuracy.py and bench/lens_shift.py cache their venues here too)."""
     st = Store(root / "bench-data")
     # the confidence model is not part of what is modelled: a recalibration reuses the venue
     # nor is tracking (tracking.py's track_* keys): a venue modelled before them is the same venue
     kept = {k: v for k, v in settings.items() if k not in CONFIDENCE_KEYS and not k.startswith("track_")}
     key = json.dumps(kept, sort_keys=True).encode()
-    vid = f"{config}-{hashlib.sha1(key).hexdigest()[:10]}"
+    vid = f"{tag}-{hashlib.sha1(key).hexdigest()[:10]}"
     if st.generation(vid) is None:
         model_video(
-            st, vid, root / "model.mp4", load_track(root / "model_track.json"), load_lens(root / "model_lens.json"),
+            st, vid, root / "model.mp4", load_track(root / "model_track.json"), load_lens(root / lens),
             settings=settings,
         )  # fmt: skip
     loc = Locator(st, vid, device="cpu")

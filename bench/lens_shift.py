@@ -27,17 +27,14 @@ from omninav.calib.ring import corrected_lens
 from omninav.extract import Extractor
 from omninav.heading import wrap_deg
 from omninav.lens import load_lens
-from omninav.locate import Locator
-from omninav.model_venue import model_video
-from omninav.presets import resolve, settings_id
-from omninav.store import Store
+from omninav.presets import resolve
 from omninav.synth import QUERY, make_dataset
 from omninav.synth.scene import build_scene
 from omninav.synth.walks import poses_from_track, render_frames
-from omninav.track import load_track
 
 sys.path.insert(0, str(Path(__file__).parent))
 from accuracy import dataset  # noqa: E402
+from families import cached_venue  # noqa: E402
 from search_speed import machine  # noqa: E402
 
 
@@ -56,13 +53,7 @@ def main() -> None:
         if not (root / "query.mp4").exists():
             make_dataset(root, seed=a.seed, layout=a.layout)
     lens = load_lens(root / "lens.json")
-    st = Store(root / "bench-data")
-    settings = resolve("default")
-    vid = f"lens-shift-{settings_id(settings)}"  # the default's features: a new default is a new venue
-    if st.generation(vid) is None:
-        track = load_track(root / "model_track.json")
-        model_video(st, vid, root / "model.mp4", track, lens, settings=settings)
-    loc = Locator(st, vid, device="cpu")
+    loc = cached_venue(root, "lens-shift", resolve("default"), lens="lens.json")
     conf = loc.conf
     scene = build_scene(a.seed, a.layout)
     track = json.loads((root / "query_track.json").read_text())
