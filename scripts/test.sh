@@ -12,6 +12,6 @@ npx tsc -p web --noEmit
 npx tsc -p e2e --noEmit
 npm test -w web --silent
 .venv/bin/python -m pytest "$@"
-OMNINAV_TEST_DB=postgres .venv/bin/python -m pytest tests/test_server.py tests/test_jobs.py tests/test_admin_api.py tests/test_tracking_api.py  # again on a real PostgreSQL
+OMNINAV_TEST_DB=postgres .venv/bin/python -m pytest tests/test_server.py tests/test_jobs.py tests/test_admin_api.py tests/test_tracking_api.py tests/test_model_anew.py  # again on a real PostgreSQL
 bash scripts/chromium.sh
 npx playwright test -c e2e/playwright.config.ts

@@ -147,15 +147,22 @@ def model_videos(
     progress: Progress | None = None,
     before_commit: Callable[[], None] | None = None,
     settings: dict[str, Any] | None = None,
+    anew: bool = False,
 ) -> list[ModelResult]:
     """Model several videos into one new generation; a video already in the venue is replaced.
 
     The feature settings are the live generation's (frames made with other settings could not be
     searched together); a venue's first videos use `settings` (the catalogue passes the venue's
-    preset), else the default preset. `before_commit` runs under the venue's lock just before the
-    commit; it may raise to commit nothing (a job runner checks there that the job is still its
-    own: see server/jobs.py)."""
-    settings = store.settings(venue_id) or settings or resolve("default")
+    preset), else the default preset. `anew`: the new generation holds these videos only, made
+    with `settings` (a venue modelled before its preset improved, modelled again with the preset
+    as it is now: every one of its modelling videos, so that none is lost). `before_commit` runs
+    under the venue's lock just before the commit; it may raise to commit nothing (a job runner
+    checks there that the job is still its own: see server/jobs.py)."""
+    if anew:
+        if settings is None:
+            raise ValueError("modelling anew needs the settings to model with")
+    else:
+        settings = store.settings(venue_id) or settings or resolve("default")
     plans = [_plan(s, settings) for s in sources]
     expected = sum(p.expected for p in plans)
     t0 = time.perf_counter()
@@ -173,7 +180,7 @@ def model_videos(
         rows, specs = _extract(p, settings, tick)
         extracted.append((p, rows, specs, time.perf_counter() - ts))
     with store.lock(venue_id):  # read the live generation and commit the next as one step
-        return _merge_commit(store, venue_id, settings, sources[-1].lens, extracted, before_commit)
+        return _merge_commit(store, venue_id, settings, sources[-1].lens, extracted, before_commit, anew)
 
 
 def _merge_commit(
@@ -183,8 +190,9 @@ def _merge_commit(
     lens: Lens,
     extracted: list[tuple[_Plan, np.ndarray, np.ndarray, float]],
     before_commit: Callable[[], None] | None = None,
+    anew: bool = False,
 ) -> list[ModelResult]:
-    old = _current(store, venue_id)
+    old = None if anew else _current(store, venue_id)
     videos = list(old.videos) if old else []
     frames = old.frames if old is not None else np.zeros(0, FRAME_DTYPE)
     spectra = old.spectra if old is not None else np.zeros((0,) + extracted[0][2].shape[1:], np.complex64)

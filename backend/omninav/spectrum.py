@@ -166,7 +166,8 @@ def _check(mag: np.ndarray, c: int, k: int, w: int, sid: int, expect: dict[str, 
         if sid != settings_id(expect):
             raise OmninavError(
                 f"features were made with other settings (id {sid}) than this venue's "
-                f"({settings_id(expect)}); extract them with the venue's feature settings"
+                f"({settings_id(expect)}); extract them with the venue's feature settings",
+                venue_settings_id=settings_id(expect),  # a client that read the venue before it was modelled anew
             )
 
 

@@ -23,6 +23,7 @@ import {
 } from '../src/client/guide';
 import { guidanceSentence, previewSentence, type Style } from '../src/client/directions';
 import type { MotionReading } from '../src/client/motion';
+import { MAP_UPDATED } from '../src/client/problems';
 import type { Voice } from '../src/client/session';
 
 const TO = { id: 'p3', name: 'Room 102', floor: '1' };
@@ -351,6 +352,20 @@ describe('Guide', () => {
     await vi.advanceTimersByTimeAsync(INTERVAL_MS * 3);
     expect(r.requests.length).toBe(n);
     expect(r.screen.release).toHaveBeenCalled();
+  });
+
+  it('the venue modelled anew meanwhile: said once, and guidance goes on', async () => {
+    const stale = "features were made with other settings (id 1) than this venue's (2)";
+    const updated = new ApiProblem(400, stale, { error: stale, status: 400, venue_settings_id: 2 });
+    const r = rig([START, GO, updated, REASSURE]);
+    const c = r.guide.choose({ id: 'p3', name: 'Room 102' });
+    await vi.advanceTimersByTimeAsync(1000);
+    await c;
+    r.guide.start();
+    await vi.advanceTimersByTimeAsync(1000 + INTERVAL_MS * 2);
+    expect(r.texts().filter((t) => t === MAP_UPDATED)).toHaveLength(1);
+    expect(r.guide.state).toBe('guiding');
+    expect(r.texts().at(-1)).toBe(REASSURE.sentence);
   });
 
   it('a camera taken by a call is said once and tried again; guidance goes on when it is free', async () => {

@@ -4,10 +4,11 @@
 // phone's clock and the phone's motion since the previous answered turn when it has it; it never
 // films on to 3 s, and says only what changed. The camera, the worker and the server are fakes.
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
-import { Unreachable, trackedQuery, type Answer, type Tracked } from '../src/client/api';
+import { ApiProblem, Unreachable, trackedQuery, type Answer, type Tracked } from '../src/client/api';
 import { CameraProblem } from '../src/client/camera';
 import { UNSURE } from '../src/client/directions';
 import type { MotionReading } from '../src/client/motion';
+import { MAP_UPDATED } from '../src/client/problems';
 import { GUIDING_NOW } from '../src/client/session';
 import { VENUE, answer, clip, session } from './fake-session';
 
@@ -282,5 +283,37 @@ describe('a single "Where am I?"', () => {
     // the same place again: a press always says it
     const sentence = s.sentence(answer(false), VENUE);
     expect(said).toEqual([sentence, STOPPED_TELLING, sentence]);
+  });
+
+  const stale = "features were made with other settings (id 1) than this venue's (2); extract them with ...";
+  const mapUpdatedProblem = () => new ApiProblem(400, stale, { error: stale, status: 400, venue_settings_id: 2 });
+
+  it('the venue modelled anew since it was read: reads it again, films again and answers, in one press', async () => {
+    const { s, said, voice } = session();
+    api.locate.mockRejectedValueOnce(mapUpdatedProblem());
+    await s.whereAmI();
+    expect(api.venue).toHaveBeenCalledTimes(2);
+    expect(api.locate).toHaveBeenCalledTimes(2);
+    expect(cam.captureClip.mock.calls.length).toBeGreaterThanOrEqual(2); // a clip of each settings
+    expect(voice.cue.mock.calls.filter((c) => c[0] === 'start')).toHaveLength(2);
+    expect(said).toEqual([s.sentence(answer(false), VENUE)]);
+  });
+
+  it('modelled anew twice in one press: says the map was updated, once, and asks again no more', async () => {
+    const { s, said } = session();
+    api.locate.mockRejectedValueOnce(mapUpdatedProblem()).mockRejectedValueOnce(mapUpdatedProblem());
+    await s.whereAmI();
+    expect(api.locate).toHaveBeenCalledTimes(2);
+    expect(said).toEqual([MAP_UPDATED]);
+    await s.whereAmI();
+    expect(api.venue).toHaveBeenCalledTimes(3);
+    expect(said).toEqual([MAP_UPDATED, s.sentence(answer(false), VENUE)]);
+  });
+
+  it('another 400 is said as the server put it', async () => {
+    const { s, said } = session();
+    api.locate.mockRejectedValueOnce(new ApiProblem(400, 'feature record magnitudes must lie in [0, 1]'));
+    await s.whereAmI();
+    expect(said).toEqual(['The server could not answer: feature record magnitudes must lie in [0, 1]']);
   });
 });

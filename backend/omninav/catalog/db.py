@@ -146,6 +146,8 @@ MIGRATIONS: list[Migration] = [
     ],
     # 5: tracking sessions (issue 14): a phone's walk continues on any worker and after a restart
     [_tracking_sessions],
+    # 6: a modelling job may model the venue anew, with its preset's current feature settings
+    ["ALTER TABLE jobs ADD COLUMN anew INTEGER NOT NULL DEFAULT 0"],
 ]
 SCHEMA_VERSION = len(MIGRATIONS)
 MIGRATION_LOCK = 0x6F6D6E69  # 'omni': the advisory lock id migrations hold on PostgreSQL

@@ -225,3 +225,8 @@ class Venues:
         always answers with the settings it was modelled with)."""
         row = self.get(venue_id)
         return self.cat.store.settings(venue_id) or resolve(row["preset"])
+
+    def preset_settings(self, venue_id: str) -> dict[str, Any]:
+        """The venue's preset as this omninav defines it now: what a new venue gets, and what a
+        modelling anew gives a venue modelled before the preset improved."""
+        return resolve(self.get(venue_id)["preset"])

@@ -20,7 +20,8 @@ from flask import Blueprint, Response, current_app, g, jsonify, request
 
 from ..catalog import Catalog
 from ..catalog.venues import begin_write, end_write
-from ..errors import is_finite_number
+from ..errors import OmninavError, is_finite_number
+from ..presets import settings_id
 from .auth import require_admin
 from .http import ApiError, json_body, str_field
 from .jobs import FINAL, job_doc
@@ -102,9 +103,20 @@ def create_venue() -> Any:
 
 
 def admin_venue_doc(cat: Catalog, venue_id: str) -> dict[str, Any]:
-    """The public venue document and what only the admin sees: which generation is live, since when."""
+    """The public venue document and what only the admin sees: which generation is live, since
+    when, and whether its feature settings are still the preset's (`settings_current` false: it
+    was modelled before the preset improved, and a modelling anew brings it up to date)."""
     generation, at = cat.venues.modelled(venue_id)
-    return {**venue_doc(cat, venue_id), "generation": generation, "modelled_at": at}
+    doc = venue_doc(cat, venue_id)
+    preset_id = settings_id(cat.venues.preset_settings(venue_id))
+    current = None if generation is None else doc["features"]["settings_id"] == preset_id
+    return {
+        **doc,
+        "generation": generation,
+        "modelled_at": at,
+        "settings_current": current,
+        "preset_settings_id": preset_id,
+    }
 
 
 @bp.get("/venues/<venue_id>")
@@ -282,7 +294,10 @@ def upload_content(venue_id: str, name: str) -> Any:
 @bp.post("/venues/<venue_id>/jobs")
 def start_job(venue_id: str) -> Any:
     body = json_body() if request.get_data() else {}
-    job = _svc().jobs.submit(venue_id, body.get("videos"))
+    anew = body.get("anew", False)
+    if not isinstance(anew, bool):
+        raise OmninavError("job 'anew' must be true or false")
+    job = _svc().jobs.submit(venue_id, body.get("videos"), anew)
     return _created(job_doc(job), f"/api/admin/jobs/{job['id']}")
 
 

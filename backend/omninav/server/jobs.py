@@ -142,6 +142,7 @@ def job_doc(r: dict[str, Any]) -> dict[str, Any]:
         "venue": r["venue"],
         "kind": r["kind"],
         "target": r["target"],  # the video of a suggest or evaluate job
+        "anew": bool(r["anew"]),  # a modelling anew: every modelling video, the preset's settings now
         "videos": json.loads(r["videos"]),
         "state": r["state"],
         "frames_done": done,
@@ -233,10 +234,18 @@ class Jobs:
         self.reap()
         return self.db.all("SELECT * FROM jobs WHERE venue = :v ORDER BY created DESC", v=venue_id)
 
-    def _check_videos(self, venue_id: str, names: Any) -> list[str]:
+    def _check_videos(self, venue_id: str, names: Any, anew: bool = False) -> list[str]:
         """The names of the videos to model (default: every uploaded modelling walk with a track,
-        not modelled yet)."""
+        not modelled yet; `anew`: every one, modelled or not, and no other choice: the new
+        generation holds only the job's videos)."""
         vids = self.cat.videos.all(venue_id)
+        if anew:
+            if names is not None:
+                raise OmninavError("a modelling anew models every modelling video of the venue: leave out 'videos'")
+            walks = [v for v in vids if v["role"] == "model" and v["status"] in ("ready", "modelled")]
+            names = [v["name"] for v in walks if _tracked(v)]
+            if not names:
+                raise Conflict(f"venue {venue_id!r} has no uploaded modelling video with a track to model anew")
         if names is None:
             ready = [v for v in vids if v["status"] == "ready" and v["role"] == "model"]
             names = [v["name"] for v in ready if _tracked(v)]
@@ -257,21 +266,24 @@ class Jobs:
                 raise Conflict(f"video {n!r} has no track yet")
         return list(dict.fromkeys(names))
 
-    def submit(self, venue_id: str, names: Any) -> dict[str, Any]:
-        """Queue a job. The database's one-active-job-per-venue index decides between simultaneous
-        submissions: checking first and inserting after would let two through."""
+    def submit(self, venue_id: str, names: Any, anew: bool = False) -> dict[str, Any]:
+        """Queue a modelling job (`anew`: every modelling video, with the venue's preset as this
+        server defines it now; see model_venue.model_videos). The database's
+        one-active-job-per-venue index decides between simultaneous submissions: checking first
+        and inserting after would let two through."""
         self.cat.venues.get(venue_id)
         self.reap()
-        names = self._check_videos(venue_id, names)
+        names = self._check_videos(venue_id, names, anew)
         job_id = uuid.uuid4().hex[:16]
         for _ in range(3):
             try:
                 with self.db.tx() as c:  # the job and the rows that say which videos it models
                     c.execute(
                         text(
-                            "INSERT INTO jobs (id, venue, videos, state, created) VALUES (:id, :v, :vs, 'queued', :t)"
+                            "INSERT INTO jobs (id, venue, videos, state, created, anew) "
+                            "VALUES (:id, :v, :vs, 'queued', :t, :a)"
                         ),
-                        {"id": job_id, "v": venue_id, "vs": json.dumps(names), "t": time.time()},
+                        {"id": job_id, "v": venue_id, "vs": json.dumps(names), "t": time.time(), "a": int(anew)},
                     )
                     c.execute(
                         text("INSERT INTO job_videos (job, venue, video) VALUES (:j, :v, :n)"),
@@ -579,9 +591,11 @@ class Jobs:
         results = None
         try:
             sources = self.cat.videos.sources(venue, json.loads(job["videos"]))
-            settings = self.cat.venues.settings(venue)
-            results = model_videos(self.cat.store, venue, sources, progress, still_mine, settings)
-            self._done(jid, venue, results)
+            anew = bool(job["anew"])
+            # anew: the preset as this server defines it now, not the live generation's settings
+            settings = self.cat.venues.preset_settings(venue) if anew else self.cat.venues.settings(venue)
+            results = model_videos(self.cat.store, venue, sources, progress, still_mine, settings, anew)
+            self._done(jid, venue, results, anew)
         except Lost:
             log.warning("job %s was taken over by another runner; this one stops", jid)
             if results is not None:  # lost after its commit: the venue did change, say so to caches
@@ -678,14 +692,20 @@ class Jobs:
             os.replace(tmp, self.cat.data / rel)
         log.info("job %s done", job["id"])
 
-    def _done(self, jid: str, venue: str, results: list[Any]) -> None:
+    def _done(self, jid: str, venue: str, results: list[Any], anew: bool = False) -> None:
         """Record a committed job: the job done and its videos modelled, in one transaction that
         is also the last ownership check (a runner taken over after its commit writes no row;
-        the new owner models the videos again and records them)."""
+        the new owner models the videos again and records them). After a modelling anew, a video
+        that was modelled and is not in the new generation has no frames any more."""
         mine = {"t": time.time(), "id": jid, "o": self.me}
         with self.db.tx() as c:
             if not c.execute(text(f"UPDATE jobs SET state = 'done', finished = :t WHERE {self._MINE}"), mine).rowcount:
                 raise Lost  # leaving the block this way rolls the transaction back
+            if anew:
+                c.execute(
+                    text("UPDATE videos SET status = 'ready', frames = 0 WHERE venue = :v AND status = 'modelled'"),
+                    {"v": venue},
+                )
             Videos.mark_modelled(c, venue, results)
         log.info("job %s done", jid)
 

@@ -104,6 +104,8 @@ async function loadVenue(id: string): Promise<AdminVenue> {
         ...(await api.get<Venue>(`/api/venues/${encodeURIComponent(id)}`)),
         generation: null,
         modelled_at: null,
+        settings_current: null,
+        preset_settings_id: 0,
       };
     throw e;
   }
@@ -154,7 +156,16 @@ function setVenue(v: Venue): void {
   venue = {
     generation: null,
     modelled_at: null,
-    ...(prev && prev.id === v.id ? { generation: prev.generation, modelled_at: prev.modelled_at } : {}),
+    settings_current: null,
+    preset_settings_id: 0,
+    ...(prev && prev.id === v.id
+      ? {
+          generation: prev.generation,
+          modelled_at: prev.modelled_at,
+          settings_current: prev.settings_current,
+          preset_settings_id: prev.preset_settings_id,
+        }
+      : {}),
     ...v,
   };
   drawHead();

@@ -8,6 +8,10 @@ export interface AdminVenue extends Venue {
   /** The live generation of modelled frames (null before the first modelling). */
   generation: number | null;
   modelled_at: number | null;
+  /** Whether the live generation's feature settings are the preset's now (null: never modelled). */
+  settings_current: boolean | null;
+  /** The settings id of the venue's preset now (what a modelling anew gives it). */
+  preset_settings_id: number;
 }
 
 /** DELETE /api/admin/venues/{id}. */
@@ -101,6 +105,8 @@ export interface Job {
   venue: string;
   kind: 'model' | 'suggest' | 'quality' | 'evaluate';
   target: string | null;
+  /** A modelling anew: every modelling video, with the venue's preset as the server defines it now. */
+  anew: boolean;
   videos: string[];
   state: 'queued' | 'running' | 'done' | 'failed' | 'cancelled';
   frames_done: number;

@@ -18,11 +18,12 @@ export type {
 /** The server could not be reached at all (offline, wrong network, server stopped). */
 export class Unreachable extends Error {}
 
-/** The server answered with an error; `message` is its own one-line explanation. */
+/** The server answered with an error; `message` is its own one-line explanation, `body` all of it. */
 export class ApiProblem extends Error {
   constructor(
     readonly status: number,
     message: string,
+    readonly body: Record<string, unknown> = {},
   ) {
     super(message);
   }
@@ -50,7 +51,8 @@ async function call(path: string, init?: RequestInit, timeoutMs = 15000): Promis
   }
   if (!res.ok) {
     const msg = (body as { error?: string } | null)?.error ?? `the server answered ${res.status}`;
-    throw new ApiProblem(res.status, msg);
+    const all = body !== null && typeof body === 'object' ? (body as Record<string, unknown>) : {};
+    throw new ApiProblem(res.status, msg, all);
   }
   return body;
 }

@@ -25,7 +25,7 @@ import { ApiProblem, Unreachable, newSessionId, type Answer, type Guidance } fro
 import { CameraProblem } from './camera';
 import type { Style } from './directions';
 import type { Motion, MotionReading } from './motion';
-import { RecordMismatch, problemText } from './problems';
+import { RecordMismatch, mapUpdated, problemText } from './problems';
 import { Emitter, type Voice } from './session';
 import type { Cue } from './speech';
 
@@ -139,6 +139,8 @@ function cueOf(g: Guidance): Cue | null {
 function fatal(e: unknown): boolean {
   if (e instanceof CameraProblem) return e.kind !== 'lens' && e.kind !== 'busy';
   if (e instanceof RecordMismatch) return true;
+  // the venue modelled anew meanwhile: the session reads it again at the next turn, and guidance goes on
+  if (mapUpdated(e)) return false;
   if (e instanceof ApiProblem) return e.status === 400 || e.status === 404 || e.status === 409 || e.status === 422;
   // the server cannot guide at all; anything else (the network, a worker's hiccup) may pass
   return e instanceof Error && e.message === NO_GUIDANCE;

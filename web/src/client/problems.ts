@@ -16,9 +16,17 @@ export class RecordMismatch extends Error {
   }
 }
 
+export const MAP_UPDATED = 'The building’s map has just been updated; the next question uses the new one.';
+
+/** The server refused features made with the venue's settings from before it was modelled anew. */
+export const mapUpdated = (e: unknown): boolean =>
+  e instanceof ApiProblem && e.status === 400 && typeof e.body.venue_settings_id === 'number';
+
 export function problemText(e: unknown): string {
   if (e instanceof Unreachable || e instanceof CameraProblem || e instanceof RecordMismatch) return e.message;
   if (e instanceof ApiProblem) {
+    // features made with the settings the venue had before it was modelled anew (the session reloads it)
+    if (mapUpdated(e)) return MAP_UPDATED;
     if (e.status === 409) return NO_FRAMES;
     if (e.status === 429) return 'Too many questions at once. Wait a moment, then press Where am I? again.';
     if (e.status === 404) return 'This venue is no longer on the server. Choose another venue in Settings.';

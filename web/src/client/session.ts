@@ -35,7 +35,7 @@ import type { Lens } from '../shared/lens';
 import type { LensCheck } from '../shared/protocol';
 import { encodeRecord, recordMismatch } from '../shared/record';
 import type { Prefs } from './prefs';
-import { NO_FRAMES, NO_LENS, RecordMismatch, problemText } from './problems';
+import { NO_FRAMES, NO_LENS, RecordMismatch, mapUpdated, problemText } from './problems';
 import type { Cue } from './speech';
 
 const CLIP_FRAMES = 10; // ~1 s at 10 fps: enough for the clip to outvote a single wrong frame
@@ -324,6 +324,27 @@ export class Session extends Emitter<SessionEvents> {
     if (this.busy) return;
     this.busy = true;
     this.emit('busy', true);
+    try {
+      try {
+        await this.answerHere();
+      } catch (e) {
+        // the venue was modelled anew since it was read: read it again and film once more (its
+        // frames were extracted with the old settings), rather than have the user press again
+        if (!mapUpdated(e)) throw e;
+        this.venue = null;
+        await this.answerHere();
+      }
+    } catch (e) {
+      this.forgetVenueOn(e);
+      this.sayProblem(e, false);
+    } finally {
+      this.busy = false;
+      this.emit('busy', false);
+    }
+  }
+
+  /** The work of one "Where am I?" (whereAmI): errors are thrown, for it to say. */
+  private async answerHere(): Promise<void> {
     const { voice, video } = this.o;
     let filming: { stopped: boolean } | null = null;
     try {
@@ -352,14 +373,9 @@ export class Session extends Emitter<SessionEvents> {
       this.lastAnswer = a;
       this.emit('answer', this.located(a, r, clip, record.length, rttMs));
       this.tell(a, v, false);
-    } catch (e) {
-      this.forgetVenueOn(e);
-      this.sayProblem(e, false);
     } finally {
       if (filming) filming.stopped = true;
       if (this.filming === filming) this.filming = null;
-      this.busy = false;
-      this.emit('busy', false);
     }
   }
 

@@ -3,6 +3,8 @@
  * modelled yet (POST .../jobs); the job's progress (frames done, frames per second, time left) is
  * read from its event stream; it can be cancelled, and a failed job says why. The page says which
  * generation of frames is live: the venue keeps answering from it until the new one is complete.
+ * A venue modelled before its preset improved (settings_current false) is offered a modelling
+ * anew: every modelling video again, with the preset's current feature settings.
  */
 import { AdminError, venuePath } from '../api';
 import type { AdminContext } from '../context';
@@ -21,6 +23,27 @@ export function modelVerdict(v: Video): { goes: boolean; why: string } {
   if (!v.tracked) return { goes: false, why: 'no track yet: tag it first' };
   if (v.status === 'modelled') return { goes: false, why: `already modelled (${v.frames} frames)` };
   return { goes: true, why: 'will be modelled' };
+}
+
+/** The videos a modelling anew takes: every uploaded modelling walk with a track, modelled or not. */
+export function anewVideos(videos: Video[]): string[] {
+  return videos
+    .filter((v) => v.role !== 'evaluation' && v.tracked && (v.status === 'ready' || v.status === 'modelled'))
+    .map((v) => v.name);
+}
+
+/** Why to model a venue anew, or null when its live frames already have the preset's settings. */
+export function anewNotice(v: AdminVenue, videos: Video[]): string | null {
+  if (v.settings_current !== false) return null;
+  const names = anewVideos(videos);
+  const what = names.length
+    ? `Modelling anew models ${names.join(', ')} again with them`
+    : 'Modelling anew needs the modelling videos with their tracks, and none is uploaded';
+  return (
+    `This venue was modelled with older feature settings (id ${v.features.settings_id}); its preset now ` +
+    `has newer ones (id ${v.preset_settings_id}). ${what}. Until that is complete the venue answers as ` +
+    'it does now; phones take up the new settings by themselves.'
+  );
 }
 
 const when = (epochS: number | null): string =>
@@ -46,6 +69,17 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   progress.el.classList.add('job-bar');
   progress.el.id = 'model-progress';
   const outcome = el('p', { id: 'model-outcome' });
+  const anewWhy = el('p', { className: 'hint', id: 'model-anew-why' });
+  const anew = button('Model anew with the current settings', () => void startJob(true));
+  anew.id = 'model-anew';
+  const anewBox = el(
+    'div',
+    { id: 'model-anew-box' },
+    el('h3', { textContent: 'Newer feature settings' }),
+    anewWhy,
+    el('div', { className: 'row' }, anew),
+  );
+  anewBox.hidden = true;
   const { table, body: tbody } = dataTable('What the next modelling takes', ['Video', 'Track', 'Next modelling'], {
     id: 'model-videos',
   });
@@ -55,6 +89,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     meanwhile,
     el('div', { className: 'row' }, start),
     why,
+    anewBox,
     progress.el,
     outcome,
     table,
@@ -96,6 +131,10 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     const busy = running !== null && ACTIVE.has(running.state);
     start.textContent = goes.length ? `Model ${goes.length} video${goes.length === 1 ? '' : 's'}` : 'Model the venue';
     start.disabled = busy || goes.length === 0;
+    const notice = anewNotice(ctx.venue() as AdminVenue, videos);
+    anewBox.hidden = notice === null;
+    anewWhy.textContent = notice ?? '';
+    anew.disabled = busy || anewVideos(videos).length === 0;
     why.textContent = busy
       ? 'A modelling is running.'
       : goes.length
@@ -146,7 +185,8 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     await load();
     const v = ctx.venue() as AdminVenue;
     if (last.state === 'done') {
-      const msg = `Modelling done: ${last.frames_total} frames; generation ${v.generation ?? '?'} is live now.`;
+      const how = last.anew ? ', with the current feature settings' : '';
+      const msg = `Modelling done: ${last.frames_total} frames; generation ${v.generation ?? '?'} is live now${how}.`;
       outcome.textContent = msg;
       ctx.announce(msg);
     } else if (last.state === 'failed') {
@@ -162,11 +202,12 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     drawVideos();
   };
 
-  const startJob = async () => {
+  const startJob = async (isAnew = false) => {
     start.disabled = true;
+    anew.disabled = true;
     try {
-      const job = await ctx.api.post<Job>(venuePath(venueId, '/jobs'));
-      ctx.announce(`Modelling started: ${job.videos.join(', ')}.`);
+      const job = await ctx.api.post<Job>(venuePath(venueId, '/jobs'), isAnew ? { anew: true } : undefined);
+      ctx.announce(`Modelling ${isAnew ? 'anew ' : ''}started: ${job.videos.join(', ')}.`);
       await follow(job);
     } catch (e) {
       if (e instanceof AdminError && e.status === 409) outcome.textContent = e.message;
