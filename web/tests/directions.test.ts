@@ -76,4 +76,17 @@ group('the gist', () => {
     expect([at(0.6, 0), at(0.1, 180), at(0.9, -90)]).toEqual([here, here, here]);
     expect(at(1.4, 90)).not.toBe(here);
   });
+
+  it('once at a place, stays at it until half a metre past the metre: no flip-flop about 1 m', () => {
+    const g = (distance_m: number, last = '') =>
+      gist(answer({ nearest: { name: 'the lifts', distance_m, bearing_deg: 90 } }), 'clock', last);
+    const at = g(0.8);
+    const near = g(1.1);
+    expect(near).not.toBe(at); // from afar, "at" begins under a metre
+    expect([g(1.1, at), g(1.45, at)]).toEqual([at, at]);
+    expect(g(1.6, at)).toBe(near); // left it: "near the lifts at 3 o'clock" again
+    // another place's "at" is no reason to stay: the rule is per place
+    const elsewhere = gist(answer({ nearest: { name: 'Room 1', distance_m: 0.5, bearing_deg: 0 } }), 'clock');
+    expect(g(1.1, elsewhere)).toBe(near);
+  });
 });

@@ -250,6 +250,27 @@ describe('continuous mode', () => {
     s.stopContinuous();
   });
 
+  it('"Where am I?" pressed while a turn is answered: that answer is said in full, though nothing changed', async () => {
+    const { s, said } = session();
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0);
+    const sentence = s.sentence(answer(false), VENUE);
+    expect(said).toEqual([sentence]);
+    // the next turn's answer is held back; the press comes while it is awaited
+    let release: (a: Answer) => void = () => undefined;
+    api.locate.mockImplementationOnce(() => new Promise<Answer>((res) => (release = res)));
+    await vi.advanceTimersByTimeAsync(3000);
+    expect(api.locate).toHaveBeenCalledTimes(2);
+    await s.whereAmI();
+    expect(api.locate).toHaveBeenCalledTimes(2); // no second filming beside the turn's
+    release(trackedAnswer(false, 2));
+    await vi.advanceTimersByTimeAsync(0);
+    expect(said).toEqual([sentence, sentence]); // the same place, said again: it was asked for
+    await vi.advanceTimersByTimeAsync(3000);
+    expect(said).toEqual([sentence, sentence]); // and the next turn is quiet again
+    s.stopContinuous();
+  });
+
   it('a new interval applies to the running loop from its next wait', async () => {
     const { s } = session();
     s.toggleContinuous();

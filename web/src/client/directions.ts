@@ -110,13 +110,22 @@ export function describe(a: Said, style: Style, floorName?: string | null): stri
 }
 
 /**
- * What a continuous-mode answer is "about": it is spoken only when this changes, so walking down a
- * corridor does not repeat the same sentence every few seconds.
+ * Once "at" a place, the gist stays "at" it until the answer is this far from it: an estimate's
+ * few decimetres of jitter about AT_M would otherwise flip "at the lifts" and "near the lifts at
+ * 3 o'clock, 1 metre" at every answer of a user standing there.
  */
-export function gist(a: Said, style: Style): string {
+export const AT_LEAVE_M = AT_M + 0.5;
+
+/**
+ * What a continuous-mode answer is "about": it is spoken only when this changes, so walking down a
+ * corridor does not repeat the same sentence every few seconds. `last`: the gist last said.
+ */
+export function gist(a: Said, style: Style, last = ''): string {
   if (a.low_confidence) return 'unsure';
   const n = nearOf(a);
-  const way = !n ? '' : n.distance_m < AT_M ? 'at' : direction(n.bearing_deg, style);
+  const [, , lastName, lastWay] = last.split('|');
+  const atM = n && lastWay === 'at' && lastName === n.name ? AT_LEAVE_M : AT_M;
+  const way = !n ? '' : n.distance_m < atM ? 'at' : direction(n.bearing_deg, style);
   return [a.floor, a.area, n?.name, way, a.facing].join('|');
 }
 

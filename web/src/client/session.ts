@@ -175,6 +175,8 @@ export class Session extends Emitter<SessionEvents> {
   private lastGist = '';
   /** The running continuous loop. */
   private loop: Loop | null = null;
+  /** "Where am I?" was pressed while a turn of the loop ran: that turn's answer is said in full. */
+  private pressedInTurn = false;
   /** The filming on after a press's first second; `stopped` ends it (an answer, Stop). */
   private filming: { stopped: boolean } | null = null;
   /** The first second was not sure: that filming goes on for an answer (Stop would end it). */
@@ -321,7 +323,12 @@ export class Session extends Emitter<SessionEvents> {
    * when that answer is not sure, answer once more from the 3 s filmed (see the top of the file).
    */
   async whereAmI(): Promise<void> {
-    if (this.busy) return;
+    if (this.busy) {
+      // a turn of "Keep telling me" is filming or being answered: its answer is this press's, said
+      // in full when it comes (another press's own answer is on its way already)
+      if (this.loop) this.pressedInTurn = true;
+      return;
+    }
     this.busy = true;
     this.emit('busy', true);
     try {
@@ -381,7 +388,7 @@ export class Session extends Emitter<SessionEvents> {
 
   /** Say an answer; `quiet` (continuous mode): only when what it is about changed since the last said. */
   private tell(a: Answer, v: Venue, quiet: boolean): void {
-    const g = gist(a, this.prefs.style);
+    const g = gist(a, this.prefs.style, this.lastGist);
     if (!quiet || g !== this.lastGist) this.o.voice.say(this.sentence(a, v), a.low_confidence ? 'unsure' : 'ok');
     this.lastGist = g;
   }
@@ -536,15 +543,20 @@ export class Session extends Emitter<SessionEvents> {
       });
       if (!r || this.loop !== loop) return;
       if (read.reading) feed?.commit(read.reading);
-      this.tell(r.answer, r.venue, true);
+      const pressed = this.pressedInTurn;
+      this.pressedInTurn = false;
+      this.tell(r.answer, r.venue, !pressed);
     } catch (e) {
-      if (this.loop === loop) this.sayProblem(e, true);
+      if (this.loop !== loop) return;
+      this.sayProblem(e, !this.pressedInTurn);
+      this.pressedInTurn = false;
     }
   }
 
   stopContinuous(): void {
     clearTimeout(this.loop?.timer);
     this.loop = null;
+    this.pressedInTurn = false;
     this.o.motion?.stop();
     this.emit('continuous', false);
   }
