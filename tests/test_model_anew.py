@@ -17,8 +17,11 @@ import numpy as np
 import pytest
 
 from omninav import presets
+from omninav.lens import load_lens
+from omninav.model_venue import model_video
 from omninav.presets import resolve, settings_id
 from omninav.spectrum import encode_binary
+from omninav.track import load_track
 from server_helpers import ADMIN, Api, clip_spectra, heading_error, query_clip
 from test_jobs import job, prepared
 from test_server import add_video, upload
@@ -73,6 +76,7 @@ def test_bad_requests_for_a_modelling_anew_say_why(old_lab: Any) -> None:
         ({"anew": "yes"}, "'anew' must be true or false"),
         ({"anew": 1}, "'anew' must be true or false"),
         ({"anew": True, "videos": ["walk.mp4"]}, "leave out 'videos'"),
+        ({"anew": True, "videos": None}, "leave out 'videos'"),
     ]:
         r = api.post("/api/admin/venues/lab/jobs", json=body, headers=ADMIN)
         assert r.status_code == 400 and says in r.json["error"], (body, r.json)
@@ -86,6 +90,27 @@ def test_a_venue_with_no_modelling_walk_cannot_be_modelled_anew(small_ds: Any, t
     assert r.status_code == 409 and "no uploaded modelling video with a track" in r.json["error"]
 
 
+def test_a_modelling_anew_never_drops_a_walk_it_cannot_model_again(small_ds: Any, tmp_path: Any) -> None:
+    app, api = prepared(small_ds, tmp_path)
+    cat, runner = app.extensions["omninav"].catalog, app.extensions["omninav"].jobs
+    first = api.post("/api/admin/venues/lab/jobs", headers=ADMIN).json
+    assert runner.run_next() and job(api, first["id"])["state"] == "done"
+    # its file gone (a backup restored without videos): refused at once, not a job that fails later
+    moved = tmp_path / "walk.mp4"
+    (cat.videos.dir("lab") / "walk.mp4").rename(moved)
+    r = api.post("/api/admin/venues/lab/jobs", json={"anew": True}, headers=ADMIN)
+    assert r.status_code == 409 and "'walk.mp4' has no uploaded file here" in r.json["error"], r.json
+    moved.rename(cat.videos.dir("lab") / "walk.mp4")
+    # a walk modelled with the command line (frames, no video of the catalogue): its frames would go
+    cli = tmp_path / "cli.mp4"
+    cli.write_bytes(small_ds.model_video.read_bytes())
+    model_video(cat.store, "lab", cli, load_track(small_ds.model_track), load_lens(small_ds.root / "model_lens.json"))
+    gen = cat.store.generation("lab")
+    r = api.post("/api/admin/venues/lab/jobs", json={"anew": True}, headers=ADMIN)
+    assert r.status_code == 409 and "would drop the frames of 'cli.mp4'" in r.json["error"], r.json
+    assert cat.store.generation("lab") == gen and not runner.run_next()  # nothing queued
+
+
 def test_a_cancelled_modelling_anew_changes_nothing(old_lab: Any, small_ds: Any, monkeypatch: Any) -> None:
     app, api, old = old_lab
     runner, store = app.extensions["omninav"].jobs, app.extensions["omninav"].catalog.store
@@ -97,6 +122,7 @@ def test_a_cancelled_modelling_anew_changes_nothing(old_lab: Any, small_ds: Any,
     real = runner._check_cancel
 
     def cancelled_meanwhile(jid: str) -> None:  # the admin presses Cancel while it runs
+        assert locate(api, record).json == answer  # meanwhile the venue answers from its frames
         assert api.post(f"/api/admin/jobs/{jid}/cancel", headers=ADMIN).status_code == 202  # stops at its next frame
         real(jid)
 

@@ -124,6 +124,15 @@ class Store:
         g = self._current(self.venue_dir(venue_id))
         return len(np.load(g / "frames.npy", mmap_mode="r")) if g else 0
 
+    def modelled_videos(self, venue_id: str) -> list[str]:
+        """The videos that have frames in the live generation (its frames' video column, mapped)."""
+        g = self._current(self.venue_dir(venue_id))
+        if g is None:
+            return []
+        names = json.loads((g / "videos.json").read_text())
+        used = np.unique(np.load(g / "frames.npy", mmap_mode="r")["video"])
+        return [names[int(i)] for i in used]
+
     def generation(self, venue_id: str) -> str | None:
         """Name of the live generation (cheap: one small file), to notice a new one."""
         g = self._current(self.venue_dir(venue_id))

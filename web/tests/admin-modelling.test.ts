@@ -57,14 +57,14 @@ describe('a modelling anew', () => {
     expect(anewNotice(venue(7, 7, true), walks)).toBeNull();
     expect(anewNotice(venue(0, 7, null), walks)).toBeNull(); // never modelled: the first modelling uses the preset
     expect(anewNotice(venue(5, 7, false), walks)).toBe(
-      'This venue was modelled with older feature settings (id 5); its preset now has newer ones (id 7). ' +
+      'This venue was modelled with older feature settings than its preset has now. ' +
         'Modelling anew models walk.mp4, new.mp4 again with them. Until that is complete the venue answers as ' +
         'it does now; phones take up the new settings by themselves.',
     );
   });
   it('says when there is nothing to model anew from', () => {
     expect(anewNotice(venue(5, 7, false), [video({ tracked: false })])).toContain(
-      'Modelling anew needs the modelling videos with their tracks, and none is uploaded',
+      'Modelling anew needs the modelling videos with their tracks, and no uploaded modelling video has a track yet',
     );
   });
 });

@@ -9,6 +9,7 @@ import { ApiProblem, Unreachable, newSessionId, type Answer, type Guidance } fro
 import { CameraProblem } from '../src/client/camera';
 import {
   GUIDE_CAMERA_BUSY,
+  GUIDE_MAP_UPDATED,
   PREVIEW_CAMERA_BUSY,
   GUIDE_UNREACHABLE,
   Guide,
@@ -23,7 +24,6 @@ import {
 } from '../src/client/guide';
 import { guidanceSentence, previewSentence, type Style } from '../src/client/directions';
 import type { MotionReading } from '../src/client/motion';
-import { MAP_UPDATED } from '../src/client/problems';
 import type { Voice } from '../src/client/session';
 
 const TO = { id: 'p3', name: 'Room 102', floor: '1' };
@@ -363,7 +363,7 @@ describe('Guide', () => {
     await c;
     r.guide.start();
     await vi.advanceTimersByTimeAsync(1000 + INTERVAL_MS * 2);
-    expect(r.texts().filter((t) => t === MAP_UPDATED)).toHaveLength(1);
+    expect(r.texts().filter((t) => t === GUIDE_MAP_UPDATED)).toHaveLength(1);
     expect(r.guide.state).toBe('guiding');
     expect(r.texts().at(-1)).toBe(REASSURE.sentence);
   });

@@ -9,6 +9,7 @@ import { CameraProblem } from '../src/client/camera';
 import { UNSURE } from '../src/client/directions';
 import type { MotionReading } from '../src/client/motion';
 import { MAP_UPDATED } from '../src/client/problems';
+import { HEADER_AT } from '../src/shared/record';
 import { GUIDING_NOW } from '../src/client/session';
 import { VENUE, answer, clip, session } from './fake-session';
 
@@ -271,6 +272,26 @@ describe('continuous mode', () => {
     s.stopContinuous();
   });
 
+  it('a press beside another press (not a turn) is not carried to a later turn', async () => {
+    const { s, said } = session();
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0);
+    const sentence = s.sentence(answer(false), VENUE);
+    // between two turns, a press's own locate is held back and a second press comes meanwhile
+    let release: (a: Answer) => void = () => undefined;
+    api.locate.mockImplementationOnce(() => new Promise<Answer>((res) => (release = res)));
+    await vi.advanceTimersByTimeAsync(500);
+    const press = s.whereAmI();
+    await vi.advanceTimersByTimeAsync(0);
+    await s.whereAmI(); // the double tap
+    release(answer(false));
+    await press;
+    expect(said).toEqual([sentence, sentence]); // the press's own answer
+    await vi.advanceTimersByTimeAsync(3000);
+    expect(said).toEqual([sentence, sentence]); // the next turn is quiet: the same place
+    s.stopContinuous();
+  });
+
   it('a new interval applies to the running loop from its next wait', async () => {
     const { s } = session();
     s.toggleContinuous();
@@ -306,18 +327,34 @@ describe('a single "Where am I?"', () => {
     expect(said).toEqual([sentence, STOPPED_TELLING, sentence]);
   });
 
-  const stale = "features were made with other settings (id 1) than this venue's (2); extract them with ...";
-  const mapUpdatedProblem = () => new ApiProblem(400, stale, { error: stale, status: 400, venue_settings_id: 2 });
+  const stale = "features were made with other settings (id 7) than this venue's (8); extract them with ...";
+  const mapUpdatedProblem = (now = 8) =>
+    new ApiProblem(400, stale, { error: stale, status: 400, venue_settings_id: now });
+  /** The settings id in each locate request's record (its header, little-endian). */
+  const sentIds = () =>
+    api.locate.mock.calls.map((c) => {
+      const rec = c[1] as Uint8Array;
+      return new DataView(rec.buffer, rec.byteOffset).getUint32(HEADER_AT.settings_id, true);
+    });
+  const MODELLED_ANEW = { ...VENUE, features: { ...VENUE.features, settings_id: 8 } };
 
   it('the venue modelled anew since it was read: reads it again, films again and answers, in one press', async () => {
     const { s, said, voice } = session();
+    api.venue.mockResolvedValueOnce(VENUE).mockResolvedValueOnce(MODELLED_ANEW);
     api.locate.mockRejectedValueOnce(mapUpdatedProblem());
     await s.whereAmI();
     expect(api.venue).toHaveBeenCalledTimes(2);
-    expect(api.locate).toHaveBeenCalledTimes(2);
-    expect(cam.captureClip.mock.calls.length).toBeGreaterThanOrEqual(2); // a clip of each settings
+    expect(sentIds()).toEqual([7, 8]); // a clip made with the new settings, not the first one again
     expect(voice.cue.mock.calls.filter((c) => c[0] === 'start')).toHaveLength(2);
-    expect(said).toEqual([s.sentence(answer(false), VENUE)]);
+    expect(said).toEqual([s.sentence(answer(false), MODELLED_ANEW)]);
+  });
+
+  it('a mismatch naming the very settings sent is no update: said as the server put it, not retried', async () => {
+    const { s, said } = session();
+    api.locate.mockRejectedValueOnce(mapUpdatedProblem(7));
+    await s.whereAmI();
+    expect(api.locate).toHaveBeenCalledTimes(1);
+    expect(said).toEqual([`The server could not answer: ${stale}`]);
   });
 
   it('modelled anew twice in one press: says the map was updated, once, and asks again no more', async () => {

@@ -241,6 +241,18 @@ class Videos:
         return out
 
     @staticmethod
+    def forget_frames(c: Connection, venue_id: str) -> None:
+        """No video of the venue has frames (a modelling anew commits a generation of its own
+        videos, mark_modelled next), in the caller's (the job's) transaction."""
+        c.execute(
+            text(
+                "UPDATE videos SET frames = 0, status = CASE WHEN status = 'modelled' THEN 'ready' ELSE status END "
+                "WHERE venue = :v"
+            ),
+            {"v": venue_id},
+        )
+
+    @staticmethod
     def mark_modelled(c: Connection, venue_id: str, results: list[ModelResult]) -> None:
         """Record modelled videos and their frame counts, in the caller's (the job's) transaction."""
         for r in results:

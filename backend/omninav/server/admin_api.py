@@ -297,6 +297,8 @@ def start_job(venue_id: str) -> Any:
     anew = body.get("anew", False)
     if not isinstance(anew, bool):
         raise OmninavError("job 'anew' must be true or false")
+    if anew and "videos" in body:
+        raise OmninavError("a modelling anew models every modelling video of the venue: leave out 'videos'")
     job = _svc().jobs.submit(venue_id, body.get("videos"), anew)
     return _created(job_doc(job), f"/api/admin/jobs/{job['id']}")
 

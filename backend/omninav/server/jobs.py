@@ -240,12 +240,23 @@ class Jobs:
         generation holds only the job's videos)."""
         vids = self.cat.videos.all(venue_id)
         if anew:
-            if names is not None:
-                raise OmninavError("a modelling anew models every modelling video of the venue: leave out 'videos'")
             walks = [v for v in vids if v["role"] == "model" and v["status"] in ("ready", "modelled")]
-            names = [v["name"] for v in walks if _tracked(v)]
-            if not names:
+            every: list[str] = [v["name"] for v in walks if _tracked(v)]
+            if not every:
                 raise Conflict(f"venue {venue_id!r} has no uploaded modelling video with a track to model anew")
+            # the new generation holds only these: refuse rather than drop another walk's frames
+            # (modelled by the command line, or registered again and still uploading)
+            if lost := [n for n in self.cat.store.modelled_videos(venue_id) if n not in every]:
+                raise Conflict(
+                    f"modelling anew would drop the frames of {', '.join(map(repr, lost))}: it models only "
+                    "uploaded modelling videos with a track; upload and tag them first"
+                )
+            if gone := [n for n in every if not (self.cat.videos.dir(venue_id) / n).is_file()]:
+                raise Conflict(
+                    f"video {gone[0]!r} has no uploaded file here (a backup restored without videos?): "
+                    "upload it again before modelling anew"
+                )
+            return every
         if names is None:
             ready = [v for v in vids if v["status"] == "ready" and v["role"] == "model"]
             names = [v["name"] for v in ready if _tracked(v)]
@@ -701,11 +712,8 @@ class Jobs:
         with self.db.tx() as c:
             if not c.execute(text(f"UPDATE jobs SET state = 'done', finished = :t WHERE {self._MINE}"), mine).rowcount:
                 raise Lost  # leaving the block this way rolls the transaction back
-            if anew:
-                c.execute(
-                    text("UPDATE videos SET status = 'ready', frames = 0 WHERE venue = :v AND status = 'modelled'"),
-                    {"v": venue},
-                )
+            if anew:  # the new generation holds the job's videos only
+                Videos.forget_frames(c, venue)
             Videos.mark_modelled(c, venue, results)
         log.info("job %s done", jid)
 

@@ -50,6 +50,7 @@ export const NO_GUIDANCE =
 export const GUIDE_UNREACHABLE =
   'Cannot reach the omninav server; still trying. Check that the phone is on the building’s Wi-Fi.';
 export const GUIDE_BUSY = 'The server is busy; still trying.';
+export const GUIDE_MAP_UPDATED = 'The building’s map has just been updated; guidance goes on with the new one.';
 export const SCREEN_ON =
   'This phone may lock its screen while you walk, and guidance then goes quiet. Set the phone to lock later, or unlock it when guidance goes quiet.';
 export const CHOOSE_FIRST = 'Choose a place to go to first.';
@@ -149,6 +150,7 @@ function fatal(e: unknown): boolean {
 /** What the user hears about a problem while guided: what went wrong, and whether it goes on. */
 export function guideProblemText(e: unknown, to: Target | null, guiding = true): string {
   if (e instanceof Unreachable) return GUIDE_UNREACHABLE;
+  if (mapUpdated(e)) return GUIDE_MAP_UPDATED;
   if (e instanceof ApiProblem) {
     if (e.status === 429 || e.status >= 500) return GUIDE_BUSY;
     if (e.status === 404 && /no place/i.test(e.message))

@@ -22,6 +22,16 @@ export const MAP_UPDATED = 'The building’s map has just been updated; the next
 export const mapUpdated = (e: unknown): boolean =>
   e instanceof ApiProblem && e.status === 400 && typeof e.body.venue_settings_id === 'number';
 
+/**
+ * A locate error of a record made with settings `sentId`: a settings mismatch that names the very
+ * settings sent is no "map updated" (reading the venue again cannot mend it): a plain 400 then.
+ */
+export function staleOrNot(e: unknown, sentId: number): unknown {
+  return mapUpdated(e) && (e as ApiProblem).body.venue_settings_id === sentId
+    ? new ApiProblem(400, (e as ApiProblem).message)
+    : e;
+}
+
 export function problemText(e: unknown): string {
   if (e instanceof Unreachable || e instanceof CameraProblem || e instanceof RecordMismatch) return e.message;
   if (e instanceof ApiProblem) {

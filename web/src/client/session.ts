@@ -35,7 +35,7 @@ import type { Lens } from '../shared/lens';
 import type { LensCheck } from '../shared/protocol';
 import { encodeRecord, recordMismatch } from '../shared/record';
 import type { Prefs } from './prefs';
-import { NO_FRAMES, NO_LENS, RecordMismatch, mapUpdated, problemText } from './problems';
+import { NO_FRAMES, NO_LENS, RecordMismatch, mapUpdated, problemText, staleOrNot } from './problems';
 import type { Cue } from './speech';
 
 const CLIP_FRAMES = 10; // ~1 s at 10 fps: enough for the clip to outvote a single wrong frame
@@ -175,6 +175,8 @@ export class Session extends Emitter<SessionEvents> {
   private lastGist = '';
   /** The running continuous loop. */
   private loop: Loop | null = null;
+  /** A turn of the loop is filming or being answered (tellTracked). */
+  private inTurn = false;
   /** "Where am I?" was pressed while a turn of the loop ran: that turn's answer is said in full. */
   private pressedInTurn = false;
   /** The filming on after a press's first second; `stopped` ends it (an answer, Stop). */
@@ -326,7 +328,7 @@ export class Session extends Emitter<SessionEvents> {
     if (this.busy) {
       // a turn of "Keep telling me" is filming or being answered: its answer is this press's, said
       // in full when it comes (another press's own answer is on its way already)
-      if (this.loop) this.pressedInTurn = true;
+      if (this.inTurn) this.pressedInTurn = true;
       return;
     }
     this.busy = true;
@@ -366,7 +368,9 @@ export class Session extends Emitter<SessionEvents> {
       const rest = captureClip(video, ext, MORE_FRAMES, CLIP_INTERVAL_MS, () => more.stopped, clip);
       rest.catch(() => undefined); // a failure matters only when the frames are used (filmMore)
       let t0 = performance.now();
-      let a = await locate(v.id, record, clip.fps, `web-${Date.now()}`);
+      let a = await locate(v.id, record, clip.fps, `web-${Date.now()}`).catch((e: unknown) => {
+        throw staleOrNot(e, v.features.settings_id);
+      });
       if (trusted(a)) more.stopped = true;
       else {
         const longer = await this.filmMore(clip, rest, more);
@@ -374,7 +378,9 @@ export class Session extends Emitter<SessionEvents> {
         clip = longer;
         record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id);
         t0 = performance.now();
-        a = await locate(v.id, record, clip.fps, `web-${Date.now()}`);
+        a = await locate(v.id, record, clip.fps, `web-${Date.now()}`).catch((e: unknown) => {
+          throw staleOrNot(e, v.features.settings_id);
+        });
       }
       const rttMs = performance.now() - t0;
       this.lastAnswer = a;
@@ -430,6 +436,8 @@ export class Session extends Emitter<SessionEvents> {
         t: clip.endMs / 1000,
         steps: m?.steps,
         turn_deg: m?.turn_deg,
+      }).catch((e: unknown) => {
+        throw staleOrNot(e, r.v.features.settings_id);
       });
       this.lastAnswer = a;
       const located = this.located(a, r, clip, record.length, performance.now() - t0);
@@ -536,12 +544,21 @@ export class Session extends Emitter<SessionEvents> {
     const feed = this.o.motion;
     const read: { reading?: MotionReading } = {};
     try {
-      const r = await this.track({ session: loop.session }, () => {
-        const m = feed?.peek();
-        read.reading = m;
-        return { steps: m?.steps ?? null, turn_deg: m?.turn_deg ?? null };
-      });
-      if (!r || this.loop !== loop) return;
+      let r: Located | null;
+      this.inTurn = !this.busy; // busy: track() skips this turn at once
+      try {
+        r = await this.track({ session: loop.session }, () => {
+          const m = feed?.peek();
+          read.reading = m;
+          return { steps: m?.steps ?? null, turn_deg: m?.turn_deg ?? null };
+        });
+      } finally {
+        this.inTurn = false;
+      }
+      if (!r || this.loop !== loop) {
+        this.pressedInTurn = false;
+        return;
+      }
       if (read.reading) feed?.commit(read.reading);
       const pressed = this.pressedInTurn;
       this.pressedInTurn = false;

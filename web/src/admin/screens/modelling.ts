@@ -38,11 +38,11 @@ export function anewNotice(v: AdminVenue, videos: Video[]): string | null {
   const names = anewVideos(videos);
   const what = names.length
     ? `Modelling anew models ${names.join(', ')} again with them`
-    : 'Modelling anew needs the modelling videos with their tracks, and none is uploaded';
+    : 'Modelling anew needs the modelling videos with their tracks, and no uploaded modelling video has a track yet';
   return (
-    `This venue was modelled with older feature settings (id ${v.features.settings_id}); its preset now ` +
-    `has newer ones (id ${v.preset_settings_id}). ${what}. Until that is complete the venue answers as ` +
-    'it does now; phones take up the new settings by themselves.'
+    'This venue was modelled with older feature settings than its preset has now. ' +
+    `${what}. Until that is complete the venue answers as it does now; phones take up the new ` +
+    'settings by themselves.'
   );
 }
 
@@ -68,10 +68,12 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   const progress = new JobProgress(ctx.api, 'Modelling progress');
   progress.el.classList.add('job-bar');
   progress.el.id = 'model-progress';
-  const outcome = el('p', { id: 'model-outcome' });
+  // focusable from code: a finished modelling anew hides the button that had the focus
+  const outcome = el('p', { id: 'model-outcome', tabIndex: -1 });
   const anewWhy = el('p', { className: 'hint', id: 'model-anew-why' });
   const anew = button('Model anew with the current settings', () => void startJob(true));
   anew.id = 'model-anew';
+  anew.setAttribute('aria-describedby', 'model-anew-why');
   const anewBox = el(
     'div',
     { id: 'model-anew-box' },
@@ -200,6 +202,9 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     }
     running = null;
     drawVideos();
+    // the anew button hid with its box: keep the keyboard's place on what happened
+    if (last.anew && anewBox.hidden && (document.activeElement === document.body || !document.activeElement))
+      outcome.focus();
   };
 
   const startJob = async (isAnew = false) => {
