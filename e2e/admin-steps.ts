@@ -184,5 +184,7 @@ export async function modelAndWait(page: Page, timeout = 300_000): Promise<void>
   await expect(bar).toBeVisible();
   await expect(bar).toHaveAttribute('aria-valuetext', '100 %', { timeout });
   await expect(page.locator('#model-outcome')).toContainText('Modelling done', { timeout: 30_000 });
+  // the button was disabled while the job ran: the keyboard's place is on what happened
+  await expect(page.locator('#model-outcome')).toBeFocused();
   await expect(page.locator('#live-generation')).toContainText(/generation \d+/);
 }

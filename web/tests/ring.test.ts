@@ -290,6 +290,17 @@ describe('the lens watch: when to check, what to say', () => {
     expect(w.record({ ...grown, scale: 1.011 }, 'k')).toBeNull();
   });
 
+  it('the venue modelled anew (new settings, same lens): the same correction found again says nothing', () => {
+    const w = new LensWatch();
+    const key = (lens: unknown, settingsId: number) => JSON.stringify([lens, { settings_id: settingsId }]);
+    expect(w.record(check('corrected', 6, -3), key(LENS, 1))).toEqual({ text: CORRECTED, stop: false });
+    expect(w.due(key(LENS, 2))).toBe(true); // the worker dropped the correction: look again
+    expect(w.record(check('corrected', 6.1, -3), key(LENS, 2))).toBeNull();
+    // another lens is another matter
+    const other = { ...LENS, center: [LENS.center[0] + 1, LENS.center[1]] };
+    expect(w.record(check('corrected', 6.1, -3), key(other, 2))).toEqual({ text: CORRECTED, stop: false });
+  });
+
   it('an abrupt change: the brightness jumps, or the ring`s edge fades; not a little drift', () => {
     const base = { mean: 90, edge: 60 };
     expect(lookChanged(base, { mean: 95, edge: 55 })).toBe(false);

@@ -74,6 +74,16 @@ export async function checkLensOn(
   return ext.checkLens(bitmaps);
 }
 
+/** The lens of a worker configuration (bridge.ts's key: JSON of [lens, settings]); another key whole. */
+export function lensPart(configured: string | null): string | null {
+  try {
+    const parsed: unknown = configured === null ? null : JSON.parse(configured);
+    return Array.isArray(parsed) && parsed.length === 2 ? JSON.stringify(parsed[0]) : configured;
+  } catch {
+    return configured;
+  }
+}
+
 /**
  * When the lens must be checked, and what the last check found: the worker's configuration it was
  * made for (a new lens or venue drops the worker's correction), the look then, and the correction
@@ -113,7 +123,9 @@ export class LensWatch {
       this.checkedFor = null; // checked again on the next press
       return words;
     }
-    const was = this.heldFor === configured ? this.held : NONE;
+    // the same lens with the venue's new feature settings (modelled anew) is the same lens on the
+    // phone: the worker dropped its correction, but finding it again is no news to the user
+    const was = lensPart(this.heldFor) === lensPart(configured) ? this.held : NONE;
     const now: Correction = c.verdict === 'corrected' ? { dx: c.dx, dy: c.dy, scale: c.scale } : NONE;
     this.checkedFor = configured;
     this.heldFor = configured;

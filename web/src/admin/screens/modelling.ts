@@ -202,9 +202,9 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     }
     running = null;
     drawVideos();
-    // the anew button hid with its box: keep the keyboard's place on what happened
-    if (last.anew && anewBox.hidden && (document.activeElement === document.body || !document.activeElement))
-      outcome.focus();
+    // the button pressed was disabled while the job ran (or hid with its box), which left the
+    // focus on the page: keep the keyboard's place on what happened, unless it moved elsewhere
+    if (document.activeElement === document.body || !document.activeElement) outcome.focus();
   };
 
   const startJob = async (isAnew = false) => {
