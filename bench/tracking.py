@@ -3,10 +3,11 @@
 For every venue family and seed (bench/families.py renders, models and caches them), a walk is
 searched once, frame by frame (cached beside it); then every 1 s and every 2.5 s (the phone's
 pace) the 1 s clip ending there is answered twice: alone (aggregate.sequence, what a locate
-without a session answers) and through the tracking filter (tracking.py), with only the evidence
-up to that moment, without and with the phone's motion (an imu.json of steps and gyroscope yaw
-with realistic noise, synth/walks.imu_for, made once beside the walk; and, from 0 s, that IMU
-with no steps counted at all: a phone held steady, a wheelchair). Walks: `query`, the
+without a session answers) and through the tracking filter (tracking.py; fed that answer's
+confidence too, as a server's tracked locate does), with only the evidence up to that moment,
+without and with the phone's motion (an imu.json of steps and gyroscope yaw with realistic
+noise, synth/walks.imu_for, made once beside the walk; and, from 0 s, that IMU with no steps
+counted at all: a phone held steady, a wheelchair). Walks: `query`, the
 family's query walk (also started afresh at 0, 20, 40, 60 and 80 s), and `stops`, the same walk
 with three stops of 3-8 s, rendered once like the query walk. Printed as markdown, per family
 and per split (tuning / held-out), over the seconds after the first 5: within 2 m, within 1 m,
@@ -170,8 +171,10 @@ def run(
         m, times = sub(w.m, s), w.t[s]
         t_now = float(times[-1])
         motion = imu.motion(t_prev, t_now) if imu is not None and t_prev is not None else None
+        est = sequence(m, loc.xy, times, loc.conf)  # the clip alone, as a locate without a session answers
+        c1 = confidence(est, loc.conf)
         c0 = time.process_time()
-        state, pose = tr.update(state, m, times, t_now, motion)
+        state, pose = tr.update(state, m, times, t_now, motion, c1)
         cpu = time.process_time() - c0
         t_prev = t_now
         tx, ty = w.xy[e]
@@ -189,12 +192,11 @@ def run(
             "updates": pose.updates,
             "cpu_s": cpu,
         }
+        row["single_confidence"] = c1
         if single:
-            est = sequence(m, loc.xy, times, loc.conf)
             row.update(
                 single_err_m=float(np.hypot(est.x - tx, est.y - ty)),
                 single_heading_err_deg=float(abs(wrap_deg(est.heading - w.heading[e]))),
-                single_confidence=confidence(est, loc.conf),
             )
         rows.append(row)
     return rows

@@ -197,6 +197,68 @@ def test_a_split_belief_is_ambiguous_with_low_confidence(twin: Venue) -> None:
         assert (pose.confidence < 0.5) if ambiguous else (pose.confidence >= 0.8)
 
 
+def test_a_sure_answer_is_not_stood_by_while_the_recent_clips_are_unsure(twin: Venue) -> None:
+    """The walk has made the belief sure; then the clips stop matching the model well (their own
+    confidence low): the answer's place is unchanged but it is no longer "sure" (held at
+    track_recent_cap) until the clips' mean over about track_recent_s seconds recovers."""
+    x0, y0, _, _ = TWIN_RING
+    t, xy, hd = walk_poses([(12.0, y0), (x0, y0), (x0, 16.0)])
+    state = run_walk(twin, t, xy, hd, twin_evidence(0.8, 0.8))[-1][-1]
+    cap, low = twin.conf["track_recent_cap"], twin.conf["track_recent_min"]
+    assert cap < 0.8 and low is not None and state.recent is None  # (run_walk gives no clip confidence)
+    m = twin.matches([[(x0, 16.0, 180.0, 0.8)]] * 10, np.random.default_rng(2))
+
+    def step(st: TrackState, dt: float, c: float | None):
+        times = st.t + dt + np.arange(-0.9, 0.01, 0.1)
+        return twin.tracker.update(st, m, times, float(times[-1]), None, c)
+
+    plain = step(state, 1.0, None)[1]
+    assert plain.confidence >= 0.8
+    sure, p_sure = step(state, 1.0, 0.95)
+    assert sure.recent == pytest.approx(0.95) and p_sure.confidence == pytest.approx(plain.confidence)
+    doubt, p_doubt = step(state, 1.0, 0.1)  # a first clip says the mean
+    assert doubt.recent == pytest.approx(0.1) and p_doubt.confidence == pytest.approx(cap)
+    assert (p_doubt.node, p_doubt.x, p_doubt.y) == (plain.node, plain.x, plain.y)  # the same answer
+    # after sure clips, one middling clip does not undo them; a run of unsure ones does
+    mid, p_mid = step(sure, 1.0, 0.6)
+    assert low < mid.recent < 0.95 and p_mid.confidence >= 0.8
+    st, conf = sure, []
+    for _ in range(3):
+        st, p = step(st, 1.0, 0.2)
+        conf.append(p.confidence)
+    assert conf[-1] == pytest.approx(cap) and st.recent < low
+    # and clips that match well again bring "sure" back within a few seconds
+    for _ in range(3):
+        st, p = step(st, 1.0, 0.95)
+    assert st.recent > low and p.confidence >= 0.8
+    # the mean is over time, not over clips: one clip 2.5 s after sure ones moves it further
+    assert step(sure, 2.5, 0.2)[0].recent < step(sure, 1.0, 0.2)[0].recent
+    # off: the rule never holds an answer back
+    off = Tracker(twin.graph, twin.xy, np.full(len(twin.xy), "1"), {**twin.conf, "track_recent_min": None})
+    times = state.t + 1 + np.arange(-0.9, 0.01, 0.1)
+    assert off.update(state, m, times, float(times[-1]), None, 0.1)[1].confidence == pytest.approx(plain.confidence)
+
+
+def test_the_recent_clips_mean_is_saved_with_the_state(twin: Venue) -> None:
+    x0, y0, _, _ = TWIN_RING
+    t, xy, hd = walk_poses([(12.0, y0), (x0, y0)])
+    state = run_walk(twin, t, xy, hd, twin_evidence(0.8, 0.8))[-1][-1]
+    m = twin.matches([[(x0, y0, 180.0, 0.8)]] * 10, np.random.default_rng(3))
+    times = state.t + 1 + np.arange(-0.9, 0.01, 0.1)
+    new, _ = twin.tracker.update(state, m, times, float(times[-1]), None, 0.3)
+    assert new.recent == pytest.approx(0.3) and new.alike is not None
+    b = new.to_bytes()
+    back = TrackState.from_bytes(b, twin.graph)
+    assert back is not None and back.recent == pytest.approx(0.3) and back.alike is not None
+    # a state saved without it (before it existed: the same bytes less the tail) reads with None
+    old = TrackState.from_bytes(state.to_bytes(), twin.graph)
+    assert old is not None and old.recent is None and old.alike is not None
+    # a mean that is no probability, or bytes after it: refused like any corrupt state
+    body = b[:-4]
+    for bad in (body[:-8] + struct.pack("<d", 1.5), body[:-8] + struct.pack("<d", float("nan")), body + b"x"):
+        assert TrackState.from_bytes(bad + struct.pack("<I", zlib.crc32(bad)), twin.graph) is None
+
+
 def test_state_round_trips_and_refuses_another_graph_or_corrupt_bytes(twin: Venue) -> None:
     x0, y0, _, _ = TWIN_RING
     t, xy, hd = walk_poses([(12.0, y0), (x0, y0), (x0, 16.0)])

@@ -103,6 +103,14 @@ def test_a_tracked_walk_continues_one_filter_whose_state_is_in_the_database(lab:
     row = sessions(app).get("lab", SESSION)
     assert row is not None and row.generation == app.extensions["omninav"].catalog.store.generation("lab")
     assert row.guide is None and len(row.state) > 0 and row.expires > row.updated
+    # the state carries the clips' own confidence, as the answers gave it (the recent clips' rule)
+    from omninav.tracking import TrackState
+
+    walk_graph = app.extensions["omninav"].runtimes.get("lab").walk().graph
+    state = TrackState.from_bytes(row.state, walk_graph)
+    assert state is not None and state.recent is not None
+    said = [a["tracking"]["single"]["confidence"] for a in answers]
+    assert min(said) - 1e-3 <= state.recent <= max(said) + 1e-3  # a mean of them
 
 
 def test_the_session_table_keeps_nothing_personal(lab: Any) -> None:

@@ -193,7 +193,7 @@ class Locator:
         m, times = self._search(q_spec, times)
         e = AGGREGATORS[agg](m, self.xy, times, self.conf)
         now = float(times[-1]) if t_now is None else float(t_now)
-        new, pose = tracker.update(state, m, times - times[-1] + now, now, motion)
+        new, pose = tracker.update(state, m, times - times[-1] + now, now, motion, confidence(e, self.conf))
         return new, pose, e
 
     def track_answer(self, pose: TrackPose, clip: str, t: float | None = None) -> dict[str, Any]:

@@ -63,6 +63,14 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
   families' walks only). `ambiguous` when at least `track_ambiguous` of the belief lies 3 m or
   more from the answer: the answer says "not sure" (confidence held below 0.5) and the walk that
   follows resolves it.
+- **Recent clips** (`track_recent_min`): while the clips' own confidence (each clip's single
+  answer's, aggregate.confidence), averaged over about the last `track_recent_s` seconds, is
+  below `track_recent_min`, the answer is not stood by (its confidence held at
+  `track_recent_cap`, below the app's "sure", 0.8). The beliefs' confidence says how far the
+  walk has ruled the other places out; it cannot see that the clips have stopped matching the
+  model anywhere well (an open hall in another light, a bare corridor), which is when a belief
+  drifts with the conditions' favourite wrong spot while staying sure. Chosen on the tuning
+  families' walks (docs/benchmarks.md, "Recent clips").
 """
 
 from __future__ import annotations
@@ -105,6 +113,7 @@ ALIKE_MAX_NATS = 8.0  # a look-alike this far below (in log-likelihood) can neve
 MAGIC = b"ONT2"  # the nodes kept one by one
 MAGIC_ALL = b"ONTA"  # every node's belief and facing (zlib: a flat or broad belief packs small)
 ALIKE, ALIKE_ALL = b"AS", b"AW"  # then the second belief: its nodes one by one, or whole
+RECENT = b"RC"  # then the recent clips' mean confidence (float64)
 HEADER = "<4sdIfIB"  # magic, t, updates, heading (NaN: none), nodes of the graph, length of its key
 
 
@@ -138,6 +147,9 @@ class TrackState:
     # Tracker.beta; the answer's confidence is also read from it); None when the venue has no
     # look-alikes and its settings turn the tempering off
     alike: np.ndarray | None = None
+    # the clips' own confidence, averaged over about the last track_recent_s seconds (None: no
+    # clip said, or a state saved before it existed: the next clip's starts it)
+    recent: float | None = None
 
     def to_bytes(self) -> bytes:
         """A header with the graph's key, the belief (float16 relative to the largest) and facing
@@ -164,13 +176,16 @@ class TrackState:
         if self.alike is not None:
             whole, part = _pack(np.asarray(self.alike, np.float64), None)
             body += (ALIKE_ALL if whole else ALIKE) + part
+        if self.recent is not None:
+            body += RECENT + struct.pack("<d", self.recent)
         return body + struct.pack("<I", zlib.crc32(body))
 
     @staticmethod
     def from_bytes(b: bytes, graph: WalkGraph) -> TrackState | None:
         """A state saved by to_bytes, or None: corrupt, or saved against another graph. A state
         saved without the second belief (or before it existed) reads with `alike` None (the
-        next update starts it as the belief)."""
+        next update starts it as the belief); one without the recent clips' confidence with
+        `recent` None."""
         try:
             if len(b) < 4 or zlib.crc32(b[:-4]) != struct.unpack("<I", b[-4:])[0]:
                 return None
@@ -185,17 +200,24 @@ class TrackState:
             if got is None:
                 return None
             belief, facing, off = got
-            alike = None
-            if off < len(b):
+            alike, recent = None, None
+            if b[off : off + len(ALIKE)] in (ALIKE, ALIKE_ALL):
                 tag = b[off : off + len(ALIKE)]
-                got = _unpack(b, off + len(tag), n, tag == ALIKE_ALL, False) if tag in (ALIKE, ALIKE_ALL) else None
-                if got is None or got[2] != len(b):
+                got = _unpack(b, off + len(tag), n, tag == ALIKE_ALL, False)
+                if got is None:
                     return None
-                alike = got[0]
+                alike, off = got[0], got[2]
+            if b[off : off + len(RECENT)] == RECENT:
+                (recent,) = struct.unpack_from("<d", b, off + len(RECENT))
+                off += len(RECENT) + 8
+                if not 0.0 <= recent <= 1.0:
+                    return None
+            if off != len(b):
+                return None
         except (struct.error, UnicodeDecodeError, ValueError, zlib.error):
             return None
         h = float(heading) if np.isfinite(heading) else None
-        return TrackState(float(t), belief, key, int(updates), h, facing, alike)
+        return TrackState(float(t), belief, key, int(updates), h, facing, alike, recent)
 
 
 def _pack(p: np.ndarray, face: np.ndarray | None) -> tuple[bool, bytes]:
@@ -583,9 +605,12 @@ class Tracker:
         times: np.ndarray,
         t_now: float,
         motion: Motion | None = None,
+        clip_confidence: float | None = None,
     ) -> tuple[TrackState, TrackPose]:
         """One clip's matches (Q, k) and frame times (last == t_now) -> the new state and pose.
-        state None (or another graph's, or too old) -> start over from a uniform belief."""
+        state None (or another graph's, or too old) -> start over from a uniform belief.
+        `clip_confidence`: the clip's own answer's (aggregate.confidence), for the recent clips'
+        rule (None: the rule does not apply to this update)."""
         motion = motion or Motion()
         times = np.asarray(times, np.float64)
         if len(times) != matches.index.shape[0] or len(times) == 0:
@@ -645,8 +670,26 @@ class Tracker:
             post_a = prior_a * ((1 - rho) * np.exp(cautious) + rho)
             post_a /= post_a.sum()
         pose = self.pose(post, matches, times, t_now, gyro, updates + 1, last, post_a)
+        recent, dt = (None, 0.0) if fresh or state is None else (state.recent, t_now - state.t)
+        if clip_confidence is not None:
+            recent = self.recent(recent, float(clip_confidence), dt)
+            low = _conf(self.conf, "track_recent_min")
+            if low is not None and recent < float(low):
+                pose = replace(pose, confidence=min(pose.confidence, float(_conf(self.conf, "track_recent_cap"))))
         heading = pose.heading if pose.heading_known else None
-        return TrackState(float(t_now), post, self.graph.key, updates + 1, heading, facing, post_a), pose
+        state = TrackState(float(t_now), post, self.graph.key, updates + 1, heading, facing, post_a, recent)
+        return state, pose
+
+    def recent(self, before: float | None, clip: float, dt: float) -> float:
+        """The recent clips' mean confidence after a clip of confidence `clip`, `dt` s after the
+        last: an exponential mean over about track_recent_s seconds (the same whether the phone
+        asks every second or every few), started by the first clip."""
+        clip = min(max(clip, 0.0), 1.0)
+        if before is None:
+            return clip
+        tau = float(_conf(self.conf, "track_recent_s"))
+        a = 1.0 - float(np.exp(-max(dt, 0.0) / tau))
+        return before + a * (clip - before)
 
     def pose(
         self,
