@@ -237,6 +237,31 @@ def test_a_sure_answer_is_not_stood_by_while_the_recent_clips_are_unsure(twin: V
     off = Tracker(twin.graph, twin.xy, np.full(len(twin.xy), "1"), {**twin.conf, "track_recent_min": None})
     times = state.t + 1 + np.arange(-0.9, 0.01, 0.1)
     assert off.update(state, m, times, float(times[-1]), None, 0.1)[1].confidence == pytest.approx(plain.confidence)
+    # an update without the clip's confidence (or with one that is no number) leaves the rule out,
+    # and the mean starts over at the next clip rather than carrying a stale one across the gap
+    for none in (None, float("nan")):
+        gap, p_gap = step(doubt, 1.0, none)
+        assert gap.recent is None and p_gap.confidence >= 0.8  # (the mean was 0.1: not held)
+        assert step(gap, 1.0, 0.9)[0].recent == pytest.approx(0.9)
+
+
+@pytest.mark.parametrize(
+    "key, bad",
+    [
+        ("track_recent_s", 0),
+        ("track_recent_s", -1.0),
+        ("track_recent_s", None),
+        ("track_recent_s", float("inf")),
+        ("track_recent_min", 1.5),
+        ("track_recent_min", "0.5"),
+        ("track_recent_cap", None),
+        ("track_recent_cap", -0.1),
+        ("track_recent_cap", True),
+    ],
+)
+def test_recent_clips_settings_that_would_fail_every_locate_are_refused(twin: Venue, key: str, bad: object) -> None:
+    with pytest.raises(ValueError, match=key):
+        Tracker(twin.graph, twin.xy, np.full(len(twin.xy), "1"), {**twin.conf, key: bad})
 
 
 def test_the_recent_clips_mean_is_saved_with_the_state(twin: Venue) -> None:
@@ -253,6 +278,16 @@ def test_the_recent_clips_mean_is_saved_with_the_state(twin: Venue) -> None:
     # a state saved without it (before it existed: the same bytes less the tail) reads with None
     old = TrackState.from_bytes(state.to_bytes(), twin.graph)
     assert old is not None and old.recent is None and old.alike is not None
+    # without the second belief (a venue without look-alikes, tempering off) the mean still travels
+    lone = TrackState(new.t, new.belief, new.graph_key, new.updates, new.heading, new.facing, None, 0.3)
+    got = TrackState.from_bytes(lone.to_bytes(), twin.graph)
+    assert got is not None and got.alike is None and got.recent == pytest.approx(0.3)
+    # the sections in another order are no state this code wrote
+    rc = b"RC" + struct.pack("<d", 0.3)
+    head = lone.to_bytes()[: -4 - len(rc)]
+    with_alike = new.to_bytes()[:-4]
+    swapped = head + rc + with_alike[len(head) + 0 : -len(rc)]
+    assert TrackState.from_bytes(swapped + struct.pack("<I", zlib.crc32(swapped)), twin.graph) is None
     # a mean that is no probability, or bytes after it: refused like any corrupt state
     body = b[:-4]
     for bad in (body[:-8] + struct.pack("<d", 1.5), body[:-8] + struct.pack("<d", float("nan")), body + b"x"):

@@ -193,6 +193,8 @@ class Locator:
         m, times = self._search(q_spec, times)
         e = AGGREGATORS[agg](m, self.xy, times, self.conf)
         now = float(times[-1]) if t_now is None else float(t_now)
+        # the clip's own confidence, as its single answer says it (the venue's aggregation and
+        # confidence model): the filter's recent-clips rule reads it
         new, pose = tracker.update(state, m, times - times[-1] + now, now, motion, confidence(e, self.conf))
         return new, pose, e
 

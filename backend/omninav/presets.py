@@ -86,7 +86,7 @@ DEFAULTS: dict[str, Any] = {
     "track_confidence_coef": [-0.436, 5.367, -2.68, 1.883],
     # the answer is not "sure" (confidence held at track_recent_cap) while the clips' own
     # confidence, averaged over about the last track_recent_s seconds, is below track_recent_min
-    # (tracking.py, "Recent clips"); None: off
+    # (tracking.py, "Recent clips"); track_recent_min None: off
     "track_recent_s": 1.0,
     "track_recent_min": 0.5,
     "track_recent_cap": 0.79,

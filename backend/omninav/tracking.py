@@ -122,6 +122,11 @@ def _conf(conf: Mapping[str, Any], key: str) -> Any:
     return conf.get(key, DEFAULTS[key])
 
 
+def _number(v: Any) -> bool:
+    """A finite real number (not a bool, not a string that looks like one)."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
+
+
 @dataclass(frozen=True)
 class Motion:
     """The phone's own sensors between the previous update and this one."""
@@ -372,6 +377,18 @@ class Tracker:
         if ref is not None and not 0.0 <= float(ref) < 1.0:  # 1 or more would turn the evidence over
             raise ValueError(f"track_beta_ref must be in [0, 1) or None, got {ref!r}")
         self.beta_ref = None if ref is None else float(ref)  # (beta; None: no tempering)
+        # the recent clips' rule: a bad value would fail every tracked locate, or write states that
+        # cannot be read back (a mean outside [0, 1]): refused here, like a bad track_beta_ref
+        tau, low, cap = (_conf(conf, k) for k in ("track_recent_s", "track_recent_min", "track_recent_cap"))
+        if not (_number(tau) and float(tau) > 0):
+            raise ValueError(f"track_recent_s must be a number of seconds > 0, got {tau!r}")
+        if low is not None and not (_number(low) and 0.0 <= float(low) <= 1.0):
+            raise ValueError(f"track_recent_min must be in [0, 1] or None (off), got {low!r}")
+        if not (_number(cap) and 0.0 <= float(cap) <= 1.0):
+            raise ValueError(f"track_recent_cap must be in [0, 1], got {cap!r}")
+        self.recent_s = float(tau)
+        self.recent_min = None if low is None else float(low)
+        self.recent_cap = float(cap)
         self.xy = np.asarray(graph.xy, np.float64)
         self.floor = np.asarray(graph.floor).astype(str)
         vxy = np.asarray(venue_xy, np.float64)
@@ -610,7 +627,7 @@ class Tracker:
         """One clip's matches (Q, k) and frame times (last == t_now) -> the new state and pose.
         state None (or another graph's, or too old) -> start over from a uniform belief.
         `clip_confidence`: the clip's own answer's (aggregate.confidence), for the recent clips'
-        rule (None: the rule does not apply to this update)."""
+        rule (None: the rule does not apply to this update, and its mean starts over)."""
         motion = motion or Motion()
         times = np.asarray(times, np.float64)
         if len(times) != matches.index.shape[0] or len(times) == 0:
@@ -670,12 +687,14 @@ class Tracker:
             post_a = prior_a * ((1 - rho) * np.exp(cautious) + rho)
             post_a /= post_a.sum()
         pose = self.pose(post, matches, times, t_now, gyro, updates + 1, last, post_a)
-        recent, dt = (None, 0.0) if fresh or state is None else (state.recent, t_now - state.t)
-        if clip_confidence is not None:
-            recent = self.recent(recent, float(clip_confidence), dt)
-            low = _conf(self.conf, "track_recent_min")
-            if low is not None and recent < float(low):
-                pose = replace(pose, confidence=min(pose.confidence, float(_conf(self.conf, "track_recent_cap"))))
+        # (an update without the clip's confidence, or with one that is no number, leaves the
+        # rule out and starts the mean over at the next: a mean carried across it would be stale)
+        recent = None
+        if clip_confidence is not None and np.isfinite(clip_confidence):
+            before, dt = (None, 0.0) if fresh or state is None else (state.recent, t_now - state.t)
+            recent = self.recent(before, float(clip_confidence), dt)
+            if self.recent_min is not None and recent < self.recent_min:
+                pose = replace(pose, confidence=min(pose.confidence, self.recent_cap))
         heading = pose.heading if pose.heading_known else None
         state = TrackState(float(t_now), post, self.graph.key, updates + 1, heading, facing, post_a, recent)
         return state, pose
@@ -687,8 +706,7 @@ class Tracker:
         clip = min(max(clip, 0.0), 1.0)
         if before is None:
             return clip
-        tau = float(_conf(self.conf, "track_recent_s"))
-        a = 1.0 - float(np.exp(-max(dt, 0.0) / tau))
+        a = 1.0 - float(np.exp(-max(dt, 0.0) / self.recent_s))
         return before + a * (clip - before)
 
     def pose(
