@@ -13,6 +13,7 @@ import {
   adminFile,
   adminTruth,
   chooseVideos,
+  expectSavedTrackNear,
   clickPlanAt,
   modelAndWait,
   planSizeM,
@@ -219,6 +220,9 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     expect(clicks).toBeGreaterThanOrEqual(truth.walk.track.waypoints.length);
     expect(clicks).toBeLessThanOrEqual(2 * truth.walk.track.waypoints.length);
     await saveTrack(page, 'walk.mp4');
+    console.log(
+      `walk.mp4 saved waypoints: at most ${(await expectSavedTrackNear(VENUE, 'walk.mp4', truth.walk.track)).toFixed(2)} m off`,
+    );
     trackOps = 1 + clicks + 1; // "Tag the suggestions in order", a plan click each, "Save the track"
     a.ops += trackOps;
   });
@@ -277,6 +281,9 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     await page.getByLabel('Video', { exact: true }).selectOption('eval.mp4');
     const clicks = await tagBySuggestions(page, truth.eval.track);
     await saveTrack(page, 'eval.mp4');
+    console.log(
+      `eval.mp4 saved waypoints: at most ${(await expectSavedTrackNear(VENUE, 'eval.mp4', truth.eval.track)).toFixed(2)} m off`,
+    );
     a.ops += clicks + 2;
     await a.click(nav(page, 'Evaluation'));
     a.ops++;
@@ -284,13 +291,18 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     await a.click(page.getByRole('button', { name: 'Run the evaluation' }));
     const share = page.locator('#evaluation-within-2m');
     await a.waiting(() => expect(share).toBeVisible({ timeout: 300_000 }));
-    const e = await adminApi<{ summary: { within_2m: number; clips: number } }>(
-      'GET',
-      `/api/admin/venues/${VENUE}/videos/eval.mp4/evaluation`,
-    );
+    type Xy = { x: number; y: number };
+    const e = await adminApi<{
+      summary: { within_2m: number; clips: number };
+      clips: { t: number; truth: Xy; answer: Xy & { confidence: number }; error_m: number }[];
+    }>('GET', `/api/admin/venues/${VENUE}/videos/eval.mp4/evaluation`);
     within2 = e.summary.within_2m;
     await expect(share).toHaveText(`${Math.round(within2 * 100)} %`);
-    expect(within2, 'the evaluation walk within 2 m').toBeGreaterThanOrEqual(0.8);
+    // (the misses named, should it fail: where the walk was and what the venue answered)
+    const misses = e.clips
+      .filter((c) => c.error_m > 2)
+      .map((c) => `${c.t} s (${c.truth.x}, ${c.truth.y}) -> (${c.answer.x}, ${c.answer.y}) @${c.answer.confidence}`);
+    expect(within2, `the evaluation walk within 2 m; misses: ${misses.join('; ')}`).toBeGreaterThanOrEqual(0.8);
     await expect(page.locator('#evaluation-clips tbody tr')).toHaveCount(e.summary.clips);
     await expect(page.locator('#evaluation-summary')).toContainText('within 2 m');
     await expectNoAxeViolations(page, 'the evaluation screen');

@@ -127,6 +127,17 @@ export function truthAt(track: TruthTrack, t: number): { x: number; y: number } 
 export async function clickPlanAt(page: Page, container: string, x: number, y: number, sizeM: [number, number]) {
   const img = page.locator(`${container} img.pm-plan`);
   await expect(img).toBeVisible();
+  // a plan just shown is still being fitted into view (Leaflet animates the zoom for about 250 ms):
+  // a point measured on the moving picture is not the point the map takes the click at. Wait
+  // until no zoom animation runs and the picture stays where it is for a moment.
+  await expect(page.locator(`${container}.leaflet-zoom-anim, ${container} .leaflet-zoom-anim`)).toHaveCount(0);
+  await expect
+    .poll(async () => {
+      const before = await img.boundingBox();
+      await page.waitForTimeout(120);
+      return JSON.stringify(before) === JSON.stringify(await img.boundingBox());
+    })
+    .toBe(true);
   // the map may sit partly below the fold: bring the point itself into the viewport, then check
   // that it lies on the map (a click outside the window or the map's box would go elsewhere)
   const at = async () => {
@@ -169,6 +180,31 @@ export async function tagBySuggestions(page: Page, track: TruthTrack, sizeM = pl
     await expect(page.locator(`#suggestions li.tagged button[data-t="${t}"]`)).toHaveCount(1);
   }
   return clicks;
+}
+
+/**
+ * The track the server keeps for a video: each waypoint where the walker truly was at its time,
+ * within `tolM` (the clicks land where they were aimed, the snapping to corridor lines moves them
+ * little); -> the largest distance. A click measured against a moving plan would land metres off
+ * and make every later figure (modelling, evaluation) wrong for a reason those steps cannot name.
+ */
+export async function expectSavedTrackNear(
+  venue: string,
+  name: string,
+  truth: TruthTrack,
+  tolM = 1.0,
+): Promise<number> {
+  const saved = await adminApi<TruthTrack>('GET', `/api/admin/venues/${venue}/videos/${name}/track`);
+  const fps = saved.fps ?? 30;
+  const off = saved.waypoints.map((p) => {
+    const t = p.t ?? (p.frame ?? 0) / fps;
+    const at = truthAt(truth, t);
+    return { t, d: Math.hypot(p.x - at.x, p.y - at.y) };
+  });
+  const worst = Math.max(...off.map((o) => o.d));
+  const far = off.filter((o) => o.d > tolM).map((o) => `${o.t.toFixed(1)} s: ${o.d.toFixed(2)} m`);
+  expect(far, `waypoints of ${name} further than ${tolM} m from the walk (largest ${worst.toFixed(2)} m)`).toEqual([]);
+  return worst;
 }
 
 /** Save the track on the track screen and wait for the server's yes. */
