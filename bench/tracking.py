@@ -49,6 +49,7 @@ from omninav.track import load_track
 from omninav.tracking import (
     ALIKE_K,
     TRACK_CONFIDENCE_INPUTS,
+    ClipAnswer,
     Imu,
     Motion,
     Tracker,
@@ -174,7 +175,7 @@ def run(
         est = sequence(m, loc.xy, times, loc.conf)  # the clip alone, as a locate without a session answers
         c1 = confidence(est, loc.conf)
         c0 = time.process_time()
-        state, pose = tr.update(state, m, times, t_now, motion, c1)
+        state, pose = tr.update(state, m, times, t_now, motion, ClipAnswer(c1, est.x, est.y, est.venue_row))
         cpu = time.process_time() - c0
         t_prev = t_now
         tx, ty = w.xy[e]
@@ -193,6 +194,7 @@ def run(
             "cpu_s": cpu,
         }
         row["single_confidence"] = c1
+        row["disagree_m"] = float(np.hypot(pose.x - est.x, pose.y - est.y))  # the clip's answer from the filter's
         if single:
             row.update(
                 single_err_m=float(np.hypot(est.x - tx, est.y - ty)),

@@ -28,7 +28,7 @@ from omninav.synth import Dataset
 from omninav.synth.scene import TWIN_RING, twin_routes
 from omninav.synth.walks import imu_for, track_for
 from omninav.track import parse_track
-from omninav.tracking import MAX_STORED, Motion, Tracker, TrackState, node_frames, parse_imu
+from omninav.tracking import MAX_STORED, ClipAnswer, Motion, Tracker, TrackState, node_frames, parse_imu
 from omninav.walkgraph import build
 
 CONF = resolve("default")
@@ -200,17 +200,17 @@ def test_a_split_belief_is_ambiguous_with_low_confidence(twin: Venue) -> None:
 def test_a_sure_answer_is_not_stood_by_while_the_recent_clips_are_unsure(twin: Venue) -> None:
     """The walk has made the belief sure; then the clips stop matching the model well (their own
     confidence low): the answer's place is unchanged but it is no longer "sure" (held at
-    track_recent_cap) until the clips' mean over about track_recent_s seconds recovers."""
+    track_doubt_cap) until the clips' mean over about track_recent_s seconds recovers."""
     x0, y0, _, _ = TWIN_RING
     t, xy, hd = walk_poses([(12.0, y0), (x0, y0), (x0, 16.0)])
     state = run_walk(twin, t, xy, hd, twin_evidence(0.8, 0.8))[-1][-1]
-    cap, low = twin.conf["track_recent_cap"], twin.conf["track_recent_min"]
+    cap, low = twin.conf["track_doubt_cap"], twin.conf["track_recent_min"]
     assert cap < 0.8 and low is not None and state.recent is None  # (run_walk gives no clip confidence)
     m = twin.matches([[(x0, 16.0, 180.0, 0.8)]] * 10, np.random.default_rng(2))
 
     def step(st: TrackState, dt: float, c: float | None):
         times = st.t + dt + np.arange(-0.9, 0.01, 0.1)
-        return twin.tracker.update(st, m, times, float(times[-1]), None, c)
+        return twin.tracker.update(st, m, times, float(times[-1]), None, None if c is None else ClipAnswer(c))
 
     plain = step(state, 1.0, None)[1]
     assert plain.confidence >= 0.8
@@ -236,13 +236,51 @@ def test_a_sure_answer_is_not_stood_by_while_the_recent_clips_are_unsure(twin: V
     # off: the rule never holds an answer back
     off = Tracker(twin.graph, twin.xy, np.full(len(twin.xy), "1"), {**twin.conf, "track_recent_min": None})
     times = state.t + 1 + np.arange(-0.9, 0.01, 0.1)
-    assert off.update(state, m, times, float(times[-1]), None, 0.1)[1].confidence == pytest.approx(plain.confidence)
+    assert off.update(state, m, times, float(times[-1]), None, ClipAnswer(0.1))[1].confidence == pytest.approx(
+        plain.confidence
+    )
     # an update without the clip's confidence (or with one that is no number) leaves the rule out,
     # and the mean starts over at the next clip rather than carrying a stale one across the gap
     for none in (None, float("nan")):
         gap, p_gap = step(doubt, 1.0, none)
         assert gap.recent is None and p_gap.confidence >= 0.8  # (the mean was 0.1: not held)
         assert step(gap, 1.0, 0.9)[0].recent == pytest.approx(0.9)
+
+
+def test_a_sure_answer_is_not_stood_by_when_a_sure_clip_says_it_is_elsewhere(twin: Venue) -> None:
+    """The walk is sure of the west wing; the clip alone is sure of the east twin, 3 m or more
+    away: two calibrated sources disagree, so the answer (still the walk's) is held below "sure".
+    A clip that agrees, or is not sure, or does not say where, changes nothing."""
+    x0, y0, _, _ = TWIN_RING
+    t, xy, hd = walk_poses([(12.0, y0), (x0, y0), (x0, 16.0)])
+    state = run_walk(twin, t, xy, hd, twin_evidence(0.8, 0.8))[-1][-1]
+    m = twin.matches([[(x0, 16.0, 180.0, 0.8)]] * 10, np.random.default_rng(4))
+    times = state.t + 1 + np.arange(-0.9, 0.01, 0.1)
+    row = lambda x, y: int(np.argmin(np.hypot(twin.xy[:, 0] - x, twin.xy[:, 1] - y)))  # noqa: E731
+
+    def pose(tr: Tracker, clip: ClipAnswer | None):
+        return tr.update(state, m, times, float(times[-1]), None, clip)[1]
+
+    plain = pose(twin.tracker, None)
+    assert plain.confidence >= 0.8 and np.hypot(plain.x - x0, plain.y - 16.0) <= 2.0
+    ex, ey = half_turn(x0, 16.0)
+    there = pose(twin.tracker, ClipAnswer(0.95, ex, ey, row(ex, ey)))
+    assert there.confidence == pytest.approx(twin.conf["track_doubt_cap"])
+    assert (there.node, there.x, there.y) == (plain.node, plain.x, plain.y)  # the walk's answer, unsure
+    for agrees in (
+        ClipAnswer(0.95, plain.x, plain.y + 1.5, row(plain.x, plain.y + 1.5)),  # 1.5 m: the same place
+        ClipAnswer(0.7, ex, ey, row(ex, ey)),  # not sure itself (and its mean not low)
+        ClipAnswer(0.95),  # no place given
+    ):
+        assert pose(twin.tracker, agrees).confidence == pytest.approx(plain.confidence)
+    # a sure clip on another floor is elsewhere too, however close in x and y
+    floors = np.full(len(twin.xy), "1")
+    up = row(plain.x, plain.y + 1.0)
+    floors[up] = "2"
+    two = Tracker(twin.graph, twin.xy, floors, twin.conf)
+    assert pose(two, ClipAnswer(0.95, plain.x, plain.y + 1.0, up)).confidence == pytest.approx(
+        twin.conf["track_doubt_cap"]
+    )
 
 
 @pytest.mark.parametrize(
@@ -254,9 +292,9 @@ def test_a_sure_answer_is_not_stood_by_while_the_recent_clips_are_unsure(twin: V
         ("track_recent_s", float("inf")),
         ("track_recent_min", 1.5),
         ("track_recent_min", "0.5"),
-        ("track_recent_cap", None),
-        ("track_recent_cap", -0.1),
-        ("track_recent_cap", True),
+        ("track_doubt_cap", None),
+        ("track_doubt_cap", -0.1),
+        ("track_doubt_cap", True),
     ],
 )
 def test_recent_clips_settings_that_would_fail_every_locate_are_refused(twin: Venue, key: str, bad: object) -> None:
@@ -270,7 +308,7 @@ def test_the_recent_clips_mean_is_saved_with_the_state(twin: Venue) -> None:
     state = run_walk(twin, t, xy, hd, twin_evidence(0.8, 0.8))[-1][-1]
     m = twin.matches([[(x0, y0, 180.0, 0.8)]] * 10, np.random.default_rng(3))
     times = state.t + 1 + np.arange(-0.9, 0.01, 0.1)
-    new, _ = twin.tracker.update(state, m, times, float(times[-1]), None, 0.3)
+    new, _ = twin.tracker.update(state, m, times, float(times[-1]), None, ClipAnswer(0.3))
     assert new.recent == pytest.approx(0.3) and new.alike is not None
     b = new.to_bytes()
     back = TrackState.from_bytes(b, twin.graph)

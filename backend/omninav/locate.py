@@ -189,13 +189,16 @@ class Locator:
         """One clip -> the filter's new state and pose, and the clip's own Estimate: one index
         search feeds both. `times`: the clip's frame times; `t_now` (default: the last of them)
         the caller's clock at the clip's last frame (the frame times are shifted onto it)."""
+        from .tracking import ClipAnswer
+
         agg = self._aggregation(aggregate)
         m, times = self._search(q_spec, times)
         e = AGGREGATORS[agg](m, self.xy, times, self.conf)
         now = float(times[-1]) if t_now is None else float(t_now)
-        # the clip's own confidence, as its single answer says it (the venue's aggregation and
-        # confidence model): the filter's recent-clips rule reads it
-        new, pose = tracker.update(state, m, times - times[-1] + now, now, motion, confidence(e, self.conf))
+        # the clip's own answer, as its single answer says it (the venue's aggregation and
+        # confidence model): the filter's rules of the clip's own answer read it
+        clip = ClipAnswer(confidence(e, self.conf), e.x, e.y, e.venue_row)
+        new, pose = tracker.update(state, m, times - times[-1] + now, now, motion, clip)
         return new, pose, e
 
     def track_answer(self, pose: TrackPose, clip: str, t: float | None = None) -> dict[str, Any]:

@@ -84,12 +84,13 @@ DEFAULTS: dict[str, Any] = {
     # tracking.TRACK_CONFIDENCE_INPUTS; fit by bench/tracking.py on the tuning families' walks
     "track_confidence_features": ["mass", "far", "young"],
     "track_confidence_coef": [-0.436, 5.367, -2.68, 1.883],
-    # the answer is not "sure" (confidence held at track_recent_cap) while the clips' own
+    # the answer is not "sure" (confidence held at track_doubt_cap) while the clips' own
     # confidence, averaged over about the last track_recent_s seconds, is below track_recent_min
-    # (tracking.py, "Recent clips"); track_recent_min None: off
+    # (track_recent_min None: off), or when the clip alone is sure of another place (tracking.py,
+    # "The clip's own answer")
     "track_recent_s": 1.0,
     "track_recent_min": 0.5,
-    "track_recent_cap": 0.79,
+    "track_doubt_cap": 0.79,
 }
 
 PRESETS: dict[str, dict[str, Any]] = {

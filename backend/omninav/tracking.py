@@ -63,14 +63,19 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
   families' walks only). `ambiguous` when at least `track_ambiguous` of the belief lies 3 m or
   more from the answer: the answer says "not sure" (confidence held below 0.5) and the walk that
   follows resolves it.
-- **Recent clips** (`track_recent_min`): while the clips' own confidence (each clip's single
-  answer's, aggregate.confidence), averaged over about the last `track_recent_s` seconds, is
-  below `track_recent_min`, the answer is not stood by (its confidence held at
-  `track_recent_cap`, below the app's "sure", 0.8). The beliefs' confidence says how far the
-  walk has ruled the other places out; it cannot see that the clips have stopped matching the
-  model anywhere well (an open hall in another light, a bare corridor), which is when a belief
-  drifts with the conditions' favourite wrong spot while staying sure. Chosen on the tuning
-  families' walks (docs/benchmarks.md, "Recent clips").
+- **The clip's own answer** (`ClipAnswer`: what the same clip answers alone). The beliefs'
+  confidence says how far the walk has ruled the other places out; it cannot see the clips
+  themselves doubt it. The answer is not stood by (its confidence held at `track_doubt_cap`,
+  below the app's "sure", 0.8) when:
+  - *recent clips are unsure* (`track_recent_min`): the clips' own confidence, averaged over
+    about the last `track_recent_s` seconds, is below `track_recent_min`. The clips have stopped
+    matching the model anywhere well (an open hall in another light, a bare corridor), which is
+    when a belief drifts with the conditions' favourite wrong spot while staying sure;
+  - *a sure clip says elsewhere*: the clip alone is sure (CLIP_SURE, the app's 0.8) of a place
+    FAR_M or more from the answer (or on another floor). Two calibrated sources that disagree
+    are the split evidence the answer must not be sure of; the walk settles it in a few seconds.
+  Chosen on the tuning families' walks (docs/benchmarks.md, "Recent clips" and "A sure clip
+  elsewhere").
 """
 
 from __future__ import annotations
@@ -103,6 +108,7 @@ LIMIT_M = 8.0  # graph distances are kept up to this; a longer gap is walked in 
 FIT_M = 2.0  # the clip's matches within this of the answer's node place it and give its heading
 FORGET_S = 120.0  # after this long without an update, start over
 AMBIGUOUS_CAP = 0.45  # the confidence of an ambiguous answer: below the app's "not sure" (0.5)
+CLIP_SURE = 0.8  # a clip this confident of its own answer (the app's "sure") that lies elsewhere casts doubt
 MAX_STORED = 1500  # nodes a serialised state keeps one by one (the most probable) ...
 STORE_REL = 1e-6  # ... those with at least this share of the most probable's belief; a broader
 # belief (a young one on a big graph) is kept whole instead, never cut to the lowest-numbered
@@ -125,6 +131,18 @@ def _conf(conf: Mapping[str, Any], key: str) -> Any:
 def _number(v: Any) -> bool:
     """A finite real number (not a bool, not a string that looks like one)."""
     return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
+
+
+@dataclass(frozen=True)
+class ClipAnswer:
+    """What the clip of an update answers alone (Locator.track: its aggregate Estimate): its
+    calibrated confidence, and where (x, y and the venue frame row, whose floor it is; None: not
+    given, the "sure clip elsewhere" rule then does not apply)."""
+
+    confidence: float
+    x: float | None = None
+    y: float | None = None
+    row: int | None = None
 
 
 @dataclass(frozen=True)
@@ -379,16 +397,16 @@ class Tracker:
         self.beta_ref = None if ref is None else float(ref)  # (beta; None: no tempering)
         # the recent clips' rule: a bad value would fail every tracked locate, or write states that
         # cannot be read back (a mean outside [0, 1]): refused here, like a bad track_beta_ref
-        tau, low, cap = (_conf(conf, k) for k in ("track_recent_s", "track_recent_min", "track_recent_cap"))
+        tau, low, cap = (_conf(conf, k) for k in ("track_recent_s", "track_recent_min", "track_doubt_cap"))
         if not (_number(tau) and float(tau) > 0):
             raise ValueError(f"track_recent_s must be a number of seconds > 0, got {tau!r}")
         if low is not None and not (_number(low) and 0.0 <= float(low) <= 1.0):
             raise ValueError(f"track_recent_min must be in [0, 1] or None (off), got {low!r}")
         if not (_number(cap) and 0.0 <= float(cap) <= 1.0):
-            raise ValueError(f"track_recent_cap must be in [0, 1], got {cap!r}")
+            raise ValueError(f"track_doubt_cap must be in [0, 1], got {cap!r}")
         self.recent_s = float(tau)
         self.recent_min = None if low is None else float(low)
-        self.recent_cap = float(cap)
+        self.doubt_cap = float(cap)
         self.xy = np.asarray(graph.xy, np.float64)
         self.floor = np.asarray(graph.floor).astype(str)
         vxy = np.asarray(venue_xy, np.float64)
@@ -622,12 +640,13 @@ class Tracker:
         times: np.ndarray,
         t_now: float,
         motion: Motion | None = None,
-        clip_confidence: float | None = None,
+        clip: ClipAnswer | None = None,
     ) -> tuple[TrackState, TrackPose]:
         """One clip's matches (Q, k) and frame times (last == t_now) -> the new state and pose.
         state None (or another graph's, or too old) -> start over from a uniform belief.
-        `clip_confidence`: the clip's own answer's (aggregate.confidence), for the recent clips'
-        rule (None: the rule does not apply to this update, and its mean starts over)."""
+        `clip`: what the clip answers alone (its confidence, aggregate.confidence, and place), for
+        the rules of the clip's own answer (None: they do not apply to this update, and the recent
+        clips' mean starts over)."""
         motion = motion or Motion()
         times = np.asarray(times, np.float64)
         if len(times) != matches.index.shape[0] or len(times) == 0:
@@ -690,14 +709,24 @@ class Tracker:
         # (an update without the clip's confidence, or with one that is no number, leaves the
         # rule out and starts the mean over at the next: a mean carried across it would be stale)
         recent = None
-        if clip_confidence is not None and np.isfinite(clip_confidence):
+        if clip is not None and np.isfinite(clip.confidence):
             before, dt = (None, 0.0) if fresh or state is None else (state.recent, t_now - state.t)
-            recent = self.recent(before, float(clip_confidence), dt)
-            if self.recent_min is not None and recent < self.recent_min:
-                pose = replace(pose, confidence=min(pose.confidence, self.recent_cap))
+            recent = self.recent(before, float(clip.confidence), dt)
+            doubt = self.recent_min is not None and recent < self.recent_min
+            if doubt or (clip.confidence >= CLIP_SURE and self.elsewhere(pose, clip)):
+                pose = replace(pose, confidence=min(pose.confidence, self.doubt_cap))
         heading = pose.heading if pose.heading_known else None
         state = TrackState(float(t_now), post, self.graph.key, updates + 1, heading, facing, post_a, recent)
         return state, pose
+
+    def elsewhere(self, pose: TrackPose, clip: ClipAnswer) -> bool:
+        """Whether the clip's own answer is another place than the pose: FAR_M or more from it,
+        or on another floor (False when the clip's place was not given)."""
+        if clip.x is None or clip.y is None or clip.row is None or not 0 <= clip.row < len(self.venue_floor):
+            return False
+        if str(self.venue_floor[clip.row]) != pose.floor:
+            return True
+        return bool(np.hypot(clip.x - pose.x, clip.y - pose.y) >= FAR_M)
 
     def recent(self, before: float | None, clip: float, dt: float) -> float:
         """The recent clips' mean confidence after a clip of confidence `clip`, `dt` s after the
