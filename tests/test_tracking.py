@@ -256,7 +256,9 @@ def test_a_sure_answer_is_not_stood_by_when_a_sure_clip_says_it_is_elsewhere(twi
     state = run_walk(twin, t, xy, hd, twin_evidence(0.8, 0.8))[-1][-1]
     m = twin.matches([[(x0, 16.0, 180.0, 0.8)]] * 10, np.random.default_rng(4))
     times = state.t + 1 + np.arange(-0.9, 0.01, 0.1)
-    row = lambda x, y: int(np.argmin(np.hypot(twin.xy[:, 0] - x, twin.xy[:, 1] - y)))  # noqa: E731
+
+    def row(x: float, y: float) -> int:  # the venue frame nearest (x, y)
+        return int(np.argmin(np.hypot(twin.xy[:, 0] - x, twin.xy[:, 1] - y)))
 
     def pose(tr: Tracker, clip: ClipAnswer | None):
         return tr.update(state, m, times, float(times[-1]), None, clip)[1]
@@ -297,7 +299,7 @@ def test_a_sure_answer_is_not_stood_by_when_a_sure_clip_says_it_is_elsewhere(twi
         ("track_doubt_cap", True),
     ],
 )
-def test_recent_clips_settings_that_would_fail_every_locate_are_refused(twin: Venue, key: str, bad: object) -> None:
+def test_bad_settings_of_the_clips_own_answer_are_refused(twin: Venue, key: str, bad: object) -> None:
     with pytest.raises(ValueError, match=key):
         Tracker(twin.graph, twin.xy, np.full(len(twin.xy), "1"), {**twin.conf, key: bad})
 
@@ -818,14 +820,21 @@ def walk_spec(modelled, small_ds: Dataset):
     return loc, spec
 
 
-def test_locator_track_feeds_the_clip_estimate_and_the_filter(walk_spec) -> None:
+def test_locator_track_feeds_the_clip_estimate_and_the_filter(walk_spec, monkeypatch) -> None:
+    from omninav.aggregate import confidence
     from omninav.evaluate import evaluate_track, track_summary
 
     loc, (spec, t, xy, hd, idx) = walk_spec
     w = slice(30, 40)
+    fed: list[ClipAnswer | None] = []
+    update = loc.tracker.update
+    monkeypatch.setattr(loc.tracker, "update", lambda *a: fed.append(a[5]) or update(*a))
     state, pose, est = loc.track(loc.tracker, spec[w], t[w], None, 100.0)
+    monkeypatch.undo()
     same = loc.estimate(spec[w], t[w])
     assert (est.x, est.y, est.heading) == (same.x, same.y, same.heading)  # the clip's answer, unchanged
+    # the filter is told what the clip answers alone, place and all (the rules of the clip's own answer)
+    assert fed == [ClipAnswer(confidence(est, loc.conf), est.x, est.y, est.venue_row)]
     assert state.t == 100.0 and state.updates == 1 and state.graph_key == loc.graph.key
     assert 0.0 <= pose.confidence <= 1.0 and pose.floor == "1"
     # the venue's own look-alikes, from its index: pairs 3 m or more apart, at a cost in [0, 8]

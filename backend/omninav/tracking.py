@@ -395,8 +395,8 @@ class Tracker:
         if ref is not None and not 0.0 <= float(ref) < 1.0:  # 1 or more would turn the evidence over
             raise ValueError(f"track_beta_ref must be in [0, 1) or None, got {ref!r}")
         self.beta_ref = None if ref is None else float(ref)  # (beta; None: no tempering)
-        # the recent clips' rule: a bad value would fail every tracked locate, or write states that
-        # cannot be read back (a mean outside [0, 1]): refused here, like a bad track_beta_ref
+        # the rules of the clip's own answer: a bad value would fail every tracked locate, or write
+        # states that cannot be read back (a mean outside [0, 1]): refused here, like track_beta_ref
         tau, low, cap = (_conf(conf, k) for k in ("track_recent_s", "track_recent_min", "track_doubt_cap"))
         if not (_number(tau) and float(tau) > 0):
             raise ValueError(f"track_recent_s must be a number of seconds > 0, got {tau!r}")
