@@ -10,6 +10,12 @@ on all alike:
   tracked  POST /locate?session=A&t=&steps=     + the filter's update, its state read and written
   guided   POST /locate?session=B&t=&to=Goal    + the route guide (plan, instruction, its state)
 
+and, interleaved with them, the walk cut as the app films it now once Start's instruction was said
+(2 s a request, one every 2.5 s: everything but the answer's time), plain and tracked (the filter
+walks each record second by second: two updates):
+
+  plain 2 s, tracked 2 s                        the same, of 2 s records in their own session
+
 per request: wall time and CPU time of this process (the search, the filter, the database, the
 JSON), median and 90th percentile; how long after the venue's first request its walk graph and
 tracker are ready (built in the background, WARM_VENUES) and the first tracked request after
@@ -53,6 +59,7 @@ TOKEN = "bench-token"
 ADMIN = {"Authorization": f"Bearer {TOKEN}"}
 CLIP_FRAMES = 10  # 1 s at the walk's 10 frames/s
 EVERY = 20  # a clip every 2 s
+WALK_FRAMES, WALK_EVERY = 20, 25  # the app's guided walk once under way: 2 s filmed every 2.5 s
 
 
 def venue_store(root: Path) -> tuple[Store, str]:
@@ -81,8 +88,11 @@ def pad(st: Store, src: str, dst: Store, vid: str, n: int) -> None:
     dst.commit(vid, Generation(g.settings, g.lens, frames, np.concatenate([g.spectra, spec]), [*g.videos, "pad"]))
 
 
-def clips(root: Path, conf: dict, n: int) -> list[tuple[bytes, float, np.ndarray]]:
-    """(binary record, t of the last frame, true xy) of a 1 s clip every 2 s of the query walk."""
+def clips(
+    root: Path, conf: dict, n: int, clip_frames: int = CLIP_FRAMES, every: int = EVERY
+) -> list[tuple[bytes, float, np.ndarray]]:
+    """(binary record, t of the last frame, true xy) of a 1 s clip every 2 s of the query walk
+    (clip_frames every `every` frames)."""
     info = VideoInfo(root / "query.mp4")
     lens = load_lens(root / "lens.json")
     tr = load_track(root / "query_track.json")
@@ -90,8 +100,8 @@ def clips(root: Path, conf: dict, n: int) -> list[tuple[bytes, float, np.ndarray
     out = []
     for i, f in iter_video(info):
         frames.append(f)
-        if i % EVERY == EVERY - 1 and len(frames) >= CLIP_FRAMES:
-            spec = clip_spectra(lens, frames[-CLIP_FRAMES:], lambda lz: Extractor(lz, conf).spectrum)[0]
+        if i % every == every - 1 and len(frames) >= clip_frames:
+            spec = clip_spectra(lens, frames[-clip_frames:], lambda lz: Extractor(lz, conf).spectrum)[0]
             t = i / tr.fps
             xy, _, _ = tr.pose_at(np.array([t]))
             out.append((encode_binary(spec, conf), t, xy[0]))
@@ -136,14 +146,20 @@ def main() -> None:
         pad(st, src, app.extensions["omninav"].catalog.store, "big", a.pad)
         conf = app.extensions["omninav"].catalog.venues.settings("bench")
         walk = clips(root, conf, a.clips)
-        print(f"venue: {src} of {root}; {len(walk)} clips of 1 s, one every 2 s of its query walk")
+        walk2 = clips(root, conf, a.clips, WALK_FRAMES, WALK_EVERY)
+        print(
+            f"venue: {src} of {root}; {len(walk)} clips of 1 s, one every 2 s of its query walk; "
+            f"{len(walk2)} of 2 s, one every 2.5 s"
+        )
         for vid in ("bench", "big"):
-            measure(app, vid, walk)
+            measure(app, vid, walk, walk2)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-def measure(app: object, vid: str, walk: list[tuple[bytes, float, np.ndarray]]) -> None:
+def measure(
+    app: object, vid: str, walk: list[tuple[bytes, float, np.ndarray]], walk2: list[tuple[bytes, float, np.ndarray]]
+) -> None:
     c = app.test_client()  # type: ignore[attr-defined]
     octet = "application/octet-stream"
 
@@ -162,22 +178,31 @@ def measure(app: object, vid: str, walk: list[tuple[bytes, float, np.ndarray]]) 
     rt = runtimes.get(vid)
     _, first_wall, first_cpu = post(walk[0][0], "session=warmupwalk&t=0")  # the walk graph and tracker ready
     frames, nodes = len(rt.locator.gen.frames), len(rt.walk().graph.xy)
-    times: dict[str, tuple[list[float], list[float]]] = {k: ([], []) for k in ("plain", "tracked", "guided")}
-    near = {"single": 0, "tracked": 0}
+    kinds_all = ("plain", "tracked", "guided", "plain 2 s", "tracked 2 s")
+    times: dict[str, tuple[list[float], list[float]]] = {k: ([], []) for k in kinds_all}
+    near = {"single": 0, "tracked": 0, "tracked 2 s": 0}
     kinds: list[str] = []
     for i, (record, t, xy) in enumerate(walk):
-        for kind, query in (
-            ("plain", ""),
-            ("tracked", f"session=benchwalkA&t={t}&steps=3"),
-            ("guided", f"session=benchwalkB&t={t}&steps=3&to=Goal"),
+        steps = []
+        if i < len(walk2):
+            r2, t2, xy2 = walk2[i]
+            steps = [("plain 2 s", "", r2), ("tracked 2 s", f"session=benchwalkC&t={t2}&steps=4", r2)]
+        for kind, query, rec in (
+            ("plain", "", record),
+            ("tracked", f"session=benchwalkA&t={t}&steps=3", record),
+            ("guided", f"session=benchwalkB&t={t}&steps=3&to=Goal", record),
+            *steps,
         ):
-            ans, wall, cpu = post(record, query)
+            ans, wall, cpu = post(rec, query)
             times[kind][0].append(wall)
             times[kind][1].append(cpu)
             if kind == "tracked" and i >= 3:  # after the first few seconds of the walk
                 near["tracked"] += np.hypot(ans["x"] - xy[0], ans["y"] - xy[1]) <= 2.0
                 s = ans["tracking"]["single"]
                 near["single"] += np.hypot(s["x"] - xy[0], s["y"] - xy[1]) <= 2.0
+            if kind == "tracked 2 s" and i >= 3:
+                near[kind] += np.hypot(ans["x"] - xy2[0], ans["y"] - xy2[1]) <= 2.0
+                assert ans["tracking"]["updates"] == 2 * (i + 1), ans["tracking"]  # walked second by second
             if kind == "guided":
                 kinds.append(ans["guidance"]["kind"])
     row = app.extensions["omninav"].catalog.sessions.get(vid, "benchwalkA")  # type: ignore[attr-defined]
@@ -190,9 +215,10 @@ def measure(app: object, vid: str, walk: list[tuple[bytes, float, np.ndarray]]) 
     print("| --- | --- | --- | --- | --- |")
     for kind, (wall, cpu) in times.items():
         print(f"| {kind} | {pct(wall, 50):.1f} | {pct(wall, 90):.1f} | {pct(cpu, 50):.1f} | {pct(cpu, 90):.1f} |")
-    for kind in ("tracked", "guided"):
-        extra = statistics.median(np.subtract(times[kind][1], times["plain"][1]))
-        print(f"{kind} - plain, CPU per request (median of the pairs): {extra:.1f} ms")
+    for kind, base in (("tracked", "plain"), ("guided", "plain"), ("tracked 2 s", "plain 2 s")):
+        n = min(len(times[kind][1]), len(times[base][1]))
+        extra = statistics.median(np.subtract(times[kind][1][:n], times[base][1][:n]))
+        print(f"{kind} - {base}, CPU per request (median of the pairs): {extra:.1f} ms")
     print(f"stored filter state: {len(row.state) if row else 0} bytes")
     if row is not None:  # the session's share: one read and one write of its row, as a request does
         cat = app.extensions["omninav"].catalog  # type: ignore[attr-defined]
@@ -204,6 +230,8 @@ def measure(app: object, vid: str, walk: list[tuple[bytes, float, np.ndarray]]) 
         print(f"the session's database read + write: {(w1 - w0) * 5:.2f} ms wall, {(c1 - c0) * 5:.2f} ms CPU")
     m = max(1, len(walk) - 3)
     print(f"within 2 m after the first 3 clips: tracked {near['tracked']}/{m}, single clip {near['single']}/{m}")
+    m2 = max(1, len(walk2) - 3)
+    print(f"within 2 m after the first 3 records of 2 s: tracked {near['tracked 2 s']}/{m2}")
     print(f"guidance kinds: {' '.join(kinds)}")
 
 

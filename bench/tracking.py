@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from omninav.aggregate import confidence, sequence
+from omninav.aggregate import Estimate, confidence, sequence
 from omninav.evaluate import query_spectra
 from omninav.heading import wrap_deg
 from omninav.index import Matches
@@ -154,8 +154,12 @@ def run(
     imu: Imu | None = None,
     start: float = 0.0,
     single: bool = True,
+    film: str = "1 s",
 ) -> list[dict[str, Any]]:
-    """Every `every` s from `start` + 1 s: the 1 s clip ending there, alone and through the filter."""
+    """Every `every` s from `start` + 1 s: the 1 s clip ending there (film "1 s"), or everything
+    filmed since the last answer (film "all": the phone filming throughout, at least 1 s, at most
+    5 s; the filter walks it second by second, Tracker.update_clip as Locator.track does), alone
+    and through the filter."""
     fps = loc.conf["model_fps"]
     n = int(round(fps))
     rows: list[dict[str, Any]] = []
@@ -167,17 +171,26 @@ def run(
     while at <= w.t[-1] + 1e-6:
         ends.append(int(np.searchsorted(w.t, at - 1e-6)))
         at += every
+    e_prev = None
     for e in ends:
         s = slice(max(first, e - n + 1), e + 1)
+        if film == "all" and e_prev is not None:
+            s = slice(max(first, min(e_prev + 1, e - n + 1), e - 5 * n + 1), e + 1)
         m, times = sub(w.m, s), w.t[s]
         t_now = float(times[-1])
         motion = imu.motion(t_prev, t_now) if imu is not None and t_prev is not None else None
         est = sequence(m, loc.xy, times, loc.conf)  # the clip alone, as a locate without a session answers
         c1 = confidence(est, loc.conf)
+
+        def own(mp: Matches, tp: np.ndarray, est: Estimate = est, whole: int = len(times)) -> ClipAnswer:
+            # each second's own answer (as Locator.track's)
+            ep = est if len(tp) == whole else sequence(mp, loc.xy, tp, loc.conf)
+            return ClipAnswer(confidence(ep, loc.conf), ep.x, ep.y, ep.venue_row)
+
         c0 = time.process_time()
-        state, pose = tr.update(state, m, times, t_now, motion, ClipAnswer(c1, est.x, est.y, est.venue_row))
+        state, pose = tr.update_clip(state, m, times, t_now, motion, own)
         cpu = time.process_time() - c0
-        t_prev = t_now
+        t_prev, e_prev = t_now, e
         tx, ty = w.xy[e]
         row = {
             "t": t_now - w.t[first],
@@ -416,23 +429,32 @@ def main() -> None:
                 for start in starts:
                     if start > w.t[-1] - 15.0:
                         continue
-                    for every in (1.0, 2.5):
+                    # every 2.5 s: the 1 s clip ending there (the phone until now), and everything
+                    # filmed since the last answer (the phone filming throughout)
+                    for every, film in ((1.0, "1 s"), (2.5, "1 s"), (2.5, "all")):
                         for use in (False, True):
-                            rows = run(loc, tr, w, every, imu if use else None, start, single=start == 0.0)
+                            rows = run(loc, tr, w, every, imu if use else None, start, start == 0.0, film)
                             runs.append(
                                 {"family": name, "split": FAMILIES[name].split, "seed": seed, "walk": wname,
-                                 "every": every, "imu": use, "start": start, "rows": rows}
+                                 "every": every, "film": film, "imu": use, "start": start, "rows": rows}
                             )  # fmt: skip
                         if start == 0.0 and wname == "query":  # a phone that counts no steps, gyroscope on
-                            rows = run(loc, tr, w, every, no_steps(imu), start)
+                            rows = run(loc, tr, w, every, no_steps(imu), start, True, film)
                             runs.append(
                                 {"family": name, "split": FAMILIES[name].split, "seed": seed, "walk": wname,
-                                 "every": every, "imu": "no steps", "start": start, "rows": rows}
+                                 "every": every, "film": film, "imu": "no steps", "start": start, "rows": rows}
                             )  # fmt: skip
             print(f"{name}/{seed}: {sizes[f'{name}/{seed}'][0]} venue frames, {tr.n} graph nodes", flush=True)
 
     def pool(**k: Any) -> list[dict[str, Any]]:
+        k.setdefault("film", "1 s")  # "all": only where a table asks for it
         return [r for x in runs if all(x[a] == v for a, v in k.items()) for r in x["rows"]]
+
+    def paces(every: float) -> tuple[str, ...]:
+        return ("1 s", "all") if every != 1.0 else ("1 s",)
+
+    def pace(every: float, film: str) -> str:
+        return f"{every:g} s" + (", filmed throughout" if film == "all" else "")
 
     print("\n### Per family: answers every 1 s, no IMU, after the first 5 s (filtered / single clip)\n")
     print(HEAD.format(what="family (split)"))
@@ -450,19 +472,21 @@ def main() -> None:
     print("| --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for split in ("tuning", "held-out"):
         for every in (1.0, 2.5):
-            for use in (False, True):
-                rows = pool(split=split, every=every, imu=use, start=0.0)
-                if rows:
-                    f, s1 = summary(rows), summary(rows, "single_")
-                    print(f"| {split} | {every:g} s | {'yes' if use else 'no'} | " + cells(f, s1))
+            for film in paces(every):
+                for use in (False, True):
+                    rows = pool(split=split, every=every, imu=use, start=0.0, film=film)
+                    if rows:
+                        f, s1 = summary(rows), summary(rows, "single_")
+                        print(f"| {split} | {pace(every, film)} | {'yes' if use else 'no'} | " + cells(f, s1))
 
     print("\n### A phone that counts no steps while walking (gyroscope on): 0 steps every update\n")
     print(HEAD.format(what="split, every"))
     for split in ("tuning", "held-out"):
         for every in (1.0, 2.5):
-            rows = pool(split=split, every=every, imu="no steps", start=0.0)
-            if rows:
-                print(f"| {split}, {every:g} s | " + cells(summary(rows), summary(rows, "single_")))
+            for film in paces(every):
+                rows = pool(split=split, every=every, imu="no steps", start=0.0, film=film)
+                if rows:
+                    print(f"| {split}, {pace(every, film)} | " + cells(summary(rows), summary(rows, "single_")))
 
     print("\n### Starting afresh (at 0, 20, 40, 60, 80 s into each query walk): seconds to the first")
     print("answer given with confidence >= 0.8, and whether it was right (within 2 m)\n")
@@ -471,19 +495,20 @@ def main() -> None:
     print("| --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |")
     for split in ("tuning", "held-out"):
         for every in (1.0, 2.5):
-            for use in (False, True):
-                xs = [x for x in runs if x["split"] == split and x["walk"] == "query" and x["every"] == every
-                      and x["imu"] == use]  # fmt: skip
-                if not xs:
-                    continue
-                firsts = [first_confident(x["rows"]) for x in xs]
-                ts = [t for t, _ in firsts if t is not None]
-                right = [ok for _, ok in firsts if ok is not None]
-                unsure = np.mean([x["rows"][0]["confidence"] < 0.5 for x in xs])
-                print(
-                    f"| {split} | {every:g} s | {'yes' if use else 'no'} | {len(xs)} | {unsure:.0%} | "
-                    f"{np.median(ts):.1f} | {max(ts):.1f} | {len(xs) - len(ts)} | {np.mean(right):.0%} |"
-                )
+            for film in paces(every):
+                for use in (False, True):
+                    xs = [x for x in runs if x["split"] == split and x["walk"] == "query" and x["every"] == every
+                          and x["imu"] == use and x["film"] == film]  # fmt: skip
+                    if not xs:
+                        continue
+                    firsts = [first_confident(x["rows"]) for x in xs]
+                    ts = [t for t, _ in firsts if t is not None]
+                    right = [ok for _, ok in firsts if ok is not None]
+                    unsure = np.mean([x["rows"][0]["confidence"] < 0.5 for x in xs])
+                    print(
+                        f"| {split} | {pace(every, film)} | {'yes' if use else 'no'} | {len(xs)} | {unsure:.0%} | "
+                        f"{np.median(ts):.1f} | {max(ts):.1f} | {len(xs) - len(ts)} | {np.mean(right):.0%} |"
+                    )
 
     print("\n### The worst case: long-bare's query walk starts in the middle of a 60 m corridor of identical doors\n")
     print("| seed | every | IMU | first 'not sure' answers | s to first confident answer | right? | its error |")
@@ -494,7 +519,7 @@ def main() -> None:
             err = next((r["err_m"] for r in x["rows"] if r["confidence"] >= TRUST), None)
             unsure = sum(r["confidence"] < 0.5 for r in x["rows"] if t is None or r["t"] < t)
             print(
-                f"| {x['seed']} | {x['every']:g} s | {imu_word(x['imu'])} | {unsure} | "
+                f"| {x['seed']} | {pace(x['every'], x['film'])} | {imu_word(x['imu'])} | {unsure} | "
                 f"{'never' if t is None else f'{t:.1f}'} | {'-' if ok is None else ('yes' if ok else 'NO')} | "
                 f"{'-' if err is None else f'{err:.1f} m'} |"
             )
@@ -510,7 +535,7 @@ def main() -> None:
                         f"| {split}, IMU {'yes' if use else 'no'} | " + cells(summary(rows), summary(rows, "single_"))
                     )
 
-    cpu = np.array([r["cpu_s"] for x in runs for r in x["rows"]]) * 1000
+    cpu = np.array([r["cpu_s"] for x in runs if x["film"] == "1 s" for r in x["rows"]]) * 1000  # one update each
     big = max(sizes.values())
     print(
         f"\nCPU per tracked update (Tracker.update, after the index search): median {np.median(cpu):.2f} ms, "

@@ -28,7 +28,17 @@ from omninav.synth import Dataset
 from omninav.synth.scene import TWIN_RING, twin_routes
 from omninav.synth.walks import imu_for, track_for
 from omninav.track import parse_track
-from omninav.tracking import MAX_STORED, ClipAnswer, Motion, Tracker, TrackState, node_frames, parse_imu
+from omninav.tracking import (
+    MAX_STORED,
+    ClipAnswer,
+    Motion,
+    Tracker,
+    TrackState,
+    node_frames,
+    parse_imu,
+    parts,
+    share,
+)
 from omninav.walkgraph import build
 
 CONF = resolve("default")
@@ -536,6 +546,67 @@ def test_motion_helps_in_a_repetitive_corridor(corridor: Venue) -> None:
     without, with_steps = right_until(None), right_until(imu.motion)
     assert with_steps >= 15.0
     assert with_steps >= 1.4 * without
+
+
+def test_a_clip_is_cut_into_seconds_and_the_phones_motion_shared_among_them() -> None:
+    t = np.arange(50) / FPS
+    lengths = {n: [len(p) for p in parts(t[:n])] for n in (1, 10, 14, 15, 20, 25, 50)}
+    assert lengths == {1: [1], 10: [10], 14: [14], 15: [7, 8], 20: [10, 10], 25: [8, 8, 9], 50: [10] * 5}
+    cut = parts(t[:25])
+    assert np.array_equal(np.concatenate(cut), np.arange(25))  # every frame once, in time order
+    assert parts(np.array([3.0]))[0].tolist() == [0]
+    moved = share(Motion(7, 30.0), [1.5, 1.0, 1.0])
+    assert sum(m.steps for m in moved) == 7 and sum(m.turn_deg for m in moved) == pytest.approx(30.0)
+    assert [m.steps for m in moved] == [3, 2, 2]
+    assert share(Motion(None, None), [1.0, 1.0]) == [Motion(None, None)] * 2
+    assert share(Motion(4, None), [0.0, 0.0]) == [Motion(2, None), Motion(2, None)]  # no time: evenly
+
+
+def test_a_longer_clip_is_walked_second_by_second_so_its_first_second_counts(corridor: Venue) -> None:
+    """A 2 s clip (the app films everything between two answers): its first second is at the
+    corridor's distinctive end, its last second among doors that repeat every 4 m. Answered from
+    its last second alone the filter cannot tell the door; walked second by second (update_clip)
+    the first second places it and the walk keeps it there. The same as two updates a second apart
+    with the motion shared, which is what it is."""
+    t = np.arange(20) / FPS
+    x = 1.5 + 1.2 * t
+    rng = np.random.default_rng(3)
+
+    def sources(i: int) -> list[tuple[float, float, float, float]]:
+        if i < 10:  # the end of the corridor in view
+            return [(x[i], 0.0, 90.0, 0.9)]
+        return [(x[i] + 4.0 * k, 0.0, 90.0, 0.9) for k in range(-12, 13) if 0.0 <= x[i] + 4.0 * k <= 48.0]
+
+    m = corridor.matches([sources(i) for i in range(20)], rng, per=1)
+    truth = (x[-1], 0.0)
+    _, last_only = corridor.tracker.update(None, m, t, float(t[-1]), None)
+    asked: list[int] = []
+
+    def answer(mp: Matches, tp: np.ndarray) -> ClipAnswer:
+        asked.append(len(tp))
+        return ClipAnswer(0.9)
+
+    state, walked = corridor.tracker.update_clip(None, m, t, float(t[-1]), Motion(3, 0.0), answer)
+    # (a fresh start is "not sure" either way after two seconds; what the belief holds differs)
+    assert last_only.mass <= 0.3  # one door of a dozen alike
+    assert walked.mass >= 0.55 and err(walked, truth) <= 1.5
+    assert state.updates == 2 and asked == [10, 10] and walked.restarted
+    # what it is: two updates, the second with the motion of its second
+    first = Matches(*(a[:10] for a in (m.index, m.coarse, m.score, m.heading)))
+    second = Matches(*(a[10:] for a in (m.index, m.coarse, m.score, m.heading)))
+    s1, _ = corridor.tracker.update(None, first, t[:10], float(t[9]), None, ClipAnswer(0.9))
+    moved = share(Motion(3, 0.0), [0.9, 1.0])[1]  # (of the clip's 1.9 s from its first frame to its last)
+    assert moved == Motion(2, 0.0)
+    s2, p2 = corridor.tracker.update(s1, second, t[10:], float(t[-1]), moved, ClipAnswer(0.9))
+    assert np.array_equal(s2.belief, state.belief) and (p2.x, p2.y, p2.confidence) == (
+        walked.x,
+        walked.y,
+        walked.confidence,
+    )
+    assert not p2.restarted
+    # a state it goes on from: not restarted
+    _, on = corridor.tracker.update_clip(state, m, t + 2.0, float(t[-1] + 2.0), None, answer)
+    assert not on.restarted
 
 
 def test_steps_that_miss_a_walk_cost_a_few_answers_at_most(corridor: Venue) -> None:

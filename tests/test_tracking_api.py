@@ -113,6 +113,26 @@ def test_a_tracked_walk_continues_one_filter_whose_state_is_in_the_database(lab:
     assert min(said) - 1e-3 <= state.recent <= max(said) + 1e-3  # a mean of them
 
 
+def test_a_walk_filmed_throughout_is_walked_second_by_second(small_ds: Any, lab: Any) -> None:
+    """The app's guided walk films ~2 s a request, everything between two answers: the filter
+    walks each record second by second (`updates` counts the seconds), a session goes on across
+    them (not 'expired' for having counted more than one), and the answer is the walk's."""
+    app, api = lab
+    conf = app.extensions["omninav"].catalog.venues.settings("lab")
+    got = []
+    for s in range(0, 120, 20):  # the first 12 s of the query walk, 2 s a request, no second unseen
+        frames, truth = query_clip(small_ds, s, 20)
+        record = encode_binary(clip_spectra(small_ds, frames, conf), conf)
+        r = locate(api, record, session="filmed001", t=(s + 19) / FPS, steps=3, turn_deg=0)
+        assert r.status_code == 200, r.json
+        got.append((r.json, truth))
+    tracking = [a["tracking"] for a, _ in got]
+    assert [t["updates"] for t in tracking] == [2, 4, 6, 8, 10, 12]
+    assert tracking[0]["reason"] == "new" and not any(t["restarted"] for t in tracking[1:])
+    (a, (x, y, _)) = got[-1]
+    assert np.hypot(a["x"] - x, a["y"] - y) <= 2.0, (a, got[-1][1])
+
+
 def test_the_session_table_keeps_nothing_personal(lab: Any) -> None:
     app, _ = lab
     db = app.extensions["omninav"].db

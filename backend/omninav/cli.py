@@ -281,8 +281,8 @@ def track(
     fps: float,
 ) -> None:
     """Track a WALK (a video or a directory of frames) through VENUE: one JSON answer per --every
-    seconds, the pose at that moment from only the walk up to it (a 1 s clip ending there, and
-    the filter's memory of the walk before)."""
+    seconds, the pose at that moment from only the walk up to it (the walk since the last answer,
+    at least its last second, and the filter's memory of the walk before)."""
     from .evaluate import track_walk, walk_spectra
     from .lens import load_lens
     from .tracking import load_imu
@@ -364,7 +364,7 @@ def features(venue_id: str, clip: Path, lens_path: Path | None, out: Path | None
     type=click.FloatRange(0.1, 60.0),
     default=1.0,
     show_default=True,
-    help="With --track-mode: seconds between answers (the app: every 2-3 s).",
+    help="With --track-mode: seconds between answers (the app: every 2-3 s), each from the walk since the last.",
 )
 @click.option("--imu", "imu_path", type=click.Path(path_type=Path), help="With --track-mode: the walk's imu.json.")
 @click.pass_context
@@ -398,7 +398,8 @@ def evaluate(
     if track_mode:
         if clips or clip_s != 1.0 or aggregate is not None:
             raise OmninavError(
-                "--track-mode answers 1 s clips with the venue's aggregation: no --clips, --clip-s, --aggregate"
+                "--track-mode answers the walk since the last answer (at least 1 s) with the venue's "
+                "aggregation: no --clips, --clip-s, --aggregate"
             )
         _evaluate_track(ctx, venue_id, video, track, lens, out, as_json, every, imu_path)
         return

@@ -19,7 +19,7 @@ from .aggregate import Estimate, confidence
 from .errors import OmninavError
 from .heading import wrap_deg
 from .lens import Lens
-from .locate import DEFAULT_CLIP_FPS, Locator
+from .locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, Locator
 from .model_venue import Progress
 from .quality import AMBIGUOUS_MARGIN, RADIUS_M
 from .track import Track
@@ -282,11 +282,16 @@ def track_walk(
     clip_s: float = 1.0,
 ) -> Iterator[tuple[int, TrackPose, Estimate]]:
     """A walk's spectra -> at every answer (track_ends), the filter's pose and the single clip's
-    Estimate, each from the clip_s clip ending there and (the filter) the walk before it."""
+    Estimate, each from the clip ending there and (the filter) the walk before it. The clip is
+    everything since the last answer (as the phone films it: Locator.track walks it second by
+    second), at least the last clip_s and at most MAX_CLIP_S: every frame of the walk is
+    evidence, however far apart the answers."""
     state: TrackState | None = None
     t_prev: float | None = None
     for e in track_ends(t, every, clip_s):
-        w = np.flatnonzero((t > t[e] - clip_s + 1e-6) & (t <= t[e] + 1e-9))
+        since = t[e] - clip_s if t_prev is None else min(t_prev, t[e] - clip_s)
+        since = max(since, t[e] - MAX_CLIP_S)
+        w = np.flatnonzero((t > since + 1e-6) & (t <= t[e] + 1e-9))
         motion = imu.motion(t_prev, float(t[e])) if imu is not None and t_prev is not None else None
         state, pose, est = loc.track(loc.tracker, spec[w], t[w], state, float(t[e]), motion)
         t_prev = float(t[e])

@@ -188,17 +188,25 @@ class Locator:
     ) -> tuple[TrackState, TrackPose, Estimate]:
         """One clip -> the filter's new state and pose, and the clip's own Estimate: one index
         search feeds both. `times`: the clip's frame times; `t_now` (default: the last of them)
-        the caller's clock at the clip's last frame (the frame times are shifted onto it)."""
+        the caller's clock at the clip's last frame (the frame times are shifted onto it).
+
+        A clip longer than a second (what the phone filmed since its last request) is walked
+        second by second (Tracker.update_clip), `motion` shared among the seconds; the Estimate
+        returned is the whole clip's, as a locate without a session answers it."""
         from .tracking import ClipAnswer
 
         agg = self._aggregation(aggregate)
         m, times = self._search(q_spec, times)
         e = AGGREGATORS[agg](m, self.xy, times, self.conf)
         now = float(times[-1]) if t_now is None else float(t_now)
-        # the clip's own answer, as its single answer says it (the venue's aggregation and
-        # confidence model): the filter's rules of the clip's own answer read it
-        clip = ClipAnswer(confidence(e, self.conf), e.x, e.y, e.venue_row)
-        new, pose = tracker.update(state, m, times - times[-1] + now, now, motion, clip)
+
+        def own(mp: Matches, tp: np.ndarray) -> ClipAnswer:
+            # each second's own answer, as its single answer says it (the venue's aggregation and
+            # confidence model): the filter's rules of the clip's own answer read it
+            ep = e if len(tp) == len(times) else AGGREGATORS[agg](mp, self.xy, tp, self.conf)
+            return ClipAnswer(confidence(ep, self.conf), ep.x, ep.y, ep.venue_row)
+
+        new, pose = tracker.update_clip(state, m, times - times[-1] + now, now, motion, own)
         return new, pose, e
 
     def track_answer(self, pose: TrackPose, clip: str, t: float | None = None) -> dict[str, Any]:

@@ -15,6 +15,7 @@ import {
   Guide,
   INTERVAL_MS,
   NOTE_QUIET_MS,
+  WALK_SECONDS,
   NO_GUIDANCE,
   SCREEN_ON,
   STOPPED_GUIDANCE,
@@ -133,6 +134,7 @@ function rig(script: Step[], o: { screen?: boolean; words?: Words; voice?: Voice
     cue: vi.fn(),
   };
   const requests: { session: string; to: string; style: Style; steps: number | null; turn: number | null }[] = [];
+  const seconds: number[] = []; // what each request asked to film
   let filming = 0;
   let n = 0;
   const motion = fakeMotion();
@@ -142,8 +144,10 @@ function rig(script: Step[], o: { screen?: boolean; words?: Words; voice?: Voice
   let style: Style = 'clock';
   const guide = new Guide({
     voice,
-    // each request films 1 s, then asks the motion and answers the script's next step
-    track: async (q, m) => {
+    // each request films 1 s (whatever it asked for: the timing of these tests), then asks the
+    // motion and answers the script's next step
+    track: async (q, m, s) => {
+      seconds.push(s);
       filming++;
       await new Promise((r) => setTimeout(r, 1000));
       filming--;
@@ -168,6 +172,7 @@ function rig(script: Step[], o: { screen?: boolean; words?: Words; voice?: Voice
     said,
     texts: () => said.map((s) => s.text),
     requests,
+    seconds,
     motion,
     page,
     screen,
@@ -329,6 +334,26 @@ describe('Guide', () => {
     await vi.advanceTimersByTimeAsync(INTERVAL_MS);
     r.guide.whatNext();
     expect(r.texts().at(-1)).toBe(QUIET.sentence);
+  });
+
+  it('films 1 s until Start’s instruction was said (it comes soon), then all it can between answers', async () => {
+    const UNSURE = g('unsure', 'Not sure where you are; keep walking slowly.');
+    const r = rig([START, UNSURE, GO, QUIET, QUIET]);
+    const c = r.guide.choose({ id: 'p3', name: 'Room 102' });
+    await vi.advanceTimersByTimeAsync(1000);
+    await c;
+    r.guide.start();
+    await vi.advanceTimersByTimeAsync(1000 + INTERVAL_MS * 3);
+    expect(WALK_SECONDS).toBeGreaterThan(1);
+    // the preview, Start's (not sure: the instruction still owed), the one that says it, then the walk
+    expect(r.seconds).toEqual([1, 1, 1, WALK_SECONDS, WALK_SECONDS]);
+    expect(r.texts().slice(1)).toEqual([UNSURE.sentence, GO.sentence]);
+    // Stop and Start again: Start's instruction is owed again, and comes after 1 s
+    r.guide.stop();
+    const n = r.seconds.length;
+    r.guide.start();
+    await vi.advanceTimersByTimeAsync(1000 + INTERVAL_MS);
+    expect(r.seconds.slice(n)).toEqual([1, WALK_SECONDS]);
   });
 
   it('a problem is said once while the loop keeps trying; a lost venue stops it', async () => {

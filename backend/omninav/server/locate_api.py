@@ -584,7 +584,7 @@ def _tracked(
     times = t_now - (len(spec) - 1 - np.arange(len(spec))) / fps
     loc = rt.locator
     new_state, pose, e = loc.track(walk.tracker, spec, times, state, t_now, track.motion)
-    if state is not None and new_state.updates != state.updates + 1:  # the filter forgot a walk left too long
+    if state is not None and pose.restarted:  # the filter forgot a walk left too long
         reason = "expired"
     single = loc.answer(e, clip)
     ans = {

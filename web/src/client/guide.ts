@@ -2,7 +2,11 @@
  * The guidance loop (issue 14): take the user to a chosen place. Choosing a place locates once in
  * a new tracking session with `to` and says the route's preview ("Room 102: 45 metres, 2 turns,
  * first turn after 12 metres."); Start says the current instruction from a fresh answer, then
- * films ~1 s and locates every INTERVAL_MS with the phone's motion since the previous request;
+ * films and locates every INTERVAL_MS or so with the phone's motion since the previous request:
+ * ~1 s until Start's instruction was said (it comes soon), then WALK_SECONDS, everything the loop
+ * can film between two answers (the server's filter walks it second by second: an unseen second of
+ * walking is evidence lost; on the venue families it was never tuned on, filming throughout is
+ * right more often: docs/benchmarks.md, "Filming throughout");
  * the server's filter and guide decide what is new, and this loop speaks only what it marks
  * `speak`. Off the route and arrival cut in (urgent); "not sure" is said once per spell; arrival
  * ends the loop. The screen is kept on while guiding (wakelock.ts) and the motion sensors run
@@ -29,8 +33,10 @@ import { RecordMismatch, mapUpdated, problemText } from './problems';
 import { Emitter, type Voice } from './session';
 import type { Cue } from './speech';
 
-/** From the start of one request to the start of the next (ms): ~1 s filmed, then the answer. */
+/** From the start of one request to the start of the next (ms), at least: filming, then the answer. */
 export const INTERVAL_MS = 2000;
+/** What a request of the walk films once Start's instruction was said (s): all but the answer's time. */
+export const WALK_SECONDS = 2;
 /** At least this long between two requests (ms), however slow the last one was. */
 export const MIN_GAP_MS = 250;
 /** While the camera is taken by a "Where am I?", ask again this often (ms) for the preview. */
@@ -75,7 +81,11 @@ export interface Words {
 export interface GuideDeps {
   voice: Voice;
   /** Film and locate once in a tracking session (Session.track); null: the camera is taken, try later. */
-  track(q: { session: string; to: string; style: Style }, motion: () => Motion): Promise<Answer | null>;
+  track(
+    q: { session: string; to: string; style: Style },
+    motion: () => Motion,
+    seconds: number,
+  ): Promise<Answer | null>;
   /**
    * The phone's motion (MotionFeed): `peek` reads what happened since the last `commit`, which
    * the guide calls once the request that carried the reading was answered.
@@ -248,16 +258,18 @@ export class Guide extends Emitter<GuideEvents> {
    * One request, waiting while the camera is taken; null when this run ended meanwhile. The
    * motion is read once the clip is filmed and counts as sent only when the request is answered.
    */
-  private async request(run: Run, patient: boolean): Promise<Answer | null> {
+  private async request(run: Run, patient: boolean, seconds = 1): Promise<Answer | null> {
     for (let i = 0; ; i++) {
       let reading: MotionReading | null = null;
       const hides = this.hides;
-      const a = await this.d.track({ session: this.session, to: this.place!.id, style: this.d.style() }, () => {
+      const q = { session: this.session, to: this.place!.id, style: this.d.style() };
+      const motion = () => {
         reading = this.d.motion.peek();
         return this.motionKnown && this.hides === hides
           ? { steps: reading.steps, turn_deg: reading.turn_deg }
           : UNKNOWN;
-      });
+      };
+      const a = await this.d.track(q, motion, seconds);
       if (run !== this.run) return null;
       if (a && reading) {
         // the server has this request's time now: the next motion counts from its clip, and is
@@ -365,7 +377,8 @@ export class Guide extends Emitter<GuideEvents> {
     const hides = this.hides;
     let again = true;
     try {
-      const a = await this.request(run, false);
+      // Start's instruction soon (1 s); then all the loop can film (the unseen walk is lost evidence)
+      const a = await this.request(run, false, this.owed ? 1 : WALK_SECONDS);
       if (run !== this.run) return;
       if (!a) return; // the camera is taken: the next turn asks again
       const g = a.guidance;

@@ -34,7 +34,7 @@ const session = new Session({
 });
 const guide = new Guide({
   voice: speaker,
-  track: async (q, motion) => (await session.track(q, motion))?.answer ?? null,
+  track: async (q, motion, seconds) => (await session.track(q, motion, seconds))?.answer ?? null,
   motion: new MotionFeed(),
   screen: new ScreenLock(),
   askMotion,

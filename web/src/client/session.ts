@@ -8,8 +8,10 @@
  * three seconds as one clip: one more request, answered from all of it (the engine takes clips of
  * up to 5 s). Once per press; Stop ends it. A sure answer ends the filming on, unsent.
  *
- * A guided walk (guide.ts) asks `track()` instead: one second, located in a tracking session with
- * the phone's clock and motion; the guide says what is to be said. "Keep telling me" is such a walk
+ * A guided walk (guide.ts) asks `track()` instead: one second (the walk's later requests: two,
+ * everything the loop can film between two answers, which the server's filter walks second by
+ * second), located in a tracking session with the phone's clock and motion; the guide says what
+ * is to be said. "Keep telling me" is such a walk
  * too: each turn locates its second with `track()` in one tracking session per start, so that the
  * server's filter remembers where the user was (on venues it was never tuned on, far fewer
  * confident answers far off than single clips). It does not film on when unsure (the walk itself
@@ -291,14 +293,17 @@ export class Session extends Emitter<SessionEvents> {
     return { v, lens, ext, fresh, donut: lens[1].model === 'catadioptric' };
   }
 
-  /** ~1 s of frames; a donut lens is checked first (a 360 camera has no ring), and again when the picture jumps. */
-  private async firstClip(r: Ready): Promise<Clip> {
+  /**
+   * ~1 s of frames (`frames` of them); a donut lens is checked first (a 360 camera has no ring),
+   * and again when the picture jumps.
+   */
+  private async firstClip(r: Ready, frames = CLIP_FRAMES): Promise<Clip> {
     const { ext, donut } = r;
     if (donut && this.lensWatch.due(ext.configured)) await this.checkLens(ext, r.fresh);
-    const clip = await captureClip(this.o.video, ext, CLIP_FRAMES, CLIP_INTERVAL_MS);
+    const clip = await captureClip(this.o.video, ext, frames, CLIP_INTERVAL_MS);
     if (!donut || !this.lensWatch.changed(clip.frames)) return clip;
     await this.checkLens(ext);
-    return captureClip(this.o.video, ext, CLIP_FRAMES, CLIP_INTERVAL_MS);
+    return captureClip(this.o.video, ext, frames, CLIP_INTERVAL_MS);
   }
 
   /** An answer with how it was made, for the screens. */
@@ -413,21 +418,27 @@ export class Session extends Emitter<SessionEvents> {
   }
 
   /**
-   * One request of a guided walk (guide.ts; of "Keep telling me" too, tellTracked): film ~1 s and
-   * locate it in tracking session `q.session` (with `q.to`: guidance), `t` the clip's last frame on
+   * One request of a guided walk (guide.ts; of "Keep telling me" too, tellTracked): film `seconds`
+   * (~1 s unless asked for more) and locate it in tracking session `q.session` (with `q.to`: guidance), `t` the clip's last frame on
    * the phone's clock, and the phone's motion since the session's previous answered request, asked
    * of `motion` once the clip is filmed (the caller counts that reading as sent only when this
    * resolves with an answer). Nothing is said here: errors are thrown, for the caller to say. Null
    * when the camera is taken (a "Where am I?" is filming; `motion` is not asked): the caller tries
    * again at its next turn.
    */
-  async track(q: Omit<Tracked, 't' | 'steps' | 'turn_deg'>, motion?: () => Motion): Promise<Located | null> {
+  async track(
+    q: Omit<Tracked, 't' | 'steps' | 'turn_deg'>,
+    motion?: () => Motion,
+    seconds = 1,
+  ): Promise<Located | null> {
     if (this.busy) return null;
     this.busy = true;
     this.emit('busy', true);
     try {
       const r = await this.ready();
-      const clip = await this.firstClip(r);
+      // `seconds` of frames at the clip's pace (the server takes up to 5 s)
+      const frames = Math.min(50, Math.max(CLIP_FRAMES, Math.round((seconds * 1000) / CLIP_INTERVAL_MS)));
+      const clip = await this.firstClip(r, frames);
       const record = encodeRecord(clip.frames, r.v.features.settings, r.v.features.settings_id);
       const m = motion?.();
       const t0 = performance.now();
