@@ -156,10 +156,9 @@ def run(
     single: bool = True,
     film: str = "1 s",
 ) -> list[dict[str, Any]]:
-    """Every `every` s from `start` + 1 s: the 1 s clip ending there (film "1 s"), or everything
-    filmed since the last answer (film "all": the phone filming throughout, at least 1 s, at most
-    5 s; the filter walks it second by second, Tracker.update_clip as Locator.track does), alone
-    and through the filter."""
+    """Every `every` s from `start` + 1 s: the clip of `film` ending there ("1 s", or "2 s" as the
+    app films a guided walk now, its first request 1 s; the filter walks a longer clip second by
+    second, Tracker.update_clip as Locator.track does), alone and through the filter."""
     fps = loc.conf["model_fps"]
     n = int(round(fps))
     rows: list[dict[str, Any]] = []
@@ -174,8 +173,8 @@ def run(
     e_prev = None
     for e in ends:
         s = slice(max(first, e - n + 1), e + 1)
-        if film == "all" and e_prev is not None:
-            s = slice(max(first, min(e_prev + 1, e - n + 1), e - 5 * n + 1), e + 1)
+        if film == "2 s" and e_prev is not None:  # the app's requests after Start's first
+            s = slice(max(first, e - 2 * n + 1), e + 1)
         m, times = sub(w.m, s), w.t[s]
         t_now = float(times[-1])
         motion = imu.motion(t_prev, t_now) if imu is not None and t_prev is not None else None
@@ -429,9 +428,8 @@ def main() -> None:
                 for start in starts:
                     if start > w.t[-1] - 15.0:
                         continue
-                    # every 2.5 s: the 1 s clip ending there (the phone until now), and everything
-                    # filmed since the last answer (the phone filming throughout)
-                    for every, film in ((1.0, "1 s"), (2.5, "1 s"), (2.5, "all")):
+                    # every 2.5 s: the 1 s clip ending there (the app before), and 2 s (the app now)
+                    for every, film in ((1.0, "1 s"), (2.5, "1 s"), (2.5, "2 s")):
                         for use in (False, True):
                             rows = run(loc, tr, w, every, imu if use else None, start, start == 0.0, film)
                             runs.append(
@@ -447,14 +445,14 @@ def main() -> None:
             print(f"{name}/{seed}: {sizes[f'{name}/{seed}'][0]} venue frames, {tr.n} graph nodes", flush=True)
 
     def pool(**k: Any) -> list[dict[str, Any]]:
-        k.setdefault("film", "1 s")  # "all": only where a table asks for it
+        k.setdefault("film", "1 s")  # "2 s": only where a table asks for it
         return [r for x in runs if all(x[a] == v for a, v in k.items()) for r in x["rows"]]
 
     def paces(every: float) -> tuple[str, ...]:
-        return ("1 s", "all") if every != 1.0 else ("1 s",)
+        return ("1 s", "2 s") if every != 1.0 else ("1 s",)
 
     def pace(every: float, film: str) -> str:
-        return f"{every:g} s" + (", filmed throughout" if film == "all" else "")
+        return f"{every:g} s" + (f", {film} filmed" if every != 1.0 else "")
 
     print("\n### Per family: answers every 1 s, no IMU, after the first 5 s (filtered / single clip)\n")
     print(HEAD.format(what="family (split)"))

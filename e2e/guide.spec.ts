@@ -214,18 +214,14 @@ test('walking to the stairs: the preview, the first instruction, "keep going", t
     );
     expect(kinds, log).toContain('turn');
     expect(kinds.at(-1), log).toBe('arrived');
-    // 1 s filmed a request until Start's instruction was said, then 2 s, which the server's filter
-    // walked second by second (two updates a request): no second of the walk unseen
+    // Start's request filmed 1 s, each after it 2 s, which the server's filter walked second by
+    // second (two updates a request): no second of the walk unseen but the answers' time
     const updates = await page.evaluate(() =>
       window.__walk.answers.map((x) => (x.a.tracking as { updates: number } | undefined)?.updates ?? 0),
     );
     const steps = updates.slice(1).map((u, i) => u - updates[i]);
-    expect(steps.slice(0, 1), log).toEqual([1]);
-    expect(steps.at(-1), log).toBe(2);
-    expect(
-      steps.filter((d, i) => d !== (i < steps.indexOf(2) ? 1 : 2)),
-      log,
-    ).toEqual([]);
+    expect(steps.length, log).toBeGreaterThan(3);
+    expect(steps, log).toEqual([1, ...steps.slice(1).map(() => 2)]);
     expect(await said(page), log).not.toContainEqual(expect.stringMatching(SAID.offRoute));
     // arrival said once, as the guidance's words have it: nothing appended from the app's venue
     const arrivals = (await said(page)).filter((s) => SAID.arrived.test(s));

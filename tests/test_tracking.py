@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import struct
 import zlib
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
@@ -555,6 +556,11 @@ def test_a_clip_is_cut_into_seconds_and_the_phones_motion_shared_among_them() ->
     cut = parts(t[:25])
     assert np.array_equal(np.concatenate(cut), np.arange(25))  # every frame once, in time order
     assert parts(np.array([3.0]))[0].tolist() == [0]
+    # a gap in the frame times leaves no part of a frame or two (each part counts as a clip)
+    gap = np.r_[0.0, 2.0 + np.arange(10) / FPS]
+    assert [len(p) for p in parts(gap)] == [11]
+    assert [len(p) for p in parts(np.r_[np.arange(10) / FPS, 5.0])] == [11]
+    assert [len(p) for p in parts(np.repeat(np.arange(10) / FPS, 2))] == [20]  # a second, frames twice
     moved = share(Motion(7, 30.0), [1.5, 1.0, 1.0])
     assert sum(m.steps for m in moved) == 7 and sum(m.turn_deg for m in moved) == pytest.approx(30.0)
     assert [m.steps for m in moved] == [3, 2, 2]
@@ -589,24 +595,39 @@ def test_a_longer_clip_is_walked_second_by_second_so_its_first_second_counts(cor
     state, walked = corridor.tracker.update_clip(None, m, t, float(t[-1]), Motion(3, 0.0), answer)
     # (a fresh start is "not sure" either way after two seconds; what the belief holds differs)
     assert last_only.mass <= 0.3  # one door of a dozen alike
-    assert walked.mass >= 0.55 and err(walked, truth) <= 1.5
+    assert walked.mass >= 0.5 and err(walked, truth) <= 1.5
     assert state.updates == 2 and asked == [10, 10] and walked.restarted
-    # what it is: two updates, the second with the motion of its second
-    first = Matches(*(a[:10] for a in (m.index, m.coarse, m.score, m.heading)))
-    second = Matches(*(a[10:] for a in (m.index, m.coarse, m.score, m.heading)))
+    # what it is: two updates a second apart (a belief that starts over takes no motion: the
+    # phone's reading is of the walk before it)
+    first, second = (Matches(*(getattr(m, f.name)[s] for f in fields(Matches))) for s in (slice(0, 10), slice(10, 20)))
     s1, _ = corridor.tracker.update(None, first, t[:10], float(t[9]), None, ClipAnswer(0.9))
-    moved = share(Motion(3, 0.0), [0.9, 1.0])[1]  # (of the clip's 1.9 s from its first frame to its last)
-    assert moved == Motion(2, 0.0)
-    s2, p2 = corridor.tracker.update(s1, second, t[10:], float(t[-1]), moved, ClipAnswer(0.9))
-    assert np.array_equal(s2.belief, state.belief) and (p2.x, p2.y, p2.confidence) == (
-        walked.x,
-        walked.y,
-        walked.confidence,
-    )
-    assert not p2.restarted
-    # a state it goes on from: not restarted
-    _, on = corridor.tracker.update_clip(state, m, t + 2.0, float(t[-1] + 2.0), None, answer)
-    assert not on.restarted
+    s2, p2 = corridor.tracker.update(s1, second, t[10:], float(t[-1]), None, ClipAnswer(0.9))
+    assert np.array_equal(s2.belief, state.belief)
+    assert (p2.x, p2.y, p2.confidence) == (walked.x, walked.y, walked.confidence) and not p2.restarted
+    # going on from a state (0.5 s unseen, then 2 s filmed): the phone's motion since the state,
+    # shared among the seconds by time
+    later = t + 2.5
+    _, on = corridor.tracker.update_clip(state, m, later, float(later[-1]), Motion(7, 30.0), answer)
+    moves = share(Motion(7, 30.0), [float(later[9]) - state.t, float(later[-1] - later[9])])
+    assert moves == [Motion(4, pytest.approx(18.0)), Motion(3, pytest.approx(12.0))]
+    sa, _ = corridor.tracker.update(state, first, later[:10], float(later[9]), moves[0], ClipAnswer(0.9))
+    sb, pb = corridor.tracker.update(sa, second, later[10:], float(later[-1]), moves[1], ClipAnswer(0.9))
+    assert (pb.x, pb.y, pb.confidence) == (on.x, on.y, on.confidence) and not on.restarted
+    # a phone's clock a little behind (the server allows a second): a part that ends by the
+    # state's time joins the next, and the filter never goes back in time
+    asked.clear()
+    behind, _ = corridor.tracker.update_clip(state, m, t + 1.0, float(t[-1] + 1.0), Motion(2, 0.0), answer)
+    assert asked == [20] and behind.updates == state.updates + 1 and behind.t == pytest.approx(t[-1] + 1.0)
+    # a state too old to go on from: the belief starts over, and the phone's reading (of the walk
+    # before it) is not shared among the clip's seconds as if walked in them
+    seen: list[Motion | None] = []
+    update = corridor.tracker.update
+    try:
+        corridor.tracker.update = lambda *a: seen.append(a[4]) or update(*a)  # type: ignore[method-assign]
+        _, old = corridor.tracker.update_clip(state, m, t + 500.0, float(t[-1] + 500.0), Motion(400, 90.0), answer)
+    finally:
+        del corridor.tracker.update
+    assert old.restarted and seen == [Motion(), Motion()]
 
 
 def test_steps_that_miss_a_walk_cost_a_few_answers_at_most(corridor: Venue) -> None:
@@ -920,6 +941,20 @@ def test_locator_track_feeds_the_clip_estimate_and_the_filter(walk_spec, monkeyp
     assert s2["confident_over_5m"] == 0
 
 
+def test_a_walk_answered_every_few_seconds_reads_all_of_it(walk_spec) -> None:
+    """`omninav track --every N` / `evaluate --track-mode` (track_walk): each answer reads the
+    walk since the last one (the first, its first second; answers under a second apart, the last
+    second each), so no frame of the walk is left out however far apart the answers."""
+    from omninav.evaluate import track_walk
+
+    loc, (spec, t, _, _, _) = walk_spec
+    got = [(e, n) for e, _, _, n in track_walk(loc, spec, t, every=2.5)]
+    assert len(got) >= 5 and got[0][1] == 10
+    assert [n for _, n in got[1:]] == [b - a for (a, _), (b, _) in zip(got[:-1], got[1:], strict=True)]
+    assert {n for _, n in got[1:]} == {25}
+    assert {n for _, _, _, n in track_walk(loc, spec, t[:60], every=0.5)} == {10}
+
+
 def test_locator_tracks_each_modelling_video_on_its_own_floor(modelled, walk_spec) -> None:
     """Locator.use_floors (what `omninav track` and `evaluate --track-mode` do with the
     catalogue's video floors): the walk graph and the venue frames keep each video's floor, and
@@ -937,7 +972,7 @@ def test_locator_tracks_each_modelling_video_on_its_own_floor(modelled, walk_spe
     video_floor = ["2", "3"]
     loc.use_floors(video_floor, from_frames(frames, video_floor))
     assert set(loc.graph.floor.tolist()) == {"2", "3"}
-    answers = [loc.track_answer(pose, "walk", float(t[e])) for e, pose, _ in track_walk(loc, spec, t)]
+    answers = [loc.track_answer(pose, "walk", float(t[e])) for e, pose, _, _ in track_walk(loc, spec, t)]
     assert {a["floor"] for a in answers} == {"2", "3"}
     for a in answers:  # the answer's frame is on the answer's floor
         row = int(np.flatnonzero(frames["frame"] == a["frame"])[0])

@@ -18,6 +18,7 @@ from conftest import db_url_for
 from omninav.server import create_app
 from omninav.server.describe import guidance_sentence
 from omninav.spectrum import encode_binary
+from omninav.tracking import FORGET_S
 from server_helpers import ADMIN, TOKEN, Api, clip_spectra, query_clip
 
 FPS = 10.0  # the small venue's query walk
@@ -162,6 +163,10 @@ def test_unknown_expired_and_clock_confused_sessions_start_over_and_say_why(lab:
     # the phone's clock jumped ahead by more than a session's life
     tr = step(r1, t1 + 1 + app.config["TRACK_SESSION_S"] + 5)
     assert tr["reason"] == "expired" and tr["updates"] == 1
+    # ... or by less, but by more than the filter remembers a walk (FORGET_S): the filter starts over
+    base = t1 + 1 + app.config["TRACK_SESSION_S"] + 5
+    tr = step(r0, base + FORGET_S + 60)
+    assert tr["restarted"] and tr["reason"] == "expired" and tr["updates"] == 1
     # ... or went back
     assert step(r1, 5.0)["reason"] == "clock"
     # an unknown session of a well-formed id

@@ -297,7 +297,7 @@ def track(
         spec, t, _ = walk_spectra(loc, walk, lens, bar, fps)
     finally:
         bar.close()
-    for e, pose, _est in track_walk(loc, spec, t, every, imu):
+    for e, pose, _est, _n in track_walk(loc, spec, t, every, imu):
         click.echo(json.dumps(loc.track_answer(pose, walk.name, float(t[e]))))
 
 

@@ -280,9 +280,10 @@ def track_walk(
     every: float = 1.0,
     imu: Imu | None = None,
     clip_s: float = 1.0,
-) -> Iterator[tuple[int, TrackPose, Estimate]]:
+) -> Iterator[tuple[int, TrackPose, Estimate, int]]:
     """A walk's spectra -> at every answer (track_ends), the filter's pose and the single clip's
-    Estimate, each from the clip ending there and (the filter) the walk before it. The clip is
+    Estimate, each from the clip ending there and (the filter) the walk before it, and the clip's
+    frames. The clip is
     everything since the last answer (as the phone films it: Locator.track walks it second by
     second), at least the last clip_s and at most MAX_CLIP_S: every frame of the walk is
     evidence, however far apart the answers."""
@@ -295,7 +296,7 @@ def track_walk(
         motion = imu.motion(t_prev, float(t[e])) if imu is not None and t_prev is not None else None
         state, pose, est = loc.track(loc.tracker, spec[w], t[w], state, float(t[e]), motion)
         t_prev = float(t[e])
-        yield e, pose, est
+        yield e, pose, est, len(w)
 
 
 def evaluate_track(
@@ -310,8 +311,7 @@ def evaluate_track(
 ) -> tuple[Evaluation, Evaluation]:
     """(single clips, the filter) on the same seconds of a walk: rows as evaluate_spectra's."""
     single, tracked = Evaluation(), Evaluation()
-    n = max(1, int(round(loc.conf["model_fps"])))
-    for e, pose, est in track_walk(loc, spec, t, every, imu):
+    for e, pose, est, n in track_walk(loc, spec, t, every, imu):
         tx, ty = xy[e]
         base = {"frame": int(idx[e]), "t": float(t[e] - t[0]), "true_x": float(tx), "true_y": float(ty)}
         base["true_heading"] = float(hd[e])

@@ -24,11 +24,11 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
   last second, tempered by `track_beta`, is the log-likelihood: exp(beta * (E - max E)), mixed
   with `track_outlier` of "this clip says nothing" so one bad clip cannot overturn a track.
 - **A longer clip** (`update_clip`): the emission reads a second, so a clip of several seconds
-  (everything the phone filmed since its last request: the app's guided walk sends 2 s) is
-  walked second by second, in parts of about a second, the phone's steps and turn shared among
-  them by time. Answered from its last second alone, the seconds before it would be lost, as if
-  the phone had not filmed them (on the held-out families, updates every 2.5 s from 1 s clips
-  were right 3 points less often than every 1 s; filming throughout gets them back).
+  (what the phone filmed since its last request: the app's guided walk sends 2 s) is walked
+  second by second, in parts of about a second, the phone's steps and turn shared among them by
+  time. Answered from its last second alone, the seconds before it would be lost, as if the
+  phone had not filmed them (on the held-out families, updates every 2.5 s from 1 s clips were
+  right 3.6 points less often than every 1 s; 2 s clips get 2.4 of them back).
 - **Look-alikes** (`track_alike_cost`): the clips' evidence is not independent from one second
   to the next. In a corridor of identical doors, the query's light or its camera makes a wrong
   door score a little better than the right one for many seconds running, and compounded clip
@@ -181,7 +181,20 @@ def parts(times: np.ndarray, span: float = SPAN_S) -> list[np.ndarray]:
         return [np.arange(len(t))]
     # the part of each frame: by its time from the clip's end, k equal parts
     which = np.clip(k - 1 - np.floor((t[-1] - t) * k / length + 1e-9).astype(np.int64), 0, k - 1)
-    return [idx for idx in (np.flatnonzero(which == i) for i in range(k)) if len(idx)]
+    cut = [idx for idx in (np.flatnonzero(which == i) for i in range(k)) if len(idx)]
+    # frames far apart in time (a gap in a video's timestamps) can leave a part of a frame or two:
+    # it joins the part after it (the last part, the one before), never an update of its own
+    big = max(len(c) for c in cut)
+    out: list[np.ndarray] = []
+    carry = np.zeros(0, np.int64)
+    for c in cut:
+        c = np.concatenate([carry, c])
+        carry = c if 2 * len(c) < big else np.zeros(0, np.int64)
+        if not len(carry):
+            out.append(c)
+    if len(carry):
+        out = [*out[:-1], np.concatenate([out[-1], carry])] if out else [carry]
+    return out
 
 
 def share(motion: Motion, dts: list[float]) -> list[Motion]:
@@ -701,12 +714,7 @@ class Tracker:
         times = np.asarray(times, np.float64)
         if len(times) != matches.index.shape[0] or len(times) == 0:
             raise ValueError(f"{matches.index.shape[0]} frames of matches need as many frame times, got {len(times)}")
-        fresh = (
-            state is None
-            or state.graph_key != self.graph.key
-            or len(state.belief) != self.n
-            or not (-1.0 <= t_now - state.t <= FORGET_S)
-        )
+        fresh = state is None or not self.goes_on(state, t_now)
         uniform = np.full(self.n, 1.0 / self.n)
         e, facing = self.emission(matches, times, t_now)
         gyro = None
@@ -770,6 +778,11 @@ class Tracker:
         state = TrackState(float(t_now), post, self.graph.key, updates + 1, heading, facing, post_a, recent)
         return state, pose
 
+    def goes_on(self, state: TrackState, t_now: float) -> bool:
+        """Whether a belief can go on from `state` at t_now (else it starts over): a state of this
+        graph, at most a second ahead of t_now (a phone's clock) and at most FORGET_S behind it."""
+        return state.graph_key == self.graph.key and len(state.belief) == self.n and -1.0 <= t_now - state.t <= FORGET_S
+
     def update_clip(
         self,
         state: TrackState | None,
@@ -787,16 +800,22 @@ class Tracker:
         times = np.asarray(times, np.float64)
         if len(times) != matches.index.shape[0] or len(times) == 0:
             raise ValueError(f"{matches.index.shape[0]} frames of matches need as many frame times, got {len(times)}")
+        times = times - times[-1] + float(t_now)  # the clip ends at t_now
         cut = parts(times)
+        if state is not None:
+            # parts that end by the state's time were seen already (a phone's clock a little
+            # behind): each joins the part after it, so that the filter never goes back in time
+            while len(cut) > 1 and times[cut[0][-1]] <= state.t:
+                cut = [np.concatenate(cut[:2]), *cut[2:]]
         ends = [float(times[c[-1]]) for c in cut]
-        ends[-1] = float(t_now)
-        start = state.t if state is not None and state.t < ends[0] else float(times[0])
-        moves = share(motion or Motion(), list(np.diff(np.r_[start, ends])))
+        if state is not None and self.goes_on(state, ends[0]):
+            moves = share(motion or Motion(), list(np.diff(np.r_[state.t, ends])))
+        else:  # the belief starts over: the phone's reading is of the walk before, not of these seconds
+            moves = [Motion()] * len(cut)
         pose, restarted = None, False
         for c, end, mv in zip(cut, ends, moves, strict=True):
-            m = Matches(*(np.asarray(a)[c] for a in (matches.index, matches.coarse, matches.score, matches.heading)))
-            t = times[c] - times[c[-1]] + end
-            state, pose = self.update(state, m, t, end, mv, None if answer is None else answer(m, t))
+            m = Matches(*(np.asarray(getattr(matches, f.name))[c] for f in fields(Matches)))
+            state, pose = self.update(state, m, times[c], end, mv, None if answer is None else answer(m, times[c]))
             restarted = restarted or pose.restarted
         assert state is not None and pose is not None
         return state, replace(pose, restarted=restarted)

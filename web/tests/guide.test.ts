@@ -336,7 +336,7 @@ describe('Guide', () => {
     expect(r.texts().at(-1)).toBe(QUIET.sentence);
   });
 
-  it('films 1 s until Start’s instruction was said (it comes soon), then all it can between answers', async () => {
+  it('Start’s request films 1 s (its instruction soon), then each films all it can, unsure or not', async () => {
     const UNSURE = g('unsure', 'Not sure where you are; keep walking slowly.');
     const r = rig([START, UNSURE, GO, QUIET, QUIET]);
     const c = r.guide.choose({ id: 'p3', name: 'Room 102' });
@@ -345,10 +345,10 @@ describe('Guide', () => {
     r.guide.start();
     await vi.advanceTimersByTimeAsync(1000 + INTERVAL_MS * 3);
     expect(WALK_SECONDS).toBeGreaterThan(1);
-    // the preview, Start's (not sure: the instruction still owed), the one that says it, then the walk
-    expect(r.seconds).toEqual([1, 1, 1, WALK_SECONDS, WALK_SECONDS]);
+    // the preview's, Start's (not sure), then the walk's: the owed instruction comes with more of it
+    expect(r.seconds).toEqual([1, 1, WALK_SECONDS, WALK_SECONDS, WALK_SECONDS]);
     expect(r.texts().slice(1)).toEqual([UNSURE.sentence, GO.sentence]);
-    // Stop and Start again: Start's instruction is owed again, and comes after 1 s
+    // Stop and Start again: Start's request films 1 s again
     r.guide.stop();
     const n = r.seconds.length;
     r.guide.start();

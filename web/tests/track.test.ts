@@ -54,13 +54,13 @@ describe('Session.track', () => {
     api.locate.mockResolvedValue(answer(false));
     const { s } = session();
     await s.track({ session: 'abcdefgh12', to: 'p3' }, undefined, 2);
-    await s.track({ session: 'abcdefgh12', to: 'p3' }, undefined, 9); // at most the server's 5 s
-    expect(cam.captureClip.mock.calls.map((c) => c[2])).toEqual([20, 50]);
+    await s.track({ session: 'abcdefgh12', to: 'p3' }, undefined, 9); // at most 4.5 s (the server: 5 s)
+    expect(cam.captureClip.mock.calls.map((c) => c[2])).toEqual([20, 45]);
     const [, record, fps, , tracked] = api.locate.mock.calls[0];
     expect(fps).toBe(10);
     expect(tracked.t).toBeCloseTo(4 + 1.9); // the clip's last frame: 4000 ms + 19 x 100 ms
-    // every frame filmed is in the record: 50 frames' is 2.5 times 20 frames' (less the header)
-    const header = (20 * (api.locate.mock.calls[1][1] as Uint8Array).length - 50 * (record as Uint8Array).length) / -30;
+    // every frame filmed is in the record: 45 frames' is 2.25 times 20 frames' (less the header)
+    const header = (20 * (api.locate.mock.calls[1][1] as Uint8Array).length - 45 * (record as Uint8Array).length) / -25;
     expect(header).toBeGreaterThanOrEqual(0);
     expect(header).toBeLessThan(64);
   });

@@ -1,12 +1,12 @@
 /**
  * The guidance loop (issue 14): take the user to a chosen place. Choosing a place locates once in
  * a new tracking session with `to` and says the route's preview ("Room 102: 45 metres, 2 turns,
- * first turn after 12 metres."); Start says the current instruction from a fresh answer, then
- * films and locates every INTERVAL_MS or so with the phone's motion since the previous request:
- * ~1 s until Start's instruction was said (it comes soon), then WALK_SECONDS, everything the loop
- * can film between two answers (the server's filter walks it second by second: an unseen second of
- * walking is evidence lost; on the venue families it was never tuned on, filming throughout is
- * right more often: docs/benchmarks.md, "Filming throughout");
+ * first turn after 12 metres."); Start says the current instruction from a fresh answer (its
+ * request films ~1 s, so that it comes soon), then films and locates again and again with the
+ * phone's motion since the previous request: WALK_SECONDS a request, all the loop can film but
+ * the answer's time and a MIN_GAP_MS pause (the server's filter walks it second by second: an
+ * unseen second of walking is evidence lost; on the venue families it was never tuned on, more of
+ * the walk filmed is right more often: docs/benchmarks.md, "Filming throughout");
  * the server's filter and guide decide what is new, and this loop speaks only what it marks
  * `speak`. Off the route and arrival cut in (urgent); "not sure" is said once per spell; arrival
  * ends the loop. The screen is kept on while guiding (wakelock.ts) and the motion sensors run
@@ -80,7 +80,10 @@ export interface Words {
 
 export interface GuideDeps {
   voice: Voice;
-  /** Film and locate once in a tracking session (Session.track); null: the camera is taken, try later. */
+  /**
+   * Film `seconds` and locate them once in a tracking session (Session.track); null: the camera
+   * is taken, try later.
+   */
   track(
     q: { session: string; to: string; style: Style },
     motion: () => Motion,
@@ -181,6 +184,8 @@ interface Run {
   paused?: boolean;
   /** An instruction (or "not sure") was said in this run. */
   spoke?: boolean;
+  /** The loop's requests so far in this run (the first films 1 s). */
+  requests?: number;
 }
 
 function endRun(run: Run): void {
@@ -377,8 +382,11 @@ export class Guide extends Emitter<GuideEvents> {
     const hides = this.hides;
     let again = true;
     try {
-      // Start's instruction soon (1 s); then all the loop can film (the unseen walk is lost evidence)
-      const a = await this.request(run, false, this.owed ? 1 : WALK_SECONDS);
+      // Start's request films 1 s (its instruction soon); then all the loop can film, unsure or
+      // not (the unseen walk is lost evidence, and an unsure start needs it most)
+      const first = run.requests === undefined;
+      run.requests = (run.requests ?? 0) + 1;
+      const a = await this.request(run, false, first ? 1 : WALK_SECONDS);
       if (run !== this.run) return;
       if (!a) return; // the camera is taken: the next turn asks again
       const g = a.guidance;

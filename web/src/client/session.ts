@@ -44,6 +44,8 @@ const CLIP_FRAMES = 10; // ~1 s at 10 fps: enough for the clip to outvote a sing
 /** Frames filmed after a first answer that was not sure: 3 s in all, sent as one clip. */
 export const MORE_FRAMES = 20;
 const CLIP_INTERVAL_MS = 100;
+/** The most frames a tracked request films (4.5 s at 10 fps; the server takes up to 5 s). */
+const MAX_TRACK_FRAMES = 45;
 /**
  * An answer a user may trust without more evidence (docs/benchmarks.md: of the answers at or above
  * it, 1 % were further than 2 m off on the tuning venue families, 6 % on the held-out ones). Below
@@ -436,8 +438,9 @@ export class Session extends Emitter<SessionEvents> {
     this.emit('busy', true);
     try {
       const r = await this.ready();
-      // `seconds` of frames at the clip's pace (the server takes up to 5 s)
-      const frames = Math.min(50, Math.max(CLIP_FRAMES, Math.round((seconds * 1000) / CLIP_INTERVAL_MS)));
+      // `seconds` of frames at the clip's pace; at most 4.5 s (the server takes 5 s at the fps the
+      // phone measured, which a slow camera makes lower than 10)
+      const frames = Math.min(MAX_TRACK_FRAMES, Math.max(CLIP_FRAMES, Math.round((seconds * 1000) / CLIP_INTERVAL_MS)));
       const clip = await this.firstClip(r, frames);
       const record = encodeRecord(clip.frames, r.v.features.settings, r.v.features.settings_id);
       const m = motion?.();

@@ -91,7 +91,7 @@ export interface Tracking {
   session: string;
   restarted: boolean;
   reason: 'new' | 'expired' | 'venue changed' | 'clock' | null;
-  /** Updates the filter has had in this session, this one included. */
+  /** Updates the filter has had in this session, this request's included (a 2 s clip: two, a second each). */
   updates: number;
   single: TrackingSingle;
 }
