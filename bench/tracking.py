@@ -156,9 +156,10 @@ def run(
     single: bool = True,
     film: str = "1 s",
 ) -> list[dict[str, Any]]:
-    """Every `every` s from `start` + 1 s: the clip of `film` ending there ("1 s", or "2 s" as the
-    app films a guided walk now, its first request 1 s; the filter walks a longer clip second by
-    second, Tracker.update_clip as Locator.track does), alone and through the filter."""
+    """Every `every` s from `start` + 1 s: the clip of `film` ending there ("1 s"; "2 s" as the
+    app films a guided walk now, "3 s" as "Keep telling me" every 3 s; the first always 1 s; the
+    filter walks a longer clip second by second, Tracker.update_clip as Locator.track does), alone
+    and through the filter."""
     fps = loc.conf["model_fps"]
     n = int(round(fps))
     rows: list[dict[str, Any]] = []
@@ -173,8 +174,8 @@ def run(
     e_prev = None
     for e in ends:
         s = slice(max(first, e - n + 1), e + 1)
-        if film == "2 s" and e_prev is not None:  # the app's requests after Start's first
-            s = slice(max(first, e - 2 * n + 1), e + 1)
+        if e_prev is not None:  # the app's requests after the first (which films 1 s)
+            s = slice(max(first, e - int(round(float(film.split()[0]) * n)) + 1), e + 1)
         m, times = sub(w.m, s), w.t[s]
         t_now = float(times[-1])
         motion = imu.motion(t_prev, t_now) if imu is not None and t_prev is not None else None
@@ -429,14 +430,17 @@ def main() -> None:
                     if start > w.t[-1] - 15.0:
                         continue
                     # every 2.5 s: the 1 s clip ending there (the app before), and 2 s (the app now)
-                    for every, film in ((1.0, "1 s"), (2.5, "1 s"), (2.5, "2 s")):
+                    # and "Keep telling me" every 3 s: 1 s a turn and then the 3 s (every ~4 s: the
+                    # app), or from one turn's start to the next's filming the 3 s (~3.3 s: tried)
+                    keep = ((4.0, "1 s"), (3.3, "3 s")) if start == 0.0 and wname == "query" else ()
+                    for every, film in ((1.0, "1 s"), (2.5, "1 s"), (2.5, "2 s"), *keep):
                         for use in (False, True):
                             rows = run(loc, tr, w, every, imu if use else None, start, start == 0.0, film)
                             runs.append(
                                 {"family": name, "split": FAMILIES[name].split, "seed": seed, "walk": wname,
                                  "every": every, "film": film, "imu": use, "start": start, "rows": rows}
                             )  # fmt: skip
-                        if start == 0.0 and wname == "query":  # a phone that counts no steps, gyroscope on
+                        if start == 0.0 and wname == "query" and every in (1.0, 2.5):  # no steps counted
                             rows = run(loc, tr, w, every, no_steps(imu), start, True, film)
                             runs.append(
                                 {"family": name, "split": FAMILIES[name].split, "seed": seed, "walk": wname,
@@ -485,6 +489,16 @@ def main() -> None:
                 rows = pool(split=split, every=every, imu="no steps", start=0.0, film=film)
                 if rows:
                     print(f"| {split}, {pace(every, film)} | " + cells(summary(rows), summary(rows, "single_")))
+
+    print('\n### "Keep telling me" every 3 s: 1 s a turn, every ~4 s (the app) / 3 s a turn, every ~3.3 s (tried)\n')
+    print(HEAD.format(what="split, turns, IMU"))
+    for split in ("tuning", "held-out"):
+        for every, film in ((4.0, "1 s"), (3.3, "3 s")):
+            for use in (False, True):
+                rows = pool(split=split, every=every, imu=use, start=0.0, film=film)
+                if rows:
+                    what = f"{split}, {film} every {every:g} s, IMU {'yes' if use else 'no'}"
+                    print(f"| {what} | " + cells(summary(rows), summary(rows, "single_")))
 
     print("\n### Starting afresh (at 0, 20, 40, 60, 80 s into each query walk): seconds to the first")
     print("answer given with confidence >= 0.8, and whether it was right (within 2 m)\n")

@@ -256,7 +256,9 @@ def test_edits_in_a_row_queue_builds_on_one_thread_and_build_only_the_current_ru
     assert len(warm_threads) == 1
     gate.set()
     assert runtimes.warm_idle(WAIT_S)
-    # the first build (held when the edits came) and then the latest runtime's: none of those between
+    # the build held when the edits came and then the latest runtime's: none of those between. The
+    # held one is of the runtime current when the thread looked (the first, or a later one when
+    # the thread started late on a busy machine: CI once saw the second)
     assert len(built) <= 2 and len(set(built)) == 1
     assert runtimes_seen[-1] is runtime(app) and runtime(app)._walk is not None
-    assert all(rt._walk is None for rt in runtimes_seen[1:-1])
+    assert sum(rt._walk is not None for rt in runtimes_seen[:-1]) <= 1

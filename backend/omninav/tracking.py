@@ -795,8 +795,9 @@ class Tracker:
         """A clip of any length (times end at t_now) -> `update` once per part of it (`parts`:
         about a second each), the phone's motion since the last update shared among them (`share`);
         `answer(matches, times)`: what each part answers alone (None: the rules of the clip's own
-        answer do not apply). -> the state and pose after the last part (`restarted`: whether
-        any part started the belief over)."""
+        answer do not apply).
+        -> the state and pose after the last part (`restarted`: whether any part started the
+        belief over)."""
         times = np.asarray(times, np.float64)
         if len(times) != matches.index.shape[0] or len(times) == 0:
             raise ValueError(f"{matches.index.shape[0]} frames of matches need as many frame times, got {len(times)}")
@@ -815,7 +816,11 @@ class Tracker:
         pose, restarted = None, False
         for c, end, mv in zip(cut, ends, moves, strict=True):
             m = Matches(*(np.asarray(getattr(matches, f.name))[c] for f in fields(Matches)))
-            state, pose = self.update(state, m, times[c], end, mv, None if answer is None else answer(m, times[c]))
+            # each part's own answer: the rules of the clip's own answer were chosen on 1 s clips'
+            # (the whole clip's, surer for being longer, was tried: it did no better on the
+            # held-out families; docs/benchmarks.md, "Filming throughout")
+            own = None if answer is None else answer(m, times[c])
+            state, pose = self.update(state, m, times[c], end, mv, own)
             restarted = restarted or pose.restarted
         assert state is not None and pose is not None
         return state, replace(pose, restarted=restarted)

@@ -135,6 +135,7 @@ function rig(script: Step[], o: { screen?: boolean; words?: Words; voice?: Voice
   };
   const requests: { session: string; to: string; style: Style; steps: number | null; turn: number | null }[] = [];
   const seconds: number[] = []; // what each request asked to film
+  const stops: (() => boolean)[] = []; // and when it is to stop filming
   let filming = 0;
   let n = 0;
   const motion = fakeMotion();
@@ -146,8 +147,9 @@ function rig(script: Step[], o: { screen?: boolean; words?: Words; voice?: Voice
     voice,
     // each request films 1 s (whatever it asked for: the timing of these tests), then asks the
     // motion and answers the script's next step
-    track: async (q, m, s) => {
+    track: async (q, m, s, stop) => {
       seconds.push(s);
+      stops.push(stop);
       filming++;
       await new Promise((r) => setTimeout(r, 1000));
       filming--;
@@ -173,6 +175,7 @@ function rig(script: Step[], o: { screen?: boolean; words?: Words; voice?: Voice
     texts: () => said.map((s) => s.text),
     requests,
     seconds,
+    stops,
     motion,
     page,
     screen,
@@ -354,6 +357,10 @@ describe('Guide', () => {
     r.guide.start();
     await vi.advanceTimersByTimeAsync(1000 + INTERVAL_MS);
     expect(r.seconds.slice(n)).toEqual([1, WALK_SECONDS]);
+    // Stop guidance ends the filming of the request in flight (after its first second)
+    expect(r.stops.map((f) => f())).toEqual([...r.stops.slice(0, n).map(() => true), false, false]);
+    r.guide.stop();
+    expect(r.stops.at(-1)!()).toBe(true);
   });
 
   it('a problem is said once while the loop keeps trying; a lost venue stops it', async () => {

@@ -4,6 +4,7 @@
 // taken by a "Where am I?" answers null. The camera, the worker and the server are fakes.
 import { beforeEach, describe, expect, it, vi } from 'vitest';
 import { ApiProblem, type Answer } from '../src/client/api';
+import type { Clip } from '../src/client/camera';
 import { VENUE, answer, clip, session } from './fake-session';
 
 const api = vi.hoisted(() => ({ venues: vi.fn(), venue: vi.fn(), locate: vi.fn() }));
@@ -52,10 +53,15 @@ describe('Session.track', () => {
 
   it('films as many seconds as asked (a guided walk under way: 2 s), all sent as one clip', async () => {
     api.locate.mockResolvedValue(answer(false));
+    // a clip that follows another is filmed on from it: its frames 100 ms after the other's last
+    cam.captureClip.mockImplementation((_v, _e, n: number, _ms, _stop, follow?: Clip) =>
+      Promise.resolve(clip(n, follow ? follow.endMs + 100 : 4000)),
+    );
     const { s } = session();
     await s.track({ session: 'abcdefgh12', to: 'p3' }, undefined, 2);
     await s.track({ session: 'abcdefgh12', to: 'p3' }, undefined, 9); // at most 4.5 s (the server: 5 s)
-    expect(cam.captureClip.mock.calls.map((c) => c[2])).toEqual([20, 45]);
+    // the first second (the lens checked on it), then the rest filmed on from it
+    expect(cam.captureClip.mock.calls.map((c) => c[2])).toEqual([10, 10, 10, 35]);
     const [, record, fps, , tracked] = api.locate.mock.calls[0];
     expect(fps).toBe(10);
     expect(tracked.t).toBeCloseTo(4 + 1.9); // the clip's last frame: 4000 ms + 19 x 100 ms
@@ -63,6 +69,14 @@ describe('Session.track', () => {
     const header = (20 * (api.locate.mock.calls[1][1] as Uint8Array).length - 45 * (record as Uint8Array).length) / -25;
     expect(header).toBeGreaterThanOrEqual(0);
     expect(header).toBeLessThan(64);
+  });
+
+  it('a stop ends the filming after the first second, never before', async () => {
+    api.locate.mockResolvedValue(answer(false));
+    const { s } = session();
+    await s.track({ session: 'abcdefgh12', to: 'p3' }, undefined, 3, () => true);
+    expect(cam.captureClip.mock.calls.map((c) => c[2])).toEqual([10]);
+    expect(api.locate.mock.calls[0][4].t).toBeCloseTo(4.9);
   });
 
   it('throws the problem for the guide to say, and answers null while a "Where am I?" films', async () => {

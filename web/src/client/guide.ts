@@ -81,13 +81,14 @@ export interface Words {
 export interface GuideDeps {
   voice: Voice;
   /**
-   * Film `seconds` and locate them once in a tracking session (Session.track); null: the camera
-   * is taken, try later.
+   * Film `seconds` (less, never under 1 s, once `stop` says so) and locate them once in a
+   * tracking session (Session.track); null: the camera is taken, try later.
    */
   track(
     q: { session: string; to: string; style: Style },
     motion: () => Motion,
     seconds: number,
+    stop: () => boolean,
   ): Promise<Answer | null>;
   /**
    * The phone's motion (MotionFeed): `peek` reads what happened since the last `commit`, which
@@ -274,7 +275,7 @@ export class Guide extends Emitter<GuideEvents> {
           ? { steps: reading.steps, turn_deg: reading.turn_deg }
           : UNKNOWN;
       };
-      const a = await this.d.track(q, motion, seconds);
+      const a = await this.d.track(q, motion, seconds, () => run !== this.run); // Stop: film no more
       if (run !== this.run) return null;
       if (a && reading) {
         // the server has this request's time now: the next motion counts from its clip, and is

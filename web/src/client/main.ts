@@ -34,7 +34,7 @@ const session = new Session({
 });
 const guide = new Guide({
   voice: speaker,
-  track: async (q, motion, seconds) => (await session.track(q, motion, seconds))?.answer ?? null,
+  track: async (q, motion, seconds, stop) => (await session.track(q, motion, seconds, stop))?.answer ?? null,
   motion: new MotionFeed(),
   screen: new ScreenLock(),
   askMotion,

@@ -295,17 +295,27 @@ export class Session extends Emitter<SessionEvents> {
     return { v, lens, ext, fresh, donut: lens[1].model === 'catadioptric' };
   }
 
-  /**
-   * ~1 s of frames (`frames` of them); a donut lens is checked first (a 360 camera has no ring),
-   * and again when the picture jumps.
-   */
-  private async firstClip(r: Ready, frames = CLIP_FRAMES): Promise<Clip> {
+  /** ~1 s of frames; a donut lens is checked first (a 360 camera has no ring), and again when the picture jumps. */
+  private async firstClip(r: Ready): Promise<Clip> {
     const { ext, donut } = r;
     if (donut && this.lensWatch.due(ext.configured)) await this.checkLens(ext, r.fresh);
-    const clip = await captureClip(this.o.video, ext, frames, CLIP_INTERVAL_MS);
+    const clip = await captureClip(this.o.video, ext, CLIP_FRAMES, CLIP_INTERVAL_MS);
     if (!donut || !this.lensWatch.changed(clip.frames)) return clip;
     await this.checkLens(ext);
-    return captureClip(this.o.video, ext, frames, CLIP_INTERVAL_MS);
+    return captureClip(this.o.video, ext, CLIP_FRAMES, CLIP_INTERVAL_MS);
+  }
+
+  /**
+   * `seconds` of frames (at most 4.5 s: the server takes 5 s at the fps the phone measured, which
+   * a slow camera makes lower than 10): the first second as firstClip, then filmed on to follow it
+   * until `stop` says so (Stop guidance): never less than the first second.
+   */
+  private async longClip(r: Ready, seconds: number, stop: () => boolean): Promise<Clip> {
+    const first = await this.firstClip(r);
+    const more = Math.min(MAX_TRACK_FRAMES, Math.round((seconds * 1000) / CLIP_INTERVAL_MS)) - first.frames.length;
+    if (more <= 0 || stop()) return first;
+    const rest = await captureClip(this.o.video, r.ext, more, CLIP_INTERVAL_MS, stop, first);
+    return rest.frames.length ? joinClips(first, rest) : first;
   }
 
   /** An answer with how it was made, for the screens. */
@@ -421,7 +431,7 @@ export class Session extends Emitter<SessionEvents> {
 
   /**
    * One request of a guided walk (guide.ts; of "Keep telling me" too, tellTracked): film `seconds`
-   * (~1 s unless asked for more) and locate it in tracking session `q.session` (with `q.to`: guidance), `t` the clip's last frame on
+   * (~1 s unless asked for more; less, never under 1 s, once `stop` says so) and locate it in tracking session `q.session` (with `q.to`: guidance), `t` the clip's last frame on
    * the phone's clock, and the phone's motion since the session's previous answered request, asked
    * of `motion` once the clip is filmed (the caller counts that reading as sent only when this
    * resolves with an answer). Nothing is said here: errors are thrown, for the caller to say. Null
@@ -432,16 +442,14 @@ export class Session extends Emitter<SessionEvents> {
     q: Omit<Tracked, 't' | 'steps' | 'turn_deg'>,
     motion?: () => Motion,
     seconds = 1,
+    stop: () => boolean = () => false,
   ): Promise<Located | null> {
     if (this.busy) return null;
     this.busy = true;
     this.emit('busy', true);
     try {
       const r = await this.ready();
-      // `seconds` of frames at the clip's pace; at most 4.5 s (the server takes 5 s at the fps the
-      // phone measured, which a slow camera makes lower than 10)
-      const frames = Math.min(MAX_TRACK_FRAMES, Math.max(CLIP_FRAMES, Math.round((seconds * 1000) / CLIP_INTERVAL_MS)));
-      const clip = await this.firstClip(r, frames);
+      const clip = await this.longClip(r, seconds, stop);
       const record = encodeRecord(clip.frames, r.v.features.settings, r.v.features.settings_id);
       const m = motion?.();
       const t0 = performance.now();
