@@ -221,7 +221,12 @@ test('walking to the stairs: the preview, the first instruction, "keep going", t
     );
     const steps = updates.slice(1).map((u, i) => u - updates[i]);
     expect(steps.length, log).toBeGreaterThan(3);
-    expect(steps, log).toEqual([1, ...steps.slice(1).map(() => 2)]);
+    // (2 s filmed is two parts; a camera slow enough to stretch it past 2.4 s makes three)
+    expect(steps[0], log).toBe(1);
+    expect(
+      steps.slice(1).filter((d) => d < 2 || d > 3),
+      log,
+    ).toEqual([]);
     expect(await said(page), log).not.toContainEqual(expect.stringMatching(SAID.offRoute));
     // arrival said once, as the guidance's words have it: nothing appended from the app's venue
     const arrivals = (await said(page)).filter((s) => SAID.arrived.test(s));

@@ -561,6 +561,7 @@ def test_a_clip_is_cut_into_seconds_and_the_phones_motion_shared_among_them() ->
     assert [len(p) for p in parts(gap)] == [11]
     assert [len(p) for p in parts(np.r_[np.arange(10) / FPS, 5.0])] == [11]
     assert [len(p) for p in parts(np.repeat(np.arange(10) / FPS, 2))] == [20]  # a second, frames twice
+    assert [len(p) for p in parts(np.r_[np.arange(19) / FPS, np.nan])] == [20]  # no time: one part
     moved = share(Motion(7, 30.0), [1.5, 1.0, 1.0])
     assert sum(m.steps for m in moved) == 7 and sum(m.turn_deg for m in moved) == pytest.approx(30.0)
     assert [m.steps for m in moved] == [3, 2, 2]

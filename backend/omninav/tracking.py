@@ -170,7 +170,7 @@ def parts(times: np.ndarray, span: float = SPAN_S) -> list[np.ndarray]:
     two of 0.75 s; 1.4 s: one, whose update reads its last second) rather than whole seconds and
     a sliver of a few frames."""
     t = np.asarray(times, np.float64)
-    if len(t) < 2:
+    if len(t) < 2 or not np.isfinite(t).all():  # (times not numbers: one part, as a short clip)
         return [np.arange(len(t))]
     dt = float(np.median(np.diff(t)))
     length = float(t[-1] - t[0]) + max(dt, 0.0)  # each frame stands for a frame interval

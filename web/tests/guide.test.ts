@@ -351,7 +351,7 @@ describe('Guide', () => {
     // the preview's, Start's (not sure), then the walk's: the owed instruction comes with more of it
     expect(r.seconds).toEqual([1, 1, WALK_SECONDS, WALK_SECONDS, WALK_SECONDS]);
     expect(r.texts().slice(1)).toEqual([UNSURE.sentence, GO.sentence]);
-    // Stop and Start again: Start's request films 1 s again
+    // Stop and Start again: Start's request films 1 s again (and its retry, when it failed)
     r.guide.stop();
     const n = r.seconds.length;
     r.guide.start();
@@ -361,6 +361,18 @@ describe('Guide', () => {
     expect(r.stops.map((f) => f())).toEqual([...r.stops.slice(0, n).map(() => true), false, false]);
     r.guide.stop();
     expect(r.stops.at(-1)!()).toBe(true);
+  });
+
+  it('until a request of the run was answered, each films 1 s (Start’s instruction still soon)', async () => {
+    const r = rig([START, new Unreachable('down'), GO, QUIET]);
+    const c = r.guide.choose({ id: 'p3', name: 'Room 102' });
+    await vi.advanceTimersByTimeAsync(1000);
+    await c;
+    r.guide.start();
+    await vi.advanceTimersByTimeAsync(1000 + INTERVAL_MS * 3);
+    expect(r.seconds.slice(0, 4)).toEqual([1, 1, 1, WALK_SECONDS]); // the preview, Start's (failed), its retry, the walk
+    expect(r.texts()).toContain(GO.sentence);
+    r.guide.stop();
   });
 
   it('a problem is said once while the loop keeps trying; a lost venue stops it', async () => {

@@ -71,12 +71,20 @@ describe('Session.track', () => {
     expect(header).toBeLessThan(64);
   });
 
-  it('a stop ends the filming after the first second, never before', async () => {
+  it('a stop ends the filming after the first second, never before, and nothing is sent', async () => {
     api.locate.mockResolvedValue(answer(false));
     const { s } = session();
-    await s.track({ session: 'abcdefgh12', to: 'p3' }, undefined, 3, () => true);
+    let stopped = false;
+    cam.captureClip.mockImplementation((_v, _e, n: number) => {
+      stopped = true; // Stop guidance while the first second is filmed
+      return Promise.resolve(clip(n, 4000));
+    });
+    expect(await s.track({ session: 'abcdefgh12', to: 'p3' }, undefined, 3, () => stopped)).toBeNull();
     expect(cam.captureClip.mock.calls.map((c) => c[2])).toEqual([10]);
-    expect(api.locate.mock.calls[0][4].t).toBeCloseTo(4.9);
+    expect(api.locate).not.toHaveBeenCalled();
+    stopped = false; // a later request films and asks as usual
+    cam.captureClip.mockImplementation((_v, _e, n: number) => Promise.resolve(clip(n, 4000)));
+    expect(await s.track({ session: 'abcdefgh12', to: 'p3' }, undefined, 1, () => stopped)).not.toBeNull();
   });
 
   it('throws the problem for the guide to say, and answers null while a "Where am I?" films', async () => {

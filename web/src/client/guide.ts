@@ -35,7 +35,7 @@ import type { Cue } from './speech';
 
 /** From the start of one request to the start of the next (ms), at least: filming, then the answer. */
 export const INTERVAL_MS = 2000;
-/** What a request of the walk films once Start's instruction was said (s): all but the answer's time. */
+/** What a request of the walk films after Start's first (s): all but the answer's time. */
 export const WALK_SECONDS = 2;
 /** At least this long between two requests (ms), however slow the last one was. */
 export const MIN_GAP_MS = 250;
@@ -185,8 +185,8 @@ interface Run {
   paused?: boolean;
   /** An instruction (or "not sure") was said in this run. */
   spoke?: boolean;
-  /** The loop's requests so far in this run (the first films 1 s). */
-  requests?: number;
+  /** A request of the loop was answered in this run (until then each films 1 s). */
+  answered?: boolean;
 }
 
 function endRun(run: Run): void {
@@ -385,10 +385,10 @@ export class Guide extends Emitter<GuideEvents> {
     try {
       // Start's request films 1 s (its instruction soon); then all the loop can film, unsure or
       // not (the unseen walk is lost evidence, and an unsure start needs it most)
-      const first = run.requests === undefined;
-      run.requests = (run.requests ?? 0) + 1;
-      const a = await this.request(run, false, first ? 1 : WALK_SECONDS);
+      // (the first to be answered: a retry after a taken camera or an error is still quick)
+      const a = await this.request(run, false, run.answered ? WALK_SECONDS : 1);
       if (run !== this.run) return;
+      if (a) run.answered = true;
       if (!a) return; // the camera is taken: the next turn asks again
       const g = a.guidance;
       if (!g) throw new Error(NO_GUIDANCE);

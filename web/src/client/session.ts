@@ -436,7 +436,7 @@ export class Session extends Emitter<SessionEvents> {
    * of `motion` once the clip is filmed (the caller counts that reading as sent only when this
    * resolves with an answer). Nothing is said here: errors are thrown, for the caller to say. Null
    * when the camera is taken (a "Where am I?" is filming; `motion` is not asked): the caller tries
-   * again at its next turn.
+   * again at its next turn; null too when `stop` said so while filming (nothing is sent).
    */
   async track(
     q: Omit<Tracked, 't' | 'steps' | 'turn_deg'>,
@@ -450,6 +450,7 @@ export class Session extends Emitter<SessionEvents> {
     try {
       const r = await this.ready();
       const clip = await this.longClip(r, seconds, stop);
+      if (stop()) return null; // stopped while filming (Stop guidance): nothing to ask
       const record = encodeRecord(clip.frames, r.v.features.settings, r.v.features.settings_id);
       const m = motion?.();
       const t0 = performance.now();
