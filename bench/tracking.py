@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from omninav.aggregate import Estimate, confidence, sequence
+from omninav.aggregate import confidence, sequence
 from omninav.evaluate import query_spectra
 from omninav.heading import wrap_deg
 from omninav.index import Matches
@@ -49,7 +49,6 @@ from omninav.track import load_track
 from omninav.tracking import (
     ALIKE_K,
     TRACK_CONFIDENCE_INPUTS,
-    ClipAnswer,
     Imu,
     Motion,
     Tracker,
@@ -142,10 +141,6 @@ def no_steps(imu: Imu) -> Imu:
     return Imu(np.zeros(0), imu.yaw_t, imu.yaw_deg)
 
 
-def sub(m: Matches, s: slice) -> Matches:
-    return Matches(m.index[s], m.coarse[s], m.score[s], m.heading[s])
-
-
 def run(
     loc: Locator,
     tr: Tracker,
@@ -176,17 +171,12 @@ def run(
         s = slice(max(first, e - n + 1), e + 1)
         if e_prev is not None:  # the app's requests after the first (which films 1 s)
             s = slice(max(first, e - int(round(float(film.split()[0]) * n)) + 1), e + 1)
-        m, times = sub(w.m, s), w.t[s]
+        m, times = w.m.rows(s), w.t[s]
         t_now = float(times[-1])
         motion = imu.motion(t_prev, t_now) if imu is not None and t_prev is not None else None
         est = sequence(m, loc.xy, times, loc.conf)  # the clip alone, as a locate without a session answers
         c1 = confidence(est, loc.conf)
-
-        def own(mp: Matches, tp: np.ndarray, est: Estimate = est, whole: int = len(times)) -> ClipAnswer:
-            # each second's own answer (as Locator.track's)
-            ep = est if len(tp) == whole else sequence(mp, loc.xy, tp, loc.conf)
-            return ClipAnswer(confidence(ep, loc.conf), ep.x, ep.y, ep.venue_row)
-
+        own = loc.own_answers(est, len(times), "sequence")  # each part's own answer, as Locator.track's
         c0 = time.process_time()
         state, pose = tr.update_clip(state, m, times, t_now, motion, own)
         cpu = time.process_time() - c0

@@ -16,7 +16,7 @@ as NumPy at the `search` boundary (they are small: frames x candidates).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from types import ModuleType
 from typing import Any
 
@@ -34,6 +34,10 @@ class Matches:
     coarse: np.ndarray  # stage-1 magnitude score
     score: np.ndarray  # stage-2 phase-correlation score (cosine)
     heading: np.ndarray  # absolute heading of the query frame if it is at that venue frame (deg)
+
+    def rows(self, sel: Any) -> Matches:
+        """The matches of some of the query frames (a slice, an index or a boolean array)."""
+        return Matches(*(np.asarray(getattr(self, f.name))[sel] for f in fields(self)))
 
 
 def magnitude_keys(spec: Any) -> Any:

@@ -19,7 +19,7 @@ from .lens import Lens
 from .store import Store, key_dims_for
 
 if TYPE_CHECKING:
-    from .tracking import Motion, Tracker, TrackPose, TrackState
+    from .tracking import ClipAnswer, Motion, Tracker, TrackPose, TrackState
     from .walkgraph import WalkGraph
 
 EXTRACTORS = 8  # lenses whose remaps a Locator keeps
@@ -193,21 +193,31 @@ class Locator:
         A clip longer than a second (what the phone filmed since its last request) is walked
         second by second (Tracker.update_clip), `motion` shared among the seconds; the Estimate
         returned is the whole clip's, as a locate without a session answers it."""
-        from .tracking import ClipAnswer
-
         agg = self._aggregation(aggregate)
         m, times = self._search(q_spec, times)
         e = AGGREGATORS[agg](m, self.xy, times, self.conf)
         now = float(times[-1]) if t_now is None else float(t_now)
-
-        def own(mp: Matches, tp: np.ndarray) -> ClipAnswer:
-            # each second's own answer, as its single answer says it (the venue's aggregation and
-            # confidence model): the filter's rules of the clip's own answer read it
-            ep = e if len(tp) == len(times) else AGGREGATORS[agg](mp, self.xy, tp, self.conf)
-            return ClipAnswer(confidence(ep, self.conf), ep.x, ep.y, ep.venue_row)
-
-        new, pose = tracker.update_clip(state, m, times - times[-1] + now, now, motion, own)
+        new, pose = tracker.update_clip(
+            state, m, times - times[-1] + now, now, motion, self.own_answers(e, len(times), agg)
+        )
         return new, pose, e
+
+    def own_answers(
+        self, whole: Estimate, frames: int, aggregate: str | None = None
+    ) -> Callable[[Matches, np.ndarray], ClipAnswer]:
+        """What each part of a clip answers alone, as its single answer says it (the venue's
+        aggregation and confidence model), for the filter's rules of the clip's own answer
+        (Tracker.update_clip): `whole`, the clip's own Estimate, when the part is the whole clip
+        (`frames` frames), else the part's."""
+        from .tracking import ClipAnswer
+
+        agg = self._aggregation(aggregate)
+
+        def own(m: Matches, times: np.ndarray) -> ClipAnswer:
+            e = whole if len(times) == frames else AGGREGATORS[agg](m, self.xy, times, self.conf)
+            return ClipAnswer.of(e, self.conf)
+
+        return own
 
     def track_answer(self, pose: TrackPose, clip: str, t: float | None = None) -> dict[str, Any]:
         """A filtered pose -> the answer (CONVENTIONS.md fields, `t`, and `ambiguous`)."""

@@ -96,7 +96,7 @@ import numpy as np
 import scipy.sparse  # type: ignore[import-untyped]
 from scipy.spatial import cKDTree  # type: ignore[import-untyped]
 
-from .aggregate import SPAN_S, Estimate, field_of, logistic, sequence
+from .aggregate import SPAN_S, Estimate, confidence, field_of, logistic, sequence
 from .heading import wrap_deg
 from .index import Matches
 from .presets import DEFAULTS
@@ -150,6 +150,12 @@ class ClipAnswer:
     y: float | None = None
     row: int | None = None
 
+    @staticmethod
+    def of(e: Estimate, conf: dict[str, Any]) -> ClipAnswer:
+        """What a clip's aggregate Estimate answers, with its calibrated confidence (the venue's
+        confidence model, `conf`)."""
+        return ClipAnswer(confidence(e, conf), e.x, e.y, e.venue_row)
+
 
 @dataclass(frozen=True)
 class Motion:
@@ -157,6 +163,14 @@ class Motion:
 
     steps: int | None = None  # steps detected (DeviceMotion), None = unknown
     turn_deg: float | None = None  # gyroscope yaw change, clockwise +, None = unknown
+
+
+def _clip_times(matches: Matches, times: np.ndarray) -> np.ndarray:
+    """A clip's frame times as float64, checked against its matches (one time a query frame)."""
+    times = np.asarray(times, np.float64)
+    if len(times) != matches.index.shape[0] or len(times) == 0:
+        raise ValueError(f"{matches.index.shape[0]} frames of matches need as many frame times, got {len(times)}")
+    return times
 
 
 def parts(times: np.ndarray, span: float = SPAN_S) -> list[np.ndarray]:
@@ -711,9 +725,7 @@ class Tracker:
         the rules of the clip's own answer (None: they do not apply to this update, and the recent
         clips' mean starts over)."""
         motion = motion or Motion()
-        times = np.asarray(times, np.float64)
-        if len(times) != matches.index.shape[0] or len(times) == 0:
-            raise ValueError(f"{matches.index.shape[0]} frames of matches need as many frame times, got {len(times)}")
+        times = _clip_times(matches, times)
         fresh = state is None or not self.goes_on(state, t_now)
         uniform = np.full(self.n, 1.0 / self.n)
         e, facing = self.emission(matches, times, t_now)
@@ -798,9 +810,7 @@ class Tracker:
         answer do not apply).
         -> the state and pose after the last part (`restarted`: whether any part started the
         belief over)."""
-        times = np.asarray(times, np.float64)
-        if len(times) != matches.index.shape[0] or len(times) == 0:
-            raise ValueError(f"{matches.index.shape[0]} frames of matches need as many frame times, got {len(times)}")
+        times = _clip_times(matches, times)
         times = times - times[-1] + float(t_now)  # the clip ends at t_now
         cut = parts(times)
         if state is not None:
@@ -815,7 +825,7 @@ class Tracker:
             moves = [Motion()] * len(cut)
         pose, restarted = None, False
         for c, end, mv in zip(cut, ends, moves, strict=True):
-            m = Matches(*(np.asarray(getattr(matches, f.name))[c] for f in fields(Matches)))
+            m = matches.rows(c)
             # each part's own answer: the rules of the clip's own answer were chosen on 1 s clips'
             # (the whole clip's, surer for being longer, was tried: it did no better on the
             # held-out families; docs/benchmarks.md, "Filming throughout")
@@ -910,7 +920,7 @@ class Tracker:
         made-up 0° unless there is none)."""
         nx, ny = self.xy[node]
         keep = np.flatnonzero(times > t_now - SPAN_S - 1e-6)
-        m = Matches(*(np.asarray(a)[keep] for a in (matches.index, matches.coarse, matches.score, matches.heading)))
+        m = matches.rows(keep)
         pos = self.venue_xy[m.index]  # (Q, k, 2)
         near = np.hypot(pos[..., 0] - nx, pos[..., 1] - ny) <= FIT_M
         if not (near & (m.score > 0)).any():
