@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from omninav.errors import OmninavError
@@ -87,11 +87,14 @@ def broken(valid: st.SearchStrategy[dict[str, Any]]) -> st.SearchStrategy[Any]:
 # ---- the feature record --------------------------------------------------------------------------
 @st.composite
 def spectra(draw: Any) -> np.ndarray:
-    """(F, C, K) complex64 spectra as the extractor makes them: magnitudes in [0, 1], any phase."""
+    """(F, C, K) complex64 spectra as the extractor makes them: each frame at unit energy (or, a
+    frame without texture, at none), any phase."""
     f, c, k = draw(st.integers(1, 4)), draw(st.integers(1, 12)), draw(st.integers(1, 16))
-    mag = draw(st.lists(st.floats(0, 1), min_size=f * c * k, max_size=f * c * k))
+    mag = np.reshape(draw(st.lists(st.floats(0, 1), min_size=f * c * k, max_size=f * c * k)), (f, c, k))
+    e = np.sqrt((mag**2).sum(axis=(1, 2), keepdims=True))
+    mag = np.where(e > 1e-6, mag / np.maximum(e, 1e-6), 0.0)
     ph = draw(st.lists(st.floats(-math.pi, math.pi), min_size=f * c * k, max_size=f * c * k))
-    return (np.reshape(mag, (f, c, k)) * np.exp(1j * np.reshape(ph, (f, c, k)))).astype(np.complex64)
+    return (mag * np.exp(1j * np.reshape(ph, (f, c, k)))).astype(np.complex64)
 
 
 def assert_within_quantisation(got: np.ndarray, spec: np.ndarray) -> None:
@@ -132,6 +135,22 @@ def test_a_record_for_other_settings_is_refused_by_the_venue(spec: np.ndarray) -
         assert (got is not None) == fits
 
 
+@FAST
+@given(spectra(), st.floats(0.0, 1.0), st.booleans(), st.data())
+def test_a_frame_off_unit_energy_is_refused(spec: np.ndarray, u: float, up: bool, data: Any) -> None:
+    """A frame scaled away from unit energy (a broken client: its scores would no longer be
+    cosines, and nonsense would be answered as sure) is refused, naming the frame."""
+    i = data.draw(st.integers(0, len(spec) - 1))
+    assume(float((np.abs(spec[i]) ** 2).sum()) > 0.5)  # not a frame without texture
+    top = min(60.0, 1.0 / float(np.abs(spec[i]).max()))  # magnitudes stay in [0, 1]
+    gain = 1.03 + u * (top - 1.03) if up and top > 1.03 else 0.02 + u * 0.95
+    bad = spec.copy()
+    bad[i] *= gain
+    for decode, record in ((decode_binary, encode_binary(bad, CONF)), (decode_json, encode_json(bad, CONF))):
+        with pytest.raises(OmninavError, match=f"frame {i} is not at unit energy"):
+            decode(record)
+
+
 @st.composite
 def record_bytes(draw: Any) -> bytes:
     """Bytes that get past the magic: a header with any sizes, then any payload (right or wrong
@@ -151,6 +170,8 @@ def test_any_bytes_decode_to_a_record_or_one_line_refusal(buf: bytes) -> None:
         _, _, c, k, _, f, _ = HEADER.unpack_from(buf)
         assert got.shape == (f, c, k) and got.dtype == np.complex64
         assert np.isfinite(got).all() and (np.abs(got) <= 1.0001).all()
+        e = (np.abs(got).astype(np.float64) ** 2).sum(axis=(1, 2))
+        assert np.all((np.abs(e - 1) <= 0.01) | (e <= 1e-4))  # each frame at unit energy, or at none
 
 
 @FAST

@@ -217,6 +217,12 @@ def test_low_confidence_says_not_sure(built, clip):
     assert a["low_confidence"] and a["confidence"] < 0.5
     assert a["sentence"] == "Not sure where you are; turn slowly and try again."
     assert a["accuracy_m"] is None
+    # features of nowhere at all: random magnitudes, at unit energy as every record's frames are
+    mag = rng.uniform(0, 1, spec.shape)
+    mag /= np.sqrt((mag**2).sum(axis=(1, 2), keepdims=True))
+    nowhere = (mag * np.exp(1j * rng.uniform(-np.pi, np.pi, spec.shape))).astype(np.complex64)
+    a = api.post("/api/venues/lab/locate", json=encode_json(nowhere, conf)).json
+    assert a["low_confidence"] and a["confidence"] < 0.5 and a["accuracy_m"] is None
 
 
 BAD_RECORDS = [
@@ -254,6 +260,9 @@ def test_record_problems_are_named(built, clip):
         ({k: v for k, v in rec.items() if k != "phase"}, "missing 'phase'"),
         ({**rec, "pano_width": "wide"}, "pano_width"),
         ({**rec, "fps": 0}, "'fps'"),
+        # magnitudes anywhere in [0, 1], not scaled to unit energy (a broken client): such frames
+        # would score up to sqrt(C*K) times a perfect match, and used to be answered as sure
+        ({**rec, "mag": np.random.default_rng(0).uniform(0, 1, spec.shape).tolist()}, "frame 0 is not at unit energy"),
     ]
     for body, words in cases:
         r = api.post("/api/venues/lab/locate", json=body)

@@ -183,6 +183,12 @@ def test_record_round_trip_and_size():
     assert np.array_equal(decode_json(encode_json(spec, conf), conf), spec)
 
 
+def unit_spec(conf, frames):
+    """A record's spectra: every harmonic alike, each frame at unit energy (as spectrum() scales it)."""
+    c, k = n_curves(conf), conf["n_harmonics"]
+    return np.full((frames, c, k), 1 / np.sqrt(c * k) + 0j, np.complex64)
+
+
 @pytest.mark.parametrize(
     "mutate,msg",
     [
@@ -195,14 +201,14 @@ def test_record_round_trip_and_size():
 )
 def test_malformed_binary_records(mutate, msg):
     conf = resolve("default")
-    spec = np.full((1, n_curves(conf), conf["n_harmonics"]), 0.05 + 0j, np.complex64)
+    spec = unit_spec(conf, 1)
     with pytest.raises(OmninavError, match=msg):
         decode_binary(mutate(encode_binary(spec, conf)), conf)
 
 
 def test_malformed_json_records():
     conf = resolve("default")
-    spec = np.full((2, n_curves(conf), conf["n_harmonics"]), 0.05 + 0j, np.complex64)
+    spec = unit_spec(conf, 2)
     good = encode_json(spec, conf)
     with pytest.raises(OmninavError, match="NaN"):
         decode_json({**good, "mag": [[[float("nan")] * conf["n_harmonics"]] * n_curves(conf)] * 2}, conf)
@@ -212,11 +218,16 @@ def test_malformed_json_records():
         decode_json({"version": 1}, conf)
     with pytest.raises(OmninavError, match="version"):
         decode_json({**good, "version": 2}, conf)
+    half = np.concatenate([spec, spec * 0.5])  # the third frame at a quarter of the energy
+    for decode, record in ((decode_json, encode_json(half, conf)), (decode_binary, encode_binary(half, conf))):
+        with pytest.raises(OmninavError, match="frame 2 is not at unit energy.*sum to 0.25"):
+            decode(record, conf)
+    assert decode_json(encode_json(np.concatenate([spec, 0 * spec]), conf), conf).shape == (4, *spec.shape[1:])
 
 
 def test_records_made_with_other_settings_are_refused():
     conf = resolve("default")
-    spec = np.full((1, n_curves(conf), conf["n_harmonics"]), 0.05 + 0j, np.complex64)
+    spec = unit_spec(conf, 1)
     other = {**conf, "gray_world": False}  # same shape, different features
     with pytest.raises(OmninavError, match="other settings"):
         decode_binary(encode_binary(spec, other), conf)

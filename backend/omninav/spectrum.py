@@ -26,6 +26,13 @@ MAGIC = b"ONV"
 _HEADER = struct.Struct("<3sBHHHII2x")
 HEADER_BYTES = _HEADER.size
 MAX_RECORD_BYTES = 1024
+# Every frame of a record is at unit energy (spectrum()), or at none: a frame without texture (a
+# lens cap, a blank wall) has flat curves. float16 magnitudes keep a unit frame's sum of squares
+# within about 0.1 % of 1. A frame far from both is not a record's: its phase correlation is no
+# longer a cosine, so a broken client's frames would score up to sqrt(C*K) times a perfect match
+# and be answered as sure.
+ENERGY_TOL = 0.01
+NO_ENERGY = 1e-4
 
 
 def spectrum(curves: np.ndarray, n_harmonics: int) -> np.ndarray:
@@ -169,6 +176,14 @@ def _check(mag: np.ndarray, c: int, k: int, w: int, sid: int, expect: dict[str, 
                 f"({settings_id(expect)}); extract them with the venue's feature settings",
                 venue_settings_id=settings_id(expect),  # a client that read the venue before it was modelled anew
             )
+    e = (m.astype(np.float64) ** 2).sum(axis=(1, 2))
+    off = np.flatnonzero((np.abs(e - 1.0) > ENERGY_TOL) & (e > NO_ENERGY))
+    if off.size:
+        raise OmninavError(
+            f"feature record frame {int(off[0])} is not at unit energy: the squares of its magnitudes "
+            f"sum to {float(e[off[0]]):.3g}, not 1 ({off.size} of {len(e)} frames are off; each frame's "
+            "harmonics are scaled together to unit energy, docs/formats.md, 'Feature record')"
+        )
 
 
 def record_bytes_per_frame(conf: dict[str, Any]) -> int:
