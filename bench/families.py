@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from omninav.aggregate import confidence
+from omninav.aggregate import SURE, confidence
 from omninav.evaluate import evaluate_spectra, query_spectra
 from omninav.lens import load_lens
 from omninav.locate import Locator
@@ -48,7 +48,7 @@ CONFIGS: dict[str, tuple[str, dict[str, Any], str]] = {  # name: preset, overrid
     "paper": ("paper", {}, "median"),
 }
 CONFIDENCE_KEYS = ("confidence_features", "confidence_coef")
-TRUST = 0.8  # the confidence a user is told to trust (issue 13: <= 1 % of these wrong)
+TRUST = SURE  # the confidence a user is told to trust (issue 13: <= 1 % of these wrong)
 
 
 def family_names(spec: str) -> list[str]:

@@ -152,9 +152,9 @@ def run(
     film: str = "1 s",
 ) -> list[dict[str, Any]]:
     """Every `every` s from `start` + 1 s: the clip of `film` ending there ("1 s"; "2 s" as the
-    app films a guided walk now, "3 s" as "Keep telling me" every 3 s; the first always 1 s; the
-    filter walks a longer clip second by second, Tracker.update_clip as Locator.track does), alone
-    and through the filter."""
+    app films a guided walk and "Keep telling me" now, "3 s" as "Keep telling me" filming its whole
+    interval (tried); the first always 1 s; the filter walks a longer clip second by second,
+    Tracker.update_clip as Locator.track does), alone and through the filter."""
     fps = loc.conf["model_fps"]
     n = int(round(fps))
     rows: list[dict[str, Any]] = []
@@ -421,8 +421,9 @@ def main() -> None:
                         continue
                     # every 2.5 s: the 1 s clip ending there (the app before), and 2 s (the app now)
                     # and "Keep telling me" every 3 s: 1 s a turn and then the 3 s (every ~4 s: the
-                    # app), or from one turn's start to the next's filming the 3 s (~3.3 s: tried)
-                    keep = ((4.0, "1 s"), (3.3, "3 s")) if start == 0.0 and wname == "query" else ()
+                    # app before), 2 s a turn and then 2 s (every ~4 s: the app now), or from one
+                    # turn's start to the next's filming the 3 s (~3.3 s: tried)
+                    keep = ((4.0, "1 s"), (4.0, "2 s"), (3.3, "3 s")) if start == 0.0 and wname == "query" else ()
                     for every, film in ((1.0, "1 s"), (2.5, "1 s"), (2.5, "2 s"), *keep):
                         for use in (False, True):
                             rows = run(loc, tr, w, every, imu if use else None, start, start == 0.0, film)
@@ -480,10 +481,13 @@ def main() -> None:
                 if rows:
                     print(f"| {split}, {pace(every, film)} | " + cells(summary(rows), summary(rows, "single_")))
 
-    print('\n### "Keep telling me" every 3 s: 1 s a turn, every ~4 s (the app) / 3 s a turn, every ~3.3 s (tried)\n')
+    print(
+        '\n### "Keep telling me" every 3 s: 1 s a turn, every ~4 s (before) / 2 s a turn, every ~4 s (the app) '
+        "/ 3 s a turn, every ~3.3 s (tried)\n"
+    )
     print(HEAD.format(what="split, turns, IMU"))
     for split in ("tuning", "held-out"):
-        for every, film in ((4.0, "1 s"), (3.3, "3 s")):
+        for every, film in ((4.0, "1 s"), (4.0, "2 s"), (3.3, "3 s")):
             for use in (False, True):
                 rows = pool(split=split, every=every, imu=use, start=0.0, film=film)
                 if rows:

@@ -27,6 +27,9 @@ from .index import Matches
 WALK_MPS = 1.8  # fastest walking pace we allow between two frames of a clip
 NEAR_M = 0.45  # slack on top: matching granularity and the modelling track's own error
 ALT_M = 3.0  # a rival hypothesis this far away is a different place
+# "Sure": the confidence from which an answer is one a user may trust (the app's TRUSTED_CONFIDENCE,
+# the accuracy circle's 2 m, the figures' "conf >= 0.8", issue 13's target)
+SURE = 0.8
 # The span clip_radius_m and heading_gate_deg are for (a 1 s clip), and the part of a longer clip
 # that places the answer: its hypotheses and the fit. Earlier frames only add support: anchored
 # on them, a hypothesis on the user's own way there would be a "rival" of where they are now.

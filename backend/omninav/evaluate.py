@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from .aggregate import Estimate, confidence
+from .aggregate import SURE, Estimate, confidence
 from .errors import OmninavError
 from .heading import wrap_deg
 from .lens import Lens
@@ -37,7 +37,7 @@ class Evaluation:
         err = np.array([r["err_m"] for r in self.rows])
         herr = np.array([abs(r["heading_err_deg"]) for r in self.rows])
         conf = np.array([r["confidence"] for r in self.rows])
-        hi = conf >= 0.8
+        hi = conf >= SURE
         return {
             "clips": len(self.rows),
             "within_1m": float(np.mean(err <= 1.0)),
@@ -257,7 +257,7 @@ def plot(ev: Evaluation, loc: Locator, path: Path, title: str = "") -> None:
 
 # ---- tracking while walking (tracking.py): `omninav track`, `evaluate --track-mode` ---------------
 SKIP_S = 5.0  # track-mode figures count the seconds after the first 5 (the filter's start)
-TRUST = 0.8  # the confidence a user is told to trust
+TRUST = SURE  # the confidence a user is told to trust
 
 
 def track_ends(t: np.ndarray, every: float = 1.0, clip_s: float = 1.0) -> list[int]:

@@ -96,7 +96,7 @@ import numpy as np
 import scipy.sparse  # type: ignore[import-untyped]
 from scipy.spatial import cKDTree  # type: ignore[import-untyped]
 
-from .aggregate import SPAN_S, Estimate, confidence, field_of, logistic, sequence
+from .aggregate import SPAN_S, SURE, Estimate, confidence, field_of, logistic, sequence
 from .heading import wrap_deg
 from .index import Matches
 from .presets import DEFAULTS
@@ -114,7 +114,7 @@ LIMIT_M = 8.0  # graph distances are kept up to this; a longer gap is walked in 
 FIT_M = 2.0  # the clip's matches within this of the answer's node place it and give its heading
 FORGET_S = 120.0  # after this long without an update, start over
 AMBIGUOUS_CAP = 0.45  # the confidence of an ambiguous answer: below the app's "not sure" (0.5)
-CLIP_SURE = 0.8  # a clip this confident of its own answer (the app's "sure") that lies elsewhere casts doubt
+CLIP_SURE = SURE  # a clip this confident of its own answer (the app's "sure") that lies elsewhere casts doubt
 MAX_STORED = 1500  # nodes a serialised state keeps one by one (the most probable) ...
 STORE_REL = 1e-6  # ... those with at least this share of the most probable's belief; a broader
 # belief (a young one on a big graph) is kept whole instead, never cut to the lowest-numbered

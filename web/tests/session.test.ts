@@ -1,8 +1,10 @@
 // "Keep telling me": the session asks every few seconds, never while a sentence is being spoken,
-// and a stop ends its loop for good. It is a walk: each turn locates ~1 s in one tracking session
-// per start (the server's filter remembers where the user was), with the clip's last frame on the
-// phone's clock and the phone's motion since the previous answered turn when it has it; it never
-// films on to 3 s, and says only what changed. The camera, the worker and the server are fakes.
+// and a stop ends its loop for good. It is a walk: each turn locates in one tracking session per
+// start (the server's filter remembers where the user was), the first 1 s and every turn after an
+// answered one KEEP_SECONDS (2 s) with the wait after it a second shorter, with the clip's last
+// frame on the phone's clock and the phone's motion since the previous answered turn when it has
+// it; it never films on to 3 s when unsure, and says only what changed. The camera, the worker and
+// the server are fakes.
 import { afterEach, beforeEach, describe, expect, it, vi } from 'vitest';
 import { ApiProblem, Unreachable, trackedQuery, type Answer, type Tracked } from '../src/client/api';
 import { CameraProblem } from '../src/client/camera';
@@ -10,7 +12,7 @@ import { UNSURE } from '../src/client/directions';
 import type { MotionReading } from '../src/client/motion';
 import { MAP_UPDATED } from '../src/client/problems';
 import { HEADER_AT } from '../src/shared/record';
-import { GUIDING_NOW } from '../src/client/session';
+import { GUIDING_NOW, KEEP_SECONDS } from '../src/client/session';
 import { VENUE, answer, clip, session } from './fake-session';
 
 const api = vi.hoisted(() => ({ venues: vi.fn(), venue: vi.fn(), locate: vi.fn() }));
@@ -122,18 +124,25 @@ describe('continuous mode', () => {
     const { s } = session();
     s.toggleContinuous();
     await vi.advanceTimersByTimeAsync(0);
-    await vi.advanceTimersByTimeAsync(3000);
-    await vi.advanceTimersByTimeAsync(3000);
+    await vi.advanceTimersByTimeAsync(3000); // 1 s filmed, then the interval (3 s)
+    await vi.advanceTimersByTimeAsync(2000); // 2 s filmed, then a second less
     const first = tracked();
     expect(first).toHaveLength(3);
     const id = first[0]!.session;
     expect(id).toMatch(SESSION_ID);
     expect(first.map((q) => q!.session)).toEqual([id, id, id]);
-    // t: each clip's last frame, in seconds on the phone's clock
-    expect(first.map((q) => q!.t)).toEqual([0.9, 1.9, 2.9]);
+    // t: each clip's last frame, in seconds on the phone's clock (the fake films 1 s a call)
+    expect(first.map((q) => q!.t)).toEqual([0.9, 2.9, 4.9]);
     // without motion sensors nothing but the session and the clock is sent: no place, no steps
     expect(trackedQuery(first[0]!)).toEqual({ session: id, t: '0.900' });
-    expect(cam.captureClip.mock.calls.map((c) => c[2])).toEqual([10, 10, 10]);
+    // the first turn films 1 s, the answered loop's turns KEEP_SECONDS: its first second, then on
+    expect(KEEP_SECONDS).toBe(2);
+    expect(cam.captureClip.mock.calls.map((c) => c[2])).toEqual([10, 10, 10, 10, 10]);
+    const sent = (c: unknown[]) => {
+      const rec = c[1] as Uint8Array;
+      return new DataView(rec.buffer, rec.byteOffset).getUint32(HEADER_AT.frames, true);
+    };
+    expect(api.locate.mock.calls.map(sent)).toEqual([10, 20, 20]); // each 2 s turn one clip
     s.toggleContinuous();
     s.toggleContinuous();
     await vi.advanceTimersByTimeAsync(0);
@@ -141,6 +150,29 @@ describe('continuous mode', () => {
     expect(again.session).toMatch(SESSION_ID);
     expect(again.session).not.toBe(id);
     s.stopContinuous();
+  });
+
+  it('films 1 s a turn until one was answered; stopped while filming on, the turn sends nothing', async () => {
+    api.locate.mockRejectedValueOnce(new Unreachable('Cannot reach the server.'));
+    const { s, said } = session();
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0); // 1 s, not answered
+    await vi.advanceTimersByTimeAsync(3000); // 1 s again, answered
+    await vi.advanceTimersByTimeAsync(3000); // from now on 2 s
+    expect(cam.captureClip.mock.calls.map((c) => c[2])).toEqual([10, 10, 10, 10]);
+    expect(api.locate).toHaveBeenCalledTimes(3);
+    // the next turn: its first second filmed, then "Keep telling me" pressed off while it films on
+    cam.captureClip
+      .mockImplementationOnce((_v, _e, n: number) => Promise.resolve(clip(n, 9000)))
+      .mockImplementationOnce((_v, _e, n: number) => {
+        s.toggleContinuous();
+        return Promise.resolve(clip(n, 10000));
+      });
+    await vi.advanceTimersByTimeAsync(2000);
+    expect(cam.captureClip).toHaveBeenCalledTimes(6);
+    expect(api.locate).toHaveBeenCalledTimes(3); // nothing sent
+    expect(s.continuous).toBe(false);
+    expect(said.at(-1)).toBe(STOPPED_TELLING);
   });
 
   it('an unsure turn sends no 3-s clip and is said as "not sure", once while it lasts', async () => {
@@ -152,8 +184,9 @@ describe('continuous mode', () => {
     s.toggleContinuous();
     await vi.advanceTimersByTimeAsync(0);
     await vi.advanceTimersByTimeAsync(3000);
-    await vi.advanceTimersByTimeAsync(3000);
-    expect(cam.captureClip.mock.calls.map((c) => c[2])).toEqual([10, 10, 10]);
+    await vi.advanceTimersByTimeAsync(2000);
+    // 1 s, then 2 s turns (KEEP_SECONDS, all filmed anyway): nothing more for being unsure
+    expect(cam.captureClip.mock.calls.map((c) => c[2])).toEqual([10, 10, 10, 10, 10]);
     expect(api.locate).toHaveBeenCalledTimes(3);
     expect(said).toEqual([UNSURE, s.sentence(answer(false), VENUE)]);
     expect(voice.say).toHaveBeenNthCalledWith(1, UNSURE, 'unsure');
@@ -180,7 +213,8 @@ describe('continuous mode', () => {
     expect(askMotion).toHaveBeenCalledTimes(1); // still inside the user's tap
     await vi.advanceTimersByTimeAsync(0);
     expect(motion.start).toHaveBeenCalledTimes(1);
-    for (let i = 0; i < 3; i++) await vi.advanceTimersByTimeAsync(3000);
+    await vi.advanceTimersByTimeAsync(3000); // after the first turn (1 s): the interval
+    for (let i = 0; i < 2; i++) await vi.advanceTimersByTimeAsync(2000); // after a 2 s turn: a second less
     const qs = tracked().map((q) => trackedQuery(q!));
     expect(qs.map((q) => [q.steps, q.turn_deg])).toEqual([
       [undefined, undefined],
@@ -298,11 +332,20 @@ describe('continuous mode', () => {
     await vi.advanceTimersByTimeAsync(0); // first turn; the next one is due in 3 s
     s.prefs.interval = 10;
     await vi.advanceTimersByTimeAsync(3000);
-    expect(api.locate).toHaveBeenCalledTimes(2);
-    await vi.advanceTimersByTimeAsync(9999);
+    expect(api.locate).toHaveBeenCalledTimes(2); // it filmed 2 s: the next in 10 - 1 s
+    await vi.advanceTimersByTimeAsync(8999);
     expect(api.locate).toHaveBeenCalledTimes(2);
     await vi.advanceTimersByTimeAsync(1);
     expect(api.locate).toHaveBeenCalledTimes(3);
+    s.prefs.interval = 2; // the shortest: a 2 s turn still waits a second
+    await vi.advanceTimersByTimeAsync(8999);
+    expect(api.locate).toHaveBeenCalledTimes(3);
+    await vi.advanceTimersByTimeAsync(1);
+    expect(api.locate).toHaveBeenCalledTimes(4);
+    await vi.advanceTimersByTimeAsync(999);
+    expect(api.locate).toHaveBeenCalledTimes(4);
+    await vi.advanceTimersByTimeAsync(1);
+    expect(api.locate).toHaveBeenCalledTimes(5);
     s.stopContinuous();
   });
 });

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from flask import Blueprint, current_app, jsonify, request
 
+from ..aggregate import SURE
 from ..calib.correct import ClipLens
 from ..catalog import Catalog
 from ..catalog.sessions import Session, check_session_id
@@ -413,7 +414,7 @@ def accuracy_m(confidence: float, low: float) -> float | None:
     """Radius for the accuracy circle. Calibrated only at the top: of answers with confidence >= 0.8,
     at least 80 % are within 2 m (docs/formats.md); below that the circle widens, and below the
     low-confidence line the answer is not shown as a position at all."""
-    if confidence >= 0.8:
+    if confidence >= SURE:
         return 2.0
     if confidence >= low:
         return 5.0
