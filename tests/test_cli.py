@@ -291,3 +291,51 @@ def test_a_venue_made_with_the_cli_is_the_servers_and_back(cli_venue, clips, sma
     assert c.post("/api/admin/venues", json={"id": "hall", "name": "Hall"}, headers=admin).status_code == 201
     ids = [json.loads(line)["id"] for line in run_cli("venue", "list", data=data, check=True).stdout.splitlines()]
     assert ids == ["hall", "lab"]
+
+
+def test_model_anew_brings_a_venue_modelled_before_its_preset_improved_up_to_date(small_ds, tmp_path):
+    """`omninav model --anew`: a venue modelled from the command line before its preset improved
+    (here the default preset without the soft clipping, as an omninav from before it made it) gets
+    frames with the preset's settings as they are now, as many as before, and answers; a plain
+    `model` keeps the venue's settings. Refused, saying why and changing nothing, where the frames
+    of another walk would be lost or the venue's walks were uploaded (the admin page models those)."""
+    from omninav.catalog import Catalog
+    from omninav.config import load_config
+    from omninav.lens import load_lens
+    from omninav.model_venue import model_video, remove_video
+    from omninav.presets import resolve, settings_id
+
+    data = tmp_path / "data"
+    plan = ["--floorplan", str(small_ds.floorplan), "--px-per-m", "20"]
+    run_cli("venue", "create", "lab", *plan, data=data, check=True)
+    cat = Catalog.open(load_config({"DATA": str(data)}))
+    lens = small_ds.root / "model_lens.json"
+    track, old = load_track(small_ds.model_track), {**resolve("default"), "soft_clip_sd": None}
+    model_video(cat.store, "lab", small_ds.model_video, track, load_lens(lens), settings=old)
+    other = tmp_path / "second-walk.mp4"
+    shutil.copy(small_ds.model_video, other)
+    model_video(cat.store, "lab", other, track, load_lens(lens), settings=old)
+    frames, live = cat.store.frame_count("lab"), cat.store.generation("lab")
+    now = settings_id(resolve("default"))
+    assert settings_id(cat.store.settings("lab")) != now
+
+    anew = ["model", "lab", str(small_ds.model_video), "--track", str(small_ds.model_track), "--lens", str(lens)]
+    p = run_cli(*anew, "--anew", data=data)
+    assert p.returncode != 0 and "would drop the frames of 'second-walk.mp4'" in p.stderr, p.stderr
+    assert "Traceback" not in p.stderr and cat.store.generation("lab") == live  # nothing changed
+
+    assert remove_video(cat.store, "lab", "second-walk.mp4") > 0
+    run_cli(*anew, data=data, check=True)  # a plain modelling keeps the venue's settings
+    assert settings_id(cat.store.settings("lab")) != now
+    out = json.loads(run_cli(*anew, "--anew", data=data, check=True).stdout)
+    assert settings_id(cat.store.settings("lab")) == now
+    assert cat.store.modelled_videos("lab") == [small_ds.model_video.name]
+    assert out["venue_frames"] == cat.store.frame_count("lab") == frames // 2
+    p = run_cli("locate", "lab", str(small_ds.query_video), "--lens", str(small_ds.lens), data=data, check=True)
+    assert len(p.stdout.splitlines()) >= 1 and "x" in json.loads(p.stdout.splitlines()[0])
+
+    cat.lenses.put("lab", "donut", json.loads(lens.read_text()))
+    cat.videos.add_file("lab", other, "1", "donut", json.loads(small_ds.model_track.read_text()))
+    p = run_cli(*anew, "--anew", data=data)
+    assert p.returncode != 0 and "has uploaded modelling videos ('second-walk.mp4')" in p.stderr, p.stderr
+    assert "/api/admin/venues/lab/jobs" in p.stderr

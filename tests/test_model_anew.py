@@ -88,6 +88,7 @@ def test_a_venue_with_no_modelling_walk_cannot_be_modelled_anew(small_ds: Any, t
     assert api.delete("/api/admin/venues/lab/videos/walk.mp4", headers=ADMIN).status_code == 200
     r = api.post("/api/admin/venues/lab/jobs", json={"anew": True}, headers=ADMIN)
     assert r.status_code == 409 and "no uploaded modelling video with a track" in r.json["error"]
+    assert "omninav model ... --anew" in r.json["error"]  # where a venue modelled by the command line is upgraded
 
 
 def test_a_modelling_anew_never_drops_a_walk_it_cannot_model_again(small_ds: Any, tmp_path: Any) -> None:

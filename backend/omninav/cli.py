@@ -186,19 +186,28 @@ def venue_delete(ctx: click.Context, venue_id: str, yes: bool) -> None:
 @click.argument("video", type=click.Path(path_type=Path))
 @click.option("--track", "track_path", required=True, type=click.Path(path_type=Path), help="track.json")
 @click.option("--lens", "lens_path", required=True, type=click.Path(path_type=Path), help="lens.json")
+@click.option(
+    "--anew",
+    is_flag=True,
+    help="Model the venue anew from this walk with its preset's settings as they are now (a venue "
+    "modelled before the preset improved): its frames replace all the venue's.",
+)
 @click.pass_context
-def model(ctx: click.Context, venue_id: str, video: Path, track_path: Path, lens_path: Path) -> None:
+def model(ctx: click.Context, venue_id: str, video: Path, track_path: Path, lens_path: Path, anew: bool) -> None:
     """Model VENUE from a panoramic VIDEO walked along TRACK."""
     from .lens import load_lens
-    from .model_venue import model_video
+    from .model_venue import VideoSource, model_videos
     from .track import load_track
 
     cat = _catalog(ctx)
-    settings = cat.venues.settings(venue_id)  # (unknown venue: refused here, before any work)
+    # (unknown venue: refused here, before any work)
+    settings = cat.venues.preset_settings(venue_id) if anew else cat.venues.settings(venue_id)
+    if anew:
+        _check_anew(cat, venue_id, video.name)
     track, lens = load_track(track_path), load_lens(lens_path)
-    bar = Progress(f"modelling {video.name}")
+    bar = Progress(f"modelling {video.name}{' anew' if anew else ''}")
     try:
-        r = model_video(cat.store, venue_id, video, track, lens, progress=bar, settings=settings)
+        (r,) = model_videos(cat.store, venue_id, [VideoSource(video, track, lens)], bar, settings=settings, anew=anew)
     finally:
         bar.close()
     cat.lenses.put_inline(venue_id, lens.to_dict(), where=str(lens_path))  # the server can name it too
@@ -215,6 +224,26 @@ def model(ctx: click.Context, venue_id: str, video: Path, track_path: Path, lens
             }
         )
     )
+
+
+def _check_anew(cat: Catalog, venue_id: str, name: str) -> None:
+    """A modelling anew from the command line replaces every frame with one walk's: refused where
+    frames of another walk would be lost, or where the venue's walks were uploaded (the admin
+    page's modelling anew models every one of them, from the uploads)."""
+    uploaded = [v["name"] for v in cat.videos.all(venue_id)]
+    if uploaded:
+        raise OmninavError(
+            f"venue {venue_id!r} has uploaded modelling videos ({', '.join(map(repr, uploaded))}): model it anew "
+            f'on the admin page (or POST /api/admin/venues/{venue_id}/jobs with {{"anew": true}}), which models '
+            "every one of them"
+        )
+    lost = [v for v in cat.store.modelled_videos(venue_id) if v != name]
+    if lost:
+        raise OmninavError(
+            f"modelling venue {venue_id!r} anew from {name!r} alone would drop the frames of "
+            f"{', '.join(map(repr, lost))}; model each walk into a new venue instead (omninav venue create, "
+            "then omninav model for every walk), or upload the walks and model them anew on the admin page"
+        )
 
 
 @cli.command()
