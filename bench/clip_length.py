@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from omninav.aggregate import confidence
+from omninav.aggregate import SURE, confidence
 from omninav.evaluate import query_spectra
 from omninav.heading import wrap_deg
 from omninav.lens import Lens, load_lens
@@ -179,7 +179,7 @@ def answers(loc: Locator, w: Walk, seconds: float, early_s: float = 0.0) -> dict
 
 def row(label: str, r: dict[str, np.ndarray]) -> str:
     err, conf = r["err"], r["conf"]
-    hi = conf >= 0.8
+    hi = conf >= SURE
     return (
         f"{label:<22}{len(err):>6}{np.mean(err <= 1):>8.1%}{np.mean(err <= 2):>8.1%}{np.median(r['herr']):>8.2f}°"
         f"{hi.mean():>9.0%}{np.mean(hi & (err > 2)):>9.1%}{np.mean(conf < LOW):>9.1%}{np.mean(r['ms']):>8.1f}"
@@ -210,7 +210,7 @@ def report(root: Path, scene: Scene, name: str, seed: int, look: Perturb = QUERY
         for s, r in res.items():
             print(row(f"{s:g} s ({int(round(s * FPS))} frames)", r), flush=True)
         print(row("1 s, 3 s if unsure", ask_more(loc, w)))
-        print(row("1 s, 3 s if conf < 0.8", ask_more(loc, w, 0.8)))
+        print(row("1 s, 3 s if conf < 0.8", ask_more(loc, w, SURE)))
         out[kind] = res
     return out
 

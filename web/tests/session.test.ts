@@ -91,7 +91,7 @@ describe('continuous mode', () => {
     s.stopContinuous();
   });
 
-  it('asks at once, then every interval, quietly; skips a turn while speech is busy; stops when told', async () => {
+  it('asks at once, then every interval, quietly; puts a turn off while speech is busy; stops when told', async () => {
     const { s, voice, said } = session();
     const pressed: boolean[] = [];
     s.on('continuous', (on) => pressed.push(on));
@@ -104,11 +104,13 @@ describe('continuous mode', () => {
     expect(api.locate).toHaveBeenCalledTimes(1);
     await vi.advanceTimersByTimeAsync(1);
     expect(api.locate).toHaveBeenCalledTimes(2);
-    voice.busy = true;
+    voice.busy = true; // the next turn is due 2 s after that (2 s filmed): speech holds it back
     await vi.advanceTimersByTimeAsync(3000);
     expect(api.locate).toHaveBeenCalledTimes(2);
-    voice.busy = false;
-    await vi.advanceTimersByTimeAsync(3000);
+    voice.busy = false; // and it comes within half a second of the sentence's end, not an interval later
+    await vi.advanceTimersByTimeAsync(500);
+    expect(api.locate).toHaveBeenCalledTimes(3);
+    await vi.advanceTimersByTimeAsync(1999); // then the 2 s turn's wait
     expect(api.locate).toHaveBeenCalledTimes(3);
     s.toggleContinuous();
     expect(pressed).toEqual([true, false]);
@@ -149,6 +151,27 @@ describe('continuous mode', () => {
     const again = tracked()[3]!;
     expect(again.session).toMatch(SESSION_ID);
     expect(again.session).not.toBe(id);
+    s.stopContinuous();
+  });
+
+  it('a turn that failed before filming (no venue) waits the whole interval, as a 1 s turn does', async () => {
+    const { s } = session();
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0); // answered: from now on 2 s, then a second less
+    const venueReads = api.venue.mock.calls.length;
+    // the second turn films 2 s and is refused (the venue changed): the next reads the venue
+    // again, and cannot reach the server, so it films nothing
+    api.locate.mockRejectedValueOnce(new ApiProblem(409, 'the venue is being modelled', { error: '', status: 409 }));
+    api.venue.mockRejectedValue(new Unreachable('Cannot reach the server.'));
+    await vi.advanceTimersByTimeAsync(3000);
+    expect(cam.captureClip).toHaveBeenCalledTimes(3);
+    await vi.advanceTimersByTimeAsync(2000); // the third turn, a second sooner after the 2 s one
+    expect(api.venue.mock.calls.length).toBe(venueReads + 1);
+    expect(cam.captureClip).toHaveBeenCalledTimes(3); // nothing filmed
+    await vi.advanceTimersByTimeAsync(2999); // so the fourth waits the whole interval
+    expect(api.venue.mock.calls.length).toBe(venueReads + 1);
+    await vi.advanceTimersByTimeAsync(1);
+    expect(api.venue.mock.calls.length).toBe(venueReads + 2);
     s.stopContinuous();
   });
 
@@ -337,7 +360,7 @@ describe('continuous mode', () => {
     expect(api.locate).toHaveBeenCalledTimes(2);
     await vi.advanceTimersByTimeAsync(1);
     expect(api.locate).toHaveBeenCalledTimes(3);
-    s.prefs.interval = 2; // the shortest: a 2 s turn still waits a second
+    s.prefs.interval = 2; // the shortest offered: after a 2 s turn, a second
     await vi.advanceTimersByTimeAsync(8999);
     expect(api.locate).toHaveBeenCalledTimes(3);
     await vi.advanceTimersByTimeAsync(1);

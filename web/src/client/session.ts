@@ -14,8 +14,8 @@
  * is to be said. "Keep telling me" is such a walk
  * too: each turn locates with `track()` in one tracking session per start, so that the server's
  * filter remembers where the user was (on venues it was never tuned on, far fewer confident
- * answers far off than single clips): its first turn one second, the turns after it KEEP_SECONDS,
- * at the same pace. It does not film on when unsure (the walk itself settles an unsure start) and
+ * answers far off than single clips): its first turn one second, every turn after an answered
+ * one KEEP_SECONDS, at the same pace. It does not film on when unsure (the walk itself settles an unsure start) and
  * says only what changed.
  */
 import {
@@ -70,6 +70,8 @@ export const GUIDING_NOW =
 /** Said when Stop ends that filming: nothing is sent. */
 export const STOPPED = 'Stopped.';
 const RECHECK_MS = 500;
+/** How often a turn of "Keep telling me" looks again while a sentence is still being spoken. */
+const BUSY_POLL_MS = 500;
 /** The name the user's own lens profile is offered under, beside the venue's. */
 export const MY_LENS = 'my lens';
 
@@ -561,8 +563,13 @@ export class Session extends Emitter<SessionEvents> {
       if (this.loop === loop) this.o.motion?.start();
     });
     const tick = async () => {
-      // never talk over itself: wait while a sentence is still being spoken
-      const filmed = this.o.voice.busy ? 1 : await this.tellTracked(loop);
+      if (this.o.voice.busy) {
+        // never talk over itself: the turn waits for the sentence to end, then comes at once
+        // (skipping it for a whole interval made a walk's changing answers ~7 s apart)
+        if (this.loop === loop) loop.timer = setTimeout(tick, BUSY_POLL_MS);
+        return;
+      }
+      const filmed = await this.tellTracked(loop);
       // a turn that filmed longer waits as much less: a turn every `interval` + 1 s, as ever
       const wait = Math.max(1, this.prefs.interval - (filmed - 1));
       if (this.loop === loop) loop.timer = setTimeout(tick, wait * 1000);
@@ -576,17 +583,20 @@ export class Session extends Emitter<SessionEvents> {
    * counts a reading as sent only once its request was answered). Said only when it changed;
    * nothing once the loop was stopped meanwhile ("Stopped telling you." stays the last word; a stop
    * while filming sends nothing). The camera taken by a press: the next turn. -> the seconds it
-   * meant to film.
+   * filmed (1 where it filmed nothing, a failure before the camera: the next waits the interval).
    */
   private async tellTracked(loop: Loop): Promise<number> {
     const feed = this.o.motion;
-    const read: { reading?: MotionReading } = {};
+    const read: { reading?: MotionReading; filmed?: boolean } = {};
     const seconds = loop.answered ? KEEP_SECONDS : 1;
+    // what it filmed: `seconds` once the clip was (the motion is asked then), else nothing to shorten
+    const filmed = () => (read.filmed ? seconds : 1);
     try {
       let r: Located | null;
       this.inTurn = !this.busy; // busy: track() skips this turn at once
       try {
         const motion = () => {
+          read.filmed = true;
           const m = feed?.peek();
           read.reading = m;
           return { steps: m?.steps ?? null, turn_deg: m?.turn_deg ?? null };
@@ -597,7 +607,7 @@ export class Session extends Emitter<SessionEvents> {
       }
       if (!r || this.loop !== loop) {
         this.pressedInTurn = false;
-        return r ? seconds : 1; // null: the camera was taken (nothing filmed), or the loop stopped
+        return filmed(); // null: the camera was taken (nothing filmed), or the loop stopped
       }
       loop.answered = true;
       if (read.reading) feed?.commit(read.reading);
@@ -605,11 +615,11 @@ export class Session extends Emitter<SessionEvents> {
       this.pressedInTurn = false;
       this.tell(r.answer, r.venue, !pressed);
     } catch (e) {
-      if (this.loop !== loop) return seconds;
+      if (this.loop !== loop) return filmed();
       this.sayProblem(e, !this.pressedInTurn);
       this.pressedInTurn = false;
     }
-    return seconds;
+    return filmed();
   }
 
   stopContinuous(): void {
