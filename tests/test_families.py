@@ -39,6 +39,7 @@ def test_families_are_named_and_split():
         "junctions-rich",
         "hall-daylight",
         "twin-wings",
+        "ring-bare",
         "long-bare",
         "comb-mixed",
         "atrium-glass",
@@ -55,6 +56,9 @@ def test_families_are_named_and_split():
         q = f.query_perturb
         assert q.lateral_m >= QUERY.lateral_m and q.tilt_deg >= QUERY.tilt_deg and q.people >= QUERY.people
         assert q.height_m[0] <= QUERY.height_m[0] and q.height_m[1] >= QUERY.height_m[1]
+    # the tuning side has a corridor of identical doors too (long-bare's kind, another building)
+    assert FAMILIES["ring-bare"].decor.door_phase == FAMILIES["long-bare"].decor.door_phase
+    assert FAMILIES["ring-bare"].layout != FAMILIES["long-bare"].layout
     assert FAMILIES["atrium-glass"].query_perturb.optics == REAL
     assert FAMILIES["comb-mixed"].query_perturb.optics == REAL
     assert FAMILIES["hall-daylight"].query_perturb.optics not in (None, REAL)  # the milder lens

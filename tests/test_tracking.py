@@ -926,8 +926,11 @@ def test_locator_track_feeds_the_clip_estimate_and_the_filter(walk_spec, monkeyp
     monkeypatch.undo()
     same = loc.estimate(spec[w], t[w])
     assert (est.x, est.y, est.heading) == (same.x, same.y, same.heading)  # the clip's answer, unchanged
-    # the filter is told what the clip answers alone, place and all (the rules of the clip's own answer)
-    assert fed == [ClipAnswer(confidence(est, loc.conf), est.x, est.y, est.venue_row)]
+    # the filter is told what the clip answers alone, place and all (the rules of the clip's own
+    # answer), its confidence by the rules' own model of the clip
+    assert fed == [ClipAnswer.of(est, loc.conf)]
+    assert (fed[0].x, fed[0].y, fed[0].row) == (est.x, est.y, est.venue_row) and 0 < fed[0].confidence < 1
+    assert confidence(est, loc.conf) != fed[0].confidence  # not the single answer's (refit) model
     assert state.t == 100.0 and state.updates == 1 and state.graph_key == loc.graph.key
     assert 0.0 <= pose.confidence <= 1.0 and pose.floor == "1"
     # the venue's own look-alikes, from its index: pairs 3 m or more apart, at a cost in [0, 8]
@@ -1033,3 +1036,20 @@ def test_an_answers_heading_is_below_360_however_it_rounds():
     from omninav.locate import answer_heading
 
     assert [answer_heading(h) for h in (359.996, 360.0, -0.001, 90.004, 720.5)] == [0.0, 0.0, 0.0, 90.0, 0.5]
+
+
+def test_the_rules_read_the_clips_confidence_with_the_model_they_were_chosen_with() -> None:
+    """The single answer's confidence model was refit (ring-bare among the tuning families); the
+    rules of the clip's own answer keep reading the clip with the model their thresholds were
+    chosen on (`track_clip_confidence_*`), and a venue modelled before the key reads the same."""
+    from omninav.aggregate import Estimate, confidence
+
+    conf = resolve("default")
+    e = Estimate(1.0, 2.0, 90.0, 7, 0.62, 0.5, 0.8)  # support, rival, agree
+    clip = ClipAnswer.of(e, conf)
+    z = -6.68 + 10.731 * 0.62 + 10.215 * (0.62 - 0.5)
+    assert clip.confidence == pytest.approx(1 / (1 + np.exp(-z)))
+    assert clip.confidence != pytest.approx(confidence(e, conf))  # the single answer's own model differs
+    assert (clip.x, clip.y, clip.row) == (1.0, 2.0, 7)
+    older = {k: v for k, v in conf.items() if not k.startswith("track_clip_")}
+    assert ClipAnswer.of(e, older).confidence == clip.confidence

@@ -42,9 +42,10 @@ DEFAULTS: dict[str, Any] = {
     "clip_radius_m": 1.5,
     "heading_gate_deg": 35.0,
     # logistic(w0 + w . inputs) -> P(within 2 m), inputs named in aggregate.CONFIDENCE_INPUTS;
-    # fit by bench/calibrate.py
-    "confidence_features": ["support", "margin"],
-    "confidence_coef": [-6.68, 10.731, 10.215],
+    # fit by bench/calibrate.py on the tuning families' answers, ring-bare's identical doors with
+    # them (before it: support and margin, [-6.68, 10.731, 10.215]; docs/benchmarks.md, "Confidence")
+    "confidence_features": ["support", "margin", "rel_margin", "agree"],
+    "confidence_coef": [-1.442, 9.124, 5.079, 4.157, -5.008],
     # Modelling
     "model_fps": 10.0,  # modelling frames sampled at this rate from the video
     # Tracking while walking (tracking.py), read with these defaults by a venue modelled before:
@@ -91,6 +92,11 @@ DEFAULTS: dict[str, Any] = {
     "track_recent_s": 1.0,
     "track_recent_min": 0.5,
     "track_doubt_cap": 0.79,
+    # the clip's own confidence as those two rules read it: the single clip's model they were
+    # chosen with, kept apart from confidence_* so that a refit of the single answers' model (it
+    # was refit with ring-bare) does not move the rules under them
+    "track_clip_confidence_features": ["support", "margin"],
+    "track_clip_confidence_coef": [-6.68, 10.731, 10.215],
 }
 
 PRESETS: dict[str, dict[str, Any]] = {
@@ -145,6 +151,7 @@ def _check_confidence(conf: dict[str, Any]) -> None:
 
     _check_model(conf, "confidence", CONFIDENCE_INPUTS, "confidence inputs")
     _check_model(conf, "track_confidence", TRACK_CONFIDENCE_INPUTS, "tracking confidence inputs")
+    _check_model(conf, "track_clip_confidence", CONFIDENCE_INPUTS, "confidence inputs")
 
 
 def _check_model(conf: dict[str, Any], prefix: str, known: Mapping[str, Any], what: str) -> None:

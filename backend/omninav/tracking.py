@@ -81,7 +81,9 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
     FAR_M or more from the answer (or on another floor). Two calibrated sources that disagree
     are the split evidence the answer must not be sure of; the walk settles it in a few seconds.
   Chosen on the tuning families' walks (docs/benchmarks.md, "Recent clips" and "A sure clip
-  elsewhere").
+  elsewhere"), with the single clip's confidence model of then (support and margin): the clip's
+  confidence here is `track_clip_confidence_*`, not the venue's `confidence_*`, which was refit
+  since and gives other numbers to the same clips.
 """
 
 from __future__ import annotations
@@ -96,7 +98,7 @@ import numpy as np
 import scipy.sparse  # type: ignore[import-untyped]
 from scipy.spatial import cKDTree  # type: ignore[import-untyped]
 
-from .aggregate import SPAN_S, SURE, Estimate, confidence, field_of, logistic, sequence
+from .aggregate import SPAN_S, SURE, Estimate, confidence_inputs, field_of, logistic, sequence
 from .heading import wrap_deg
 from .index import Matches
 from .presets import DEFAULTS
@@ -152,9 +154,12 @@ class ClipAnswer:
 
     @staticmethod
     def of(e: Estimate, conf: dict[str, Any]) -> ClipAnswer:
-        """What a clip's aggregate Estimate answers, with its calibrated confidence (the venue's
-        confidence model, `conf`)."""
-        return ClipAnswer(confidence(e, conf), e.x, e.y, e.venue_row)
+        """What a clip's aggregate Estimate answers, with its calibrated confidence as the rules
+        read it: `track_clip_confidence_*`, the single clip's model they were chosen with (the
+        venue's own `confidence_*` answers the single clip, and may be a later refit)."""
+        names = _conf(conf, "track_clip_confidence_features")
+        c = logistic(_conf(conf, "track_clip_confidence_coef"), confidence_inputs(e, names))
+        return ClipAnswer(c, e.x, e.y, e.venue_row)
 
 
 @dataclass(frozen=True)

@@ -83,6 +83,19 @@ def square_lens(scale: float = 1.0) -> Catadioptric:
     return resized(lens, scale)
 
 
+# the ring's modelling walk backwards, less its last 24 m (make_dataset's query walk goes half of
+# the ring the same way as the modelling walk)
+RING_QUERY_ROUTE: tuple[Point, ...] = (
+    (27.0, 23.0),
+    (27.0, 3.0),
+    (3.0, 3.0),
+    (3.0, 23.0),
+    (27.0, 23.0),
+    (51.0, 23.0),
+    (51.0, 3.0),
+    (27.0, 3.0),
+)
+
 _FAMILIES = [
     Family(
         "ring-offices",
@@ -92,18 +105,7 @@ _FAMILIES = [
         "default",
         donut_lens(0.5),
         donut_lens(0.5),
-        # the ring's modelling walk backwards, less its last 24 m (make_dataset's query walk goes
-        # half of the ring the same way as the modelling walk)
-        query_route=(
-            (27.0, 23.0),
-            (27.0, 3.0),
-            (3.0, 3.0),
-            (3.0, 23.0),
-            (27.0, 23.0),
-            (51.0, 23.0),
-            (51.0, 3.0),
-            (27.0, 3.0),
-        ),
+        query_route=RING_QUERY_ROUTE,
     ),
     Family(
         "junctions-rich",
@@ -151,6 +153,30 @@ _FAMILIES = [
         donut_lens(2 / 3),
         decor=Decor(alternate_p=1.0, board_every_m=14.0),
         lighting=Lighting(tints=(WARM,)),
+    ),
+    Family(
+        "ring-bare",
+        "tuning",
+        "The ring of office corridors (48 x 20 m, a cross corridor) with identical doors every 4 m, "
+        "bare walls, a board every ~35 m, some stretches dim, the query's light x0.6-1.25; 480x360 "
+        "donut. The tuning side's repetitive corridor: what long-bare is, in another building.",
+        "default",
+        donut_lens(0.5),
+        donut_lens(0.5),
+        decor=Decor(
+            wall_colours=((205, 210, 214),),
+            door_colours=((70, 80, 95),),
+            alternate_p=1.0,
+            door_phase=(1.0, 1.0),
+            glazed_p=0.0,
+            windows=False,
+            board_every_m=35.0,
+            plaster=2.5,
+            pillar_p=0.05,
+        ),
+        lighting=Lighting(tints=((1.0, 1.0, 0.97),), dim_p=0.25, dim=0.5),
+        query_perturb=dataclasses.replace(QUERY, light=(0.6, 1.25)),
+        query_route=RING_QUERY_ROUTE,
     ),
     Family(
         "long-bare",
