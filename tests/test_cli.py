@@ -335,6 +335,10 @@ def test_model_anew_brings_a_venue_modelled_before_its_preset_improved_up_to_dat
     assert len(p.stdout.splitlines()) >= 1 and "x" in json.loads(p.stdout.splitlines()[0])
 
     cat.lenses.put("lab", "donut", json.loads(lens.read_text()))
+    evaluation = tmp_path / "eval-walk.mp4"
+    shutil.copy(small_ds.model_video, evaluation)
+    cat.videos.add_file("lab", evaluation, "1", "donut", None, role="evaluation")  # not a modelling walk
+    run_cli(*anew, "--anew", data=data, check=True)
     cat.videos.add_file("lab", other, "1", "donut", json.loads(small_ds.model_track.read_text()))
     p = run_cli(*anew, "--anew", data=data)
     assert p.returncode != 0 and "has uploaded modelling videos ('second-walk.mp4')" in p.stderr, p.stderr

@@ -4,20 +4,54 @@ import numpy as np
 import pytest
 
 from omninav.aggregate import CONFIDENCE_INPUTS, Estimate, confidence, confidence_inputs
-from omninav.presets import resolve
+from omninav.presets import current_confidence, resolve
 
 
 def _est(support: float, rival: float, agree: float = 1.0) -> Estimate:
     return Estimate(0.0, 0.0, 0.0, 0, support, rival, agree)
 
 
-def test_a_venue_modelled_before_the_features_were_named_keeps_its_model() -> None:
+def test_a_venue_modelled_before_the_features_were_named_reads_its_model() -> None:
     """settings.json of an older venue has confidence_coef for (support, margin) and no
-    confidence_features: it answers as it did."""
+    confidence_features: the model reads those two inputs."""
     old = {"confidence_coef": [-6.68, 10.731, 10.215]}
     e = _est(0.7, 0.5)
     z = -6.68 + 10.731 * 0.7 + 10.215 * (0.7 - 0.5)
     assert confidence(e, old) == pytest.approx(1 / (1 + np.exp(-z)))
+
+
+def test_a_superseded_default_model_is_refreshed_and_any_other_kept() -> None:
+    """A venue modelled when the default model was the one refit since answers with today's (the
+    confidence reads no feature: nothing to extract again); an admin's own model stays."""
+    today = resolve("default")
+    for old in (
+        {"confidence_coef": [-6.68, 10.731, 10.215], "x": 1},  # before confidence_features was a key
+        {"confidence_features": ["support", "margin"], "confidence_coef": [-6.68, 10.731, 10.215], "x": 1},
+    ):
+        new = current_confidence(old)
+        assert new["confidence_coef"] == today["confidence_coef"] != old["confidence_coef"]
+        assert new["confidence_features"] == today["confidence_features"] and new["x"] == 1
+        assert old["confidence_coef"] == [-6.68, 10.731, 10.215]  # the venue's own dict untouched
+    own = {"confidence_features": ["support", "margin"], "confidence_coef": [-6.0, 10.0, 10.0]}
+    assert current_confidence(own) is own
+    assert current_confidence(today) is today
+
+
+def test_the_default_model_grows_with_every_input_and_a_clip_of_one_matching_frame_is_not_sure() -> None:
+    """Weights of one sign: more support, a wider margin or more frames agreeing never lowers the
+    confidence. A refit that gave the agreement a negative weight (and read the relative margin)
+    answered a clip whose one frame in ten matched, the rest blank or noise, as sure (0.89)."""
+    conf = resolve("default")
+    grid = np.linspace(0.0, 1.0, 11)
+    for s in grid:
+        for r in grid[grid <= s]:
+            c = [confidence(_est(s, r, a), conf) for a in grid]
+            assert c == sorted(c)
+        c = [confidence(_est(s, r), conf) for r in grid[grid <= s][::-1]]  # the rival falling: margin up
+        assert c == sorted(c)
+    c = [confidence(_est(s, 0.0), conf) for s in grid]
+    assert c == sorted(c)
+    assert confidence(_est(0.095, 0.03, 0.1), conf) < 0.5  # one frame of ten at 0.95, no rival to speak of
 
 
 def test_an_evaluation_row_scores_as_its_estimate() -> None:

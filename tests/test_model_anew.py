@@ -88,7 +88,15 @@ def test_a_venue_with_no_modelling_walk_cannot_be_modelled_anew(small_ds: Any, t
     assert api.delete("/api/admin/venues/lab/videos/walk.mp4", headers=ADMIN).status_code == 200
     r = api.post("/api/admin/venues/lab/jobs", json={"anew": True}, headers=ADMIN)
     assert r.status_code == 409 and "no uploaded modelling video with a track" in r.json["error"]
-    assert "omninav model ... --anew" in r.json["error"]  # where a venue modelled by the command line is upgraded
+    assert "upload a modelling walk and tag its track first" in r.json["error"]
+    # frames of a walk the catalogue does not know: modelled by the command line, upgraded there
+    cli_walk = tmp_path / "cli-walk.mp4"
+    cli_walk.write_bytes(small_ds.model_video.read_bytes())
+    store = app.extensions["omninav"].catalog.store
+    model_video(store, "lab", cli_walk, load_track(small_ds.model_track), load_lens(small_ds.root / "model_lens.json"))
+    r = api.post("/api/admin/venues/lab/jobs", json={"anew": True}, headers=ADMIN)
+    assert r.status_code == 409 and "its frames are from 'cli-walk.mp4'" in r.json["error"]
+    assert "omninav model ... --anew" in r.json["error"]
 
 
 def test_a_modelling_anew_never_drops_a_walk_it_cannot_model_again(small_ds: Any, tmp_path: Any) -> None:

@@ -202,12 +202,14 @@ def model(ctx: click.Context, venue_id: str, video: Path, track_path: Path, lens
     cat = _catalog(ctx)
     # (unknown venue: refused here, before any work)
     settings = cat.venues.preset_settings(venue_id) if anew else cat.venues.settings(venue_id)
-    if anew:
-        _check_anew(cat, venue_id, video.name)
+    check = (lambda: _check_anew(cat, venue_id, video.name)) if anew else None
+    if check:
+        check()
     track, lens = load_track(track_path), load_lens(lens_path)
     bar = Progress(f"modelling {video.name}{' anew' if anew else ''}")
     try:
-        (r,) = model_videos(cat.store, venue_id, [VideoSource(video, track, lens)], bar, settings=settings, anew=anew)
+        sources = [VideoSource(video, track, lens)]
+        (r,) = model_videos(cat.store, venue_id, sources, bar, before_commit=check, settings=settings, anew=anew)
     finally:
         bar.close()
     cat.lenses.put_inline(venue_id, lens.to_dict(), where=str(lens_path))  # the server can name it too
@@ -228,9 +230,10 @@ def model(ctx: click.Context, venue_id: str, video: Path, track_path: Path, lens
 
 def _check_anew(cat: Catalog, venue_id: str, name: str) -> None:
     """A modelling anew from the command line replaces every frame with one walk's: refused where
-    frames of another walk would be lost, or where the venue's walks were uploaded (the admin
-    page's modelling anew models every one of them, from the uploads)."""
-    uploaded = [v["name"] for v in cat.videos.all(venue_id)]
+    frames of another walk would be lost, or where the venue's modelling walks were uploaded (the
+    admin page's modelling anew models every one of them, from the uploads). Checked before the
+    work and again under the venue's lock before the commit (a job may have added a walk since)."""
+    uploaded = [v["name"] for v in cat.videos.all(venue_id) if v["role"] == "model"]
     if uploaded:
         raise OmninavError(
             f"venue {venue_id!r} has uploaded modelling videos ({', '.join(map(repr, uploaded))}): model it anew "

@@ -16,6 +16,7 @@ from .errors import OmninavError
 from .extract import Extractor, Extractors
 from .index import Index, Matches
 from .lens import Lens
+from .presets import current_confidence
 from .store import Store, key_dims_for
 
 if TYPE_CHECKING:
@@ -64,7 +65,7 @@ class Locator:
         self.floor = floor
         self.generation = store.generation(venue_id)  # read first: a newer load is only ever refreshed again
         self.gen = store.load(venue_id)
-        self.conf = self.gen.settings
+        self.conf = current_confidence(self.gen.settings)  # its settings, a superseded confidence model refreshed
         self.xy = np.stack([self.gen.frames["x"], self.gen.frames["y"]], -1).astype(np.float64)
         self.index = Index(
             self.gen.spectra,
@@ -205,10 +206,10 @@ class Locator:
     def own_answers(
         self, whole: Estimate, frames: int, aggregate: str | None = None
     ) -> Callable[[Matches, np.ndarray], ClipAnswer]:
-        """What each part of a clip answers alone, as its single answer says it (the venue's
-        aggregation and confidence model), for the filter's rules of the clip's own answer
-        (Tracker.update_clip): `whole`, the clip's own Estimate, when the part is the whole clip
-        (`frames` frames), else the part's."""
+        """What each part of a clip answers alone (the venue's aggregation; its confidence by the
+        rules' own model of the clip, ClipAnswer.of), for the filter's rules of the clip's own
+        answer (Tracker.update_clip): `whole`, the clip's own Estimate, when the part is the whole
+        clip (`frames` frames), else the part's."""
         from .tracking import ClipAnswer
 
         agg = self._aggregation(aggregate)

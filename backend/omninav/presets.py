@@ -43,9 +43,11 @@ DEFAULTS: dict[str, Any] = {
     "heading_gate_deg": 35.0,
     # logistic(w0 + w . inputs) -> P(within 2 m), inputs named in aggregate.CONFIDENCE_INPUTS;
     # fit by bench/calibrate.py on the tuning families' answers, ring-bare's identical doors with
-    # them (before it: support and margin, [-6.68, 10.731, 10.215]; docs/benchmarks.md, "Confidence")
-    "confidence_features": ["support", "margin", "rel_margin", "agree"],
-    "confidence_coef": [-1.442, 9.124, 5.079, 4.157, -5.008],
+    # them (before it: [-6.68, 10.731, 10.215], SUPERSEDED_CONFIDENCE; docs/benchmarks.md,
+    # "Confidence"). Two inputs, both weights positive: fits that gave an input a negative
+    # weight, or read the relative margin, answered a clip of one matching frame as sure
+    "confidence_features": ["support", "margin"],
+    "confidence_coef": [-3.45, 5.677, 9.197],
     # Modelling
     "model_fps": 10.0,  # modelling frames sampled at this rate from the video
     # Tracking while walking (tracking.py), read with these defaults by a venue modelled before:
@@ -99,6 +101,29 @@ DEFAULTS: dict[str, Any] = {
     "track_clip_confidence_coef": [-6.68, 10.731, 10.215],
 }
 
+# Confidence models once shipped as the default and refit since: a venue whose settings carry one
+# answers with the default's model now (current_confidence). The confidence reads no feature, so
+# nothing has to be extracted again; a model set otherwise (an admin's own fit) is kept.
+SUPERSEDED_CONFIDENCE: tuple[tuple[tuple[str, ...], tuple[float, ...]], ...] = (
+    (("support", "margin"), (-6.68, 10.731, 10.215)),
+)
+
+
+def current_confidence(conf: dict[str, Any]) -> dict[str, Any]:
+    """A venue's settings with a superseded default confidence model replaced by today's (the
+    venue's own dict is not changed)."""
+    names = tuple(conf.get("confidence_features", ("support", "margin")))  # before the key: these
+    coef = tuple(float(c) for c in conf.get("confidence_coef", ()))
+    for old_names, old_coef in SUPERSEDED_CONFIDENCE:
+        if names == old_names and coef == old_coef:
+            return {
+                **conf,
+                "confidence_features": list(DEFAULTS["confidence_features"]),
+                "confidence_coef": list(DEFAULTS["confidence_coef"]),
+            }
+    return conf
+
+
 PRESETS: dict[str, dict[str, Any]] = {
     # The paper's method as published: the intensity curve of one band, median of best indices.
     "paper": {"channels": ["I"], "bands": [[-20.0, 20.0]], "n_harmonics": 32, "aggregate": "median"},
@@ -151,7 +176,7 @@ def _check_confidence(conf: dict[str, Any]) -> None:
 
     _check_model(conf, "confidence", CONFIDENCE_INPUTS, "confidence inputs")
     _check_model(conf, "track_confidence", TRACK_CONFIDENCE_INPUTS, "tracking confidence inputs")
-    _check_model(conf, "track_clip_confidence", CONFIDENCE_INPUTS, "confidence inputs")
+    _check_model(conf, "track_clip_confidence", CONFIDENCE_INPUTS, "confidence inputs (track_clip_confidence)")
 
 
 def _check_model(conf: dict[str, Any], prefix: str, known: Mapping[str, Any], what: str) -> None:

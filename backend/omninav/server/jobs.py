@@ -243,10 +243,15 @@ class Jobs:
             walks = [v for v in vids if v["role"] == "model" and v["status"] in ("ready", "modelled")]
             every: list[str] = [v["name"] for v in walks if _tracked(v)]
             if not every:
-                raise Conflict(
-                    f"venue {venue_id!r} has no uploaded modelling video with a track to model anew "
-                    "(a venue modelled from one walk by the command line: omninav model ... --anew)"
+                known = {v["name"] for v in vids}
+                by_cli = [n for n in self.cat.store.modelled_videos(venue_id) if n not in known]
+                how = (
+                    f"its frames are from {', '.join(map(repr, by_cli))}, modelled by the command line: "
+                    "omninav model ... --anew"
+                    if by_cli
+                    else "upload a modelling walk and tag its track first"
                 )
+                raise Conflict(f"venue {venue_id!r} has no uploaded modelling video with a track to model anew ({how})")
             # the new generation holds only these: refuse rather than drop another walk's frames
             # (modelled by the command line, or registered again and still uploading)
             if lost := [n for n in self.cat.store.modelled_videos(venue_id) if n not in every]:

@@ -49,7 +49,7 @@ const CLIP_INTERVAL_MS = 100;
 const MAX_TRACK_FRAMES = 45;
 /**
  * An answer a user may trust without more evidence (docs/benchmarks.md, "Confidence": of the
- * answers at or above it, 1.5 % were further than 2 m off on the tuning venue families, 3.9 % on
+ * answers at or above it, 1.8 % were further than 2 m off on the tuning venue families, 4.5 % on
  * the held-out ones). Below it, a press films on to 3 s.
  */
 export const TRUSTED_CONFIDENCE = 0.8;
@@ -583,7 +583,8 @@ export class Session extends Emitter<SessionEvents> {
    * counts a reading as sent only once its request was answered). Said only when it changed;
    * nothing once the loop was stopped meanwhile ("Stopped telling you." stays the last word; a stop
    * while filming sends nothing). The camera taken by a press: the next turn. -> the seconds it
-   * filmed (1 where it filmed nothing, a failure before the camera: the next waits the interval).
+   * filmed: `seconds` once its clip was filmed and the motion asked, else 1 (the camera taken, a
+   * failure before or while filming: the next turn waits the whole interval).
    */
   private async tellTracked(loop: Loop): Promise<number> {
     const feed = this.o.motion;
