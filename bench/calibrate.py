@@ -24,11 +24,11 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize
 
-from omninav.aggregate import confidence, confidence_inputs
+from omninav.aggregate import SURE, confidence, confidence_inputs
 from omninav.presets import resolve
 
 sys.path.insert(0, str(Path(__file__).parent))
-from families import TRUST, family_names, rows_for  # noqa: E402
+from families import family_names, rows_for  # noqa: E402
 from search_speed import machine  # noqa: E402
 
 BINS = (0.0, 0.2, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0001)
@@ -70,10 +70,10 @@ def reliability(p: np.ndarray, y: np.ndarray) -> list[tuple[float, float, int, f
 
 
 def report(label: str, p: np.ndarray, y: np.ndarray, err: np.ndarray) -> None:
-    hi = p >= TRUST
+    hi = p >= SURE
     brier = float(np.mean((p - y) ** 2))
     print(
-        f"\n{label}: {len(y)} answers, within 2 m {y.mean():.1%}; conf >= {TRUST}: {hi.mean():.1%} of answers, "
+        f"\n{label}: {len(y)} answers, within 2 m {y.mean():.1%}; conf >= {SURE}: {hi.mean():.1%} of answers, "
         f"{np.mean(err[hi] > 2.0) if hi.any() else 0:.2%} of them > 2 m; Brier {brier:.4f}"
     )
     print("| confidence | answers | mean confidence | within 2 m |\n| --- | ---: | ---: | ---: |")
@@ -94,7 +94,7 @@ def diagram(path: Path, curves: list[tuple[str, np.ndarray, np.ndarray]]) -> Non
         rel = reliability(p, y)
         ax.plot([r[3] for r in rel], [r[4] for r in rel], "o-", c=colour, label=f"{label} ({len(y)} answers)")
         bx.hist(p, bins=edges, histtype="step", color=colour, lw=1.5)
-    ax.axvline(TRUST, c="#444444", lw=0.8, ls=":")
+    ax.axvline(SURE, c="#444444", lw=0.8, ls=":")
     ax.set_xlim(0, 1)
     ax.set_ylim(0, 1.02)
     ax.set_ylabel("share of answers within 2 m")

@@ -48,7 +48,6 @@ CONFIGS: dict[str, tuple[str, dict[str, Any], str]] = {  # name: preset, overrid
     "paper": ("paper", {}, "median"),
 }
 CONFIDENCE_KEYS = ("confidence_features", "confidence_coef")
-TRUST = SURE  # the confidence a user is told to trust (issue 13: <= 1 % of these wrong)
 
 
 def family_names(spec: str) -> list[str]:
@@ -138,7 +137,7 @@ def summarise(rows: list[dict[str, Any]], conf: dict[str, Any]) -> dict[str, Any
     err = np.array([r["err_m"] for r in rows])
     herr = np.abs([r["heading_err_deg"] for r in rows])
     c = rescore(rows, conf)
-    hi = c >= TRUST
+    hi = c >= SURE  # a user is told to trust these (issue 13: <= 1 % of them wrong)
     return {
         "clips": len(rows),
         "within_1m": float(np.mean(err <= 1.0)),

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from omninav.aggregate import confidence, sequence
+from omninav.aggregate import SURE, confidence, sequence
 from omninav.evaluate import query_spectra
 from omninav.heading import wrap_deg
 from omninav.index import Matches
@@ -59,7 +59,7 @@ from omninav.tracking import (
 from omninav.walkgraph import from_frames
 
 sys.path.insert(0, str(Path(__file__).parent))
-from families import TRUST, dataset, family_names, venue  # noqa: E402
+from families import dataset, family_names, venue  # noqa: E402
 from search_speed import machine  # noqa: E402
 
 SKIP_S = 5.0  # the figures count the seconds after the first 5 of a walk
@@ -212,7 +212,7 @@ def summary(rows: list[dict[str, Any]], prefix: str = "") -> dict[str, Any]:
     err = np.array([r[f"{prefix}err_m"] for r in rs])
     herr = np.array([r[f"{prefix}heading_err_deg"] for r in rs])
     conf = np.array([r[f"{prefix}confidence"] for r in rs])
-    hi = conf >= TRUST
+    hi = conf >= SURE
     return {
         "answers": len(rs),
         "within_2m": float(np.mean(err <= 2.0)),
@@ -247,7 +247,7 @@ HEAD = (
 def first_confident(rows: list[dict[str, Any]]) -> tuple[float | None, bool | None]:
     """Seconds of walking to the first answer given with confidence >= 0.8, and whether it was right."""
     for r in rows:
-        if r["confidence"] >= TRUST:
+        if r["confidence"] >= SURE:
             return r["t"], r["err_m"] <= 2.0
     return None, None
 
@@ -305,10 +305,10 @@ def fit_confidence(over: dict[str, Any]) -> None:
         amb = np.array([r["ambiguous"] for r in rows])
         p = np.where(amb, np.minimum(p, 0.45), p)
         err = np.array([r["err_m"] for r in rows])
-        hi = p >= TRUST
+        hi = p >= SURE
         print(
             f"\n{split}: {len(rows)} answers (walks started afresh at {STARTS_S} s), within 2 m {ys.mean():.1%}; "
-            f"conf >= {TRUST}: {hi.mean():.1%}, of them > 2 m {np.mean(err[hi] > 2) if hi.any() else 0:.2%}, "
+            f"conf >= {SURE}: {hi.mean():.1%}, of them > 2 m {np.mean(err[hi] > 2) if hi.any() else 0:.2%}, "
             f"> 5 m {np.mean(err[hi] > 5) if hi.any() else 0:.2%} ({int(np.sum(hi & (err > 5)))})"
         )
         print("| confidence | answers | mean confidence | within 2 m |\n| --- | ---: | ---: | ---: |")
@@ -522,7 +522,7 @@ def main() -> None:
     for x in runs:
         if x["family"] == "long-bare" and x["walk"] == "query" and x["start"] == 0.0:
             t, ok = first_confident(x["rows"])
-            err = next((r["err_m"] for r in x["rows"] if r["confidence"] >= TRUST), None)
+            err = next((r["err_m"] for r in x["rows"] if r["confidence"] >= SURE), None)
             unsure = sum(r["confidence"] < 0.5 for r in x["rows"] if t is None or r["t"] < t)
             print(
                 f"| {x['seed']} | {pace(x['every'], x['film'])} | {imu_word(x['imu'])} | {unsure} | "

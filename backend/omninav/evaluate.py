@@ -257,7 +257,6 @@ def plot(ev: Evaluation, loc: Locator, path: Path, title: str = "") -> None:
 
 # ---- tracking while walking (tracking.py): `omninav track`, `evaluate --track-mode` ---------------
 SKIP_S = 5.0  # track-mode figures count the seconds after the first 5 (the filter's start)
-TRUST = SURE  # the confidence a user is told to trust
 
 
 def track_ends(t: np.ndarray, every: float = 1.0, clip_s: float = 1.0) -> list[int]:
@@ -350,7 +349,7 @@ def track_summary(ev: Evaluation, skip_s: float = SKIP_S) -> dict[str, Any]:
     kept = Evaluation([r for r in ev.rows if r["t"] >= skip_s])
     s = kept.summary()
     err = np.array([r["err_m"] for r in kept.rows])
-    hi = np.array([r["confidence"] >= TRUST for r in kept.rows], bool)
+    hi = np.array([r["confidence"] >= SURE for r in kept.rows], bool)
     s["confident_over_5m"] = int(np.sum(hi & (err > 5.0))) if len(err) else 0
     s["confident_over_2m"] = int(np.sum(hi & (err > 2.0))) if len(err) else 0
     s["skip_s"] = skip_s

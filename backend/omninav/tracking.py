@@ -77,7 +77,7 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
     about the last `track_recent_s` seconds, is below `track_recent_min`. The clips have stopped
     matching the model anywhere well (an open hall in another light, a bare corridor), which is
     when a belief drifts with the conditions' favourite wrong spot while staying sure;
-  - *a sure clip says elsewhere*: the clip alone is sure (CLIP_SURE, the app's 0.8) of a place
+  - *a sure clip says elsewhere*: the clip alone is sure (aggregate.SURE, the app's 0.8) of a place
     FAR_M or more from the answer (or on another floor). Two calibrated sources that disagree
     are the split evidence the answer must not be sure of; the walk settles it in a few seconds.
   Chosen on the tuning families' walks (docs/benchmarks.md, "Recent clips" and "A sure clip
@@ -116,7 +116,6 @@ LIMIT_M = 8.0  # graph distances are kept up to this; a longer gap is walked in 
 FIT_M = 2.0  # the clip's matches within this of the answer's node place it and give its heading
 FORGET_S = 120.0  # after this long without an update, start over
 AMBIGUOUS_CAP = 0.45  # the confidence of an ambiguous answer: below the app's "not sure" (0.5)
-CLIP_SURE = SURE  # a clip this confident of its own answer (the app's "sure") that lies elsewhere casts doubt
 MAX_STORED = 1500  # nodes a serialised state keeps one by one (the most probable) ...
 STORE_REL = 1e-6  # ... those with at least this share of the most probable's belief; a broader
 # belief (a young one on a big graph) is kept whole instead, never cut to the lowest-numbered
@@ -788,7 +787,7 @@ class Tracker:
             before, dt = (None, 0.0) if fresh or state is None else (state.recent, t_now - state.t)
             recent = self.recent(before, float(clip.confidence), dt)
             doubt = self.recent_min is not None and recent < self.recent_min
-            if doubt or (clip.confidence >= CLIP_SURE and self.elsewhere(pose, clip)):
+            if doubt or (clip.confidence >= SURE and self.elsewhere(pose, clip)):
                 pose = replace(pose, confidence=min(pose.confidence, self.doubt_cap))
         pose = replace(pose, restarted=bool(fresh))
         heading = pose.heading if pose.heading_known else None

@@ -1,9 +1,8 @@
 /**
  * The camera: the rear camera at the lens profile's resolution, and clips of frames (~1 s; 3 s when
- * a press's first second was not enough; 2 s a request of a guided walk or of "Keep telling me",
- * after their first, 1 s)
- * handed to the feature worker as ImageBitmaps (frames never leave the phone: only their features
- * do).
+ * a press's first second was not enough; 2 s a request of a guided walk or of "Keep telling me"
+ * after their first, 1 s) handed to the feature worker as ImageBitmaps (frames never leave the
+ * phone: only their features do).
  */
 import type { Lens } from '../shared/lens';
 import type { ExtractorClient, FrameResult } from './bridge';
