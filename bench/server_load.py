@@ -42,29 +42,26 @@ REPO = Path(__file__).resolve().parents[1]
 N_FRAMES = 8000
 
 
-def build(data: Path) -> bytes:
-    """-> the query record; makes the bench venue on first use."""
-    from omninav.catalog.db import Db
-    from omninav.config import DEFAULTS, database_url
-    from omninav.server.catalog import Catalog
+def build(data: Path, n_frames: int = 10) -> bytes:
+    """-> the query record (`n_frames` of the demo's query walk); makes the bench venue on first use."""
+    from omninav.catalog import Catalog
+    from omninav.config import DEFAULTS
     from omninav.synth import make_dataset
 
     src = REPO / "data" / "demo-src"
     if not (src / "model.mp4").exists():
         make_dataset(src, seed=0, layout="default")
     demo = Store(REPO / "data")
-    if not demo.exists("demo") or demo.generation("demo") is None:
+    if demo.generation("demo") is None:
         raise SystemExit("model the demo venue first: npm start (or omninav demo)")
     g = demo.load("demo", mmap=False)
     # today's search settings (a demo venue modelled by an older omninav may predate some)
     conf = resolve("default")
     if settings_id(conf) != settings_id(g.settings):
         raise SystemExit("the demo venue was modelled with other feature settings; model it again")
-    db = Db(database_url({**DEFAULTS, "DATA": str(data)}))
-    db.migrate()
-    cat = Catalog(db, data)
-    if not db.one("SELECT id FROM venues WHERE id = 'bench8k'"):
-        cat.create_venue("bench8k", "8,000-frame bench venue")
+    cat = Catalog.open({**DEFAULTS, "DATA": str(data)})
+    if not cat.db.one("SELECT id FROM venues WHERE id = 'bench8k'"):
+        cat.venues.create("bench8k", "8,000-frame bench venue")
         extra = N_FRAMES - len(g.frames)
         fr = np.zeros(extra, FRAME_DTYPE)
         fr["x"], fr["y"] = 200.0 + np.arange(extra) * 0.1, 500.0  # far from the real frames
@@ -81,8 +78,8 @@ def build(data: Path) -> bytes:
             ),
         )
     info = VideoInfo(src / "query.mp4")
-    frames = [f for i, f in iter_video(info, start=300) if i < 310]
-    return encode_binary(Extractor(load_lens(src / "lens.json"), conf).spectra(frames[:10]), conf)
+    frames = [f for i, f in iter_video(info, start=300) if i < 300 + n_frames]
+    return encode_binary(Extractor(load_lens(src / "lens.json"), conf).spectra(frames[:n_frames]), conf)
 
 
 def load(port: int, method: str, path: str, body: bytes | None, rate: float, seconds: float, conns: int = 16):

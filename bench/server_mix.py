@@ -15,10 +15,18 @@ run, each `--seconds` long (latency counts from each request's scheduled send ti
        connections (nothing sent) held open: each reconnects as soon as the server drops it;
   (a') the mix alone again: the noise band of (a), and (c)'s neighbour in time.
 
+`--tracked` makes the phones what the app's phones are since tracking (issue 14): in "Keep telling
+me", each in its own tracking session (`?session=&t=`), a 1 s record first and a 2 s one (20
+frames, ~15 KB) every `--period` (4 s: a turn films 2 s, then waits) after it; `--guided` more
+phones guided to a place (`&to=`, the route guide too), a 2 s record every 2.5 s. The presses stay
+plain 1 s clips. A first phase, (p), runs the plain mix of before on the same server, as the
+baseline of the same run.
+
 All requests come from 127.0.0.1, so the per-client locate limit is off (OMNINAV_LOCATE_RATE=0):
 with it on, one address at 53 locates/s would be refused. The client runs on the same machine.
 
     python bench/server_mix.py [--seconds 40] [--phones 100] [--presses 20] [--slow 50] [--idle 50]
+                               [--tracked [--period 4] [--guided 20]]
 """
 
 from __future__ import annotations
@@ -34,17 +42,24 @@ import sys
 import threading
 import time
 from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import cv2
 import numpy as np
 
+from omninav.store import Store
+
 sys.path.insert(0, str(Path(__file__).parent))
 from search_speed import machine  # noqa: E402
 from server_load import REPO, build, load, start_server, summary  # noqa: E402
 
 LOCATE = "/api/venues/bench8k/locate"
+GOAL = "Goal"  # the place guided phones walk to (set on the bench venue by `main`)
+PLAIN_PERIOD = 3.0  # s between a plain continuous-mode phone's locates (the app before tracking)
+KEEP_PERIOD = 4.0  # s between "Keep telling me"'s tracked locates (2 s filmed, then 2 s waited)
+GUIDED_PERIOD = 2.5  # s between a guided phone's locates (2 s filmed, the answer, the next)
 JOB_VENUE = "mixjob"
 AUTH = {"Authorization": "Bearer bench"}
 PIECE = 8 << 20  # upload piece, as bench/model_speed.py
@@ -60,28 +75,40 @@ class Record:
         self.ms: list[float] = []
         self.due: list[float] = []  # when each of them was due (perf_counter)
         self.failures: Counter[str] = Counter()
+        self.first_error: dict[int, str] = {}  # status: the first answer's error of that status
 
-    def done(self, due: float, status: int) -> None:
+    def done(self, due: float, answer: tuple[int, bytes]) -> None:
+        status, body = answer
         with self.lock:
             if status == 200:
                 self.ms.append((time.perf_counter() - due) * 1e3)
                 self.due.append(due)
             else:
                 self.failures[f"HTTP {status}"] += 1
+                self.first_error.setdefault(status, body[:300].decode("utf-8", "replace"))
 
     def failed(self, why: str) -> None:
         with self.lock:
             self.failures[why] += 1
 
 
-def _locate(c: http.client.HTTPConnection, body: bytes, close: bool = False) -> int:
+def _locate(c: http.client.HTTPConnection, body: bytes, close: bool = False, query: str = "") -> tuple[int, bytes]:
     headers = {"Content-Type": "application/octet-stream"}
     if close:
         headers["Connection"] = "close"
-    c.request("POST", LOCATE, body=body, headers=headers)
+    c.request("POST", LOCATE + query, body=body, headers=headers)
     r = c.getresponse()
-    r.read()
-    return r.status
+    return r.status, r.read()
+
+
+@dataclass(frozen=True)
+class Bodies:
+    """The records a phase sends: a press's (and a plain phone's) 1 s clip, a tracked phone's 2 s."""
+
+    one: bytes
+    two: bytes
+    tracked: bool = False  # the phones track (Keep telling me), each in its own session
+    guided: int = 0  # phones guided to GOAL besides
 
 
 def _sleep_until(due: float) -> None:
@@ -90,13 +117,18 @@ def _sleep_until(due: float) -> None:
         time.sleep(wait)
 
 
-def _phone(port: int, body: bytes, dues: list[float], rec: Record) -> None:
-    """One phone in continuous mode: its own keep-alive connection, a locate at each due time."""
+def _phone(port: int, bodies: list[bytes], dues: list[float], rec: Record, session: str = "", to: str = "") -> None:
+    """One phone in continuous mode: its own keep-alive connection, a locate at each due time.
+    With a `session`, it tracks (the app's "Keep telling me", or guided `to` a place): `t` is its
+    clock; the first request sends bodies[0], the rest bodies[-1]."""
     c = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
-    for due in dues:
+    for k, due in enumerate(dues):
         _sleep_until(due)
+        query = ""
+        if session:
+            query = f"?session={session}&t={due - dues[0] + 1.0:.2f}" + (f"&to={to}" if to else "")
         try:
-            rec.done(due, _locate(c, body))
+            rec.done(due, _locate(c, bodies[min(k, len(bodies) - 1)], query=query))
         except (OSError, http.client.HTTPException) as e:
             rec.failed(type(e).__name__)
             c.close()  # the next request connects again
@@ -121,29 +153,45 @@ def _presser(port: int, body: bytes, dues: list[float], nxt: list[int], lock: th
             c.close()
 
 
-def run_mix(port: int, body: bytes, a: argparse.Namespace, seed: int) -> dict[str, Any]:
+def run_mix(port: int, b: Bodies, a: argparse.Namespace, seed: int) -> dict[str, Any]:
     """One phase of the mix, open loop; -> latency summary, counts and failures."""
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter() + 0.5
     end = t0 + a.seconds
-    phones = [[float(t) for t in np.arange(t0 + rng.uniform(0, a.period), end, a.period)] for _ in range(a.phones)]
+    period = a.period or (KEEP_PERIOD if b.tracked else PLAIN_PERIOD)
+
+    def dues(every: float) -> list[float]:
+        return [float(t) for t in np.arange(t0 + rng.uniform(0, every), end, every)]
+
+    phones = [dues(period) for _ in range(a.phones)]
+    guided = [dues(GUIDED_PERIOD) for _ in range(b.guided)]
     gaps = rng.exponential(1.0 / a.presses, int(a.presses * a.seconds * 1.5) + 10) if a.presses else []
     presses = [float(t) for t in t0 + np.cumsum(gaps) if t < end]
     rec = Record()
     lock, nxt = threading.Lock(), [0]
-    ts = [threading.Thread(target=_phone, args=(port, body, d, rec)) for d in phones]
-    ts += [threading.Thread(target=_presser, args=(port, body, presses, nxt, lock, rec)) for _ in range(8)]
+    # a session id per phone and phase: a phase's phones are new walks
+    keep = [b.one, b.two] if b.tracked else [b.one]
+    ts = [
+        threading.Thread(target=_phone, args=(port, keep, d, rec, f"mix{seed}-keep-{i:04d}" if b.tracked else ""))
+        for i, d in enumerate(phones)
+    ]
+    ts += [
+        threading.Thread(target=_phone, args=(port, [b.two], d, rec, f"mix{seed}-guided-{i:04d}", GOAL))
+        for i, d in enumerate(guided)
+    ]
+    ts += [threading.Thread(target=_presser, args=(port, b.one, presses, nxt, lock, rec)) for _ in range(8)]
     for t in ts:
         t.start()
     for t in ts:
         t.join()
-    n = sum(map(len, phones)) + len(presses)
+    n = sum(map(len, phones)) + sum(map(len, guided)) + len(presses)
     ms = np.array(rec.ms) if rec.ms else np.array([math.nan])
     worst = np.argsort(ms)[::-1][:5] if rec.ms else []
     return {
         "n": n,
         "ok": len(rec.ms),
         "failures": dict(rec.failures),
+        "first_error": rec.first_error,
         **summary(ms),
         "load": os.getloadavg()[0],
         "t0": t0,
@@ -452,6 +500,7 @@ def cpu_line(before: dict[str, float], after: dict[str, float], seconds: float) 
 def line(name: str, r: dict[str, Any]) -> str:
     fails = sum(r["failures"].values())
     why = f" ({', '.join(f'{k}: {v}' for k, v in r['failures'].items())})" if fails else ""
+    why += "".join(f"\n      first {k}: {v}" for k, v in r["first_error"].items())
     return (
         f"  {name:30s} {r['n']:5d} {r['p50']:7.2f} {r['p90']:7.2f} {r['p99']:7.2f} {r['max']:8.2f} "
         f"{fails:5d}  {r['load']:5.2f}{why}"
@@ -462,7 +511,11 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=40.0, help="length of each of the four phases")
     ap.add_argument("--phones", type=int, default=100, help="phones in continuous mode")
-    ap.add_argument("--period", type=float, default=3.0, help="seconds between a phone's locates")
+    ap.add_argument(
+        "--period", type=float, default=None, help="seconds between a phone's locates (default 3, 4 with --tracked)"
+    )
+    ap.add_argument("--tracked", action="store_true", help="the phones track, 2 s records (the app since issue 14)")
+    ap.add_argument("--guided", type=int, default=0, help="with --tracked: phones guided to a place besides")
     ap.add_argument("--presses", type=float, default=20.0, help="presses per second")
     ap.add_argument("--slow", type=int, default=50, help="clients trickling a body at one byte a second")
     ap.add_argument("--idle", type=int, default=50, help="connections that send nothing")
@@ -471,6 +524,8 @@ def main() -> None:
     a = ap.parse_args()
     load_before = os.getloadavg()
     record = build(REPO / "data" / "bench-server")
+    plain = Bodies(record, record)
+    mix = Bodies(record, build(REPO / "data" / "bench-server", 20), a.tracked, a.guided if a.tracked else 0)
     video = long_video(a.upload_minutes)
     srv = start_server(REPO / "data" / "bench-server", a.workers)
     port = srv.port
@@ -481,14 +536,26 @@ def main() -> None:
         load(port, "POST", LOCATE, record, 100, 3)  # warm every worker
         print(f"machine: {machine()}")
         print(f"load average before: {' '.join(f'{x:.2f}' for x in load_before)} (other work on the machine)")
-        rate = a.phones / a.period + a.presses
+        period = a.period or (KEEP_PERIOD if a.tracked else PLAIN_PERIOD)
+        rate = a.phones / period + mix.guided / GUIDED_PERIOD + a.presses
+        what = "tracked (Keep telling me: 1 s, then 2 s records)" if a.tracked else "plain"
         print(
-            f"mix: {a.phones} phones, a locate every {a.period:g} s each (own keep-alive connection) + "
-            f"{a.presses:g} presses/s (Poisson, new connection each) = {rate:.1f} locates/s of {len(record)} bytes "
-            f"against 8,000 frames; {a.seconds:g} s per phase; OMNINAV_LOCATE_RATE=0 (one client address)"
+            f"mix: {a.phones} {what} phones, a locate every {period:g} s each (own keep-alive connection)"
+            + (f" + {mix.guided} guided phones, a 2 s record every {GUIDED_PERIOD:g} s" if mix.guided else "")
+            + f" + {a.presses:g} presses/s (Poisson, new connection each) = {rate:.1f} locates/s; records "
+            f"{len(record)} bytes (1 s), {len(mix.two)} bytes (2 s), against 8,000 frames; {a.seconds:g} s per "
+            "phase; OMNINAV_LOCATE_RATE=0 (one client address)"
         )
+        res: dict[str, Any] = {}
         cpu = {"start": cpu_by_role(srv.pid)}
-        res = {"a": run_mix(port, record, a, seed=1)}
+        if a.tracked:  # the baseline of the same run: the plain mix of before, on this server
+            far = Store(REPO / "data").load("demo", mmap=False).frames[800]  # a place along the demo's walk
+            goal = [{"name": GOAL, "x": float(far["x"]), "y": float(far["y"]), "kind": "room"}]
+            adm.call("PUT", "/api/admin/venues/bench8k/places", goal)
+            res["p"] = run_mix(port, plain, argparse.Namespace(**{**vars(a), "period": PLAIN_PERIOD}), seed=0)
+            cpu["p0"] = cpu["start"]
+            cpu["p"] = cpu["start"] = cpu_by_role(srv.pid)
+        res["a"] = run_mix(port, mix, a, seed=1)
         cpu["a"] = cpu_by_role(srv.pid)
 
         job, up = JobDriver(port, walks), Uploader(port, video)
@@ -498,7 +565,7 @@ def main() -> None:
         up.start()
         time.sleep(1.0)  # the upload under way
         t0, cpu["b0"] = time.perf_counter(), cpu_by_role(srv.pid)
-        res["b"] = run_mix(port, record, a, seed=2)
+        res["b"] = run_mix(port, mix, a, seed=2)
         t1, cpu["b"] = time.perf_counter(), cpu_by_role(srv.pid)
         up.stop.set()
         job.stop.set()
@@ -510,14 +577,16 @@ def main() -> None:
         slow.start()
         time.sleep(2.0)  # all connected
         cpu["c0"] = cpu_by_role(srv.pid)
-        res["c"] = run_mix(port, record, a, seed=3)
+        res["c"] = run_mix(port, mix, a, seed=3)
         cpu["c"] = cpu_by_role(srv.pid)
         slow.finish()
-        res["a2"] = run_mix(port, record, a, seed=4)
+        res["a2"] = run_mix(port, mix, a, seed=4)
         cpu["a2"] = cpu_by_role(srv.pid)
 
         print("locate latency from the scheduled send time (ms):")
         print(f"  {'phase':30s} {'n':>5s} {'p50':>7s} {'p90':>7s} {'p99':>7s} {'max':>8s} {'fails':>5s}  load1")
+        if "p" in res:
+            print(line("(p) the plain mix of before", res["p"]))
         print(line("(a) mix alone", res["a"]))
         print(line("(b) mix + upload + job", res["b"]))
         print(line(f"(c) mix + {a.slow} slow + {a.idle} idle", res["c"]))
@@ -536,9 +605,12 @@ def main() -> None:
             + ", ".join(f"{k} x{v}" for k, v in sorted(slow.answers.items()))
         )
         print("CPU used, in cores (CPU seconds per second of the phase):")
-        for k, name, start in (("a", "(a)", "start"), ("b", "(b)", "b0"), ("c", "(c)", "c0"), ("a2", "(a')", "c")):
+        phases = [("a", "(a)", "start"), ("b", "(b)", "b0"), ("c", "(c)", "c0"), ("a2", "(a')", "c")]
+        if "p" in res:
+            phases.insert(0, ("p", "(p)", "p0"))
+        for k, name, start in phases:
             print(f"  {name:4s} {cpu_line(cpu[start], cpu[k], a.seconds + 0.5)}")
-        for k, name in (("a", "(a)"), ("b", "(b)"), ("c", "(c)"), ("a2", "(a')")):
+        for k, name, _ in phases:
             print(f"{name} slowest (s into the phase, ms): {res[k]['slowest']}")
         drops = np.array(slow.ended) - res["c"]["t0"]
         bursts = sorted({round(float(t)) for t in drops if 0 <= t <= a.seconds})
