@@ -1,0 +1,139 @@
+"""What a phone held off vertical costs a frame's match, and whether undoing it is worth building.
+
+A real phone is never held quite level: the donut's axis leans a few degrees (the query walks of
+every family lean up to 5 deg, atrium-glass's up to 8), so the band of elevations the curves sum
+over rises on one side of the panorama and falls on the other. The phone knows its tilt (gravity
+from DeviceMotion) and could unwarp through it: the remap would look up, for each panorama
+direction (azimuth, elevation) of the upright world, the camera direction the tilt turned it into.
+Before building that into the worker and the engine, this measures what it would buy.
+
+For each TUNING family (seed 0; synth.families, nothing held-out is looked at), at `--places`
+poses along the modelling walk, the same place is rendered upright and then (no optics, no noise,
+no people: only the one change):
+  - tilted 3, 5 and 8 deg towards a random side, unwarped as the engine does (as is), and through
+    the true tilt (`corrected`, the upper bound of a correction: the phone's gravity is never exact);
+  - the camera 0.2 m higher; 0.3 m to the side; 0.5, 1 and 2 m further along the walk.
+Each is scored against the upright frame as the search scores a match (heading.relative_heading
+on the quantised spectra: a cosine, 1 = the same panorama). Printed: mean, p10 and min per change.
+
+    python bench/tilt.py [--families tuning|NAME,...] [--places 25]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from omninav.extract import Extractor
+from omninav.heading import relative_heading
+from omninav.lens import Lens, direction_to_pixel
+from omninav.presets import resolve
+from omninav.synth.families import FAMILIES, family_venue, pano_width
+from omninav.synth.render import CameraModel, camera_frame, tilt_rotation, world_panorama
+from omninav.synth.walks import grid_for, walk_heading
+from omninav.track import parse_track
+from omninav.unwarp import UnwarpMap
+
+sys.path.insert(0, str(Path(__file__).parent))
+from search_speed import machine  # noqa: E402
+
+TILTS = (3.0, 5.0, 8.0)
+CORRECTED = (5.0, 8.0)
+ALONG_M = (0.5, 1.0, 2.0)
+
+
+def tilted_map(lens: Lens, upright: UnwarpMap, rot: np.ndarray) -> UnwarpMap:
+    """The engine's band remap through a known tilt: each panorama direction of the upright world,
+    turned into the camera's frame (render.camera_frame turns camera vectors by `rot`; this is its
+    inverse), looked up through the lens."""
+    width = upright.map_x.shape[1]
+    az = (np.arange(width) + 0.5) * 360.0 / width
+    azg, elg = np.meshgrid(az, upright.elevations.astype(np.float64))
+    a, e = np.deg2rad(azg), np.deg2rad(elg)
+    world = np.stack([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)], -1)
+    cam = world @ rot  # rot.T applied to each row vector
+    azc = np.mod(np.rad2deg(np.arctan2(cam[..., 1], cam[..., 0])), 360.0)
+    elc = np.rad2deg(np.arcsin(np.clip(cam[..., 2], -1.0, 1.0)))
+    x, y = direction_to_pixel(lens, azc, elc)
+    ok = np.isfinite(x) & np.isfinite(y)
+    return UnwarpMap(
+        np.where(ok, x, -10.0).astype(np.float32),
+        np.where(ok, y, -10.0).astype(np.float32),
+        upright.elevations,
+        ok,
+        upright.border,
+    )
+
+
+def family_scores(name: str, places: int, seed: int = 0) -> dict[str, list[float]]:
+    v = family_venue(name, seed)
+    lens = v.family.query_lens
+    conf = resolve("default")  # what every family is modelled and queried with (bench/families.py)
+    ext = Extractor(lens, conf)
+    grid = grid_for(lens, pano_width(lens))
+    cam = CameraModel.create(lens)
+    tr = parse_track(v.model_track)
+    rng = np.random.default_rng(5)
+
+    def shot(x: float, y: float, hd: float, h: float = 1.35, rot: np.ndarray | None = None) -> np.ndarray:
+        return camera_frame(cam, world_panorama(v.scene, x, y, h, grid, []), grid, hd, rot)[..., ::-1].copy()
+
+    def through(m: UnwarpMap) -> Extractor:
+        e = Extractor.__new__(Extractor)
+        e.lens, e.conf, e.map = lens, conf, m
+        return e
+
+    out: dict[str, list[float]] = {}
+    speed = 1.2  # the modelling walk's m/s, near enough: "along" is what the track says at t + d / speed
+    for t in np.sort(rng.uniform(2.0, tr.times[-1] - 5.0, places)):
+        ts = np.array([t, *(t + d / speed for d in ALONG_M)])
+        xy, _, ok = tr.pose_at(ts)
+        if not ok.all():
+            continue
+        hd = float(walk_heading(tr, ts[:1], 0.0)[0])
+        base = ext.spectrum(shot(xy[0, 0], xy[0, 1], hd))
+
+        def add(key: str, spec: np.ndarray, base: np.ndarray = base) -> None:
+            out.setdefault(key, []).append(float(relative_heading(spec, base)[1]))
+
+        for tilt in TILTS:
+            rot = tilt_rotation(tilt, rng.uniform(0.0, 360.0))
+            frame = shot(xy[0, 0], xy[0, 1], hd, rot=rot)
+            add(f"tilted {tilt:g} deg, as is", ext.spectrum(frame))
+            if tilt in CORRECTED:
+                add(f"tilted {tilt:g} deg, corrected", through(tilted_map(lens, ext.map, rot)).spectrum(frame))
+        add("0.2 m higher", ext.spectrum(shot(xy[0, 0], xy[0, 1], hd, h=1.55)))
+        h = np.deg2rad(hd)  # heading h walks along (sin h, -cos h) (CONVENTIONS.md): its right is (cos h, sin h)
+        add("0.3 m to the side", ext.spectrum(shot(xy[0, 0] + 0.3 * np.cos(h), xy[0, 1] + 0.3 * np.sin(h), hd)))
+        for j, d in enumerate(ALONG_M, 1):
+            add(f"{d:g} m along", ext.spectrum(shot(xy[j, 0], xy[j, 1], hd)))
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--families", default="tuning")
+    ap.add_argument("--places", type=int, default=25)
+    a = ap.parse_args()
+    names = (
+        [n for n, f in FAMILIES.items() if f.split == "tuning"]
+        if a.families == "tuning"
+        else [s.strip() for s in a.families.split(",") if s.strip()]
+    )
+    print(f"machine: {machine()}")
+    print(f"families: {', '.join(names)} (seed 0), {a.places} places each; score against the upright frame")
+    pooled: dict[str, list[float]] = {}
+    for name in names:
+        for k, s in family_scores(name, a.places).items():
+            pooled.setdefault(k, []).extend(s)
+            print(f"  {name:15s} {k:26s} mean {np.mean(s):.3f}  p10 {np.percentile(s, 10):.3f}")
+    print(f"{'change (all families)':28s} {'n':>4s} {'mean':>6s} {'p10':>6s} {'min':>6s}")
+    for k, s in pooled.items():
+        print(f"{k:28s} {len(s):4d} {np.mean(s):6.3f} {np.percentile(s, 10):6.3f} {np.min(s):6.3f}")
+
+
+if __name__ == "__main__":
+    main()
