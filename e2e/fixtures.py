@@ -11,6 +11,8 @@
                                           # picture, no ring) or cut (the ring cut by the edge)
     python e2e/fixtures.py walk OUT NAME  # a walk through the demo venue for route guidance: NAME is
                                          # to-stairs or wrong-way (OUT/NAME.y4m and its truth NAME.json)
+    python e2e/fixtures.py age DATA VENUE  # (the server stopped) venue VENUE of data directory DATA
+                                           # as an omninav from before the soft clipping left it
 
 Golden files: a few frames of the synthetic venue through the engine's stages, so that the
 TypeScript extractor (in Node and in Chromium) can be checked against them stage by stage; and
@@ -443,10 +445,35 @@ def walk(out: Path, name: str, fps: int = 10, scale: float = 0.5) -> None:
     )
 
 
+def age(data: Path, venue: str) -> None:
+    """Make a modelled venue's live generation say what an omninav from before the soft clipping
+    wrote (its feature settings without `soft_clip_sd`, so another settings id than the preset's),
+    as tests/test_model_anew.py's venue does, for the admin page's "Model anew" (admin-anew.spec.ts).
+    Its spectra stay as they are: the spec models the venue anew before any phone locates there."""
+    from omninav.store import Store
+
+    store = Store(data)
+    gen = store.generation(venue)
+    if gen is None:
+        sys.exit(f"venue {venue!r} of {data} is not modelled")
+    path = store.venue_dir(venue) / gen / "settings.json"
+    settings = json.loads(path.read_text())
+    if "soft_clip_sd" not in settings:
+        sys.exit(f"{path} has no soft_clip_sd: aged already, or the preset changed (update this fixture)")
+    old = {k: v for k, v in settings.items() if k != "soft_clip_sd"}
+    if settings_id(old) == settings_id(resolve("default")):
+        sys.exit("without soft_clip_sd the settings id is the preset's: this fixture no longer ages a venue")
+    path.write_text(json.dumps(old, indent=1))
+
+
 if __name__ == "__main__":
-    if len(sys.argv) not in (3, 4) or sys.argv[1] not in ("golden", "ring", "clip", "admin", "lens", "walk"):
+    if len(sys.argv) not in (3, 4) or sys.argv[1] not in ("golden", "ring", "clip", "admin", "lens", "walk", "age"):
         sys.exit(__doc__)
-    if sys.argv[1] == "walk":
+    if sys.argv[1] == "age":
+        if len(sys.argv) != 4:
+            sys.exit("age DATA VENUE")
+        age(Path(sys.argv[2]), sys.argv[3])
+    elif sys.argv[1] == "walk":
         if len(sys.argv) != 4 or sys.argv[3] not in WALKS:
             sys.exit(f"walk NAME: one of {', '.join(WALKS)}")
         walk(Path(sys.argv[2]), sys.argv[3])
