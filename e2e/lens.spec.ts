@@ -1,9 +1,10 @@
 // The phone keeps its clip-on lens calibrated by itself (issue 12): the feature worker finds the
 // donut's ring in the first frames of a session and compares it with the venue's lens profile.
 // Each clip plays in its own Chromium (one fake camera file per browser): the demo venue filmed
-// through a lens clipped on 6 px off (corrected, then answered), a plain picture (no lens: said, no
-// request) and a ring cut by the picture's edge (said, no request). Then the ring finder's
-// agreement with the engine and its speed, in Chromium's worker on the golden frames.
+// through a lens clipped on 6 px off (corrected, then answered; said once, and not again when the
+// app is opened again), a plain picture (no lens: said, no request) and a ring cut by the picture's
+// edge (said, no request). Then the ring finder's agreement with the engine and its speed, in
+// Chromium's worker on the golden frames.
 import { readFileSync, readdirSync } from 'node:fs';
 import { resolve } from 'node:path';
 import { expect, test, type Browser, type Page, type Request } from '@playwright/test';
@@ -58,6 +59,18 @@ test('a lens clipped on 6 px off: "Lens position corrected", then an answer with
     await again;
     await expect.poll(async () => (await spoken(page)).slice(before).some((s) => s.startsWith('You are'))).toBe(true);
     expect((await spoken(page)).slice(before)).not.toContain('Lens position corrected.');
+    // the app opened again on this phone: the lens sits where it sat, which is no news either
+    const kept = await page.evaluate(() => JSON.parse(localStorage.getItem('omninav.lens-correction') ?? 'null'));
+    expect(Object.keys(kept).sort()).toEqual(['dx', 'dy', 'lens', 'scale']); // numbers and the profile, no picture
+    expect(Math.hypot(kept.dx, kept.dy)).toBeGreaterThan(5);
+    await page.reload();
+    await expect(page.locator('#venue-line')).toContainText('Ready');
+    const reopened = page.waitForResponse((r) => r.url().includes('/locate') && r.request().method() === 'POST');
+    await page.getByRole('button', { name: 'Where am I?' }).click();
+    await reopened;
+    await expect.poll(async () => (await spoken(page)).some((s) => s.startsWith('You are'))).toBe(true);
+    expect(await spoken(page)).not.toContain('Lens position corrected.');
+    await expect(page.locator('#debug-facts')).toContainText(/Lens check.*moved 6\.\d px.*corrected/);
   } finally {
     await browser.close();
   }

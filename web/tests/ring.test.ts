@@ -20,6 +20,7 @@ import {
 } from '../src/worker/ring';
 import {
   CORRECTED,
+  HELD_KEY,
   LensWatch,
   NOT_ATTACHED,
   NOT_CENTRED,
@@ -259,7 +260,7 @@ describe('the lens watch: when to check, what to say', () => {
     ms: [20],
   });
 
-  it('says a correction of 1 px or more once, a smaller one never; stops on no ring, a cut ring, too far', () => {
+  it('says a correction of 2 px or more once, a smaller one never; stops on no ring, a cut ring, too far', () => {
     const w = new LensWatch();
     expect(w.due('k')).toBe(true);
     expect(w.record(check('corrected', 0.6, 0.3), 'k')).toBeNull();
@@ -275,6 +276,63 @@ describe('the lens watch: when to check, what to say', () => {
     w.record(check('same'), 'k');
     w.reset(); // a new camera stream
     expect(w.due('k')).toBe(true);
+  });
+
+  it("a 1 px correction (the e2e clips' lens) is never said, 2.5 px is", () => {
+    expect(new LensWatch().record(check('corrected', 0.95, -0.3), 'k')).toBeNull();
+    expect(new LensWatch().record(check('corrected', 1.05, 0.3), 'k')).toBeNull();
+    expect(new LensWatch().record(check('corrected', 2.5, 0), 'k')).toEqual({ text: CORRECTED, stop: false });
+  });
+
+  it('kept between runs of the app: the same correction next time says nothing, a new one is said', () => {
+    const kept = new Map<string, string>();
+    const store = {
+      getItem: (k: string) => kept.get(k) ?? null,
+      setItem: (k: string, v: string) => void kept.set(k, v),
+    };
+    const key = (lens: unknown) => JSON.stringify([lens, { settings_id: 1 }]);
+    expect(new LensWatch(store).record(check('corrected', 6, -3), key(LENS))).toEqual({ text: CORRECTED, stop: false });
+    // only the lens and the correction's numbers are kept
+    expect(JSON.parse(kept.get(HELD_KEY)!)).toEqual({ lens: JSON.stringify(LENS), dx: 6, dy: -3, scale: 1 });
+    // the app opened again (a new watch): the lens sits where it sat
+    expect(new LensWatch(store).record(check('corrected', 6.1, -3), key(LENS))).toBeNull();
+    // clipped on again elsewhere: said, and kept
+    expect(new LensWatch(store).record(check('corrected', 1, 2), key(LENS))).toEqual({ text: CORRECTED, stop: false });
+    expect(new LensWatch(store).record(check('corrected', 1.1, 2), key(LENS))).toBeNull();
+    // another lens profile: the kept correction is not its own
+    const other = { ...LENS, center: [LENS.center[0] + 1, LENS.center[1]] };
+    expect(new LensWatch(store).record(check('corrected', 1.1, 2), key(other))).toEqual({
+      text: CORRECTED,
+      stop: false,
+    });
+    // the lens found where its profile says: kept as no correction, so the next move off is said
+    new LensWatch(store).record(check('same'), key(LENS));
+    expect(new LensWatch(store).record(check('corrected', 6, -3), key(LENS))).toEqual({ text: CORRECTED, stop: false });
+    // a stop (no ring) keeps nothing
+    const before = kept.get(HELD_KEY);
+    new LensWatch(store).record(check('no_ring'), key(LENS));
+    expect(kept.get(HELD_KEY)).toBe(before);
+  });
+
+  it('a kept correction that is not readable, or a store that refuses to keep one, changes nothing else', () => {
+    const key = JSON.stringify([LENS, { settings_id: 1 }]);
+    for (const raw of [
+      'not json',
+      '{"lens": 3}',
+      JSON.stringify({ lens: JSON.stringify(LENS), dx: 'x', dy: 0, scale: 1 }),
+    ]) {
+      const store = { getItem: () => raw, setItem: () => undefined };
+      expect(new LensWatch(store).record(check('corrected', 6, -3), key)).toEqual({ text: CORRECTED, stop: false });
+    }
+    const refusing = {
+      getItem: () => null,
+      setItem: () => {
+        throw new Error('QuotaExceededError');
+      },
+    };
+    const w = new LensWatch(refusing);
+    expect(w.record(check('corrected', 6, -3), key)).toEqual({ text: CORRECTED, stop: false });
+    expect(w.record(check('corrected', 6.1, -3), key)).toBeNull(); // still held for this run
   });
 
   it('a new camera stream that finds the same correction says nothing; a change of scale counts as a move', () => {

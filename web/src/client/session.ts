@@ -185,7 +185,8 @@ export class Session extends Emitter<SessionEvents> {
   private line = '';
   private ext: ExtractorClient | null = null;
   private stream: MediaStream | null = null;
-  private readonly lensWatch = new LensWatch();
+  // the correction in use is kept on the phone between runs (only its numbers: nothing of a frame)
+  private readonly lensWatch = new LensWatch(typeof localStorage === 'undefined' ? null : localStorage);
   private lastCheck: LensCheck | null = null;
   private busy = false;
   /** What was last said (or would have been): continuous mode speaks only when it changes. */
