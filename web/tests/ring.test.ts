@@ -22,6 +22,7 @@ import {
   CORRECTED,
   HELD_KEY,
   LensWatch,
+  phoneStorage,
   NOT_ATTACHED,
   NOT_CENTRED,
   TOO_FAR,
@@ -312,6 +313,37 @@ describe('the lens watch: when to check, what to say', () => {
     const before = kept.get(HELD_KEY);
     new LensWatch(store).record(check('no_ring'), key(LENS));
     expect(kept.get(HELD_KEY)).toBe(before);
+  });
+
+  it('site data blocked (reading localStorage throws): no store, and the watch works for the run', () => {
+    const had = Object.getOwnPropertyDescriptor(globalThis, 'localStorage');
+    Object.defineProperty(globalThis, 'localStorage', {
+      configurable: true,
+      get: () => {
+        throw new DOMException('The operation is insecure.', 'SecurityError');
+      },
+    });
+    try {
+      expect(phoneStorage()).toBeNull();
+      const w = new LensWatch(phoneStorage());
+      expect(w.record(check('corrected', 6, -3), 'k')).toEqual({ text: CORRECTED, stop: false });
+      expect(w.record(check('corrected', 6.1, -3), 'k')).toBeNull();
+    } finally {
+      if (had) Object.defineProperty(globalThis, 'localStorage', had);
+      else delete (globalThis as { localStorage?: unknown }).localStorage;
+    }
+    const kept = new Map<string, string>();
+    const store = {
+      getItem: (k: string) => kept.get(k) ?? null,
+      setItem: (k: string, v: string) => void kept.set(k, v),
+    };
+    Object.defineProperty(globalThis, 'localStorage', { configurable: true, value: store });
+    try {
+      expect(phoneStorage()).toBe(store);
+    } finally {
+      if (had) Object.defineProperty(globalThis, 'localStorage', had);
+      else delete (globalThis as { localStorage?: unknown }).localStorage;
+    }
   });
 
   it('a kept correction that is not readable, or a store that refuses to keep one, changes nothing else', () => {

@@ -24,14 +24,26 @@ export const TOO_FAR =
 /**
  * A correction is said when the profile in use moves by at least this much (px). Not 1: the e2e
  * clips' lens sits 1 px off, and the same clip was "corrected" aloud in some runs and not in others
- * (the ring found at 0.95-1.05 px); 2 px is still a tenth of a clip-on's usual move (2.5-10 px,
- * docs/benchmarks.md "Finding the ring") and far above the finder's error (0.02-0.3 px). Below it
- * the worker still corrects, silently.
+ * (the ring found at 0.95-1.05 px); 2 px is still under the smallest move of a lens clipped on
+ * again (2.5-10 px, docs/benchmarks.md "Finding the ring") and far above the finder's error
+ * (0.02-0.3 px). Below it the worker still corrects, silently.
  */
 export const SAY_PX = 2;
 /** Where the correction in use is kept between runs of the app (localStorage): a lens that sits
- * where it sat yesterday is no news, and the user should not hear it each time the app opens. */
+ * where it sat yesterday is no news, and the user should not hear it each time the app opens. One
+ * lens only: a phone that switches between two lens profiles hears the correction again after
+ * each switch, as it did before anything was kept. */
 export const HELD_KEY = 'omninav.lens-correction';
+
+/** The phone's localStorage, or null where there is none or reading it throws (site data blocked:
+ * a SecurityError on the very property, which `typeof` does not guard against). */
+export function phoneStorage(): Storage | null {
+  try {
+    return globalThis.localStorage ?? null;
+  } catch {
+    return null;
+  }
+}
 
 /** An abrupt change: the mean grey jumps by this many levels or this share, or the ring's edge fades. */
 const MEAN_JUMP = 25;

@@ -32,7 +32,7 @@ import {
 import { CameraProblem, captureClip, joinClips, lensMismatch, openCamera, type Clip } from './camera';
 import { describe, gist, type Answer } from './directions';
 import { ExtractorClient } from './bridge';
-import { LensWatch, checkLensOn, lensWords } from './lenscheck';
+import { LensWatch, checkLensOn, lensWords, phoneStorage } from './lenscheck';
 import type { Motion, MotionFeed, MotionReading } from './motion';
 import type { Lens } from '../shared/lens';
 import type { LensCheck } from '../shared/protocol';
@@ -186,7 +186,7 @@ export class Session extends Emitter<SessionEvents> {
   private ext: ExtractorClient | null = null;
   private stream: MediaStream | null = null;
   // the correction in use is kept on the phone between runs (only its numbers: nothing of a frame)
-  private readonly lensWatch = new LensWatch(typeof localStorage === 'undefined' ? null : localStorage);
+  private readonly lensWatch = new LensWatch(phoneStorage());
   private lastCheck: LensCheck | null = null;
   private busy = false;
   /** What was last said (or would have been): continuous mode speaks only when it changes. */
