@@ -16,11 +16,12 @@ run, each `--seconds` long (latency counts from each request's scheduled send ti
   (a') the mix alone again: the noise band of (a), and (c)'s neighbour in time.
 
 `--tracked` makes the phones what the app's phones are since tracking (issue 14): in "Keep telling
-me", each in its own tracking session (`?session=&t=`), a 1 s record first and a 2 s one (20
-frames, ~15 KB) every `--period` (4 s: a turn films 2 s, then waits) after it; `--guided` more
-phones guided to a place (`&to=`, the route guide too), a 2 s record every 2.5 s. The presses stay
-plain 1 s clips. A first phase, (p), runs the plain mix of before on the same server, as the
-baseline of the same run.
+me", each in its own tracking session (`?session=&t=&steps=&turn_deg=`), a 1 s record first and a
+2 s one (20 frames, ~15 KB) every `--period` (4 s: a turn films 2 s, then waits) after it;
+`--guided` more phones guided to a place (`&to=`, the route guide too), a 2 s record every 2.5 s.
+The presses stay plain 1 s clips. A first phase, (p), runs the plain mix of before on the same
+server, as the baseline of the same run. What it does not imitate: every phone sends the same
+clip (it never moves, while its steps say it walks), and no phone ever turns.
 
 All requests come from 127.0.0.1, so the per-client locate limit is off (OMNINAV_LOCATE_RATE=0):
 with it on, one address at 53 locates/s would be refused. The client runs on the same machine.
@@ -60,6 +61,8 @@ GOAL = "Goal"  # the place guided phones walk to (set on the bench venue by `mai
 PLAIN_PERIOD = 3.0  # s between a plain continuous-mode phone's locates (the app before tracking)
 KEEP_PERIOD = 4.0  # s between "Keep telling me"'s tracked locates (2 s filmed, then 2 s waited)
 GUIDED_PERIOD = 2.5  # s between a guided phone's locates (2 s filmed, the answer, the next)
+RUN = f"mix{os.getpid():x}{int(time.time()) % 100000:05d}"  # this run's session ids' prefix
+STEP_HZ = 1.8  # a walker's steps a second, sent with each tracked request as the app sends its count
 JOB_VENUE = "mixjob"
 AUTH = {"Authorization": "Bearer bench"}
 PIECE = 8 << 20  # upload piece, as bench/model_speed.py
@@ -126,7 +129,11 @@ def _phone(port: int, bodies: list[bytes], dues: list[float], rec: Record, sessi
         _sleep_until(due)
         query = ""
         if session:
-            query = f"?session={session}&t={due - dues[0] + 1.0:.2f}" + (f"&to={to}" if to else "")
+            # the app's motion since its last request too: steps at ~1.8 a second, no turn
+            steps = round(STEP_HZ * (due - dues[k - 1])) if k else 0
+            query = f"?session={session}&t={due - dues[0] + 1.0:.2f}&steps={steps}&turn_deg=0" + (
+                f"&to={to}" if to else ""
+            )
         try:
             rec.done(due, _locate(c, bodies[min(k, len(bodies) - 1)], query=query))
         except (OSError, http.client.HTTPException) as e:
@@ -169,14 +176,16 @@ def run_mix(port: int, b: Bodies, a: argparse.Namespace, seed: int) -> dict[str,
     presses = [float(t) for t in t0 + np.cumsum(gaps) if t < end]
     rec = Record()
     lock, nxt = threading.Lock(), [0]
-    # a session id per phone and phase: a phase's phones are new walks
+    # a session id per phone, phase and run: every phase's phones are new walks (a session of an
+    # earlier run, still alive in the database, would be resumed with its clock gone back)
     keep = [b.one, b.two] if b.tracked else [b.one]
+    run = f"{RUN}-{seed}"
     ts = [
-        threading.Thread(target=_phone, args=(port, keep, d, rec, f"mix{seed}-keep-{i:04d}" if b.tracked else ""))
+        threading.Thread(target=_phone, args=(port, keep, d, rec, f"{run}-keep-{i:04d}" if b.tracked else ""))
         for i, d in enumerate(phones)
     ]
     ts += [
-        threading.Thread(target=_phone, args=(port, [b.two], d, rec, f"mix{seed}-guided-{i:04d}", GOAL))
+        threading.Thread(target=_phone, args=(port, [b.two], d, rec, f"{run}-guided-{i:04d}", GOAL))
         for i, d in enumerate(guided)
     ]
     ts += [threading.Thread(target=_presser, args=(port, b.one, presses, nxt, lock, rec)) for _ in range(8)]
@@ -522,6 +531,8 @@ def main() -> None:
     ap.add_argument("--upload-minutes", type=float, default=10.0, help="length of the uploaded video")
     ap.add_argument("--workers", type=int, default=None, help="server worker processes (default: as npm start)")
     a = ap.parse_args()
+    if a.guided and not a.tracked:
+        ap.error("--guided needs --tracked (a guided phone tracks)")
     load_before = os.getloadavg()
     record = build(REPO / "data" / "bench-server")
     plain = Bodies(record, record)
