@@ -44,6 +44,12 @@ N_FRAMES = 8000
 
 def build(data: Path, n_frames: int = 10) -> bytes:
     """-> the query record (`n_frames` of the demo's query walk); makes the bench venue on first use."""
+    return encode_binary(*query_spectra(data, n_frames))
+
+
+def query_spectra(data: Path, n_frames: int = 10) -> tuple[np.ndarray, dict]:
+    """-> (spectra of `n_frames` of the demo's query walk, their settings); makes the bench venue
+    on first use (a record of the first k of them: encode_binary(spectra[:k], settings))."""
     from omninav.catalog import Catalog
     from omninav.config import DEFAULTS
     from omninav.synth import make_dataset
@@ -79,7 +85,7 @@ def build(data: Path, n_frames: int = 10) -> bytes:
         )
     info = VideoInfo(src / "query.mp4")
     frames = [f for i, f in iter_video(info, start=300) if i < 300 + n_frames]
-    return encode_binary(Extractor(load_lens(src / "lens.json"), conf).spectra(frames[:n_frames]), conf)
+    return Extractor(load_lens(src / "lens.json"), conf).spectra(frames[:n_frames]), conf
 
 
 def load(port: int, method: str, path: str, body: bytes | None, rate: float, seconds: float, conns: int = 16):

@@ -50,11 +50,12 @@ from typing import Any
 import cv2
 import numpy as np
 
+from omninav.spectrum import encode_binary
 from omninav.store import Store
 
 sys.path.insert(0, str(Path(__file__).parent))
 from search_speed import machine  # noqa: E402
-from server_load import REPO, build, load, start_server, summary  # noqa: E402
+from server_load import REPO, load, query_spectra, start_server, summary  # noqa: E402
 
 LOCATE = "/api/venues/bench8k/locate"
 GOAL = "Goal"  # the place guided phones walk to (set on the bench venue by `main`)
@@ -534,9 +535,10 @@ def main() -> None:
     if a.guided and not a.tracked:
         ap.error("--guided needs --tracked (a guided phone tracks)")
     load_before = os.getloadavg()
-    record = build(REPO / "data" / "bench-server")
+    spec, conf = query_spectra(REPO / "data" / "bench-server", 20)  # the walk decoded once: 2 s, and its first 1 s
+    record = encode_binary(spec[:10], conf)
     plain = Bodies(record, record)
-    mix = Bodies(record, build(REPO / "data" / "bench-server", 20), a.tracked, a.guided if a.tracked else 0)
+    mix = Bodies(record, encode_binary(spec, conf), a.tracked, a.guided if a.tracked else 0)
     video = long_video(a.upload_minutes)
     srv = start_server(REPO / "data" / "bench-server", a.workers)
     port = srv.port

@@ -22,6 +22,7 @@ on the quantised spectra: a cosine, 1 = the same panorama). Printed: mean, p10 a
 from __future__ import annotations
 
 import argparse
+import copy
 import sys
 from pathlib import Path
 
@@ -81,9 +82,9 @@ def family_scores(name: str, places: int, seed: int = 0) -> dict[str, list[float
     def shot(x: float, y: float, hd: float, h: float = 1.35, rot: np.ndarray | None = None) -> np.ndarray:
         return camera_frame(cam, world_panorama(v.scene, x, y, h, grid, []), grid, hd, rot)[..., ::-1].copy()
 
-    def through(m: UnwarpMap) -> Extractor:
-        e = Extractor.__new__(Extractor)
-        e.lens, e.conf, e.map = lens, conf, m
+    def through(m: UnwarpMap) -> Extractor:  # the engine's extractor, its remap swapped
+        e = copy.copy(ext)
+        e.map = m
         return e
 
     out: dict[str, list[float]] = {}

@@ -15,7 +15,7 @@ import { resolve } from 'node:path';
 import { expect, test as base } from '@playwright/test';
 import { adminApi, adminFile, adminTruth, openScreen, signIn, venueByApi } from './admin-steps';
 import { PYTHON, ROOT, TOKEN, WORK } from './env';
-import { expectNoAxeViolations, spoken, spyOnSpeech } from './helpers';
+import { expectAnswerAtClip, expectNoAxeViolations, spoken, spyOnSpeech } from './helpers';
 import { startServer } from './server.cjs';
 import { MAP_UPDATED } from '../web/src/client/problems';
 
@@ -145,10 +145,7 @@ test('Model anew: the modelling screen offers it, runs it, and a phone takes the
       const ans = await (await answered).json();
       // its first record was made with the settings it read: refused, naming the settings now
       expect(statuses[0]).toBe(400);
-      const t = JSON.parse(readFileSync(resolve(WORK, 'clip/clip.json'), 'utf8'));
-      const angle = Math.abs(((ans.heading_deg - t.heading_deg + 540) % 360) - 180);
-      expect(Math.hypot(ans.x - t.x, ans.y - t.y), `answer (${ans.x}, ${ans.y})`).toBeLessThanOrEqual(2);
-      expect(angle, `heading ${ans.heading_deg} vs ${t.heading_deg}`).toBeLessThanOrEqual(10);
+      expectAnswerAtClip(ans);
       await expect(phone.locator('#live')).toContainText('You are in');
       expect(await spoken(phone)).not.toContain(MAP_UPDATED);
     });

@@ -5,7 +5,7 @@
 // e2e/fixtures.py `admin`, a render of the quick demo's building (the fake camera's clip was filmed
 // there too). What the admin did is counted and timed for docs/benchmarks.md
 // (data/e2e/admin-figures.json).
-import { readFileSync, statSync, writeFileSync } from 'node:fs';
+import { statSync, writeFileSync } from 'node:fs';
 import { resolve } from 'node:path';
 import { expect, test, type Locator, type Page } from '@playwright/test';
 import {
@@ -23,7 +23,7 @@ import {
 } from './admin-steps';
 import { pieceSize } from '../web/src/admin/upload';
 import { TOKEN, WORK, base } from './env';
-import { expectNoAxeViolations, spyOnSpeech } from './helpers';
+import { expectAnswerAtClip, expectNoAxeViolations, spyOnSpeech } from './helpers';
 
 const VENUE = 'built';
 // a control that never becomes clickable fails the step, not the whole 15-minute test
@@ -343,10 +343,7 @@ test('an admin builds a venue entirely through the page; the phone app answers t
       const res = await answered;
       expect(res.status()).toBe(200);
       const ans = await res.json();
-      const t = JSON.parse(readFileSync(resolve(WORK, 'clip/clip.json'), 'utf8'));
-      const angle = Math.abs(((ans.heading_deg - t.heading_deg + 540) % 360) - 180);
-      expect(Math.hypot(ans.x - t.x, ans.y - t.y), `answer (${ans.x}, ${ans.y})`).toBeLessThanOrEqual(2);
-      expect(angle, `heading ${ans.heading_deg} vs ${t.heading_deg}`).toBeLessThanOrEqual(10);
+      expectAnswerAtClip(ans);
       expect(ans.low_confidence).toBe(false);
       await expect(phone.locator('#live')).toContainText('You are in');
     } finally {

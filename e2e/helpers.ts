@@ -1,7 +1,9 @@
 // What the specs share: a spy on speech and vibration, and axe-core run in the page.
 import { readFileSync } from 'node:fs';
 import { createRequire } from 'node:module';
+import { resolve } from 'node:path';
 import { expect, type Locator, type Page } from '@playwright/test';
+import { WORK } from './env';
 
 declare global {
   interface Window {
@@ -74,4 +76,16 @@ export function countLocates(page: Page): () => number {
     if (r.url().includes('/locate')) n++;
   });
   return () => n;
+}
+
+/** Where the fake camera's clip was filmed, and facing which way (e2e/fixtures.py `clip`). */
+export const clipTruth = (): { x: number; y: number; heading_deg: number } =>
+  JSON.parse(readFileSync(resolve(WORK, 'clip/clip.json'), 'utf8'));
+
+/** A locate answer within 2 m and 10 degrees of where the fake camera's clip was filmed. */
+export function expectAnswerAtClip(ans: { x: number; y: number; heading_deg: number }): void {
+  const t = clipTruth();
+  const angle = Math.abs(((ans.heading_deg - t.heading_deg + 540) % 360) - 180);
+  expect(Math.hypot(ans.x - t.x, ans.y - t.y), `answer (${ans.x}, ${ans.y})`).toBeLessThanOrEqual(2);
+  expect(angle, `heading ${ans.heading_deg} vs ${t.heading_deg}`).toBeLessThanOrEqual(10);
 }

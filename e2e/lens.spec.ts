@@ -10,6 +10,7 @@ import { resolve } from 'node:path';
 import { expect, test, type Browser, type Page, type Request } from '@playwright/test';
 import { GOLDEN, ROOT, base, chromiumArgs, chromiumPath, lensClip, type LENS_KINDS } from './env';
 import { expectNoAxeViolations, spoken, spyOnSpeech } from './helpers';
+import { HELD_KEY } from '../web/src/client/lenscheck';
 
 type Kind = (typeof LENS_KINDS)[number];
 const truth = (kind: Kind) => JSON.parse(readFileSync(resolve(lensClip(kind), '../lens.json'), 'utf8'));
@@ -60,7 +61,7 @@ test('a lens clipped on 6 px off: "Lens position corrected", then an answer with
     await expect.poll(async () => (await spoken(page)).slice(before).some((s) => s.startsWith('You are'))).toBe(true);
     expect((await spoken(page)).slice(before)).not.toContain('Lens position corrected.');
     // the app opened again on this phone: the lens sits where it sat, which is no news either
-    const kept = await page.evaluate(() => JSON.parse(localStorage.getItem('omninav.lens-correction') ?? 'null'));
+    const kept = await page.evaluate((key) => JSON.parse(localStorage.getItem(key) ?? 'null'), HELD_KEY);
     expect(Object.keys(kept).sort()).toEqual(['dx', 'dy', 'lens', 'scale']); // numbers and the profile, no picture
     expect(Math.hypot(kept.dx, kept.dy)).toBeGreaterThan(5);
     await page.reload();

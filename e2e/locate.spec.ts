@@ -1,12 +1,9 @@
 // The user's flow: open the app, press "Where am I?", hear and read where they are. The fake camera
 // plays a clip rendered at a known pose in the demo venue, which the server modelled from video.
-import { readFileSync } from 'node:fs';
-import { resolve } from 'node:path';
 import { expect, test, type Request } from '@playwright/test';
-import { ELSEWHERE, WORK, base, chromiumArgs, chromiumPath } from './env';
-import { countLocates, expectNoAxeViolations, spoken, spyOnSpeech } from './helpers';
+import { ELSEWHERE, base, chromiumArgs, chromiumPath } from './env';
+import { clipTruth, countLocates, expectNoAxeViolations, spoken, spyOnSpeech } from './helpers';
 
-const truth = () => JSON.parse(readFileSync(resolve(WORK, 'clip/clip.json'), 'utf8'));
 const angle = (a: number, b: number) => Math.abs(((a - b + 540) % 360) - 180);
 
 test('Where am I? answers within 2 m and 10 degrees, spoken and in the live region, from features only', async ({
@@ -26,7 +23,7 @@ test('Where am I? answers within 2 m and 10 degrees, spoken and in the live regi
   const res = await answered;
   expect(res.status()).toBe(200);
   const a = await res.json();
-  const t = truth();
+  const t = clipTruth();
   expect(Math.hypot(a.x - t.x, a.y - t.y), `answer (${a.x}, ${a.y}) vs truth (${t.x}, ${t.y})`).toBeLessThanOrEqual(2);
   expect(angle(a.heading_deg, t.heading_deg), `heading ${a.heading_deg} vs ${t.heading_deg}`).toBeLessThanOrEqual(10);
   expect(a.low_confidence).toBe(false);
