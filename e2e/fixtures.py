@@ -44,8 +44,8 @@ from omninav.unwarp import unwarp
 POSES = [Pose(0.0, 6.0, 2.0, 30.0), Pose(0.1, 14.5, 2.2, 200.0), Pose(0.2, 20.0, 8.0, 300.0)]
 
 
-def _case(out: Path, name: str, lens, preset: str, frames: list[np.ndarray]) -> dict:
-    conf = resolve(preset)
+def _case(out: Path, name: str, lens, preset: str, frames: list[np.ndarray], over: dict | None = None) -> dict:
+    conf = resolve(preset, over)
     ext = Extractor(lens, conf)
     items = []
     specs = []
@@ -76,6 +76,10 @@ def _case(out: Path, name: str, lens, preset: str, frames: list[np.ndarray]) -> 
 LOOK = replace(QUERY, people=0, lateral_m=0.0)  # a colour cast, gain, tilt and noise, as a phone sees
 
 
+# the default preset's feature settings before `band_channels` (venues modelled then keep them)
+BEFORE_BANDS = {"bands": [[-25.0, 0.0], [0.0, 25.0]], "band_channels": None}
+
+
 def golden_frames() -> list[np.ndarray]:
     """The golden donut frames: the small venue at POSES, as a phone sees it."""
     return [f for _, f in render_frames(build_scene(0, "small"), donut_lens(1.0), POSES, LOOK, seed=7)]
@@ -92,6 +96,8 @@ def golden(out: Path) -> None:
         _case(out, "donut-default", donut, "default", dframes),
         _case(out, "donut-six", donut, "six", dframes[:1]),
         _case(out, "equirect-default", eq, "default", eframes),
+        # the default before per-band channels: what a phone makes for a venue modelled with it
+        _case(out, "donut-before-bands", donut, "default", dframes[:1], BEFORE_BANDS),
     ]
     (out / "golden.json").write_text(json.dumps({"cases": cases}, indent=1))
     ring_golden(out, dframes)

@@ -41,10 +41,10 @@ test('Where am I? answers within 2 m and 10 degrees, spoken and in the live regi
   await expect(page.locator('#answer-text')).toHaveText(sentence);
   expect(await page.evaluate(() => window.__vibrated.length)).toBeGreaterThan(0);
 
-  // the request carried a feature record, not pictures: "ONV" header, 768 bytes per frame, the
+  // the request carried a feature record, not pictures: "ONV" header, 896 bytes per frame, the
   // sizes the venue document states
   const { features } = await (await fetch(`${base()}/api/venues/demo`)).json();
-  expect(features.record_bytes_per_frame).toBe(768);
+  expect(features.record_bytes_per_frame).toBe(896);
   const locates = requests.filter((r) => r.url().includes('/locate'));
   expect(locates).toHaveLength(1);
   const body = locates[0].postDataBuffer()!;
@@ -52,9 +52,9 @@ test('Where am I? answers within 2 m and 10 degrees, spoken and in the live regi
   expect(body.subarray(0, 3).toString()).toBe('ONV');
   const frames = body.readUInt32LE(10);
   expect(frames).toBeGreaterThanOrEqual(8);
-  expect(body.length).toBe(features.record_header_bytes + 768 * frames);
+  expect(body.length).toBe(features.record_header_bytes + 896 * frames);
   for (const r of requests) expect(r.headers()['content-type'] ?? '', r.url()).not.toMatch(/image|video|multipart/);
-  await expect(page.locator('#debug-facts')).toContainText('768');
+  await expect(page.locator('#debug-facts')).toContainText('896');
 
   // the plan's text alternative tells the same answer; nothing is only on the map
   await expect(page.locator('#plan')).toHaveAttribute('aria-label', /you are in .*within about/);

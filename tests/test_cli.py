@@ -221,7 +221,7 @@ def test_features_then_locate_gives_the_same_answer_as_the_clip(cli_venue, clips
     rec = tmp_path / f"q2{suffix}"
     run_cli("features", "lab", str(d / "q2"), "--lens", str(small_ds.lens), "-o", str(rec), data=cli_venue, check=True)
     if suffix == ".onv":
-        assert rec.stat().st_size == 20 + 10 * 768  # 788 bytes for the first frame, 768 for each next
+        assert rec.stat().st_size == 20 + 10 * 896  # 916 bytes for the first frame, 896 for each next
     by_rec = json.loads(run_cli("locate", "lab", str(rec), data=cli_venue, check=True).stdout)
     by_clip = json.loads(
         run_cli("locate", "lab", str(d / "q2"), "--lens", str(small_ds.lens), data=cli_venue, check=True).stdout

@@ -18,7 +18,7 @@ def test_modelled_frames_follow_the_track(modelled, small_ds):
     g = st.load(vid)
     tr = load_track(small_ds.model_track)
     conf = resolve("default")
-    assert g.spectra.shape[1:] == (n_curves(conf), conf["n_harmonics"]) == (12, 16)
+    assert g.spectra.shape[1:] == (n_curves(conf), conf["n_harmonics"]) == (14, 16)
     assert len(g.frames) == len(g.spectra) > 100
     xy, hd, _ = tr.pose_at(g.frames["t"].astype(np.float64))
     assert np.allclose(g.frames["x"], xy[:, 0], atol=1e-3)

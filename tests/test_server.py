@@ -141,7 +141,7 @@ def test_public_venue_describes_what_a_client_needs(built):
     assert v["modelled"] and v["frames"] > 100
     assert v["floors"][0]["name"] == "Second floor"
     assert v["lenses"]["donut"]["model"] == "catadioptric"
-    assert v["features"]["record_bytes_per_frame"] == 768
+    assert v["features"]["record_bytes_per_frame"] == 896
     assert any(p["name"] == "the lifts" for p in v["places"])
     png = api.get(v["floors"][0]["plan_url"])
     assert png.status_code == 200 and png.mimetype == "image/png"
@@ -267,7 +267,8 @@ def test_record_problems_are_named(built, clip):
     for body, words in cases:
         r = api.post("/api/venues/lab/locate", json=body)
         assert r.status_code == 400 and words in r.json["error"], (words, r.json)
-    huge = json.dumps({**rec, "mag": [[[7.0] * 16] * 12] * 10}).replace("7.0", "1e999", 1)  # parses as inf
+    f, c, k = spec.shape
+    huge = json.dumps({**rec, "mag": [[[7.0] * k] * c] * f}).replace("7.0", "1e999", 1)  # parses as inf
     r = api.post("/api/venues/lab/locate", data=huge, content_type="application/json")
     assert r.status_code == 400 and "NaN or Inf" in r.json["error"]
     binary = encode_binary(spec, conf)

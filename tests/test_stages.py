@@ -101,12 +101,28 @@ def test_soft_clip_is_the_default_and_venues_modelled_before_it_keep_their_curve
     assert conf["soft_clip_sd"] == 1.25 and resolve("paper")["soft_clip_sd"] is None
     pano = smooth_pano(41, 1440)
     el = np.linspace(20, -20, 41)
-    old = {k: v for k, v in conf.items() if k != "soft_clip_sd"}  # a settings.json from before
+    # a settings.json from before soft clipping (and so before per-band channels)
+    old = {k: v for k, v in {**conf, **BEFORE_BANDS}.items() if k not in ("soft_clip_sd", "band_channels")}
     assert np.array_equal(extract_curves(pano, el, old), extract_curves(pano, el, {**old, "soft_clip_sd": None}))
-    assert np.allclose(extract_curves(pano, el, conf), soft_clip(extract_curves(pano, el, old), 1.25), atol=1e-6)
+    clipped = {**old, "soft_clip_sd": 1.25}
+    assert np.allclose(extract_curves(pano, el, clipped), soft_clip(extract_curves(pano, el, old), 1.25), atol=1e-6)
     # records carry the settings id: the one phones made for such a venue before this release
     assert settings_id(old) == settings_id({**old, "soft_clip_sd": None}) == 2019879380
     assert settings_id(conf) != settings_id(old)
+
+
+BEFORE_BANDS = {"bands": [[-25.0, 0.0], [0.0, 25.0]], "band_channels": None}  # the default before them
+
+
+def test_per_band_channels_are_the_default_and_venues_modelled_before_them_keep_their_id():
+    conf = resolve("default")
+    assert n_curves(conf) == 14 and conf["band_channels"][-1] == ["O1", "O2", "dO1", "dO2"]
+    assert all(c == ["I", "dI"] for c in conf["band_channels"][:5])
+    before = {k: v for k, v in {**conf, **BEFORE_BANDS}.items() if k != "band_channels"}  # its settings.json
+    assert n_curves(before) == 12
+    # the id phones made for such a venue before this release, with or without the key written as null
+    assert settings_id(before) == settings_id({**before, "band_channels": None}) == 4043377008
+    assert settings_id(conf) != settings_id(before)
 
 
 @pytest.mark.parametrize("bad", [0, 0.0, -1.0, False, True, "1.25", float("nan"), float("inf")])
@@ -115,6 +131,33 @@ def test_soft_clip_settings_are_refused_unless_a_positive_number_or_null(bad):
         resolve("default", {"soft_clip_sd": bad})
     assert resolve("default", {"soft_clip_sd": None})["soft_clip_sd"] is None
     assert resolve("default", {"soft_clip_sd": 2})["soft_clip_sd"] == 2
+
+
+def test_band_channels_give_each_band_its_own_curves_in_the_records_order():
+    pano = smooth_pano(41, 1440)
+    el = np.linspace(20, -20, 41)
+    base = {**resolve("six"), "bands": [[-20.0, 0.0], [0.0, 20.0]], "channels": ["I", "dI", "O1"]}
+    plain = extract_curves(pano, el, base)
+    # the same lists per band: the curves of `channels` x `bands`, the record (and its id) as before
+    same = {**base, "band_channels": [["I", "dI", "O1"], ["I", "dI", "O1"]]}
+    assert np.array_equal(extract_curves(pano, el, same), plain)
+    assert settings_id({**base, "band_channels": None}) == settings_id(base) != settings_id(same)
+    # each band its own list, in its order: band-major, the band's channels as listed
+    own = {**base, "band_channels": [["O1"], ["dI", "I"]]}
+    got = extract_curves(pano, el, own)
+    assert got.shape == (3, 360) and n_curves(own) == 3 and n_curves(base) == 6
+    assert np.array_equal(got, plain[[2, 4, 3]])
+    wide = {**base, "bands": [[-20.0, 20.0]], "band_channels": [["O2"]]}  # a channel `channels` lacks
+    assert extract_curves(pano, el, wide).shape == (1, 360)
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [[["I"]], [["I"], []], [["I"], ["I", "I"]], [["I"], ["X"]], "I", [["I"], "dI"], [["I"], ["dI"], ["O1"]]],
+)
+def test_band_channels_are_refused_unless_one_list_of_known_distinct_channels_per_band(bad):
+    with pytest.raises(OmninavError, match="band_channels"):
+        resolve("six", {"bands": [[-20.0, 0.0], [0.0, 20.0]], "band_channels": bad})
 
 
 def test_normalise_flat_curve_stays_zero():

@@ -3,10 +3,13 @@
 A panorama's columns are azimuths, so summing each column over a band around the horizon gives a
 1-D curve per channel whose circular shift is the camera's rotation. The paper's six curves are
 the column sums of H, S, I and of their horizontal gradients; we can add opponent colours and more
-bands (see presets.py). Each curve is normalised to zero mean and unit variance, which removes
-brightness gain and offset, and then, in the default preset, softly clipped (`soft_clip`): a few
-columns far from the curve's mean (a window in the sun, one strong door edge) no longer carry most
-of its variance, so a change of light on them moves the spectrum less.
+bands, and give each band its own channels (`band_channels`, see presets.py: the default preset
+sums intensity over five narrow bands, since where in elevation a corridor's lights and edges sit
+is what tells identical doors apart, and the colours over one wide band). Each curve is
+normalised to zero mean and unit variance, which removes brightness gain and offset, and then, in
+the default preset, softly clipped (`soft_clip`): a few columns far from the curve's mean (a window
+in the sun, one strong door edge) no longer carry most of its variance, so a change of light on
+them moves the spectrum less.
 """
 
 from __future__ import annotations
@@ -14,6 +17,8 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+
+from .presets import band_channels
 
 CHANNELS = ("H", "S", "I", "dH", "dS", "dI", "O1", "O2", "dO1", "dO2")
 _EPS = 1e-6
@@ -118,9 +123,11 @@ def extract_curves(
 ) -> np.ndarray:
     """(rows, cols*oversample, 3) panorama (uint8 or float in [0, 1]) -> (n_curves, cols) float32.
 
-    Curves are ordered band-major: for each band, its channels in `conf["channels"]` order.
-    Column sums are means over the band's rows so that the band height does not scale them.
+    Curves are ordered band-major: for each band, its channels in `conf["channels"]` order (or
+    the band's own list, `conf["band_channels"]`: presets.band_channels). Column sums are means
+    over the band's rows so that the band height does not scale them.
     """
+    per = band_channels(conf)
     if pano.ndim != 3 or pano.shape[2] != 3 or pano.shape[0] != len(elevations):
         raise ValueError(f"panorama shape {pano.shape} does not match {len(elevations)} rows x 3")
     rgb = pano.astype(np.float32)
@@ -128,14 +135,14 @@ def extract_curves(
         rgb *= 1.0 / 255.0
     if conf.get("gray_world"):
         rgb = gray_world(rgb, valid)
-    imgs = channel_images(rgb, conf["channels"])
+    imgs = channel_images(rgb, list(dict.fromkeys(c for chs in per for c in chs)))
     width = conf["pano_width"]
     os_ = pano.shape[1] // width
-    out = np.empty((len(conf["bands"]) * len(conf["channels"]), width), np.float32)
+    out = np.empty((sum(len(c) for c in per), width), np.float32)
     k = 0
-    for lo, hi in conf["bands"]:
+    for (lo, hi), chs in zip(conf["bands"], per, strict=True):
         rows = (elevations >= lo - 1e-6) & (elevations <= hi + 1e-6)
-        for ch in conf["channels"]:
+        for ch in chs:
             col = imgs[ch][rows].mean(axis=0)
             out[k] = col.reshape(width, os_).mean(axis=1)
             k += 1

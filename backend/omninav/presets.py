@@ -27,6 +27,7 @@ DEFAULTS: dict[str, Any] = {
     "gray_world": False,  # divide each colour channel by its frame mean: removes casts and gain
     # after normalising, each curve becomes sd * tanh(curve / sd) (curves.soft_clip); None: off
     "soft_clip_sd": None,
+    "band_channels": None,  # per band, its own channels (None: every band has `channels`)
     "n_harmonics": 32,  # leading FFT harmonics kept (1..K; the DC term carries no shape)
     # Search
     "candidates": 16,  # venue frames kept per query frame by the magnitude stage, then verified
@@ -138,7 +139,12 @@ PRESETS: dict[str, dict[str, Any]] = {
     "default": {
         "gray_world": True,
         "channels": ["I", "O1", "O2", "dI", "dO1", "dO2"],
-        "bands": [[-25.0, 0.0], [0.0, 25.0]],
+        # intensity and its gradient in five 10-degree bands, the colours over the whole band:
+        # where along a corridor of identical doors the camera is shows in how the corridor's
+        # light and edges are spread in elevation, which one band's column sums average away
+        # (docs/benchmarks.md, "Five bands of intensity"); 14 curves, 896 bytes a frame
+        "bands": [[-25.0, -15.0], [-15.0, -5.0], [-5.0, 5.0], [5.0, 15.0], [15.0, 25.0], [-25.0, 25.0]],
+        "band_channels": [["I", "dI"]] * 5 + [["O1", "O2", "dO1", "dO2"]],
         "n_harmonics": 16,
         "candidates": 16,
         "soft_clip_sd": 1.25,
@@ -155,6 +161,7 @@ def resolve(name: str = "default", overrides: dict[str, Any] | None = None) -> d
     conf["preset"] = name
     _check_confidence(conf)
     _check_soft_clip(conf)
+    _check_band_channels(conf)
     return conf
 
 
@@ -167,6 +174,23 @@ def _check_soft_clip(conf: dict[str, Any]) -> None:
     ok = isinstance(sd, (int, float)) and not isinstance(sd, bool) and math.isfinite(sd) and sd > 0
     if not ok:
         raise OmninavError(f"soft_clip_sd must be a number of standard deviations > 0, or null (off); got {sd!r}")
+
+
+def _check_band_channels(conf: dict[str, Any]) -> None:
+    """None, or one non-empty list of distinct known channels per band: anything else would make
+    curves here that the phone cannot make, or a record whose curves do not say which is which."""
+    from .curves import CHANNELS
+
+    per = conf.get("band_channels")
+    if per is None:
+        return
+    ok = isinstance(per, list) and len(per) == len(conf["bands"])
+    ok = ok and all(isinstance(c, list) and c and len(set(c)) == len(c) and set(c) <= set(CHANNELS) for c in per)
+    if not ok:
+        raise OmninavError(
+            f"band_channels must be null or one list of distinct channels ({', '.join(CHANNELS)}) per band "
+            f"({len(conf['bands'])}); got {per!r}"
+        )
 
 
 def _check_confidence(conf: dict[str, Any]) -> None:
@@ -193,10 +217,11 @@ def _check_model(conf: dict[str, Any], prefix: str, known: Mapping[str, Any], wh
 # these cannot be compared with a venue's frames.
 FEATURE_KEYS = (
     "pano_width", "oversample", "row_step_deg", "bands", "channels", "gray_world", "n_harmonics", "soft_clip_sd",
+    "band_channels",
 )  # fmt: skip
 # Keys added after venues were modelled without them: they count in the settings id only when set,
 # so a record for such a venue keeps the id it had (and a venue's settings need not carry them).
-_LATER_KEYS = ("soft_clip_sd",)
+_LATER_KEYS = ("soft_clip_sd", "band_channels")
 
 
 def settings_id(conf: dict[str, Any]) -> int:
@@ -209,5 +234,14 @@ def settings_id(conf: dict[str, Any]) -> int:
     return zlib.crc32(canon.encode())
 
 
+def band_channels(conf: dict[str, Any]) -> list[list[str]]:
+    """Each band's channels, in the record's order: `band_channels` where set, else `channels`
+    for every band (what every venue modelled before `band_channels` has)."""
+    per = conf.get("band_channels")
+    if per is None:
+        return [list(conf["channels"]) for _ in conf["bands"]]
+    return [list(c) for c in per]
+
+
 def n_curves(conf: dict[str, Any]) -> int:
-    return len(conf["bands"]) * len(conf["channels"])
+    return sum(len(c) for c in band_channels(conf))

@@ -10,6 +10,21 @@ import {
   toHalf,
 } from '../src/shared/record';
 import { harmonics, quantise } from '../src/worker/spectrum';
+import { bandChannels, nCurves } from '../src/shared/settings';
+
+/** The default preset's settings before per-band channels: six channels in two bands. */
+const SIX = {
+  pano_width: 360,
+  oversample: 4,
+  row_step_deg: 1,
+  bands: [
+    [-25, 0],
+    [0, 25],
+  ] as [number, number][],
+  channels: ['I', 'O1', 'O2', 'dI', 'dO1', 'dO2'],
+  gray_world: true,
+  n_harmonics: 16,
+};
 import { linspace, interp, polyval } from '../src/shared/lens';
 
 describe('float16 as numpy rounds it', () => {
@@ -87,10 +102,29 @@ describe('spectrum and record', () => {
   });
   it("a venue document whose record sizes are not this app's is named as a mismatch", () => {
     const f = { n_curves: 12, n_harmonics: 16, record_header_bytes: 20, record_bytes_per_frame: 768 };
-    const doc = (over: Partial<typeof f>) => ({ settings: {} as never, settings_id: 1, ...f, ...over });
+    const doc = (over: Partial<typeof f>) => ({ settings: SIX, settings_id: 1, ...f, ...over });
     expect(recordMismatch(doc({}))).toBeNull();
     expect(recordMismatch(doc({ record_header_bytes: 24 }))).toMatch(/24-byte record header, this app makes 20/);
     expect(recordMismatch(doc({ record_bytes_per_frame: 800 }))).toMatch(/800 bytes per frame, this app makes 768/);
+    // curves counted otherwise than the server (settings read by an older app): named, not sent
+    expect(recordMismatch(doc({ n_curves: 14, record_bytes_per_frame: 896 }))).toMatch(
+      /needs 14 curves a frame, this app makes 12/,
+    );
+  });
+  it('per-band channels: each band its own list, counted in the record', () => {
+    const plain = SIX;
+    expect(bandChannels(plain)).toEqual([SIX.channels, SIX.channels]);
+    expect(nCurves(plain)).toBe(12);
+    expect(nCurves({ ...plain, band_channels: null })).toBe(12);
+    const own = {
+      ...plain,
+      band_channels: [
+        ['I', 'dI'],
+        ['O1', 'O2', 'dO1'],
+      ],
+    };
+    expect(bandChannels(own)).toEqual(own.band_channels);
+    expect(nCurves(own)).toBe(5);
   });
 });
 

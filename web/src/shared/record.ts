@@ -41,6 +41,11 @@ export const BYTES_PER_HARMONIC = 4;
 export function recordMismatch(f: VenueFeatures): string | null {
   if (f.record_header_bytes !== HEADER_BYTES)
     return `the server expects a ${f.record_header_bytes}-byte record header, this app makes ${HEADER_BYTES}`;
+  // settings this app reads otherwise than the server (a key it does not know: per-band channels
+  // before `band_channels`) make other curves than the server counts
+  const made = nCurves(f.settings);
+  if (made !== f.n_curves)
+    return `the server's venue needs ${f.n_curves} curves a frame, this app makes ${made} from its settings`;
   const perFrame = BYTES_PER_HARMONIC * f.n_curves * f.n_harmonics;
   if (f.record_bytes_per_frame !== perFrame)
     return `the server expects ${f.record_bytes_per_frame} bytes per frame, this app makes ${perFrame}`;

@@ -9,6 +9,8 @@ export interface FeatureSettings {
   n_harmonics: number;
   /** each normalised curve becomes sd * tanh(curve / sd), normalised again; absent or null: off */
   soft_clip_sd?: number | null;
+  /** per band, its own channels (presets.py `band_channels`); absent or null: every band has `channels` */
+  band_channels?: string[][] | null;
 }
 
 export interface VenueFeatures {
@@ -20,4 +22,7 @@ export interface VenueFeatures {
   record_bytes_per_frame: number;
 }
 
-export const nCurves = (s: FeatureSettings): number => s.bands.length * s.channels.length;
+/** Each band's channels, in the record's order (presets.py `band_channels`). */
+export const bandChannels = (s: FeatureSettings): string[][] => s.band_channels ?? s.bands.map(() => s.channels);
+
+export const nCurves = (s: FeatureSettings): number => bandChannels(s).reduce((n, c) => n + c.length, 0);

@@ -4,7 +4,7 @@
  * clipped where the venue's settings say so (`soft_clip_sd`).
  * Input is the unwarped band panorama as RGBA bytes (what canvas and opencv.js give us).
  */
-import type { FeatureSettings } from '../shared/settings';
+import { bandChannels, nCurves, type FeatureSettings } from '../shared/settings';
 
 export const CHANNELS = ['H', 'S', 'I', 'dH', 'dS', 'dI', 'O1', 'O2', 'dO1', 'dO2'] as const;
 const EPS = 1e-6;
@@ -137,8 +137,9 @@ export function softClip(curves: Float32Array, n: number, width: number, sd: num
 }
 
 /**
- * Band panorama (RGBA, rows x cols*oversample) -> (bands*channels) x pano_width normalised curves,
- * band-major, each band's channels in the settings' order.
+ * Band panorama (RGBA, rows x cols*oversample) -> nCurves x pano_width normalised curves,
+ * band-major, each band's channels in the settings' order (`channels`, or the band's own list:
+ * `band_channels`).
  */
 export function extractCurves(
   rgba: Uint8Array | Uint8ClampedArray,
@@ -150,16 +151,17 @@ export function extractCurves(
 ): Float32Array {
   const rgb = toFloat(rgba, rows * cols);
   if (s.gray_world) grayWorld(rgb, valid);
-  const imgs = channelImages(rgb, rows, cols, s.channels);
+  const per = bandChannels(s);
+  const imgs = channelImages(rgb, rows, cols, [...new Set(per.flat())]);
   const width = s.pano_width;
   const os = Math.floor(cols / width);
-  const out = new Float32Array(s.bands.length * s.channels.length * width);
+  const out = new Float32Array(nCurves(s) * width);
   const col = new Float64Array(cols);
   let k = 0;
-  for (const [lo, hi] of s.bands) {
+  for (const [b, [lo, hi]] of s.bands.entries()) {
     const inBand: number[] = [];
     for (let i = 0; i < rows; i++) if (elevations[i] >= lo - 1e-6 && elevations[i] <= hi + 1e-6) inBand.push(i);
-    for (const ch of s.channels) {
+    for (const ch of per[b]) {
       const img = imgs.get(ch)!;
       col.fill(0);
       for (const i of inBand) {

@@ -6,7 +6,7 @@
 import { extractCurves } from './curves';
 import type { Lens } from '../shared/lens';
 import { bandMap, type UnwarpMap } from './unwarp';
-import type { FeatureSettings } from '../shared/settings';
+import { nCurves, type FeatureSettings } from '../shared/settings';
 import type { FrameSpectrum } from '../shared/record';
 import { harmonics, quantise } from './spectrum';
 
@@ -62,7 +62,7 @@ export class Extractor {
     const [w, h] = lens.image_size;
     this.src = new cv.Mat(h, w, cv.CV_8UC4);
     this.pano = new cv.Mat();
-    this.nCurves = settings.bands.length * settings.channels.length;
+    this.nCurves = nCurves(settings);
     this.curveMat = new cv.Mat(this.nCurves, settings.pano_width, cv.CV_32FC1);
     this.dftMat = new cv.Mat();
   }
