@@ -18,7 +18,7 @@ from pathlib import Path
 
 from omninav.evaluate import Evaluation, evaluate, plot
 from omninav.lens import load_lens
-from omninav.presets import resolve
+from omninav.presets import TWO_BANDS, resolve
 from omninav.synth import equirect_lens, make_dataset
 from omninav.track import load_track
 
@@ -34,8 +34,9 @@ CONFIGS = [  # label, preset, overrides, aggregation
     ("six curves, sequence", "six", {}, "sequence"),
     ("+ gray world", "six", {"gray_world": True}, "sequence"),
     ("+ opponent colours", "six", {"gray_world": True, "channels": O}, "sequence"),
-    ("+ two bands, K=16", "default", {"soft_clip_sd": None}, "sequence"),
-    ("default: + soft clipping", "default", {}, "sequence"),
+    ("+ two bands, K=16", "default", {"soft_clip_sd": None, **TWO_BANDS}, "sequence"),
+    ("+ soft clipping", "default", TWO_BANDS, "sequence"),
+    ("default: + five bands of intensity", "default", {}, "sequence"),
 ]
 
 

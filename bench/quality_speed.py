@@ -24,7 +24,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
 from omninav.locate import Locator  # noqa: E402
-from omninav.presets import resolve  # noqa: E402
+from omninav.presets import n_curves, resolve  # noqa: E402
 from omninav.quality import CLIP_S, quality_map  # noqa: E402
 from omninav.store import FRAME_DTYPE, Generation, Store  # noqa: E402
 from omninav.synth import donut_lens  # noqa: E402
@@ -38,7 +38,7 @@ VIDEO_FRAMES = 3000  # 5 minutes at 10 fps
 def generation(n: int) -> Generation:
     """N frames of a serpentine walk: 60 m legs 4 m apart, videos of VIDEO_FRAMES frames."""
     conf = resolve("default")
-    spec = venue(n, len(conf["bands"]) * len(conf["channels"]), conf["n_harmonics"])
+    spec = venue(n, n_curves(conf), conf["n_harmonics"])
     s = np.arange(n) * SPEED / FPS  # metres walked
     leg, along = np.divmod(s, 60.0)
     frames = np.zeros(n, FRAME_DTYPE)

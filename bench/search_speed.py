@@ -7,7 +7,10 @@ For N = 1,000 ... 8,000, then 100,000 and 1,000,000, it times
 in the same run on the same data, and prints the machine it ran on. Venue spectra are synthetic
 (a smooth random walk in the Fourier domain), which costs the same to search as real ones.
 
-    python bench/search_speed.py [--sizes 1000,8000] [--device cpu|gpu] [--repeat 30]
+    python bench/search_speed.py [--sizes 1000,8000] [--device cpu|gpu] [--repeat 30] [--curves 12,14]
+
+`--curves`: curves a frame (each with the default's 16 harmonics), one table row per size and
+count in the same run; by default the default preset's (14 since the five bands of intensity).
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import numpy as np
 
 from omninav.aggregate import sequence
 from omninav.index import Index, sequential_search
-from omninav.presets import resolve
+from omninav.presets import n_curves, resolve
 
 
 def machine() -> str:
@@ -69,19 +72,23 @@ def main() -> None:
     ap.add_argument("--sizes", default="1000,2000,4000,8000,100000,1000000")
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--repeat", type=int, default=30)
+    ap.add_argument("--curves", help="curves a frame, comma-separated (default: the default preset's)")
     a = ap.parse_args()
     conf = resolve("default")
+    curves = [int(c) for c in a.curves.split(",")] if a.curves else [n_curves(conf)]
     print(f"machine: {machine()}; device {a.device}")
     cols = ["batched ms", "p90", "locate ms", "p90", "loop ms", "speed-up"]
     widths = [11, 7, 10, 7, 9, 9]
-    print(f"{'frames':>9} {'dims':>5} " + " ".join(f"{c:>{w}}" for c, w in zip(cols, widths, strict=True)))
+    head = f"{'frames':>9} {'curves':>6} {'dims':>5} "
+    print(head + " ".join(f"{c:>{w}}" for c, w in zip(cols, widths, strict=True)))
     for n in [int(s) for s in a.sizes.split(",")]:
-        print(bench_size(n, a.device, a.repeat, conf), flush=True)
+        for c in curves:
+            print(bench_size(n, a.device, a.repeat, conf, c), flush=True)
 
 
-def bench_size(n: int, device: str, repeat: int, conf: dict) -> str:
+def bench_size(n: int, device: str, repeat: int, conf: dict, curves: int) -> str:
     rng = np.random.default_rng(n)
-    spec = venue(n, c=12, k=16)  # the default preset's record: 12 curves x 16 harmonics
+    spec = venue(n, c=curves, k=conf["n_harmonics"])
     heads = rng.uniform(0, 360, n).astype(np.float32)
     xy = np.cumsum(rng.normal(size=(n, 2)) * 0.1, axis=0)
     dims = conf["key_dims"] if n > conf["key_project_above"] else 0
@@ -98,7 +105,8 @@ def bench_size(n: int, device: str, repeat: int, conf: dict) -> str:
         loop = f"{lp:9.1f} {lp / l50:8.0f}x"
     else:
         loop = f"{'-':>9} {'-':>9}"
-    return f"{n:>9} {dims or spec.shape[1] * spec.shape[2]:>5} {b50:11.3f} {b90:7.3f} {l50:10.3f} {l90:7.3f} {loop}"
+    size = f"{n:>9} {curves:>6} {dims or spec.shape[1] * spec.shape[2]:>5}"
+    return f"{size} {b50:11.3f} {b90:7.3f} {l50:10.3f} {l90:7.3f} {loop}"
 
 
 if __name__ == "__main__":

@@ -42,7 +42,7 @@ from omninav.heading import wrap_deg
 from omninav.index import Matches
 from omninav.lens import load_lens
 from omninav.locate import Locator
-from omninav.presets import DEFAULTS
+from omninav.presets import DEFAULTS, n_curves, resolve
 from omninav.synth.families import FAMILIES, _jpeg, family_venue, pano_width
 from omninav.synth.walks import imu_for, poses_from_track, render_frames, with_stops, write_video
 from omninav.track import load_track
@@ -318,7 +318,7 @@ def fit_confidence(over: dict[str, Any]) -> None:
 
 def alike_build(frames: int = 8000, seed: int = 0) -> tuple[int, int, float, float]:
     """What a venue's first tracked request costs to build, on a made-up venue of `frames`
-    frames (the serpentine of cpu_large, random unit-energy spectra of the default record: 12
+    frames (the serpentine of cpu_large, random unit-energy spectra of the default record: 14
     curves x 16 harmonics; the index as the server loads it): -> (frames, nodes, seconds for
     the graph and the Tracker without look-alikes, seconds for look_alikes' search)."""
     from omninav.index import Index
@@ -327,7 +327,8 @@ def alike_build(frames: int = 8000, seed: int = 0) -> tuple[int, int, float, flo
 
     rng = np.random.default_rng(seed)
     vxy, _ = serpentine(frames)
-    spec = rng.normal(size=(frames, 12, 16)) + 1j * rng.normal(size=(frames, 12, 16))
+    shape = (frames, n_curves(resolve("default")), 16)
+    spec = rng.normal(size=shape) + 1j * rng.normal(size=shape)
     spec = (spec / np.linalg.norm(spec.reshape(frames, -1), axis=1)[:, None, None]).astype(np.complex64)
     index = Index(spec, rng.uniform(0, 360, frames), key_dims=key_dims_for(DEFAULTS, frames))
     floor = np.full(frames, "1")

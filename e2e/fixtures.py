@@ -33,7 +33,7 @@ import numpy as np
 
 from omninav.extract import Extractor
 from omninav.lens import Catadioptric
-from omninav.presets import FEATURE_KEYS, resolve, settings_id
+from omninav.presets import FEATURE_KEYS, TWO_BANDS, resolve, settings_id
 from omninav.spectrum import encode_binary
 from omninav.synth import QUERY, donut_lens, equirect_lens
 from omninav.synth.scene import build_scene
@@ -76,10 +76,6 @@ def _case(out: Path, name: str, lens, preset: str, frames: list[np.ndarray], ove
 LOOK = replace(QUERY, people=0, lateral_m=0.0)  # a colour cast, gain, tilt and noise, as a phone sees
 
 
-# the default preset's feature settings before `band_channels` (venues modelled then keep them)
-BEFORE_BANDS = {"bands": [[-25.0, 0.0], [0.0, 25.0]], "band_channels": None}
-
-
 def golden_frames() -> list[np.ndarray]:
     """The golden donut frames: the small venue at POSES, as a phone sees it."""
     return [f for _, f in render_frames(build_scene(0, "small"), donut_lens(1.0), POSES, LOOK, seed=7)]
@@ -97,7 +93,7 @@ def golden(out: Path) -> None:
         _case(out, "donut-six", donut, "six", dframes[:1]),
         _case(out, "equirect-default", eq, "default", eframes),
         # the default before per-band channels: what a phone makes for a venue modelled with it
-        _case(out, "donut-before-bands", donut, "default", dframes[:1], BEFORE_BANDS),
+        _case(out, "donut-before-bands", donut, "default", dframes[:1], TWO_BANDS),
     ]
     (out / "golden.json").write_text(json.dumps({"cases": cases}, indent=1))
     ring_golden(out, dframes)

@@ -48,15 +48,18 @@ def locate(api: Api, record: bytes) -> Any:
 @pytest.fixture(scope="module")
 def old_lab(small_ds: Any, tmp_path_factory: pytest.TempPathFactory) -> tuple[Any, Api, dict[str, Any]]:
     """Venue 'lab' modelled from walk.mp4 as an omninav from before the soft clipping did: the
-    default preset without it, and a settings.json without the key."""
+    default preset without it (and so in its two bands, 12 curves), and a settings.json without
+    either key."""
     app, api = prepared(small_ds, tmp_path_factory.mktemp("anew"))
     runner, store = app.extensions["omninav"].jobs, app.extensions["omninav"].catalog.store
     with pytest.MonkeyPatch.context() as m:
         m.setitem(presets.PRESETS["default"], "soft_clip_sd", None)
+        for key, value in presets.TWO_BANDS.items():
+            m.setitem(presets.PRESETS["default"], key, value)
         first = api.post("/api/admin/venues/lab/jobs", headers=ADMIN).json
         assert runner.run_next() and job(api, first["id"])["state"] == "done"
     path = store.venue_dir("lab") / store.generation("lab") / "settings.json"
-    old = {k: v for k, v in json.loads(path.read_text()).items() if k != "soft_clip_sd"}
+    old = {k: v for k, v in json.loads(path.read_text()).items() if k not in ("soft_clip_sd", "band_channels")}
     path.write_text(json.dumps(old))
     return app, api, old
 

@@ -22,7 +22,7 @@ from omninav.index import Index
 from omninav.lens import load_lens
 from omninav.locate import Locator
 from omninav.model_venue import model_video
-from omninav.presets import resolve
+from omninav.presets import n_curves, resolve
 from omninav.quality import (
     _runs,
     axis_coverage,
@@ -327,7 +327,7 @@ def test_search_leaves_out_the_excluded_rows(key_dims: int) -> None:
 def _drifting_generation(n: int, seed: int = 0) -> Generation:
     """n frames along a serpentine walk whose spectra drift slowly (bench/quality_speed.py's kind)."""
     conf = resolve("default")
-    c, k = len(conf["bands"]) * len(conf["channels"]), conf["n_harmonics"]
+    c, k = n_curves(conf), conf["n_harmonics"]
     rng = np.random.default_rng(seed)
     latent = np.cumsum(rng.normal(size=(n, 12)) * 0.05, axis=0) + rng.normal(size=(1, 12))
     mix = rng.normal(size=(12, c * k)) + 1j * rng.normal(size=(12, c * k))

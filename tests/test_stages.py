@@ -7,7 +7,7 @@ from omninav.curves import extract_curves, gray_world, normalise, soft_clip
 from omninav.errors import OmninavError
 from omninav.extract import Extractor
 from omninav.heading import correlation, peak, relative_heading, wrap_deg
-from omninav.presets import n_curves, resolve, settings_id
+from omninav.presets import TWO_BANDS, n_curves, resolve, settings_id
 from omninav.spectrum import (
     HEADER_BYTES,
     MAX_RECORD_BYTES,
@@ -102,7 +102,7 @@ def test_soft_clip_is_the_default_and_venues_modelled_before_it_keep_their_curve
     pano = smooth_pano(41, 1440)
     el = np.linspace(20, -20, 41)
     # a settings.json from before soft clipping (and so before per-band channels)
-    old = {k: v for k, v in {**conf, **BEFORE_BANDS}.items() if k not in ("soft_clip_sd", "band_channels")}
+    old = {k: v for k, v in {**conf, **TWO_BANDS}.items() if k not in ("soft_clip_sd", "band_channels")}
     assert np.array_equal(extract_curves(pano, el, old), extract_curves(pano, el, {**old, "soft_clip_sd": None}))
     clipped = {**old, "soft_clip_sd": 1.25}
     assert np.allclose(extract_curves(pano, el, clipped), soft_clip(extract_curves(pano, el, old), 1.25), atol=1e-6)
@@ -111,14 +111,11 @@ def test_soft_clip_is_the_default_and_venues_modelled_before_it_keep_their_curve
     assert settings_id(conf) != settings_id(old)
 
 
-BEFORE_BANDS = {"bands": [[-25.0, 0.0], [0.0, 25.0]], "band_channels": None}  # the default before them
-
-
 def test_per_band_channels_are_the_default_and_venues_modelled_before_them_keep_their_id():
     conf = resolve("default")
     assert n_curves(conf) == 14 and conf["band_channels"][-1] == ["O1", "O2", "dO1", "dO2"]
     assert all(c == ["I", "dI"] for c in conf["band_channels"][:5])
-    before = {k: v for k, v in {**conf, **BEFORE_BANDS}.items() if k != "band_channels"}  # its settings.json
+    before = {k: v for k, v in {**conf, **TWO_BANDS}.items() if k != "band_channels"}  # its settings.json
     assert n_curves(before) == 12
     # the id phones made for such a venue before this release, with or without the key written as null
     assert settings_id(before) == settings_id({**before, "band_channels": None}) == 4043377008
@@ -151,9 +148,35 @@ def test_band_channels_give_each_band_its_own_curves_in_the_records_order():
     assert extract_curves(pano, el, wide).shape == (1, 360)
 
 
+def test_a_record_from_an_app_older_than_per_band_channels_is_refused_and_says_so():
+    conf = resolve("default")
+    # an app from before reads the venue's settings without band_channels: every channel in every band
+    c = len(conf["bands"]) * len(conf["channels"])
+    rng = np.random.default_rng(0)
+    spec = rng.normal(size=(2, c, 16)) + 1j * rng.normal(size=(2, c, 16))
+    spec /= np.linalg.norm(spec.reshape(2, -1), axis=1)[:, None, None]
+    old_app = encode_binary(spec.astype(np.complex64), {**conf, "band_channels": None})
+    old_app = old_app[:14] + settings_id(conf).to_bytes(4, "little") + old_app[18:]  # the venue's id, as it read it
+    with pytest.raises(OmninavError, match=f"have {c} curves .* needs 14 .* this app is older than the server"):
+        decode_binary(old_app, expect=conf)
+    # a phone that read the venue before it was modelled anew: the settings, named first (with the id now)
+    with pytest.raises(OmninavError, match="other settings") as e:
+        decode_binary(encode_binary(spec.astype(np.complex64), {**conf, **TWO_BANDS}), expect=conf)
+    assert e.value.details["venue_settings_id"] == settings_id(conf)
+
+
 @pytest.mark.parametrize(
     "bad",
-    [[["I"]], [["I"], []], [["I"], ["I", "I"]], [["I"], ["X"]], "I", [["I"], "dI"], [["I"], ["dI"], ["O1"]]],
+    [
+        [["I"]],
+        [["I"], []],
+        [["I"], ["I", "I"]],
+        [["I"], ["X"]],
+        "I",
+        [["I"], "dI"],
+        [["I"], ["dI"], ["O1"]],
+        [[["I"]], ["dI"]],
+    ],
 )
 def test_band_channels_are_refused_unless_one_list_of_known_distinct_channels_per_band(bad):
     with pytest.raises(OmninavError, match="band_channels"):

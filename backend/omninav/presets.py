@@ -133,23 +133,30 @@ PRESETS: dict[str, dict[str, Any]] = {
     # Our default. Each change over "six" is measured in docs/benchmarks.md:
     # - gray-world colour constancy: a colour cast no longer moves hue and saturation;
     # - opponent colours (R-G, R+G-2B) instead of hue and saturation: stable at low saturation;
-    # - two bands, below and above the horizon: doors and floor vs. boards, windows and lights;
-    # - 16 harmonics x 12 curves: the same 768 bytes a frame, the fine detail traded for bands;
-    # - curves softly clipped at 1.25 sd: a sunlit window or one strong edge weighs less.
+    # - two bands, below and above the horizon: doors and floor vs. boards, windows and lights
+    #   (TWO_BANDS: 16 harmonics x 12 curves, the same 768 bytes a frame as "six");
+    # - curves softly clipped at 1.25 sd: a sunlit window or one strong edge weighs less;
+    # - intensity and its gradient in five 10-degree bands, the colours over the whole band:
+    #   where along a corridor of identical doors the camera is shows in how the corridor's
+    #   light and edges are spread in elevation, which a 25-degree band's column sums average
+    #   away (docs/benchmarks.md, "Five bands of intensity"); 14 curves, 896 bytes a frame.
+    #   `channels` is then the union the bands use: with `band_channels` set it does not choose
+    #   the curves (it still counts in the settings id).
     "default": {
         "gray_world": True,
         "channels": ["I", "O1", "O2", "dI", "dO1", "dO2"],
-        # intensity and its gradient in five 10-degree bands, the colours over the whole band:
-        # where along a corridor of identical doors the camera is shows in how the corridor's
-        # light and edges are spread in elevation, which one band's column sums average away
-        # (docs/benchmarks.md, "Five bands of intensity"); 14 curves, 896 bytes a frame
         "bands": [[-25.0, -15.0], [-15.0, -5.0], [-5.0, 5.0], [5.0, 15.0], [15.0, 25.0], [-25.0, 25.0]],
-        "band_channels": [["I", "dI"]] * 5 + [["O1", "O2", "dO1", "dO2"]],
+        "band_channels": [["I", "dI"] for _ in range(5)] + [["O1", "O2", "dO1", "dO2"]],
         "n_harmonics": 16,
         "candidates": 16,
         "soft_clip_sd": 1.25,
     },
 }
+
+
+# The default preset's bands before per-band channels (two bands, every channel in each: 12 curves,
+# 768 bytes a frame): venues modelled then keep them; what was measured on them pins them.
+TWO_BANDS: dict[str, Any] = {"bands": [[-25.0, 0.0], [0.0, 25.0]], "band_channels": None}
 
 
 def resolve(name: str = "default", overrides: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -184,8 +191,12 @@ def _check_band_channels(conf: dict[str, Any]) -> None:
     per = conf.get("band_channels")
     if per is None:
         return
-    ok = isinstance(per, list) and len(per) == len(conf["bands"])
-    ok = ok and all(isinstance(c, list) and c and len(set(c)) == len(c) and set(c) <= set(CHANNELS) for c in per)
+
+    def band(c: Any) -> bool:
+        names = isinstance(c, (list, tuple)) and all(isinstance(x, str) for x in c)
+        return names and len(c) > 0 and len(set(c)) == len(c) and set(c) <= set(CHANNELS)
+
+    ok = isinstance(per, (list, tuple)) and len(per) == len(conf["bands"]) and all(band(c) for c in per)
     if not ok:
         raise OmninavError(
             f"band_channels must be null or one list of distinct channels ({', '.join(CHANNELS)}) per band "

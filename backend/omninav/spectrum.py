@@ -6,7 +6,7 @@ key the search; the phases carry the rotation, which heading.py recovers (the pa
 The record (version 1) holds the leading K harmonics of each of the C curves:
 magnitudes as float16 and phases as int16 (2*pi / 65536 rad steps, far finer than the heading
 needs), so 4*C*K bytes plus a 20-byte header that names the settings the record was made with
-(`presets.settings_id`): 12 curves x 16 harmonics = 788 bytes for one frame.
+(`presets.settings_id`): 14 curves x 16 harmonics (the default preset) = 916 bytes for one frame.
 """
 
 from __future__ import annotations
@@ -164,17 +164,24 @@ def _check(mag: np.ndarray, c: int, k: int, w: int, sid: int, expect: dict[str, 
     if (m < 0).any() or (m > 1.0001).any():
         raise OmninavError("feature record magnitudes must lie in [0, 1]")
     if expect is not None:
-        want = (n_curves(expect), expect["n_harmonics"], expect["pano_width"])
-        if (c, k, w) != want:
-            raise OmninavError(
-                f"features have {c} curves x {k} harmonics (width {w}); this venue needs "
-                f"{want[0]} x {want[1]} (width {want[2]})"
-            )
+        # the settings id first: a phone that read the venue before it was modelled anew sends the
+        # old id, and maybe the old number of curves too; told so (venue_settings_id), it reads
+        # the venue again and says that the map was updated
         if sid != settings_id(expect):
             raise OmninavError(
                 f"features were made with other settings (id {sid}) than this venue's "
                 f"({settings_id(expect)}); extract them with the venue's feature settings",
-                venue_settings_id=settings_id(expect),  # a client that read the venue before it was modelled anew
+                venue_settings_id=settings_id(expect),
+            )
+        want = (n_curves(expect), expect["n_harmonics"], expect["pano_width"])
+        if (c, k, w) != want:
+            older = ""
+            if expect.get("band_channels") is not None and c == len(expect["bands"]) * len(expect["channels"]):
+                # an app from before per-band channels read the venue's settings without them
+                older = "; this app is older than the server: close it and open it again"
+            raise OmninavError(
+                f"features have {c} curves x {k} harmonics (width {w}); this venue needs "
+                f"{want[0]} x {want[1]} (width {want[2]}){older}"
             )
     e = (m.astype(np.float64) ** 2).sum(axis=(1, 2))
     off = np.flatnonzero((np.abs(e - 1.0) > ENERGY_TOL) & (e > NO_ENERGY))

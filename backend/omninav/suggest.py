@@ -38,7 +38,7 @@ from .extract import Extractor
 from .heading import correlation, peak, wrap_deg
 from .lens import Lens
 from .model_venue import Progress
-from .presets import resolve
+from .presets import TWO_BANDS, resolve
 from .spectrum import spectrum
 from .video import VideoInfo, iter_video
 
@@ -332,8 +332,11 @@ def suggest_waypoints(
     """
     s = settings_for(settings)
     # the heading track's thresholds (min_sector_peak, the tolerances in docs/benchmarks.md) were
-    # measured on unclipped curves: the suggestions keep them whatever the preset clips
+    # measured on unclipped curves, in two bands for the default: the suggestions keep them whatever
+    # the preset clips or however it bands its channels
     conf = resolve(s["preset"], {"soft_clip_sd": None})
+    if conf.get("band_channels") is not None:
+        conf = resolve(s["preset"], {"soft_clip_sd": None, **TWO_BANDS})
     info = VideoInfo(video, label=video.name)
     w, h = lens.image_size
     if (info.width, info.height) != (w, h):
