@@ -327,7 +327,8 @@ def alike_build(frames: int = 8000, seed: int = 0) -> tuple[int, int, float, flo
 
     rng = np.random.default_rng(seed)
     vxy, _ = serpentine(frames)
-    shape = (frames, n_curves(resolve("default")), 16)
+    conf = resolve("default")
+    shape = (frames, n_curves(conf), conf["n_harmonics"])
     spec = rng.normal(size=shape) + 1j * rng.normal(size=shape)
     spec = (spec / np.linalg.norm(spec.reshape(frames, -1), axis=1)[:, None, None]).astype(np.complex64)
     index = Index(spec, rng.uniform(0, 360, frames), key_dims=key_dims_for(DEFAULTS, frames))

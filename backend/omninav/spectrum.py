@@ -176,7 +176,7 @@ def _check(mag: np.ndarray, c: int, k: int, w: int, sid: int, expect: dict[str, 
         want = (n_curves(expect), expect["n_harmonics"], expect["pano_width"])
         if (c, k, w) != want:
             older = ""
-            if expect.get("band_channels") is not None and c == len(expect["bands"]) * len(expect["channels"]):
+            if expect.get("band_channels") is not None and c == n_curves({**expect, "band_channels": None}):
                 # an app from before per-band channels read the venue's settings without them
                 older = "; this app is older than the server: close it and open it again"
             raise OmninavError(
