@@ -36,7 +36,8 @@ CONFIGS = [  # label, preset, overrides, aggregation
     ("+ opponent colours", "six", {"gray_world": True, "channels": O}, "sequence"),
     ("+ two bands, K=16", "default", {"soft_clip_sd": None, **TWO_BANDS}, "sequence"),
     ("+ soft clipping", "default", TWO_BANDS, "sequence"),
-    ("default: + five bands of intensity", "default", {}, "sequence"),
+    ("+ five bands of intensity", "default", {"level_iters": None}, "sequence"),
+    ("default: + levelled", "default", {}, "sequence"),
 ]
 
 

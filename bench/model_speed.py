@@ -4,7 +4,9 @@ same video modelled through the server's upload API as a background job.
 Renders (once, cached) 40 s of a modelling walk through the default synthetic venue at 30 fps,
 then runs the real CLI on it (decoding every frame, extracting features at the preset's 10 fps),
 a decode-only pass as the floor any modelling run sits on, and, in the same run, `omninav serve`
-(as `npm start` runs it) with the video uploaded in 8 MiB pieces and modelled by a job.
+(as `npm start` runs it) with the video uploaded in 8 MiB pieces and modelled by a job. Also in
+the same run: the video modelled in this process with the default preset and with it unlevelled
+(`level_iters` off: what levelling, level.py, costs a modelled frame).
 
     python bench/model_speed.py [--seconds 40] [--no-api]
 """
@@ -99,6 +101,22 @@ def main() -> None:
         f"omninav model (CLI, wall clock incl. start-up): {wall:.2f} s = {dur / wall:.1f}x real time, "
         f"{out['frames_added']} frames modelled, {out['frames_added'] / wall:.1f} frames/s"
     )
+    with tempfile.TemporaryDirectory() as d:
+        from omninav.lens import load_lens
+        from omninav.model_venue import model_video
+        from omninav.presets import resolve
+        from omninav.store import Store
+        from omninav.track import load_track
+
+        st, track, lens = Store(Path(d)), load_track(a.root / "track30.json"), load_lens(a.root / "lens.json")
+        took = {}
+        for tag, over in (("unlevelled", {"level_iters": None}), ("default (levelled)", {})):
+            t = time.perf_counter()
+            model_video(st, tag.split()[0], video, track, lens, settings=resolve("default", over))
+            took[tag] = time.perf_counter() - t
+        extra = 1000 * (took["default (levelled)"] - took["unlevelled"]) / out["frames_added"]
+        each = ", ".join(f"{k} {v:.2f} s = {dur / v:.1f}x real time" for k, v in took.items())
+        print(f"in process: {each}; levelling adds {extra:.1f} ms a frame")
     if not a.no_api:
         api = through_api(a.root, video, omninav)
         print(

@@ -16,29 +16,41 @@ no people: only the one change):
 Each is scored against the upright frame as the search scores a match (heading.relative_heading
 on the quantised spectra: a cosine, 1 = the same panorama). Printed: mean, p10 and min per change.
 
-    python bench/tilt.py [--families tuning|NAME,...] [--places 25]
+`--accuracy`: what it buys where it counts. The families' 1 s clips (bench/families.py's venues
+and query walks, --seeds) answered twice: every query frame unwarped as it is, and through the
+tilt the renderer gave it (the upper bound again). Both through the lens where the renderer put
+it (its re-clipping shift), so that the two differ by the tilt alone. Printed like families.py.
+
+    python bench/tilt.py [--families tuning|NAME,...] [--places 25] [--set KEY=JSON]
+    python bench/tilt.py --accuracy [--families tuning|held-out|NAME,...] [--seeds 0,1]
 """
 
 from __future__ import annotations
 
 import argparse
 import copy
+import dataclasses
+import json
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from omninav.evaluate import evaluate_spectra
 from omninav.extract import Extractor
 from omninav.heading import relative_heading
-from omninav.lens import Lens, direction_to_pixel
+from omninav.lens import Catadioptric, Lens, direction_to_pixel, load_lens
 from omninav.presets import resolve
 from omninav.synth.families import FAMILIES, family_venue, pano_width
 from omninav.synth.render import CameraModel, camera_frame, tilt_rotation, world_panorama
-from omninav.synth.walks import grid_for, walk_heading
-from omninav.track import parse_track
+from omninav.synth.walks import grid_for, poses_from_track, walk_heading
+from omninav.track import load_track, parse_track
 from omninav.unwarp import UnwarpMap
+from omninav.video import VideoInfo, iter_video
 
 sys.path.insert(0, str(Path(__file__).parent))
+from families import HEAD, dataset, family_names, line, summarise, venue  # noqa: E402
 from search_speed import machine  # noqa: E402
 
 TILTS = (3.0, 5.0, 8.0)
@@ -69,10 +81,12 @@ def tilted_map(lens: Lens, upright: UnwarpMap, rot: np.ndarray) -> UnwarpMap:
     )
 
 
-def family_scores(name: str, places: int, seed: int = 0) -> dict[str, list[float]]:
+def family_scores(
+    name: str, places: int, seed: int = 0, overrides: dict[str, Any] | None = None
+) -> dict[str, list[float]]:
     v = family_venue(name, seed)
     lens = v.family.query_lens
-    conf = resolve("default")  # what every family is modelled and queried with (bench/families.py)
+    conf = resolve("default", overrides)  # what every family is modelled and queried with (bench/families.py)
     ext = Extractor(lens, conf)
     grid = grid_for(lens, pano_width(lens))
     cam = CameraModel.create(lens)
@@ -114,11 +128,59 @@ def family_scores(name: str, places: int, seed: int = 0) -> dict[str, list[float
     return out
 
 
+def accuracy(names: list[str], seeds: list[int], overrides: dict[str, Any]) -> None:
+    """1 s clips of each family's query walk, as they are and unwarped through the true tilt."""
+    conf = resolve("default", overrides)
+    print(f"config: 'as is', or 'untilted' (every query frame unwarped through its true tilt)\n{HEAD}")
+    pooled: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for name in names:
+        for seed in seeds:
+            root = dataset(name, seed)
+            loc = venue(root, "default", overrides)
+            v = family_venue(name, seed)
+            pert = v.family.query_perturb
+            # the query walk's poses and lens as synth.families.make_family_dataset rendered them
+            # (its seeds: seed + 3 for the poses, seed + 4 for render_frames' draws, the shift first)
+            poses = poses_from_track(v.query_track, pert, np.random.default_rng(seed + 3))
+            lens = load_lens(root / "lens.json")
+            ang = np.random.default_rng(seed + 4).uniform(0.0, 2.0 * np.pi)
+            if isinstance(lens, Catadioptric):
+                cx, cy = lens.center
+                shift = pert.lens_shift_px
+                lens = dataclasses.replace(lens, center=(cx + shift * np.cos(ang), cy + shift * np.sin(ang)))
+            ext = loc.extractor(lens)
+            spec: dict[str, list[np.ndarray]] = {"as is": [], "untilted": []}
+            for i, frame in iter_video(VideoInfo(root / "query.mp4")):
+                p = poses[i]
+                spec["as is"].append(ext.spectrum(frame))
+                tilted = copy.copy(ext)
+                tilted.map = tilted_map(lens, ext.map, tilt_rotation(p.tilt, p.tilt_dir)) if p.tilt else ext.map
+                spec["untilted"].append(tilted.spectrum(frame))
+            t = np.array([p.t for p in poses[: len(spec["as is"])]])
+            xy, hd, ok = load_track(root / "query_track.json").pose_at(t)
+            for how, frames in spec.items():
+                sp = np.stack(frames)[ok]
+                idx = np.flatnonzero(ok)
+                rows = evaluate_spectra(loc, sp, t[ok], xy[ok], hd[ok], idx, aggregate="sequence", clip_s=1.0).rows
+                pooled.setdefault((v.family.split, how), []).extend(rows)
+                print(line(f"{name}/{seed}", v.family.split, how, 1.0, summarise(rows, conf)), flush=True)
+    for (split, how), rows in pooled.items():
+        print(line("ALL", split, how, 1.0, summarise(rows, conf)))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--families", default="tuning")
     ap.add_argument("--places", type=int, default=25)
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=JSON", help="override a preset setting")
+    ap.add_argument("--accuracy", action="store_true", help="the families' 1 s clips, as is and through the true tilt")
+    ap.add_argument("--seeds", default="0,1", help="with --accuracy")
     a = ap.parse_args()
+    overrides = {k: json.loads(v) for k, v in (s.split("=", 1) for s in a.set)}
+    if a.accuracy:
+        print(f"machine: {machine()}")
+        accuracy(family_names(a.families), [int(s) for s in a.seeds.split(",")], overrides)
+        return
     names = (
         [n for n, f in FAMILIES.items() if f.split == "tuning"]
         if a.families == "tuning"
@@ -126,9 +188,11 @@ def main() -> None:
     )
     print(f"machine: {machine()}")
     print(f"families: {', '.join(names)} (seed 0), {a.places} places each; score against the upright frame")
+    if overrides:
+        print(f"settings: default with {json.dumps(overrides)}")
     pooled: dict[str, list[float]] = {}
     for name in names:
-        for k, s in family_scores(name, a.places).items():
+        for k, s in family_scores(name, a.places, overrides=overrides).items():
             pooled.setdefault(k, []).extend(s)
             print(f"  {name:15s} {k:26s} mean {np.mean(s):.3f}  p10 {np.percentile(s, 10):.3f}")
     print(f"{'change (all families)':28s} {'n':>4s} {'mean':>6s} {'p10':>6s} {'min':>6s}")

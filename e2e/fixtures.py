@@ -42,6 +42,8 @@ from omninav.unwarp import unwarp
 
 # poses in the small synthetic layout (scene.py): corridor points, headings all round
 POSES = [Pose(0.0, 6.0, 2.0, 30.0), Pose(0.1, 14.5, 2.2, 200.0), Pose(0.2, 20.0, 8.0, 300.0)]
+# the same places with the phone held 4-7 degrees off vertical: what levelling (level.py) undoes
+TILTED = [replace(p, tilt=t, tilt_dir=d) for p, t, d in zip(POSES, (6.0, 4.0, 7.0), (40.0, 170.0, 300.0), strict=True)]
 
 
 def _case(out: Path, name: str, lens, preset: str, frames: list[np.ndarray], over: dict | None = None) -> dict:
@@ -55,7 +57,7 @@ def _case(out: Path, name: str, lens, preset: str, frames: list[np.ndarray], ove
         rgb = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
         rgba = np.dstack([rgb, np.full(rgb.shape[:2], 255, np.uint8)])
         (out / f"{stem}.rgba").write_bytes(rgba.tobytes())
-        pano = cv2.cvtColor(unwarp(bgr, ext.map), cv2.COLOR_BGR2RGB)
+        pano = cv2.cvtColor(unwarp(bgr, ext.frame_map(bgr)), cv2.COLOR_BGR2RGB)  # levelled, if the preset levels
         (out / f"{stem}.pano").write_bytes(pano.tobytes())
         (out / f"{stem}.curves").write_bytes(ext.curves(bgr).astype("<f4").tobytes())
         spec = ext.spectrum(bgr)
@@ -94,6 +96,8 @@ def golden(out: Path) -> None:
         _case(out, "equirect-default", eq, "default", eframes),
         # the default before per-band channels: what a phone makes for a venue modelled with it
         _case(out, "donut-before-bands", donut, "default", dframes[:1], TWO_BANDS),
+        # levelled: the tilted phone's frames, each read through the remap its own edges level
+        _case(out, "donut-tilted", donut, "default", [f for _, f in render_frames(scene, donut, TILTED, LOOK, seed=9)]),
     ]
     (out / "golden.json").write_text(json.dumps({"cases": cases}, indent=1))
     ring_golden(out, dframes)

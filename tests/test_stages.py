@@ -259,7 +259,10 @@ def unit_spec(conf, frames):
     "mutate,msg",
     [
         (lambda b: b[:10], "too short"),
-        (lambda b: b[:-2], "header says"),
+        (
+            lambda b: b[:-2],
+            r"is 914 bytes, but its header says 1 x 14 x 16 \(frames x curves x harmonics\), which take 916",
+        ),
         (lambda b: b"XXX" + b[3:], "bad magic"),
         (lambda b: b[:3] + bytes([9]) + b[4:], "version 9"),
         (lambda b: b[:20] + b"\x00\x7e" + b[22:], "NaN or Inf"),  # float16 NaN bits

@@ -13,8 +13,9 @@ import numpy as np
 from .curves import extract_curves
 from .errors import OmninavError
 from .lens import Lens
+from .level import estimate_map, level_map
 from .spectrum import quantise, spectrum
-from .unwarp import band_map, unwarp
+from .unwarp import UnwarpMap, band_map, unwarp
 
 
 class Extractor:
@@ -24,6 +25,7 @@ class Extractor:
         self.lens = lens
         self.conf = conf
         self.map = band_map(lens, conf)
+        self._coarse: UnwarpMap | None = None  # level.estimate_map, made on the first levelled frame
 
     def check_frame(self, frame: np.ndarray, where: str = "frame") -> None:
         w, h = self.lens.image_size
@@ -33,10 +35,21 @@ class Extractor:
                 f"{w}x{h} images (wrong lens profile?)"
             )
 
+    def frame_map(self, frame_bgr: np.ndarray) -> UnwarpMap:
+        """The remap this frame is read through: the lens's, or (`level_iters`) the one that
+        levels the frame's tilt (level.py)."""
+        iters = int(self.conf.get("level_iters") or 0)
+        if not iters:
+            return self.map
+        if self._coarse is None:
+            self._coarse = estimate_map(self.lens, self.conf)
+        return level_map(frame_bgr, self.lens, self.map, self._coarse, iters)[0]
+
     def curves(self, frame_bgr: np.ndarray) -> np.ndarray:
         """(H, W, 3) uint8 BGR frame -> (C, W) float32 normalised curves."""
-        pano = cv2.cvtColor(unwarp(frame_bgr, self.map), cv2.COLOR_BGR2RGB)
-        return extract_curves(pano, self.map.elevations, self.conf, self.map.valid)
+        m = self.frame_map(frame_bgr)
+        pano = cv2.cvtColor(unwarp(frame_bgr, m), cv2.COLOR_BGR2RGB)
+        return extract_curves(pano, m.elevations, self.conf, m.valid)
 
     def spectrum(self, frame_bgr: np.ndarray) -> np.ndarray:
         """(H, W, 3) uint8 BGR frame -> (C, K) complex64, quantised as the record carries it."""

@@ -28,6 +28,9 @@ DEFAULTS: dict[str, Any] = {
     # after normalising, each curve becomes sd * tanh(curve / sd) (curves.soft_clip); None: off
     "soft_clip_sd": None,
     "band_channels": None,  # per band, its own channels (None: every band has `channels`)
+    # passes of level.py's tilt estimate from the frame's own upright edges, each frame unwarped
+    # through it (None or 0: as the lens sees it, every venue modelled before levelling)
+    "level_iters": None,
     "n_harmonics": 32,  # leading FFT harmonics kept (1..K; the DC term carries no shape)
     # Search
     "candidates": 16,  # venue frames kept per query frame by the magnitude stage, then verified
@@ -141,7 +144,10 @@ PRESETS: dict[str, dict[str, Any]] = {
     #   light and edges are spread in elevation, which a 25-degree band's column sums average
     #   away (docs/benchmarks.md, "Five bands of intensity"); 14 curves, 896 bytes a frame.
     #   `channels` is then the union the bands use: with `band_channels` set it does not choose
-    #   the curves (it still counts in the settings id).
+    #   the curves (it still counts in the settings id);
+    # - levelled: each frame unwarped through the tilt its own upright edges show (level.py), two
+    #   passes: five narrow bands feel a phone held a few degrees off vertical (docs/benchmarks.md,
+    #   "Levelling").
     "default": {
         "gray_world": True,
         "channels": ["I", "O1", "O2", "dI", "dO1", "dO2"],
@@ -150,13 +156,15 @@ PRESETS: dict[str, dict[str, Any]] = {
         "n_harmonics": 16,
         "candidates": 16,
         "soft_clip_sd": 1.25,
+        "level_iters": 2,
     },
 }
 
 
 # The default preset's bands before per-band channels (two bands, every channel in each: 12 curves,
-# 768 bytes a frame): venues modelled then keep them; what was measured on them pins them.
-TWO_BANDS: dict[str, Any] = {"bands": [[-25.0, 0.0], [0.0, 25.0]], "band_channels": None}
+# 768 bytes a frame), and without levelling (it came later): venues modelled then keep them; what
+# was measured on them pins them.
+TWO_BANDS: dict[str, Any] = {"bands": [[-25.0, 0.0], [0.0, 25.0]], "band_channels": None, "level_iters": None}
 
 
 def resolve(name: str = "default", overrides: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -169,7 +177,18 @@ def resolve(name: str = "default", overrides: dict[str, Any] | None = None) -> d
     _check_confidence(conf)
     _check_soft_clip(conf)
     _check_band_channels(conf)
+    _check_level(conf)
     return conf
+
+
+def _check_level(conf: dict[str, Any]) -> None:
+    """None (off) or a whole number of passes 0-4: more buys nothing (docs/benchmarks.md) and
+    costs an unwarp each, on the phone too."""
+    n = conf.get("level_iters")
+    if n is None:
+        return
+    if not (isinstance(n, int) and not isinstance(n, bool) and 0 <= n <= 4):
+        raise OmninavError(f"level_iters must be a whole number of passes from 0 to 4, or null (off); got {n!r}")
 
 
 def _check_soft_clip(conf: dict[str, Any]) -> None:
@@ -228,11 +247,11 @@ def _check_model(conf: dict[str, Any], prefix: str, known: Mapping[str, Any], wh
 # these cannot be compared with a venue's frames.
 FEATURE_KEYS = (
     "pano_width", "oversample", "row_step_deg", "bands", "channels", "gray_world", "n_harmonics", "soft_clip_sd",
-    "band_channels",
+    "band_channels", "level_iters",
 )  # fmt: skip
 # Keys added after venues were modelled without them: they count in the settings id only when set,
 # so a record for such a venue keeps the id it had (and a venue's settings need not carry them).
-_LATER_KEYS = ("soft_clip_sd", "band_channels")
+_LATER_KEYS = ("soft_clip_sd", "band_channels", "level_iters")
 
 
 def settings_id(conf: dict[str, Any]) -> int:

@@ -95,7 +95,11 @@ def decode_binary(buf: bytes, expect: dict[str, Any] | None = None) -> np.ndarra
         raise OmninavError("feature record holds no frames, curves or harmonics")
     want = _HEADER.size + n * 4
     if len(buf) != want:
-        raise OmninavError(f"feature record is {len(buf)} bytes, its header says {want}")
+        # what the header claims, so a truncated record and a header of garbage both read plainly
+        raise OmninavError(
+            f"feature record is {len(buf)} bytes, but its header says {f} x {c} x {k} (frames x curves x "
+            f"harmonics), which take {want} bytes"
+        )
     mag = np.frombuffer(buf, "<f2", n, _HEADER.size).reshape(f, c, k)
     ph = np.frombuffer(buf, "<i2", n, _HEADER.size + 2 * n).reshape(f, c, k)
     _check(mag, c, k, w, sid, expect)

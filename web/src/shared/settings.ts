@@ -11,6 +11,8 @@ export interface FeatureSettings {
   soft_clip_sd?: number | null;
   /** per band, its own channels (presets.py `band_channels`); absent or null: every band has `channels` */
   band_channels?: string[][] | null;
+  /** passes of levelling (the lens's tilt from the picture's upright edges, worker/level.ts); absent, null or 0: off */
+  level_iters?: number | null;
 }
 
 export interface VenueFeatures {

@@ -1,0 +1,176 @@
+"""Levelling: undo a tilted lens from the picture itself, before the curves are summed.
+
+A phone is never held level, and a clip-on donut leans with it: the band of elevations the curves
+sum over then rises on one side of the panorama and falls on the other, and the curves change
+with how the phone is held rather than with where it is. Five 10-degree bands feel that more than
+two wide ones did: tilted 5 degrees, the right place's score falls from 1 to 0.956 on average (8
+degrees: 0.911; docs/benchmarks.md, "A phone held otherwise").
+
+Why from the picture and not from the phone's gravity: which way the lens's axis and its image
+axes sit in the phone's frame depends on the phone, the clip-on and the browser, none of which
+the app can check; a wrong sign would double the tilt. The picture shows the tilt by itself. A
+building's vertical edges (door frames, corners, pillars) stand upright in a level panorama; a
+lens tilted by t towards azimuth d leans the edge at azimuth a by about
+t * sin(d - a) / cos^2(el) degrees of azimuth per degree of elevation. So:
+
+  1. `edge_lean`: on the band panorama's intensity, the lean of every strong near-vertical edge
+     pixel (-dI/d_el over dI/d_az; the strongest tenth of the horizontal gradients, leaning
+     less than LEAN_MAX), fit by weighted least squares as (a sin az + b cos az) / cos^2 el;
+  2. `lean_tilt`: (a, b) -> the tilt and the azimuth it leans towards;
+  3. `tilted_map`: the band remap through that tilt (each panorama direction of the upright world
+     looked up where the tilt turned it, the elevation kept within what the lens sees);
+  4. `level_map`: steps 1-3 `level_iters` times, each on the panorama the last estimate levelled.
+     One pass finds about three quarters of the tilt (the leans' noise pulls a least-squares
+     slope towards zero); the next pass fits what is left. A frame with too few edges (a blank
+     wall, a lens cap) keeps the upright map.
+
+Measured on the renderer's tilted frames: 0.5-0.7 degrees left of tilts up to 8 degrees after
+two passes, about what a phone's gravity would give. Small pure functions, NumPy: the phone's
+worker (web/src/worker/level.ts) does the same arithmetic, in doubles, on the same panorama bytes.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import Any
+
+import numpy as np
+
+from .lens import Lens, direction_to_pixel
+from .unwarp import UnwarpMap, band_map, unwarp
+
+LEAN_PERCENTILE = 90.0  # the strongest tenth of the horizontal gradients: the edges whose lean counts
+LEAN_MAX = 0.5  # an edge leaning more than this (deg of azimuth per deg of elevation) is not upright
+MIN_EDGES = 200  # fewer edge pixels than this: no estimate (the map stays upright)
+MAX_TILT_DEG = 15.0  # a larger estimate is capped: nobody films a corridor held further off
+
+
+def intensity(pano: np.ndarray) -> np.ndarray:
+    """(rows, cols, 3 or 4) uint8 panorama -> (rows, cols) float64 mean of its first three channels."""
+    out: np.ndarray = pano[..., :3].astype(np.float64).sum(axis=-1) / 3.0
+    return out
+
+
+def edge_lean(gray: np.ndarray, elevations: np.ndarray, valid: np.ndarray) -> tuple[float, float, int]:
+    """(rows, cols) intensity of a band panorama (rows: `elevations`, descending; columns: azimuths
+    (j + 0.5) * 360 / cols) -> (a, b, n): its upright edges' lean fit as (a sin az + b cos az) /
+    cos^2 el (degrees of azimuth per degree of elevation), from n edge pixels (0: no fit)."""
+    rows, cols = gray.shape
+    if rows < 3:
+        return 0.0, 0.0, 0
+    daz = 360.0 / cols
+    d_el = float(elevations[0] - elevations[1])
+    gx = (np.roll(gray, -1, axis=1) - np.roll(gray, 1, axis=1)) / (2.0 * daz)
+    gy = np.zeros_like(gray)
+    gy[1:-1] = (gray[:-2] - gray[2:]) / (2.0 * d_el)  # d/d(elevation): the row above is higher
+    ok = valid & np.roll(valid, 1, axis=1) & np.roll(valid, -1, axis=1)
+    ok[0] = ok[-1] = False
+    ok[1:-1] &= valid[:-2] & valid[2:]
+    w = gx * gx
+    if ok.sum() < MIN_EDGES:
+        return 0.0, 0.0, 0
+    thr = float(np.percentile(w[ok], LEAN_PERCENTILE))
+    sel = ok & (w >= thr) & (w > 0) & (np.abs(gy) < LEAN_MAX * np.abs(gx))
+    n = int(sel.sum())
+    if n < MIN_EDGES:
+        return 0.0, 0.0, 0
+    r, c = np.nonzero(sel)
+    lean = -gy[sel] / gx[sel]
+    c2 = np.cos(np.deg2rad(elevations[r].astype(np.float64))) ** 2
+    az = np.deg2rad((c + 0.5) * daz)
+    # weighted least squares (weights gx^2) by its 2x2 normal equations, as the phone solves them
+    ww = w[sel]
+    u, v = np.sin(az) / c2, np.cos(az) / c2
+    suu, suv, svv = float((ww * u * u).sum()), float((ww * u * v).sum()), float((ww * v * v).sum())
+    su, sv = float((ww * u * lean).sum()), float((ww * v * lean).sum())
+    det = suu * svv - suv * suv
+    if not det > 1e-12 * max(suu * svv, 1e-300):
+        return 0.0, 0.0, 0
+    return (svv * su - suv * sv) / det, (suu * sv - suv * su) / det, n
+
+
+def lean_tilt(a: float, b: float) -> tuple[float, float]:
+    """edge_lean's (a, b) -> (tilt in degrees, the camera azimuth it leans towards, degrees)."""
+    return math.degrees(math.hypot(a, b)), math.degrees(-math.atan2(b, a)) % 360.0
+
+
+def tilt_rotation(tilt_deg: float, toward_deg: float) -> np.ndarray:
+    """3x3 rotation of camera-frame vectors (forward, right, up) by `tilt_deg` towards camera
+    azimuth `toward_deg` (Rodrigues' formula about the horizontal axis square to it)."""
+    t = math.radians(tilt_deg)
+    a = math.radians(toward_deg + 90.0)
+    k = np.array([math.cos(a), math.sin(a), 0.0])
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    rot: np.ndarray = math.cos(t) * np.eye(3) + math.sin(t) * kx + (1.0 - math.cos(t)) * np.outer(k, k)
+    return rot
+
+
+@functools.lru_cache(maxsize=16)
+def _directions(elevations: bytes, cols: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The unit vectors of a band panorama's cells (rows: float32 `elevations`), once per map."""
+    el = np.frombuffer(elevations, np.float32).astype(np.float64)
+    az = (np.arange(cols, dtype=np.float64) + 0.5) * 360.0 / cols
+    azg, elg = np.meshgrid(az, el)
+    a, e = np.deg2rad(azg), np.deg2rad(elg)
+    return np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)
+
+
+def tilted_map(lens: Lens, upright: UnwarpMap, rot: np.ndarray) -> UnwarpMap:
+    """The remap `upright` through a tilt: each panorama direction (azimuth, elevation) of the
+    upright world, turned into the tilted camera's frame, looked up through the lens. Where that
+    direction lies outside what the lens sees (a narrow donut's band reaches its ring's edge), the
+    cell reads what it read upright: the tilt is left there, not turned into black or a smear of
+    the ring's edge, which both differ from the upright venue more than the tilt does."""
+    w0, w1, w2 = _directions(np.asarray(upright.elevations, np.float32).tobytes(), upright.map_x.shape[1])
+    # each direction times rot (rot's transpose applied: the tilt undone), term by term as the
+    # phone's worker sums it
+    c0 = w0 * rot[0, 0] + w1 * rot[1, 0] + w2 * rot[2, 0]
+    c1 = w0 * rot[0, 1] + w1 * rot[1, 1] + w2 * rot[2, 1]
+    c2 = w0 * rot[0, 2] + w1 * rot[1, 2] + w2 * rot[2, 2]
+    azc = np.mod(np.rad2deg(np.arctan2(c1, c0)), 360.0)
+    elc = np.rad2deg(np.arcsin(np.clip(c2, -1.0, 1.0)))
+    x, y = direction_to_pixel(lens, azc, elc)  # NaN where the donut does not see
+    ok = np.isfinite(x) & np.isfinite(y)
+    return UnwarpMap(
+        np.where(ok, x, upright.map_x).astype(np.float32),
+        np.where(ok, y, upright.map_y).astype(np.float32),
+        upright.elevations,
+        upright.valid,
+        upright.border,
+    )
+
+
+def level_map(
+    frame: np.ndarray, lens: Lens, upright: UnwarpMap, coarse: UnwarpMap, iters: int
+) -> tuple[UnwarpMap, float, float]:
+    """(H, W, 3) frame -> (the band remap that levels it, the tilt found, its azimuth): `iters`
+    passes of edge_lean, each on the panorama the estimate so far levels, read through `coarse`
+    (the same rows at one column a degree, estimate_map: a quarter of the work, the same tilt to a
+    tenth of a degree); then `upright` through the tilt found (0 passes, or no edges: `upright`)."""
+    m, vx, vy = coarse, 0.0, 0.0
+    for k in range(iters):
+        a, b, n = edge_lean(intensity(unwarp(frame, m)), coarse.elevations, m.valid)
+        if n == 0:
+            break
+        t, d = lean_tilt(a, b)
+        vx += t * math.cos(math.radians(d))
+        vy += t * math.sin(math.radians(d))
+        scale = min(1.0, MAX_TILT_DEG / max(math.hypot(vx, vy), 1e-9))
+        vx, vy = vx * scale, vy * scale
+        if k + 1 < iters:
+            m = tilted_map(lens, coarse, _rotation(vx, vy))
+    if vx == 0.0 and vy == 0.0:
+        return upright, 0.0, 0.0
+    return tilted_map(lens, upright, _rotation(vx, vy)), math.hypot(vx, vy), math.degrees(math.atan2(vy, vx)) % 360.0
+
+
+def _rotation(vx: float, vy: float) -> np.ndarray:
+    """The rotation of a tilt vector (degrees, towards its angle as atan2 gives it)."""
+    return tilt_rotation(math.hypot(vx, vy), math.degrees(math.atan2(vy, vx)))
+
+
+def estimate_map(lens: Lens, conf: dict[str, Any]) -> UnwarpMap:
+    """The remap the tilt is estimated through: the band panorama's rows at one column a degree
+    (the preset's pano_width, where the band panorama has `oversample` times as many)."""
+    return band_map(lens, {**conf, "oversample": 1})
