@@ -55,20 +55,22 @@ def test_an_unmoved_lens_is_used_as_it_is(small_ds: Dataset) -> None:
 
 def test_a_re_clipped_lens_is_corrected_and_its_features_come_back(small_ds: Dataset) -> None:
     """A clip whose lens sits 5 px off: through the profile as it is, its features differ from the
-    same clip with the lens in place; corrected, they are (nearly) the same again."""
+    same clip with the lens in place; corrected, they are (nearly) the same again. Measured without
+    levelling (level.py), which undoes part of a moved lens by itself (the ring off centre reads
+    like a tilt), and then with it, as the default preset extracts."""
     lens = load_lens(small_ds.lens)
-    conf = resolve("default")
-    ext = Extractor(lens, conf)
-    ref = ext.spectra(_clip(small_ds, 0.0))
     moved = _clip(small_ds, 5.0)
-    clip = ClipLens(lens, lambda lz: Extractor(lz, conf).spectrum)
-    fixed = np.stack(list(clip.spectra(moved)))
-    assert clip.fit is not None and clip.fit.verdict == "corrected"
-    assert clip.fit.moved_px == pytest.approx(5.0, abs=0.5)
-    as_is = _corr(ext.spectra(moved), ref)
-    corrected = _corr(fixed, ref)
-    assert corrected > as_is + 0.02, (as_is, corrected)
-    assert corrected > 0.97
+    for conf, margin in ((resolve("default", {"level_iters": None}), 0.02), (resolve("default"), 0.005)):
+        ext = Extractor(lens, conf)
+        ref = ext.spectra(_clip(small_ds, 0.0))
+        clip = ClipLens(lens, lambda lz, conf=conf: Extractor(lz, conf).spectrum)
+        fixed = np.stack(list(clip.spectra(moved)))
+        assert clip.fit is not None and clip.fit.verdict == "corrected"
+        assert clip.fit.moved_px == pytest.approx(5.0, abs=0.5)
+        as_is = _corr(ext.spectra(moved), ref)
+        corrected = _corr(fixed, ref)
+        assert corrected > as_is + margin, (conf["level_iters"], as_is, corrected)
+        assert corrected > 0.97
 
 
 def test_a_clip_without_a_ring_is_located_with_the_profile_and_logged(
