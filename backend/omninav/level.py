@@ -4,7 +4,7 @@ A phone is never held level, and a clip-on donut leans with it: the band of elev
 sum over then rises on one side of the panorama and falls on the other, and the curves change
 with how the phone is held rather than with where it is. Five 10-degree bands feel that more than
 two wide ones did: tilted 5 degrees, the right place's score falls from 1 to 0.956 on average (8
-degrees: 0.911; docs/benchmarks.md, "A phone held otherwise").
+degrees: 0.911; docs/benchmarks.md, "Levelling"; levelled, 0.992 and 0.991).
 
 Why from the picture and not from the phone's gravity: which way the lens's axis and its image
 axes sit in the phone's frame depends on the phone, the clip-on and the browser, none of which
@@ -13,19 +13,21 @@ building's vertical edges (door frames, corners, pillars) stand upright in a lev
 lens tilted by t towards azimuth d leans the edge at azimuth a by about
 t * sin(d - a) / cos^2(el) degrees of azimuth per degree of elevation. So:
 
-  1. `edge_lean`: on the band panorama's intensity, the lean of every strong near-vertical edge
+  1. `edge_lean`: on the band's intensity at one column a degree (`estimate_map`: a quarter of
+     the band panorama's columns, for the phone's sake), the lean of every strong near-vertical edge
      pixel (-dI/d_el over dI/d_az; the strongest tenth of the horizontal gradients, leaning
      less than LEAN_MAX), fit by weighted least squares as (a sin az + b cos az) / cos^2 el;
   2. `lean_tilt`: (a, b) -> the tilt and the azimuth it leans towards;
-  3. `tilted_map`: the band remap through that tilt (each panorama direction of the upright world
-     looked up where the tilt turned it, the elevation kept within what the lens sees);
-  4. `level_map`: steps 1-3 `level_iters` times, each on the panorama the last estimate levelled.
-     One pass finds about three quarters of the tilt (the leans' noise pulls a least-squares
-     slope towards zero); the next pass fits what is left. A frame with too few edges (a blank
-     wall, a lens cap) keeps the upright map.
+  3. `tilted_map`: a remap through that tilt (each panorama direction of the upright world looked
+     up where the tilt turned it; a direction the donut does not see reads its upright cell);
+  4. `level_map`: steps 1-3 `level_iters` times, each on the panorama the last estimate levelled,
+     then the band panorama's own remap through the tilt found. One pass finds about three
+     quarters of the tilt (the leans' noise pulls a least-squares slope towards zero); the next
+     pass fits what is left. A frame with too few edges (a blank wall, a lens cap) keeps the
+     upright map.
 
-Measured on the renderer's tilted frames: 0.5-0.7 degrees left of tilts up to 8 degrees after
-two passes, about what a phone's gravity would give. Small pure functions, NumPy: the phone's
+Measured on the renderer's tilted frames: under a degree left of tilts up to 8 degrees after
+two passes, about what a phone's gravity would give (tests/test_level.py). Small pure functions, NumPy: the phone's
 worker (web/src/worker/level.ts) does the same arithmetic, in doubles, on the same panorama bytes.
 """
 
