@@ -24,6 +24,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from omninav.lens import load_lens
+from omninav.model_venue import model_video
+from omninav.presets import resolve
+from omninav.store import Store
 from omninav.synth import MODELLING, build_scene, donut_lens
 from omninav.synth.walks import (
     default_routes,
@@ -33,6 +37,7 @@ from omninav.synth.walks import (
     write_json,
     write_video,
 )
+from omninav.track import load_track
 
 sys.path.insert(0, str(Path(__file__).parent))
 from search_speed import machine  # noqa: E402
@@ -102,12 +107,6 @@ def main() -> None:
         f"{out['frames_added']} frames modelled, {out['frames_added'] / wall:.1f} frames/s"
     )
     with tempfile.TemporaryDirectory() as d:
-        from omninav.lens import load_lens
-        from omninav.model_venue import model_video
-        from omninav.presets import resolve
-        from omninav.store import Store
-        from omninav.track import load_track
-
         st, track, lens = Store(Path(d)), load_track(a.root / "track30.json"), load_lens(a.root / "lens.json")
         took = {}
         for tag, over in (("unlevelled", {"level_iters": None}), ("default (levelled)", {})):

@@ -40,7 +40,8 @@ import numpy as np
 from omninav.evaluate import evaluate_spectra
 from omninav.extract import Extractor
 from omninav.heading import relative_heading
-from omninav.lens import Catadioptric, Lens, direction_to_pixel, load_lens
+from omninav.lens import Catadioptric, load_lens
+from omninav.level import tilted_map  # the engine's: a direction the donut does not see reads its upright cell
 from omninav.presets import resolve
 from omninav.synth.families import FAMILIES, family_venue, pano_width
 from omninav.synth.render import CameraModel, camera_frame, tilt_rotation, world_panorama
@@ -56,29 +57,6 @@ from search_speed import machine  # noqa: E402
 TILTS = (3.0, 5.0, 8.0)
 CORRECTED = (5.0, 8.0)
 ALONG_M = (0.5, 1.0, 2.0)
-
-
-def tilted_map(lens: Lens, upright: UnwarpMap, rot: np.ndarray) -> UnwarpMap:
-    """The engine's band remap through a known tilt: each panorama direction of the upright world,
-    turned into the camera's frame (render.camera_frame turns camera vectors by `rot`; this is its
-    inverse), looked up through the lens."""
-    width = upright.map_x.shape[1]
-    az = (np.arange(width) + 0.5) * 360.0 / width
-    azg, elg = np.meshgrid(az, upright.elevations.astype(np.float64))
-    a, e = np.deg2rad(azg), np.deg2rad(elg)
-    world = np.stack([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)], -1)
-    cam = world @ rot  # rot.T applied to each row vector
-    azc = np.mod(np.rad2deg(np.arctan2(cam[..., 1], cam[..., 0])), 360.0)
-    elc = np.rad2deg(np.arcsin(np.clip(cam[..., 2], -1.0, 1.0)))
-    x, y = direction_to_pixel(lens, azc, elc)
-    ok = np.isfinite(x) & np.isfinite(y)
-    return UnwarpMap(
-        np.where(ok, x, -10.0).astype(np.float32),
-        np.where(ok, y, -10.0).astype(np.float32),
-        upright.elevations,
-        ok,
-        upright.border,
-    )
 
 
 def family_scores(
@@ -129,7 +107,9 @@ def family_scores(
 
 
 def accuracy(names: list[str], seeds: list[int], overrides: dict[str, Any]) -> None:
-    """1 s clips of each family's query walk, as they are and unwarped through the true tilt."""
+    """1 s clips of each family's query walk, as they are and unwarped through the true tilt
+    (unlevelled unless --set says otherwise: levelling would estimate the tilt over the true one)."""
+    overrides = {"level_iters": None, **overrides}
     conf = resolve("default", overrides)
     print(f"config: 'as is', or 'untilted' (every query frame unwarped through its true tilt)\n{HEAD}")
     pooled: dict[tuple[str, str], list[dict[str, Any]]] = {}

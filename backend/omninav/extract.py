@@ -25,7 +25,8 @@ class Extractor:
         self.lens = lens
         self.conf = conf
         self.map = band_map(lens, conf)
-        self._coarse: UnwarpMap | None = None  # level.estimate_map, made on the first levelled frame
+        # what levelling estimates each frame's tilt through (level.estimate_map), with level_iters
+        self.coarse = estimate_map(lens, conf) if conf.get("level_iters") else None
 
     def check_frame(self, frame: np.ndarray, where: str = "frame") -> None:
         w, h = self.lens.image_size
@@ -38,12 +39,9 @@ class Extractor:
     def frame_map(self, frame_bgr: np.ndarray) -> UnwarpMap:
         """The remap this frame is read through: the lens's, or (`level_iters`) the one that
         levels the frame's tilt (level.py)."""
-        iters = int(self.conf.get("level_iters") or 0)
-        if not iters:
+        if self.coarse is None:
             return self.map
-        if self._coarse is None:
-            self._coarse = estimate_map(self.lens, self.conf)
-        return level_map(frame_bgr, self.lens, self.map, self._coarse, iters)[0]
+        return level_map(frame_bgr, self.lens, self.map, self.coarse, int(self.conf["level_iters"]))[0]
 
     def curves(self, frame_bgr: np.ndarray) -> np.ndarray:
         """(H, W, 3) uint8 BGR frame -> (C, W) float32 normalised curves."""
