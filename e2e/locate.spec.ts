@@ -157,3 +157,26 @@ test('a clip from a building the venue has never seen: "not sure", not a wrong p
     await browser.close();
   }
 });
+
+test('a venue modelled with a setting this app does not know: told to update, no features sent', async ({ page }) => {
+  // a newer server's venue document (levelling was such a setting for the apps before it): the
+  // sizes all agree, so without the check the app would send curves made without the setting
+  await page.route(
+    (u) => u.pathname === '/api/venues/demo',
+    async (route) => {
+      const res = await route.fetch();
+      const doc = await res.json();
+      doc.features.feature_keys = [...doc.features.feature_keys, 'sky_mask'];
+      await route.fulfill({ response: res, json: doc });
+    },
+  );
+  await spyOnSpeech(page);
+  const posts = countLocates(page);
+  await page.goto(`${base()}/?venue=demo`);
+  const said = /settings this app does not know: sky_mask\)\. Close omninav and open it again to update it\./;
+  await expect(page.locator('#venue-line')).toHaveText(said); // before anything is asked
+  await page.getByRole('button', { name: 'Where am I?' }).click();
+  await expect(page.getByRole('alert')).toHaveText(said); // an error is an alert, spoken at once
+  await expect.poll(async () => (await spoken(page)).join('\n')).toMatch(said);
+  expect(posts()).toBe(0);
+});

@@ -7,14 +7,17 @@ from __future__ import annotations
 import atexit
 import io
 import json
+import re
 import time
 import weakref
+from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
 from conftest import db_url_for
+from omninav.presets import FEATURE_KEYS, feature_keys, resolve
 from omninav.server import create_app
 from omninav.spectrum import encode_binary, encode_json
 from omninav.synth.walks import write_video
@@ -142,6 +145,7 @@ def test_public_venue_describes_what_a_client_needs(built):
     assert v["floors"][0]["name"] == "Second floor"
     assert v["lenses"]["donut"]["model"] == "catadioptric"
     assert v["features"]["record_bytes_per_frame"] == 896
+    assert "level_iters" in v["features"]["feature_keys"] and "track_radius_m" not in v["features"]["feature_keys"]
     assert any(p["name"] == "the lifts" for p in v["places"])
     png = api.get(v["floors"][0]["plan_url"])
     assert png.status_code == 200 and png.mimetype == "image/png"
@@ -578,3 +582,17 @@ def test_the_web_app_is_served_gzipped_to_browsers_that_accept_it(tmp_path):
     r = get("/assets/nothing.js", headers={"Accept-Encoding": "gzip"})
     assert r.status_code == 404 and r.is_json
     assert get("/assets/../../etc/passwd", headers={"Accept-Encoding": "gzip"}).status_code == 404
+
+
+def test_the_app_knows_every_feature_key():
+    """The app refuses a venue whose records depend on a key it does not know (record.ts): its list
+    must hold every key the engine has, or a venue modelled with a new one would be answered from
+    curves made without it."""
+    ts = (Path(__file__).resolve().parents[1] / "web" / "src" / "shared" / "settings.ts").read_text()
+    block = re.search(r"KNOWN_FEATURE_KEYS: readonly string\[\] = \[(.*?)\];", ts, re.S)
+    assert block, "settings.ts no longer declares KNOWN_FEATURE_KEYS"
+    assert re.findall(r"'(\w+)'", block.group(1)) == list(FEATURE_KEYS)
+    # the venue document lists the later keys only where set: a venue modelled before them is
+    # served to apps that predate them too
+    assert "level_iters" not in feature_keys({**resolve("default"), "level_iters": None})
+    assert feature_keys(resolve("default")) == sorted(FEATURE_KEYS)

@@ -254,13 +254,17 @@ FEATURE_KEYS = (
 _LATER_KEYS = ("soft_clip_sd", "band_channels", "level_iters")
 
 
+def feature_keys(conf: dict[str, Any]) -> list[str]:
+    """The FEATURE_KEYS a record for a venue with `conf` depends on (a later key only where set), sorted."""
+    return sorted(k for k in FEATURE_KEYS if k not in _LATER_KEYS or conf.get(k) is not None)
+
+
 def settings_id(conf: dict[str, Any]) -> int:
     """CRC-32 of the feature settings: carried in every record, checked against the venue's."""
     import json
     import zlib
 
-    keys = [k for k in FEATURE_KEYS if k not in _LATER_KEYS or conf.get(k) is not None]
-    canon = json.dumps({k: conf[k] for k in keys}, sort_keys=True, separators=(",", ":"))
+    canon = json.dumps({k: conf[k] for k in feature_keys(conf)}, sort_keys=True, separators=(",", ":"))
     return zlib.crc32(canon.encode())
 
 

@@ -110,6 +110,12 @@ describe('spectrum and record', () => {
     expect(recordMismatch(doc({ n_curves: 14, record_bytes_per_frame: 896 }))).toMatch(
       /needs 14 curves a frame, this app makes 12/,
     );
+    // a setting this app cannot apply, though every size agrees: named, not sent
+    expect(recordMismatch(doc({}))).toBeNull();
+    expect(recordMismatch({ ...doc({}), feature_keys: ['bands', 'level_iters', 'n_harmonics'] })).toBeNull();
+    expect(recordMismatch({ ...doc({}), feature_keys: ['bands', 'sky_mask', 'level_iters', 'row_mask'] })).toBe(
+      "the venue's map needs settings this app does not know: sky_mask, row_mask",
+    );
   });
   it('per-band channels: each band its own list, counted in the record', () => {
     const plain = SIX;

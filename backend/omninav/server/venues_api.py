@@ -14,7 +14,7 @@ from flask import Blueprint, current_app, jsonify, send_file
 from .. import __version__
 from ..catalog import Catalog
 from ..errors import NotFound
-from ..presets import n_curves, settings_id
+from ..presets import feature_keys, n_curves, settings_id
 from ..spectrum import HEADER_BYTES, record_bytes_per_frame
 
 bp = Blueprint("venues", __name__)
@@ -59,6 +59,9 @@ def venue_doc(cat: Catalog, venue_id: str, url_root: str = "") -> dict[str, Any]
             "preset": v["preset"],
             "settings": {k: conf[k] for k in sorted(conf)},
             "settings_id": settings_id(conf),
+            # the settings a record depends on here: an app that does not know one of them would
+            # make other curves under the same id (web/src/shared/record.ts refuses to)
+            "feature_keys": feature_keys(conf),
             "n_curves": n_curves(conf),
             "n_harmonics": conf["n_harmonics"],
             "record_header_bytes": HEADER_BYTES,

@@ -257,11 +257,14 @@ export class Session extends Emitter<SessionEvents> {
       const lens = this.chosenLens(v);
       this.emit('lenses', { names: Object.keys(this.lensesOf(v)), chosen: lens?.[0] ?? '' });
       const missing = want && want !== id ? `This server has no venue “${want}”; showing ${v.name} instead. ` : '';
+      const mismatch = recordMismatch(v.features); // said now, not only when the user asks
       this.setLine(
         missing +
-          (v.modelled
-            ? `Venue: ${v.name}. Ready (${v.frames} modelled frames).`
-            : `Venue: ${v.name}. Not modelled yet.`),
+          (!v.modelled
+            ? `Venue: ${v.name}. Not modelled yet.`
+            : mismatch
+              ? `Venue: ${v.name}. ${new RecordMismatch(mismatch).message}`
+              : `Venue: ${v.name}. Ready (${v.frames} modelled frames).`),
       );
       if (lens) {
         this.ext ??= new ExtractorClient();

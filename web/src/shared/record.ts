@@ -2,7 +2,7 @@
  * The compact feature record the phone sends (the engine's spectrum.py, record version 1).
  * Magnitudes travel as float16, phases as int16 steps of 2*pi/65536: 4 bytes per harmonic.
  */
-import { nCurves, type FeatureSettings, type VenueFeatures } from './settings';
+import { KNOWN_FEATURE_KEYS, nCurves, type FeatureSettings, type VenueFeatures } from './settings';
 
 export const RECORD_VERSION = 1;
 
@@ -39,6 +39,10 @@ export const BYTES_PER_HARMONIC = 4;
  * document states its record's sizes; an app cached offline may be older than its server.
  */
 export function recordMismatch(f: VenueFeatures): string | null {
+  // a setting this app cannot apply (a newer server's): the sizes below could all agree and the
+  // curves still differ, as levelling's did for the apps before it
+  const unknown = (f.feature_keys ?? []).filter((k) => !KNOWN_FEATURE_KEYS.includes(k));
+  if (unknown.length) return `the venue's map needs settings this app does not know: ${unknown.join(', ')}`;
   if (f.record_header_bytes !== HEADER_BYTES)
     return `the server expects a ${f.record_header_bytes}-byte record header, this app makes ${HEADER_BYTES}`;
   // settings this app reads otherwise than the server (a key it does not know: per-band channels

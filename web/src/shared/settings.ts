@@ -15,9 +15,30 @@ export interface FeatureSettings {
   level_iters?: number | null;
 }
 
+/**
+ * The feature settings this app knows how to apply (presets.py `FEATURE_KEYS`; tests/test_server.py
+ * holds the two lists together). A venue whose records depend on another key was modelled by a
+ * newer server than this app was built for: its records would carry the venue's settings id but
+ * other curves, and be answered wrongly without anyone knowing (record.ts's recordMismatch).
+ */
+export const KNOWN_FEATURE_KEYS: readonly string[] = [
+  'pano_width',
+  'oversample',
+  'row_step_deg',
+  'bands',
+  'channels',
+  'gray_world',
+  'n_harmonics',
+  'soft_clip_sd',
+  'band_channels',
+  'level_iters',
+];
+
 export interface VenueFeatures {
   settings: FeatureSettings;
   settings_id: number;
+  /** the settings a record for this venue depends on (absent from servers before it was added) */
+  feature_keys?: string[];
   n_curves: number;
   n_harmonics: number;
   record_header_bytes: number;
