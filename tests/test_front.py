@@ -254,7 +254,10 @@ def test_slow_readers_of_a_large_answer_hold_no_worker(tmp_path):
             s.sendall(b"GET /big.bin HTTP/1.1\r\nHost: x\r\nAccept-Encoding: identity\r\n\r\n")
             readers.append(s)
         time.sleep(1.0)
-        assert max(health_ms(srv) for _ in range(10)) < 1000
+        # held workers would never answer (these readers read nothing until the end), so any
+        # answer well within health_ms's 5 s shows none is held; 1 s was too tight beside other
+        # work (2.5 s measured with two benchmarks running on the 2 cores)
+        assert max(health_ms(srv) for _ in range(10)) < 4000
         got = b""
         while len(got) < 8 * 1024 * 1024:  # and a slow reader still gets all of it
             chunk = readers[0].recv(1 << 20)
