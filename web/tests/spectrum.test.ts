@@ -6,6 +6,7 @@ import {
   fromHalf,
   recordFrame,
   recordMismatch,
+  unknownFeatureKeys,
   relativeError,
   toHalf,
 } from '../src/shared/record';
@@ -26,6 +27,7 @@ const SIX = {
   n_harmonics: 16,
 };
 import { linspace, interp, polyval } from '../src/shared/lens';
+import { APP_OUTDATED, RecordMismatch } from '../src/client/problems';
 
 describe('float16 as numpy rounds it', () => {
   it('every finite half value survives a round trip', () => {
@@ -113,8 +115,15 @@ describe('spectrum and record', () => {
     // a setting this app cannot apply, though every size agrees: named, not sent
     expect(recordMismatch(doc({}))).toBeNull();
     expect(recordMismatch({ ...doc({}), feature_keys: ['bands', 'level_iters', 'n_harmonics'] })).toBeNull();
-    expect(recordMismatch({ ...doc({}), feature_keys: ['bands', 'sky_mask', 'level_iters', 'row_mask'] })).toBe(
-      "the venue's map needs settings this app does not know: sky_mask, row_mask",
+    const newer = { ...doc({}), feature_keys: ['bands', 'sky_mask', 'level_iters', 'row_mask'] };
+    expect(recordMismatch(newer)).toBe("the venue's map needs settings this app does not know: sky_mask, row_mask");
+    expect(unknownFeatureKeys(newer)).toEqual(['sky_mask', 'row_mask']);
+    expect(unknownFeatureKeys(doc({}))).toEqual([]); // a server from before the list: sizes decide
+    // the user hears that the app is too old, not the settings' names; a size mismatch says what differs
+    expect(new RecordMismatch(recordMismatch(newer)!, true).message).toBe(APP_OUTDATED);
+    expect(new RecordMismatch(recordMismatch(newer)!, true).why).toMatch(/sky_mask, row_mask/);
+    expect(new RecordMismatch('the server expects 800 bytes per frame').message).toMatch(
+      /cannot read \(the server expects 800 bytes per frame\)\. Close omninav/,
     );
   });
   it('per-band channels: each band its own list, counted in the record', () => {

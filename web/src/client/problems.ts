@@ -7,11 +7,25 @@ export const NO_FRAMES =
 export const NO_LENS =
   'This venue has no lens profile yet. Ask the venue’s administrator to add the lens it was filmed with.';
 
-/** The venue's server reads another record than this app makes (an app cached offline, a server upgraded). */
+/** What a user hears when the venue was modelled with a setting this app cannot apply (a newer server's). */
+export const APP_OUTDATED =
+  'This copy of omninav is older than this building’s map. Close omninav and open it again to update it.';
+
+/**
+ * The venue's server reads another record than this app makes (an app cached offline, a server
+ * upgraded). `outdated`: the sizes may agree, but the map needs a setting this app does not know;
+ * the user hears only that the app is too old (the settings' names mean nothing spoken), and
+ * `why` keeps them for whoever debugs it.
+ */
 export class RecordMismatch extends Error {
-  constructor(why: string) {
+  constructor(
+    readonly why: string,
+    outdated = false,
+  ) {
     super(
-      `This copy of omninav makes feature records that the server cannot read (${why}). Close omninav and open it again to update it.`,
+      outdated
+        ? APP_OUTDATED
+        : `This copy of omninav makes feature records that the server cannot read (${why}). Close omninav and open it again to update it.`,
     );
   }
 }

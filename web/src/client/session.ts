@@ -36,7 +36,7 @@ import { LensWatch, checkLensOn, lensWords, phoneStorage } from './lenscheck';
 import type { Motion, MotionFeed, MotionReading } from './motion';
 import type { Lens } from '../shared/lens';
 import type { LensCheck } from '../shared/protocol';
-import { encodeRecord, recordMismatch } from '../shared/record';
+import { encodeRecord, recordMismatch, unknownFeatureKeys } from '../shared/record';
 import type { Prefs } from './prefs';
 import { NO_FRAMES, NO_LENS, RecordMismatch, mapUpdated, problemText, staleOrNot } from './problems';
 import type { Cue } from './speech';
@@ -152,6 +152,12 @@ export interface SessionEvents {
 }
 
 /** What every request needs before filming (Session.ready). */
+/** Why this app cannot make the venue's records, or null. */
+function mismatchOf(v: Venue): RecordMismatch | null {
+  const why = recordMismatch(v.features);
+  return why === null ? null : new RecordMismatch(why, unknownFeatureKeys(v.features).length > 0);
+}
+
 interface Ready {
   v: Venue;
   lens: [string, Lens];
@@ -257,13 +263,13 @@ export class Session extends Emitter<SessionEvents> {
       const lens = this.chosenLens(v);
       this.emit('lenses', { names: Object.keys(this.lensesOf(v)), chosen: lens?.[0] ?? '' });
       const missing = want && want !== id ? `This server has no venue “${want}”; showing ${v.name} instead. ` : '';
-      const mismatch = recordMismatch(v.features); // said now, not only when the user asks
+      const mismatch = mismatchOf(v); // shown now on the venue line, not only when the user asks
       this.setLine(
         missing +
           (!v.modelled
             ? `Venue: ${v.name}. Not modelled yet.`
             : mismatch
-              ? `Venue: ${v.name}. ${new RecordMismatch(mismatch).message}`
+              ? `Venue: ${v.name}. ${mismatch.message}`
               : `Venue: ${v.name}. Ready (${v.frames} modelled frames).`),
       );
       if (lens) {
@@ -291,8 +297,8 @@ export class Session extends Emitter<SessionEvents> {
     const v = this.venue?.modelled ? this.venue : await this.loadVenue();
     if (!v) throw new Unreachable(this.line || UNREACHABLE);
     if (!v.modelled) throw new ApiProblem(409, NO_FRAMES);
-    const mismatch = recordMismatch(v.features);
-    if (mismatch) throw new RecordMismatch(mismatch);
+    const mismatch = mismatchOf(v);
+    if (mismatch) throw mismatch;
     const lens = this.chosenLens(v);
     if (!lens) throw new ApiProblem(422, NO_LENS);
     const ext = (this.ext ??= new ExtractorClient());

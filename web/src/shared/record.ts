@@ -41,7 +41,7 @@ export const BYTES_PER_HARMONIC = 4;
 export function recordMismatch(f: VenueFeatures): string | null {
   // a setting this app cannot apply (a newer server's): the sizes below could all agree and the
   // curves still differ, as levelling's did for the apps before it
-  const unknown = (f.feature_keys ?? []).filter((k) => !KNOWN_FEATURE_KEYS.includes(k));
+  const unknown = unknownFeatureKeys(f);
   if (unknown.length) return `the venue's map needs settings this app does not know: ${unknown.join(', ')}`;
   if (f.record_header_bytes !== HEADER_BYTES)
     return `the server expects a ${f.record_header_bytes}-byte record header, this app makes ${HEADER_BYTES}`;
@@ -55,6 +55,10 @@ export function recordMismatch(f: VenueFeatures): string | null {
     return `the server expects ${f.record_bytes_per_frame} bytes per frame, this app makes ${perFrame}`;
   return null;
 }
+
+/** The settings the venue's records depend on that this app does not know how to apply. */
+export const unknownFeatureKeys = (f: VenueFeatures): string[] =>
+  (f.feature_keys ?? []).filter((k) => !KNOWN_FEATURE_KEYS.includes(k));
 
 /** One frame's quantised spectrum: C*K float16 magnitude bits and int16 phases, curve-major. */
 export interface FrameSpectrum {
