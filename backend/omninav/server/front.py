@@ -79,6 +79,10 @@ class Limits:
     body_min_rate: float = 32 * 1024  # bytes/s a buffered body must average (after body_idle_s of grace)
     upload_idle_s: float = 60.0  # a streamed video upload may pause this long
     write_s: float = 30.0  # a client that reads nothing of its answer for this long is dropped
+    # after an answer given before the body was read (401, 409, 413, 429): the rest is read and
+    # dropped this long at most, a pause of linger_idle_s ending it, before the connection closes
+    linger_s: float = 5.0
+    linger_idle_s: float = 1.0
     max_head: int = 16 * 1024  # request line and headers
     max_body: int = 32 * 1024 * 1024  # any body but a streamed upload (MAX_CONTENT_LENGTH)
     buffer_budget: int = 512 * 1024 * 1024  # bodies and answers held in memory at once, all clients
@@ -222,8 +226,29 @@ class Front:
             first = False
             keep = await self._exchange(conn, reader, writer, req, peer)
             if not keep or conn.our_state is not h11.DONE or conn.their_state is not h11.DONE:
+                if conn.their_state is h11.SEND_BODY:  # answered before its body was read
+                    await self._linger(conn, reader)
                 return
             conn.start_next_cycle()
+
+    async def _linger(self, conn: h11.Connection, reader: asyncio.StreamReader) -> None:
+        """Read and drop the rest of a body that was answered without being read, up to its end
+        (as its head framed it) or for a bounded while, before the connection closes. Closing on
+        unread bytes resets the connection, and a client still sending (most send the whole body
+        before they read) loses the answer: a broken pipe instead of the 409 that said why.
+        nginx's lingering close; bounded by linger_s and linger_idle_s, so it costs a hostile
+        client's connection no more than its other deadlines do."""
+        end = time.monotonic() + self.limits.linger_s
+        with contextlib.suppress(Exception):
+            while (left := end - time.monotonic()) > 0:
+                ev = conn.next_event()
+                if ev is h11.NEED_DATA:
+                    data = await asyncio.wait_for(reader.read(CHUNK), min(left, self.limits.linger_idle_s))
+                    if not data:
+                        return
+                    conn.receive_data(data)
+                elif isinstance(ev, h11.EndOfMessage | h11.ConnectionClosed):
+                    return  # all of it sent: the client reads its answer now
 
     async def _recv(self, conn: h11.Connection, reader: asyncio.StreamReader, timeout: float) -> None:
         if timeout <= 0:
