@@ -38,19 +38,17 @@ from typing import Any
 import numpy as np
 
 from omninav.calib.correct import ClipLens
-from omninav.curves import extract_curves
 from omninav.evaluate import evaluate_spectra
 from omninav.extract import Extractor
 from omninav.heading import relative_heading
 from omninav.lens import Lens, load_lens
-from omninav.level import _rotation, level_map, tilted_map  # level_map's own rotation of its tilt
+from omninav.level import estimate_tilt, tilt_map
 from omninav.presets import resolve
-from omninav.spectrum import quantise, spectrum
 from omninav.synth.families import family_venue, pano_width
 from omninav.synth.render import CameraModel, camera_frame, world_panorama
 from omninav.synth.walks import grid_for, poses_from_track, walk_heading
 from omninav.track import load_track, parse_track
-from omninav.unwarp import UnwarpMap, build_map, unwarp
+from omninav.unwarp import UnwarpMap, build_map
 from omninav.video import VideoInfo, iter_video
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -79,24 +77,14 @@ class Heights:
     def __init__(self, lens: Lens, conf: dict[str, Any]):
         self.ext = Extractor(lens, conf)
         self.lens = lens
-        self.conf = conf
+        self.iters = int(conf.get("level_iters") or 0)
         self.maps = [warped(lens, self.ext.map, d) for d in DELTAS]
 
     def __call__(self, frame: np.ndarray) -> np.ndarray:
         e = self.ext
-        t, d = 0.0, 0.0
-        if e.coarse is not None:
-            _, t, d = level_map(frame, self.lens, e.map, e.coarse, int(self.conf["level_iters"]))
-        rot = _rotation(t * np.cos(np.deg2rad(d)), t * np.sin(np.deg2rad(d))) if t else None
-        out = []
-        for m in self.maps:
-            if rot is not None:
-                m = tilted_map(self.lens, m, rot)
-            el = e.map.elevations
-            pano = np.ascontiguousarray(unwarp(frame, m)[..., ::-1])
-            curves = extract_curves(pano, el, self.conf, m.valid)
-            out.append(quantise(spectrum(curves, self.conf["n_harmonics"])))
-        return np.stack(out)
+        tilt = estimate_tilt(frame, self.lens, e.coarse, self.iters) if e.coarse is not None else (0.0, 0.0)
+        # each delta's rows through the tilt found; the bands are summed over the nominal rows
+        return np.stack([e.spectrum(frame, tilt_map(self.lens, m, tilt)) for m in self.maps])
 
 
 def accuracy(names: list[str], seeds: list[int]) -> None:

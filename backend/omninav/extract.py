@@ -43,15 +43,16 @@ class Extractor:
             return self.map
         return level_map(frame_bgr, self.lens, self.map, self.coarse, int(self.conf["level_iters"]))[0]
 
-    def curves(self, frame_bgr: np.ndarray) -> np.ndarray:
-        """(H, W, 3) uint8 BGR frame -> (C, W) float32 normalised curves."""
-        m = self.frame_map(frame_bgr)
+    def curves(self, frame_bgr: np.ndarray, m: UnwarpMap | None = None) -> np.ndarray:
+        """(H, W, 3) uint8 BGR frame -> (C, W) float32 normalised curves, read through `m` (default:
+        frame_map's). The bands are summed over `self.map`'s rows, whatever directions `m` reads."""
+        m = self.frame_map(frame_bgr) if m is None else m
         pano = cv2.cvtColor(unwarp(frame_bgr, m), cv2.COLOR_BGR2RGB)
-        return extract_curves(pano, m.elevations, self.conf, m.valid)
+        return extract_curves(pano, self.map.elevations, self.conf, m.valid)
 
-    def spectrum(self, frame_bgr: np.ndarray) -> np.ndarray:
+    def spectrum(self, frame_bgr: np.ndarray, m: UnwarpMap | None = None) -> np.ndarray:
         """(H, W, 3) uint8 BGR frame -> (C, K) complex64, quantised as the record carries it."""
-        return quantise(spectrum(self.curves(frame_bgr), self.conf["n_harmonics"]))
+        return quantise(spectrum(self.curves(frame_bgr, m), self.conf["n_harmonics"]))
 
     def spectra(self, frames: list[np.ndarray]) -> np.ndarray:
         """(F, C, K) for F >= 1 frames (a clip always has frames: readers refuse empty ones)."""

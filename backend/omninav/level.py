@@ -146,10 +146,20 @@ def tilted_map(lens: Lens, upright: UnwarpMap, rot: np.ndarray) -> UnwarpMap:
 def level_map(
     frame: np.ndarray, lens: Lens, upright: UnwarpMap, coarse: UnwarpMap, iters: int
 ) -> tuple[UnwarpMap, float, float]:
-    """(H, W, 3) frame -> (the band remap that levels it, the tilt found, its azimuth): `iters`
-    passes of edge_lean, each on the panorama the estimate so far levels, read through `coarse`
-    (the same rows at one column a degree, estimate_map: a quarter of the work, the same tilt to a
-    tenth of a degree); then `upright` through the tilt found (0 passes, or no edges: `upright`)."""
+    """(H, W, 3) frame -> (the band remap that levels it, the tilt found, its azimuth): the tilt
+    estimate_tilt finds, then `upright` through it (0 passes, or no edges: `upright`)."""
+    vx, vy = estimate_tilt(frame, lens, coarse, iters)
+    if vx == 0.0 and vy == 0.0:
+        return upright, 0.0, 0.0
+    return tilted_map(lens, upright, _rotation(vx, vy)), math.hypot(vx, vy), math.degrees(math.atan2(vy, vx)) % 360.0
+
+
+def estimate_tilt(frame: np.ndarray, lens: Lens, coarse: UnwarpMap, iters: int) -> tuple[float, float]:
+    """(H, W, 3) frame -> its tilt as a vector (degrees, x and y as lean_tilt's azimuth turns
+    them): `iters` passes of edge_lean, each on the panorama the estimate so far levels, read
+    through `coarse` (the band's rows at one column a degree, estimate_map: a quarter of the work,
+    the same tilt to a tenth of a degree). (0, 0): no pass, or no edges. tilt_map turns a remap
+    through it."""
     m, vx, vy = coarse, 0.0, 0.0
     for k in range(iters):
         a, b, n = edge_lean(intensity(unwarp(frame, m)), coarse.elevations, m.valid)
@@ -162,9 +172,12 @@ def level_map(
         vx, vy = vx * scale, vy * scale
         if k + 1 < iters:
             m = tilted_map(lens, coarse, _rotation(vx, vy))
-    if vx == 0.0 and vy == 0.0:
-        return upright, 0.0, 0.0
-    return tilted_map(lens, upright, _rotation(vx, vy)), math.hypot(vx, vy), math.degrees(math.atan2(vy, vx)) % 360.0
+    return vx, vy
+
+
+def tilt_map(lens: Lens, m: UnwarpMap, tilt: tuple[float, float]) -> UnwarpMap:
+    """`m` through an estimate_tilt vector (`m` itself for (0, 0)): what level_map does with it."""
+    return m if tilt == (0.0, 0.0) else tilted_map(lens, m, _rotation(*tilt))
 
 
 def _rotation(vx: float, vy: float) -> np.ndarray:

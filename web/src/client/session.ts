@@ -151,13 +151,13 @@ export interface SessionEvents {
   lens: LensCheck;
 }
 
-/** What every request needs before filming (Session.ready). */
 /** Why this app cannot make the venue's records, or null. */
 function mismatchOf(v: Venue): RecordMismatch | null {
   const why = recordMismatch(v.features);
   return why === null ? null : new RecordMismatch(why, unknownFeatureKeys(v.features).length > 0);
 }
 
+/** What every request needs before filming (Session.ready). */
 interface Ready {
   v: Venue;
   lens: [string, Lens];

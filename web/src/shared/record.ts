@@ -58,7 +58,7 @@ export function recordMismatch(f: VenueFeatures): string | null {
 
 /** The settings the venue's records depend on that this app does not know how to apply. */
 export const unknownFeatureKeys = (f: VenueFeatures): string[] =>
-  (f.feature_keys ?? []).filter((k) => !KNOWN_FEATURE_KEYS.includes(k));
+  (f.feature_keys ?? []).filter((k) => !(KNOWN_FEATURE_KEYS as readonly string[]).includes(k));
 
 /** One frame's quantised spectrum: C*K float16 magnitude bits and int16 phases, curve-major. */
 export interface FrameSpectrum {

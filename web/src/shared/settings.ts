@@ -21,7 +21,7 @@ export interface FeatureSettings {
  * newer server than this app was built for: its records would carry the venue's settings id but
  * other curves, and be answered wrongly without anyone knowing (record.ts's recordMismatch).
  */
-export const KNOWN_FEATURE_KEYS: readonly string[] = [
+export const KNOWN_FEATURE_KEYS: readonly (keyof FeatureSettings)[] = [
   'pano_width',
   'oversample',
   'row_step_deg',
