@@ -48,6 +48,7 @@ CONFIGS: dict[str, tuple[str, dict[str, Any], str]] = {  # name: preset, overrid
     "paper": ("paper", {}, "median"),
 }
 CONFIDENCE_KEYS = ("confidence_features", "confidence_coef")
+SEARCH_KEYS = ("shared_candidates",)  # how a clip is searched: the same venue, other answers
 
 
 def family_names(spec: str) -> list[str]:
@@ -91,7 +92,12 @@ def cached_venue(root: Path, tag: str, settings: dict[str, Any], lens: str = "mo
     st = Store(root / "bench-data")
     # the confidence model is not part of what is modelled: a recalibration reuses the venue
     # nor is tracking (tracking.py's track_* keys): a venue modelled before them is the same venue
-    kept = {k: v for k, v in settings.items() if k not in CONFIDENCE_KEYS and not k.startswith("track_")}
+    # nor how a clip is searched (SEARCH_KEYS: the answers' cache is named by them, rows_for)
+    kept = {
+        k: v
+        for k, v in settings.items()
+        if k not in CONFIDENCE_KEYS and k not in SEARCH_KEYS and not k.startswith("track_")
+    }
     key = json.dumps(kept, sort_keys=True).encode()
     vid = f"{tag}-{hashlib.sha1(key).hexdigest()[:10]}"
     if st.generation(vid) is None:
@@ -100,7 +106,7 @@ def cached_venue(root: Path, tag: str, settings: dict[str, Any], lens: str = "mo
             settings=settings,
         )  # fmt: skip
     loc = Locator(st, vid, device="cpu")
-    loc.conf.update({k: settings[k] for k in CONFIDENCE_KEYS})
+    loc.conf.update({k: settings[k] for k in (*CONFIDENCE_KEYS, *SEARCH_KEYS)})
     return loc
 
 
@@ -110,7 +116,8 @@ def rows_for(
     """Every clip's answer and confidence features, per clip length (cached beside the venue)."""
     root = dataset(family, seed)
     loc = venue(root, config, overrides)
-    cache = root / f"rows-{loc.venue_id}.json"
+    # (rows of a search without shared candidates keep the name they had before it existed)
+    cache = root / f"rows-{loc.venue_id}{'-shared' if loc.conf['shared_candidates'] else ''}.json"
     have: dict[str, list[dict[str, Any]]] = json.loads(cache.read_text()) if cache.exists() else {}
     todo = [c for c in clips if f"{c:g}" not in have]
     if todo:

@@ -2,7 +2,12 @@
 
 For N = 1,000 ... 8,000, then 100,000 and 1,000,000, it times
   - `batched`: omninav's index (stage-1 magnitude GEMM + top-k, stage-2 phase verification),
-  - `locate`: the same plus clip aggregation (what `omninav locate` does after extraction),
+    each frame verifying its own candidates (as before shared candidates),
+  - `shared`: the same with the clip's candidates shared (each frame verified against every
+    frame's; what `omninav locate` searches), for a clip of one place (its frames a little noisy,
+    so that their candidates differ as a real clip's do: `union` rows verified a frame) and for
+    the worst case, ten frames from ten places (160 rows a frame),
+  - `locate`: the shared search plus clip aggregation (what `omninav locate` does after extraction),
   - `loop`: the paper's sequential CPU search, a per-frame Python loop (N <= 8,000 only),
 in the same run on the same data, and prints the machine it ran on. Venue spectra are synthetic
 (a smooth random walk in the Fourier domain), which costs the same to search as real ones.
@@ -77,8 +82,8 @@ def main() -> None:
     conf = resolve("default")
     curves = [int(c) for c in a.curves.split(",")] if a.curves else [n_curves(conf)]
     print(f"machine: {machine()}; device {a.device}")
-    cols = ["batched ms", "p90", "locate ms", "p90", "loop ms", "speed-up"]
-    widths = [11, 7, 10, 7, 9, 9]
+    cols = ["batched ms", "p90", "shared ms", "p90", "union", "worst ms", "locate ms", "p90", "loop ms", "speed-up"]
+    widths = [11, 7, 10, 7, 6, 9, 10, 7, 9, 9]
     head = f"{'frames':>9} {'curves':>6} {'dims':>5} "
     print(head + " ".join(f"{c:>{w}}" for c, w in zip(cols, widths, strict=True)))
     for n in [int(s) for s in a.sizes.split(",")]:
@@ -95,18 +100,27 @@ def bench_size(n: int, device: str, repeat: int, conf: dict, curves: int) -> str
     ix = Index(spec, heads, device=device, key_dims=dims)
     sync = (lambda: ix.xp.cuda.Device().synchronize()) if ix.xp is not np else (lambda: None)
     row = int(rng.integers(0, n - 10))
-    q = (spec[row : row + 10] * np.exp(1j * 0.7)).astype(np.complex64)
+    noise = rng.normal(size=(10, *spec.shape[1:])) + 1j * rng.normal(size=(10, *spec.shape[1:]))
+    q = spec[row : row + 10] * np.exp(1j * 0.7) + 0.03 * noise  # each frame ~0.3 of its energy in noise
+    q = (q / np.sqrt((np.abs(q) ** 2).sum(axis=(1, 2), keepdims=True))).astype(np.complex64)
+    apart = spec[rng.choice(n, 10, replace=False)]  # the worst case: ten places, 160 rows to verify
     times = np.arange(10) / 10.0
+    one = np.zeros(10, np.int64)  # a 1 s clip: one group (locate.clip_groups)
+    k = conf["candidates"]
     rep = repeat if n <= 100_000 else max(5, repeat // 6)
-    b50, b90 = timeit(lambda: ix.search(q, conf["candidates"]), rep, sync)
-    l50, l90 = timeit(lambda: sequence(ix.search(q, conf["candidates"]), xy, times, conf), rep, sync)
+    b50, b90 = timeit(lambda: ix.search(q, k), rep, sync)
+    s50, s90 = timeit(lambda: ix.search(q, k, groups=one), rep, sync)
+    union = len(np.unique(ix.search(q, k).index))
+    w50, _ = timeit(lambda: ix.search(apart, k, groups=one), rep, sync)
+    l50, l90 = timeit(lambda: sequence(ix.search(q, k, groups=one), xy, times, conf), rep, sync)
     if n <= 8000:
         lp, _ = timeit(lambda: sequential_search(q, spec), 1)
         loop = f"{lp:9.1f} {lp / l50:8.0f}x"
     else:
         loop = f"{'-':>9} {'-':>9}"
     size = f"{n:>9} {curves:>6} {dims or spec.shape[1] * spec.shape[2]:>5}"
-    return f"{size} {b50:11.3f} {b90:7.3f} {l50:10.3f} {l90:7.3f} {loop}"
+    shared = f"{s50:10.3f} {s90:7.3f} {union:6d} {w50:9.3f}"
+    return f"{size} {b50:11.3f} {b90:7.3f} {shared} {l50:10.3f} {l90:7.3f} {loop}"
 
 
 if __name__ == "__main__":

@@ -1,7 +1,8 @@
 """Tracking while walking (issue 14): the filter's answers per second beside single clips'.
 
-For every venue family and seed (bench/families.py renders, models and caches them), a walk is
-searched once, frame by frame (cached beside it); then every 1 s and every 2.5 s (the phone's
+For every venue family and seed (bench/families.py renders, models and caches them), a walk's
+spectra are extracted once (cached beside it) and each clip searched as a locate searches it
+(Locator.clip_matches: each second's frames share their candidates); then every 1 s and every 2.5 s (the phone's
 pace) the 1 s clip ending there is answered twice: alone (aggregate.sequence, what a locate
 without a session answers) and through the tracking filter (tracking.py; fed that answer's
 confidence too, as a server's tracked locate does), with only the evidence up to that moment,
@@ -30,7 +31,7 @@ import fcntl
 import json
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -67,13 +68,22 @@ SKIP_S = 5.0  # the figures count the seconds after the first 5 of a walk
 
 @dataclass
 class Walk:
-    """A walk's sampled frames: truth and each frame's candidate matches (searched once)."""
+    """A walk's sampled frames: truth and spectra; each clip is searched as a locate searches it
+    (Locator.clip_matches: its frames share their candidates by the second), once per clip."""
 
     t: np.ndarray
     xy: np.ndarray
     heading: np.ndarray
-    m: Matches  # (F, k)
+    spec: np.ndarray  # (F, C, K)
     imu: Imu | None = None
+    seen: dict[tuple[int, int], tuple[Matches, Matches]] = field(default_factory=dict)
+
+    def matches(self, loc: Locator, s: slice) -> tuple[Matches, Matches]:
+        """The clip's matches and the tracker's evidence (Locator.clip_matches)."""
+        key = (s.start, s.stop)
+        if key not in self.seen:
+            self.seen[key] = loc.clip_matches(self.spec[s], self.t[s])[:2]
+        return self.seen[key]
 
 
 def graph_tracker(loc: Locator, conf: dict[str, Any] | None = None) -> Tracker:
@@ -107,19 +117,18 @@ def stops_walk(root: Path, family: str, seed: int) -> str:
 
 
 def walk(root: Path, loc: Locator, name: str = "query") -> Walk:
-    """The family's query walk searched frame by frame (cached beside the venue)."""
-    cache = root / "bench-data" / f"tracking-{name}.npz"
-    key = f"{loc.venue_id}/{loc.generation}/{name}/{loc.conf['candidates']}"
+    """The family's query walk's spectra (cached beside the venue)."""
+    cache = root / "bench-data" / f"tracking-{name}-spec.npz"
+    key = f"{loc.venue_id}/{loc.generation}/{name}"
     if cache.exists():
         z = np.load(cache)
         if str(z["key"]) == key:
-            return Walk(z["t"], z["xy"], z["heading"], Matches(z["mi"], z["mc"], z["ms"], z["mh"]))
+            return Walk(z["t"], z["xy"], z["heading"], z["spec"])
     spec, t, xy, hd, _ = query_spectra(
         loc, root / f"{name}.mp4", load_track(root / f"{name}_track.json"), load_lens(root / "lens.json")
     )
-    m = loc.index.search(spec, loc.conf["candidates"])
-    np.savez(cache, key=key, t=t, xy=xy, heading=hd, mi=m.index, mc=m.coarse, ms=m.score, mh=m.heading)
-    return Walk(t, xy, hd, m)
+    np.savez(cache, key=key, t=t, xy=xy, heading=hd, spec=spec)
+    return Walk(t, xy, hd, spec)
 
 
 def walk_imu(root: Path, name: str = "query", seed: int = 0) -> Imu:
@@ -171,14 +180,14 @@ def run(
         s = slice(max(first, e - n + 1), e + 1)
         if e_prev is not None:  # the app's requests after the first (which films 1 s)
             s = slice(max(first, e - int(round(float(film.split()[0]) * n)) + 1), e + 1)
-        m, times = w.m.rows(s), w.t[s]
+        (m, evidence), times = w.matches(loc, s), w.t[s]
         t_now = float(times[-1])
         motion = imu.motion(t_prev, t_now) if imu is not None and t_prev is not None else None
         est = sequence(m, loc.xy, times, loc.conf)  # the clip alone, as a locate without a session answers
         c1 = confidence(est, loc.conf)
         own = loc.own_answers(est, len(times), "sequence")  # each part's own answer, as Locator.track's
         c0 = time.process_time()
-        state, pose = tr.update_clip(state, m, times, t_now, motion, own)
+        state, pose = tr.update_clip(state, evidence, times, t_now, motion, own)
         cpu = time.process_time() - c0
         t_prev, e_prev = t_now, e
         tx, ty = w.xy[e]

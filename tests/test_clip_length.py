@@ -17,7 +17,7 @@ from omninav.aggregate import NEAR_M, WALK_MPS, gate_deg, reach_m, sequence
 from omninav.heading import wrap_deg
 from omninav.index import Matches
 from omninav.lens import load_lens
-from omninav.locate import MAX_CLIP_S, Locator
+from omninav.locate import MAX_CLIP_S, Locator, clip_groups
 from omninav.presets import resolve
 from omninav.server import create_app
 from omninav.spectrum import encode_binary, encode_json
@@ -108,6 +108,43 @@ def test_a_five_second_walking_clip_is_located_and_a_longer_one_by_its_last_five
     assert (a.x, a.y, a.heading, a.venue_row) == pytest.approx((b.x, b.y, b.heading, b.venue_row), abs=1e-6)
     short = loc.estimate(spec[-3:])  # 0.3 s: three frames still answer
     assert np.isfinite([short.x, short.y, short.heading]).all()
+
+
+def test_clip_groups_are_the_seconds_counted_back_from_the_last_frame():
+    assert clip_groups(np.arange(10) / FPS).tolist() == [0] * 10  # a 1 s clip: one group
+    assert clip_groups(np.arange(25) / FPS).tolist() == [2] * 5 + [1] * 10 + [0] * 10
+    assert clip_groups(np.array([3.0])).tolist() == [0]
+
+
+def test_each_second_of_a_clip_shares_its_candidates(loc, small_ds, monkeypatch):
+    """A locate searches its clip second by second, every frame of a second verified against the
+    candidates of all of them; with `shared_candidates` off, each frame keeps its own."""
+    frames, _ = query_clip(small_ds, 60, n=25)
+    spec = clip_spectra(small_ds, frames, loc.conf)
+    t = np.arange(25) / FPS
+    k = loc.conf["candidates"]
+    own = loc.index.search(spec, k)
+    m, times = loc.search_clip(spec, t)
+    assert m.index.shape == (25, k) and np.array_equal(times, t)
+    groups = clip_groups(t)
+    gained = 0
+    for g in np.unique(groups):
+        rows = np.flatnonzero(groups == g)
+        union = set(own.index[rows].ravel().tolist())
+        for i in rows:
+            assert set(m.index[i].tolist()) <= union  # only the second's own candidates, no other's
+            assert m.score[i, 0] >= own.score[i].max() - 1e-5  # never worse than its own best
+            gained += len(set(m.index[i].tolist()) - set(own.index[i].tolist()))
+    assert gained > 0  # some frame kept a place only another frame of its second had found
+    # the tracker's evidence: the shared best, then each frame's own candidates as verified
+    best, evidence, _ = loc.clip_matches(spec, t)
+    assert np.array_equal(best.index, m.index) and evidence.index.shape == (25, 2 * k)
+    assert np.array_equal(evidence.index[:, :k], m.index) and np.array_equal(evidence.index[:, k:], own.index)
+    assert np.allclose(evidence.score[:, k:], own.score, atol=1e-5)
+    monkeypatch.setitem(loc.conf, "shared_candidates", False)
+    plain, _ = loc.search_clip(spec, t)
+    assert np.array_equal(plain.index, own.index) and np.array_equal(plain.score, own.score)
+    assert loc.clip_matches(spec, t)[1].index.shape == (25, k)  # without sharing: the frame's own
 
 
 def test_standing_and_turning_slowly_for_three_seconds(loc, small_ds):

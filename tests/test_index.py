@@ -77,3 +77,66 @@ def test_projected_keys_still_find_the_frame(modelled):
     best = m.index[np.arange(3), m.score.argmax(axis=1)]  # stage 2 decides among the candidates
     assert np.all(np.abs(best - rows) <= 1)
     assert np.all(m.score.max(axis=1) > 0.99)
+
+
+def _spoiled_clip(spec: np.ndarray, r: int, spoil: float, seed: int = 0) -> np.ndarray:
+    """Three frames filmed at venue rows r-1, r, r+1, turned by 40 degrees; the middle one
+    spoiled by noise `spoil` times its own energy (people in the way, another light)."""
+    k = np.arange(1, spec.shape[-1] + 1)
+    q = spec[[r - 1, r, r + 1]] * np.exp(2j * np.pi * k * 40.0 / 360.0)
+    rng = np.random.default_rng(seed)
+    noise = rng.normal(size=q[1].shape) + 1j * rng.normal(size=q[1].shape)
+    q[1] = q[1] + noise * spoil * np.linalg.norm(q[1]) / np.linalg.norm(noise)
+    q[1] /= np.linalg.norm(q[1])
+    return q.astype(np.complex64)
+
+
+def test_shared_candidates_give_a_spoiled_frame_its_place_back():
+    """A frame whose own magnitude ranking lost its place gets it from the frames filmed beside it."""
+    spec = venue_spectra(2000)
+    ix = Index(spec, np.random.default_rng(2).uniform(0, 360, 2000), device="cpu")
+    q = _spoiled_clip(spec, 700, 1.2)
+    own = ix.search(q, 4)
+    shared = ix.search(q, 4, groups=np.zeros(3, np.int64))
+    assert np.all(np.abs(own.index[1] - 700) > 20)  # its own candidates are elsewhere
+    assert abs(shared.index[1, 0] - 700) <= 3  # ... the clip's bring its place back
+    assert shared.score[1, 0] > own.score[1, 0]
+    # the unspoiled frames keep (at least) their own best match and its heading
+    for i in (0, 2):
+        assert shared.index[i, 0] == own.index[i, 0] and shared.score[i, 0] >= own.score[i, 0] - 1e-6
+        assert abs(shared.heading[i, 0] - own.heading[i, 0]) < 1e-3
+    assert np.all(np.diff(shared.score, axis=1) <= 1e-6)  # best first
+    assert np.all(shared.score <= shared.coarse + 1e-4)  # the magnitude bound still bounds them
+
+
+def test_shared_candidates_are_the_best_verified_of_the_group_union():
+    """Against a brute-force reference: every frame verified on its own against the union of its
+    group's stage-1 candidates, its k best kept; groups do not mix."""
+    spec = venue_spectra(600, seed=6)
+    ix = Index(spec, np.zeros(600), device="cpu")
+    rng = np.random.default_rng(7)
+    q = quantise(spec[[10, 11, 12, 300, 301]] * (1 + 0.3 * rng.normal(size=(5, 6, 32))))
+    groups = np.array([0, 0, 0, 1, 1])
+    own = ix.search(q, 5)
+    m = ix.search(q, 5, groups=groups)
+    for g in (0, 1):
+        rows = np.flatnonzero(groups == g)
+        union = np.unique(own.index[rows])
+        for i in rows:
+            score, _ = ix.verify(q[i : i + 1], union[None])
+            ref = union[np.argsort(-score[0], kind="stable")[:5]]
+            assert np.allclose(np.sort(m.score[i])[::-1], np.sort(score[0])[::-1][:5], atol=1e-5)
+            assert set(m.index[i]) <= set(union) and set(m.index[i]) == set(ref)
+
+
+def test_shared_candidates_keep_out_the_rows_a_frame_may_not_match():
+    """The quality map's leave-one-out: a row in a frame's excluded range never comes back for it
+    from another frame's candidates while rows it may match are left."""
+    spec = venue_spectra(400, seed=9)
+    ix = Index(spec, np.zeros(400), device="cpu")
+    q = spec[[100, 101, 102]]
+    lo, hi = np.array([95, 96, 97]), np.array([106, 107, 108])
+    m = ix.search(q, 6, exclude=(lo, hi), groups=np.zeros(3, np.int64))
+    for i in range(3):
+        assert not np.any((m.index[i] >= lo[i]) & (m.index[i] < hi[i]))
+        assert np.all(np.isfinite(m.score[i])) and np.all(m.score[i] > -1)

@@ -88,6 +88,24 @@ def test_gpu_search_matches_numpy(path):
     assert all(r in c for r, c in zip([10, n // 2, n - 1, 1234], a.index.tolist(), strict=True))  # found
 
 
+def test_gpu_shared_search_matches_numpy():
+    """A clip's frames sharing their candidates (index.Index.shared): the same kept scores."""
+    n = 5000
+    spec = walk_spectra(n, seed=6)
+    head = np.random.default_rng(7).uniform(0, 360, n).astype(np.float32)
+    arrays = index_arrays(spec, 0)
+    cpu = Index(spec, head, device="cpu", arrays=arrays)
+    gpu = Index(spec, head, device="gpu", arrays=arrays)
+    q = queries(spec, [10, 11, 12, 2000, 2001], seed=8)
+    groups = np.array([0, 0, 0, 1, 1])
+    a, b = cpu.search(q, 16, groups=groups), gpu.search(q, 16, groups=groups)
+    assert np.allclose(a.score, b.score, atol=SCORE_TOL)  # best first on both: the same values
+    same = a.index == b.index
+    assert same.mean() > 0.9  # (near-ties may swap places)
+    dh = np.mod(a.heading[same] - b.heading[same] + 180, 360) - 180
+    assert np.allclose(dh, 0, atol=HEADING_TOL)
+
+
 @pytest.mark.parametrize("ordered", [True, False])
 def test_gpu_top_k_matches_numpy_on_long_rows(ordered):
     """The sampled-threshold top-k alone, on long correlated rows (many near-equal neighbours)."""

@@ -7,7 +7,7 @@ from omninav.curves import extract_curves, gray_world, normalise, soft_clip
 from omninav.errors import OmninavError
 from omninav.extract import Extractor
 from omninav.heading import correlation, peak, relative_heading, wrap_deg
-from omninav.presets import TWO_BANDS, n_curves, resolve, settings_id
+from omninav.presets import TWO_BANDS, feature_keys, n_curves, resolve, settings_id
 from omninav.spectrum import (
     HEADER_BYTES,
     MAX_RECORD_BYTES,
@@ -128,6 +128,16 @@ def test_soft_clip_settings_are_refused_unless_a_positive_number_or_null(bad):
         resolve("default", {"soft_clip_sd": bad})
     assert resolve("default", {"soft_clip_sd": None})["soft_clip_sd"] is None
     assert resolve("default", {"soft_clip_sd": 2})["soft_clip_sd"] == 2
+
+
+@pytest.mark.parametrize("bad", [None, 0, 1, "false", "true"])
+def test_shared_candidates_is_true_or_false_and_not_a_feature_setting(bad):
+    with pytest.raises(OmninavError, match="shared_candidates"):
+        resolve("default", {"shared_candidates": bad})
+    on, off = resolve("default"), resolve("default", {"shared_candidates": False})
+    assert on["shared_candidates"] is True and resolve("paper")["shared_candidates"] is False
+    # how a clip is searched is the server's: the phone's features, and their settings id, are the same
+    assert settings_id(on) == settings_id(off) and "shared_candidates" not in feature_keys(on)
 
 
 def test_band_channels_give_each_band_its_own_curves_in_the_records_order():

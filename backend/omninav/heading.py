@@ -3,13 +3,15 @@
 If a query panorama is a venue panorama turned by s columns, q(j) = v(j + s), its harmonics are
 Q_k = V_k exp(i 2 pi k s / W). The correlation of the two, summed over all curves (one camera, one
 rotation), r(s') = sum_k Re(Q_k conj(V_k) exp(-i 2 pi k s' / W)), peaks at s' = s. We sample r at
-`n_shifts` points with one inverse FFT and refine the peak by a parabola: sub-degree headings
+`n_shifts` points (one real matrix product, cross_correlation) and refine the peak by a parabola: sub-degree headings
 from the few harmonics the record carries. The peak value is also the match score (a cosine).
 """
 
 from __future__ import annotations
 
 from typing import Any
+
+import numpy as np
 
 from .arrays import namespace_of
 
@@ -20,14 +22,38 @@ def correlation(fq: Any, fv: Any, n_shifts: int = 256) -> Any:
     Sample m is the shift m * 360 / n_shifts degrees; values are cosines in [-1, 1].
     """
     xp = namespace_of(fq)
-    x = (fq * xp.conj(fv)).sum(axis=-2)  # (..., K) cross-power, summed over curves
+    return cross_correlation((fq * xp.conj(fv)).sum(axis=-2), n_shifts)  # cross-power, summed over curves
+
+
+def cross_correlation(x: Any, n_shifts: int = 256) -> Any:
+    """(..., K) cross-power of two frames' harmonics 1..K, summed over curves -> (..., n_shifts)
+    correlation over shifts (correlation()'s, for callers that form the cross-power otherwise).
+
+    r(m) = sum_k Re(conj(X_k) e^{i 2 pi k m / n}) = sum_k Re X_k cos + Im X_k sin: one real matrix
+    product with a (2K, n) basis. It is the inverse real FFT of the conjugated, zero-padded
+    cross-power, but with K = 16 harmonics padded to 65 bins the FFT computed four times the
+    numbers it needs: the product is 4x faster here (stage 2 of a shared search, index.py)."""
+    xp = namespace_of(x)
     k = x.shape[-1]
     if n_shifts < 2 * k + 2:
         raise ValueError(f"n_shifts must be at least {2 * k + 2} for {k} harmonics")
-    pad = xp.zeros(x.shape[:-1] + (n_shifts // 2 + 1,), dtype=x.dtype)
-    pad[..., 1 : k + 1] = xp.conj(x)
-    # irfft computes (1/n)(Y0 + 2 sum Re(Y_k e^{+i...})); undo both factors.
-    return xp.fft.irfft(pad, n=n_shifts, axis=-1) * (n_shifts / 2.0)
+    real = x.real.dtype
+    basis = _shift_basis(xp, k, n_shifts, real)
+    return xp.concatenate([x.real, x.imag], axis=-1) @ basis
+
+
+_BASES: dict[tuple[str, int, int, str], Any] = {}
+
+
+def _shift_basis(xp: Any, k: int, n: int, dtype: Any) -> Any:
+    """(2K, n): cos and sin of 2 pi k m / n for k = 1..K (rows) and shifts m (columns), kept per
+    array module, size and precision (a few KB each)."""
+    key = (xp.__name__, k, n, str(dtype))
+    b = _BASES.get(key)
+    if b is None:
+        theta = 2.0 * np.pi * np.outer(np.arange(1, k + 1), np.arange(n)) / n
+        b = _BASES[key] = xp.asarray(np.concatenate([np.cos(theta), np.sin(theta)]).astype(dtype))
+    return b
 
 
 def peak(r: Any) -> tuple[Any, Any]:
@@ -35,9 +61,12 @@ def peak(r: Any) -> tuple[Any, Any]:
     xp = namespace_of(r)
     n = r.shape[-1]
     i = xp.argmax(r, axis=-1)
-    y0 = xp.take_along_axis(r, i[..., None], axis=-1)[..., 0]
-    ym = xp.take_along_axis(r, ((i - 1) % n)[..., None], axis=-1)[..., 0]
-    yp = xp.take_along_axis(r, ((i + 1) % n)[..., None], axis=-1)[..., 0]
+    # the three samples by flat index (three take_along_axis cost as much as the argmax)
+    flat = r.reshape(-1)
+    base = (xp.arange(i.size) * n).reshape(i.shape)
+    y0 = flat[base + i]
+    ym = flat[base + (i - 1) % n]
+    yp = flat[base + (i + 1) % n]
     den = ym - 2.0 * y0 + yp
     safe = xp.where(xp.abs(den) > 1e-12, den, -1.0)
     d = xp.where(xp.abs(den) > 1e-12, 0.5 * (ym - yp) / safe, 0.0)

@@ -10,13 +10,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .aggregate import AGGREGATORS, Estimate, confidence
+from .aggregate import AGGREGATORS, SPAN_S, Estimate, confidence
 from .calib.correct import ClipLens, clip_spectra
 from .errors import OmninavError
 from .extract import Extractor, Extractors
 from .index import Index, Matches
 from .lens import Lens
-from .presets import current_confidence
+from .presets import DEFAULTS, current_confidence
 from .store import Store, key_dims_for
 
 if TYPE_CHECKING:
@@ -32,6 +32,15 @@ DEFAULT_CLIP_FPS = 10.0  # timing assumed for a directory of frames, which carri
 MAX_CLIP_S = 5.0
 MAX_CLIP_FRAMES = 60
 MATCH_FIELDS = tuple(f.name for f in fields(Matches))
+
+
+def clip_groups(times: np.ndarray) -> np.ndarray:
+    """(Q,) frame times of a clip -> (Q,) the second of the clip each frame is in, counted back
+    from its last frame (0: the last SPAN_S): the frames that share their candidates
+    (index.Index.shared). By the second, not the whole clip: a 5 s clip's first frames were filmed
+    metres from its last, and the phase correlations grow with the square of the frames shared."""
+    t = np.asarray(times, np.float64)
+    return np.floor((t[-1] - t) / SPAN_S + 1e-6).astype(np.int64) if len(t) else np.zeros(0, np.int64)
 
 
 def answer_heading(h: float) -> float:
@@ -93,7 +102,7 @@ class Locator:
 
     def estimate(self, q_spec: np.ndarray, times: np.ndarray | None = None, aggregate: str | None = None) -> Estimate:
         agg = self._aggregation(aggregate)
-        m, times = self._search(q_spec, times)
+        m, times = self.search_clip(q_spec, times)
         return AGGREGATORS[agg](m, self.xy, times, self.conf)
 
     def _aggregation(self, aggregate: str | None) -> str:
@@ -102,8 +111,22 @@ class Locator:
             raise OmninavError(f"unknown aggregation {agg!r} (use median or sequence)")
         return str(agg)
 
-    def _search(self, q_spec: np.ndarray, times: np.ndarray | None) -> tuple[Matches, np.ndarray]:
-        """A clip's candidate matches (its last MAX_CLIP_S, at most MAX_CLIP_FRAMES) and their times."""
+    def search_clip(self, q_spec: np.ndarray, times: np.ndarray | None) -> tuple[Matches, np.ndarray]:
+        """A clip's candidate matches (its last MAX_CLIP_S, at most MAX_CLIP_FRAMES) and their times,
+        searched as every answer is: the frames of each second of the clip share their candidates
+        (clip_groups, index.Index.shared) unless the venue's `shared_candidates` is off."""
+        m, _, times = self.clip_matches(q_spec, times)
+        return m, times
+
+    def clip_matches(self, q_spec: np.ndarray, times: np.ndarray | None) -> tuple[Matches, Matches, np.ndarray]:
+        """search_clip(), and the tracker's evidence: each frame's shared best and, beside them,
+        its own stage-1 candidates as verified (2 x `candidates` a frame; the shared best alone
+        without shared candidates). Why both for the tracker: its emission counts a node that none
+        of a frame's matches is near as the frame's worst kept score. Of the shared best alone,
+        that floor sits as high as every door of a corridor of identical doors, and a track along
+        one slid a door for seconds at a time (long-bare and ring-bare, with the phone's steps);
+        the frame's own candidates keep the floor where it was, and the shared best still give
+        the places the clip found their verified scores (docs/benchmarks.md, "Shared candidates")."""
         if q_spec.ndim != 3 or q_spec.shape[0] == 0:
             raise OmninavError("a clip needs at least one frame")
         if times is None:
@@ -114,7 +137,13 @@ class Locator:
         # the frames less than MAX_CLIP_S before the last (50 at 10 frames/s), at most MAX_CLIP_FRAMES
         keep = max(1, min(MAX_CLIP_FRAMES, int(np.count_nonzero(times > times[-1] - MAX_CLIP_S + 1e-6))))
         q_spec, times = q_spec[-keep:], times[-keep:]
-        return self.index.search(q_spec, self.conf["candidates"]), times
+        k = self.conf["candidates"]
+        if not self.conf.get("shared_candidates", DEFAULTS["shared_candidates"]):
+            m = self.index.search(q_spec, k)
+            return m, m, times
+        best, own = self.index.search_shared(q_spec, k, clip_groups(times))
+        both = Matches(*(np.concatenate([getattr(best, f), getattr(own, f)], axis=1) for f in MATCH_FIELDS))
+        return best, both, times
 
     # ---- tracking while walking (tracking.py) ----------------------------------------------------
     @property
@@ -195,11 +224,11 @@ class Locator:
         second by second (Tracker.update_clip), `motion` shared among the seconds; the Estimate
         returned is the whole clip's, as a locate without a session answers it."""
         agg = self._aggregation(aggregate)
-        m, times = self._search(q_spec, times)
+        m, evidence, times = self.clip_matches(q_spec, times)
         e = AGGREGATORS[agg](m, self.xy, times, self.conf)
         now = float(times[-1]) if t_now is None else float(t_now)
         new, pose = tracker.update_clip(
-            state, m, times - times[-1] + now, now, motion, self.own_answers(e, len(times), agg)
+            state, evidence, times - times[-1] + now, now, motion, self.own_answers(e, len(times), agg)
         )
         return new, pose, e
 
@@ -209,14 +238,18 @@ class Locator:
         """What each part of a clip answers alone (the venue's aggregation; its confidence by the
         rules' own model of the clip, ClipAnswer.of), for the filter's rules of the clip's own
         answer (Tracker.update_clip): `whole`, the clip's own Estimate, when the part is the whole
-        clip (`frames` frames), else the part's."""
+        clip (`frames` frames), else the part's, from the part's first `candidates` matches a
+        frame (of the tracker's evidence, clip_matches: the shared best, as a locate answers)."""
         from .tracking import ClipAnswer
 
         agg = self._aggregation(aggregate)
+        k = self.conf["candidates"]
 
         def own(m: Matches, times: np.ndarray) -> ClipAnswer:
-            e = whole if len(times) == frames else AGGREGATORS[agg](m, self.xy, times, self.conf)
-            return ClipAnswer.of(e, self.conf)
+            if len(times) == frames:
+                return ClipAnswer.of(whole, self.conf)
+            m = Matches(*(np.asarray(getattr(m, f))[:, :k] for f in MATCH_FIELDS))
+            return ClipAnswer.of(AGGREGATORS[agg](m, self.xy, times, self.conf), self.conf)
 
         return own
 

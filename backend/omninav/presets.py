@@ -34,6 +34,10 @@ DEFAULTS: dict[str, Any] = {
     "n_harmonics": 32,  # leading FFT harmonics kept (1..K; the DC term carries no shape)
     # Search
     "candidates": 16,  # venue frames kept per query frame by the magnitude stage, then verified
+    # each frame of a clip's second verified against every candidate the magnitude stage kept for
+    # any frame of that second, keeping its `candidates` best (index.py, "Shared candidates"); a
+    # search setting, not a feature one: a venue modelled before it reads this default
+    "shared_candidates": True,
     # Above `key_project_above` frames, stage 1 first shortlists with keys projected to
     # `key_dims` dims (less memory traffic), then re-ranks the shortlist with all C*K magnitudes
     "key_dims": 32,
@@ -130,7 +134,13 @@ def current_confidence(conf: dict[str, Any]) -> dict[str, Any]:
 
 PRESETS: dict[str, dict[str, Any]] = {
     # The paper's method as published: the intensity curve of one band, median of best indices.
-    "paper": {"channels": ["I"], "bands": [[-20.0, 20.0]], "n_harmonics": 32, "aggregate": "median"},
+    "paper": {
+        "channels": ["I"],
+        "bands": [[-20.0, 20.0]],
+        "n_harmonics": 32,
+        "aggregate": "median",
+        "shared_candidates": False,
+    },
     # The paper's six curves (H, S, I and their gradients), one band, with our aggregation.
     "six": {"n_harmonics": 32},
     # Our default. Each change over "six" is measured in docs/benchmarks.md:
@@ -175,10 +185,18 @@ def resolve(name: str = "default", overrides: dict[str, Any] | None = None) -> d
     conf.update(copy.deepcopy(overrides or {}))
     conf["preset"] = name
     _check_confidence(conf)
+    _check_shared(conf)
     _check_soft_clip(conf)
     _check_band_channels(conf)
     _check_level(conf)
     return conf
+
+
+def _check_shared(conf: dict[str, Any]) -> None:
+    """true or false: a string such as "false" would read as true."""
+    v = conf.get("shared_candidates")
+    if not isinstance(v, bool):
+        raise OmninavError(f"shared_candidates must be true or false; got {v!r}")
 
 
 def _check_level(conf: dict[str, Any]) -> None:

@@ -38,6 +38,7 @@ import numpy as np
 from .aggregate import AGGREGATORS
 from .index import Index, Matches
 from .model_venue import Progress
+from .presets import DEFAULTS
 from .store import Generation, key_dims_for
 
 RADIUS_M = 2.0  # an answer this close to the walk is right
@@ -103,6 +104,7 @@ def quality_map(
     walked = _walked(xy, vid)
     aggregate = AGGREGATORS[conf["aggregate"]]
     k = conf["candidates"]
+    shared = conf.get("shared_candidates", DEFAULTS["shared_candidates"])
     chunk = max(n, min(CHUNK_FRAMES, CHUNK_CELLS // max(n_frames, 1)))
     total = sum(len(r) for r in segs)
     out: list[dict[str, Any]] = []
@@ -120,7 +122,9 @@ def quality_map(
         # each frame's exclusion [lo, hi): the rows of its video within LEAVE_OUT_M along the walk
         lo = np.searchsorted(walked, walked[rows] - LEAVE_OUT_M, side="left")
         hi = np.searchsorted(walked, walked[rows] + LEAVE_OUT_M, side="right")
-        m = index.search(np.asarray(spectra[rows]), k, exclude=(lo, hi))
+        # each segment a clip: its frames share their candidates, as a locate's second does
+        groups = np.repeat(np.arange(len(group)), [len(r) for r in group]) if shared else None
+        m = index.search(np.asarray(spectra[rows]), k, exclude=(lo, hi), groups=groups)
         at = 0
         for r in group:
             w = slice(at, at + len(r))
