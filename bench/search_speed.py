@@ -8,7 +8,8 @@ For N = 1,000 ... 8,000, then 100,000 and 1,000,000, it times
     so that their candidates differ as a real clip's do: `union` rows verified a frame) and for
     the worst case, ten frames from ten places (160 rows a frame),
   - `locate`: the shared search plus clip aggregation (what `omninav locate` does after extraction),
-  - `loop`: the paper's sequential CPU search, a per-frame Python loop (N <= 8,000 only),
+  - `loop`: the paper's sequential CPU search, a per-frame Python loop (N <= 8,000 only);
+    `speed-up` is loop against locate (since shared candidates, the shared search's locate),
 in the same run on the same data, and prints the machine it ran on. Venue spectra are synthetic
 (a smooth random walk in the Fourier domain), which costs the same to search as real ones.
 

@@ -22,6 +22,7 @@ from omninav.presets import resolve
 from omninav.server import create_app
 from omninav.spectrum import encode_binary, encode_json
 from omninav.synth.walks import QUERY, Pose, render_frames
+from omninav.tracking import ClipAnswer
 from server_helpers import TOKEN, Api, clip_spectra, heading_error, query_clip
 
 CONF = resolve("default")
@@ -114,6 +115,8 @@ def test_clip_groups_are_the_seconds_counted_back_from_the_last_frame():
     assert clip_groups(np.arange(10) / FPS).tolist() == [0] * 10  # a 1 s clip: one group
     assert clip_groups(np.arange(25) / FPS).tolist() == [2] * 5 + [1] * 10 + [0] * 10
     assert clip_groups(np.array([3.0])).tolist() == [0]
+    # a time that is no number, or one after the last, goes with the last second (no error)
+    assert clip_groups(np.array([0.0, np.nan, 0.3, 0.2])).tolist() == [0, 0, 0, 0]
 
 
 def test_each_second_of_a_clip_shares_its_candidates(loc, small_ds, monkeypatch):
@@ -145,6 +148,27 @@ def test_each_second_of_a_clip_shares_its_candidates(loc, small_ds, monkeypatch)
     plain, _ = loc.search_clip(spec, t)
     assert np.array_equal(plain.index, own.index) and np.array_equal(plain.score, own.score)
     assert loc.clip_matches(spec, t)[1].index.shape == (25, k)  # without sharing: the frame's own
+
+
+def test_a_tracked_clip_gives_the_tracker_both_and_each_part_answers_from_the_shared_best(loc, small_ds, monkeypatch):
+    frames, _ = query_clip(small_ds, 60, n=25)
+    spec = clip_spectra(small_ds, frames, loc.conf)
+    t = np.arange(25) / FPS
+    k = loc.conf["candidates"]
+    tracker, seen = loc.tracker, {}
+    update_clip = tracker.update_clip
+
+    def spy(state, m, times, t_now, motion, answer=None):
+        seen["width"], seen["part"] = m.index.shape[1], answer(m.rows(slice(0, 5)), times[:5])
+        return update_clip(state, m, times, t_now, motion, answer)
+
+    monkeypatch.setattr(tracker, "update_clip", spy)
+    _, _, e = loc.track(tracker, spec, t, None)
+    best, _ = loc.search_clip(spec, t)
+    assert seen["width"] == 2 * k  # the shared best and the frames' own candidates
+    assert e == sequence(best, loc.xy, t, loc.conf)  # the clip's own answer: the shared best's
+    # a part of the clip answers from the shared best alone, as a locate of those frames would
+    assert seen["part"] == ClipAnswer.of(sequence(best.rows(slice(0, 5)), loc.xy, t[:5], loc.conf), loc.conf)
 
 
 def test_standing_and_turning_slowly_for_three_seconds(loc, small_ds):

@@ -2,8 +2,10 @@
 test_index_gpu.py)."""
 
 import numpy as np
+import pytest
 
 from omninav.curves import normalise
+from omninav.heading import cross_correlation
 from omninav.index import Index, magnitude_keys, sequential_search, top_k
 from omninav.spectrum import quantise, spectrum
 
@@ -140,3 +142,37 @@ def test_shared_candidates_keep_out_the_rows_a_frame_may_not_match():
     for i in range(3):
         assert not np.any((m.index[i] >= lo[i]) & (m.index[i] < hi[i]))
         assert np.all(np.isfinite(m.score[i])) and np.all(m.score[i] > -1)
+
+
+def test_shared_candidates_on_a_venue_smaller_than_k_and_rows_kept_for_want_of_others():
+    """A venue of fewer frames than candidates keeps them all; rows a frame may not match come back
+    only when nothing else is left, then supporting nothing (score -1, coarse -inf)."""
+    spec = venue_spectra(30, seed=10)
+    ix = Index(spec, np.zeros(30), device="cpu")
+    q = spec[[3, 4, 5]]
+    m = ix.search(q, 16, groups=np.zeros(3, np.int64))
+    assert m.index.shape == (3, 16) and np.all(m.index[:, 0] == [3, 4, 5])
+    small = Index(spec[:10], np.zeros(10), device="cpu")
+    best, own = small.search_shared(q, 16, np.zeros(3, np.int64))
+    assert best.index.shape == own.index.shape == (3, 10)  # all ten, no error
+    lo, hi = np.zeros(3, np.int64), np.full(3, 25)  # only rows 25-29 may be matched
+    m = ix.search(q, 8, exclude=(lo, hi), groups=np.zeros(3, np.int64))
+    allowed = m.index >= 25
+    assert np.all(allowed.sum(axis=1) == 5) and np.all(allowed[:, :5])  # the allowed ones first
+    assert np.all(m.score[~allowed] == -1.0) and np.all(np.isneginf(m.coarse[~allowed]))
+    assert np.all(m.score[allowed] > -1.0) and np.all(np.isfinite(m.coarse[allowed]))
+
+
+@pytest.mark.parametrize("dtype", [np.complex64, np.complex128])
+def test_the_correlation_over_shifts_is_the_inverse_fft_of_the_cross_power(dtype):
+    rng = np.random.default_rng(11)
+    x = (rng.normal(size=(4, 7, 16)) + 1j * rng.normal(size=(4, 7, 16))).astype(dtype)
+    for n in (34, 64, 128, 129):
+        pad = np.zeros((4, 7, n // 2 + 1), np.complex128)
+        pad[..., 1:17] = np.conj(x)
+        ref = np.fft.irfft(pad, n=n, axis=-1) * (n / 2.0)
+        got = cross_correlation(x, n)
+        assert got.shape == (4, 7, n) and got.dtype == np.real(x).dtype
+        assert np.allclose(got, ref, atol=1e-4 if dtype == np.complex64 else 1e-10)
+    with pytest.raises(ValueError):
+        cross_correlation(x, 33)

@@ -31,8 +31,9 @@ def cross_correlation(x: Any, n_shifts: int = 256) -> Any:
 
     r(m) = sum_k Re(conj(X_k) e^{i 2 pi k m / n}) = sum_k Re X_k cos + Im X_k sin: one real matrix
     product with a (2K, n) basis. It is the inverse real FFT of the conjugated, zero-padded
-    cross-power, but with K = 16 harmonics padded to 65 bins the FFT computed four times the
-    numbers it needs: the product is 4x faster here (stage 2 of a shared search, index.py)."""
+    cross-power, but the search samples 8 shifts a harmonic (16 harmonics: 128 shifts from 65
+    bins, 49 of them zeros): the product is 4x faster there (stage 2 of a shared search,
+    index.py). Complex64 in, float32 out; complex128, float64."""
     xp = namespace_of(x)
     k = x.shape[-1]
     if n_shifts < 2 * k + 2:
@@ -42,13 +43,14 @@ def cross_correlation(x: Any, n_shifts: int = 256) -> Any:
     return xp.concatenate([x.real, x.imag], axis=-1) @ basis
 
 
-_BASES: dict[tuple[str, int, int, str], Any] = {}
+_BASES: dict[tuple[str, int, int, str], Any] = {}  # (two threads may build one at once: harmless)
 
 
 def _shift_basis(xp: Any, k: int, n: int, dtype: Any) -> Any:
     """(2K, n): cos and sin of 2 pi k m / n for k = 1..K (rows) and shifts m (columns), kept per
     array module, size and precision (a few KB each)."""
-    key = (xp.__name__, k, n, str(dtype))
+    # (a CuPy basis lives on one device: each device its own)
+    key = (xp.__name__ if xp is np else f"{xp.__name__}:{xp.cuda.Device().id}", k, n, str(dtype))
     b = _BASES.get(key)
     if b is None:
         theta = 2.0 * np.pi * np.outer(np.arange(1, k + 1), np.arange(n)) / n

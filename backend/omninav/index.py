@@ -223,6 +223,7 @@ class Index:
         xp = self.xp
         q = xp.asarray(q_spec)
         qn = q.shape[0]
+        k = int(idx.shape[1])  # coarse() keeps min(k, venue frames)
         out_i = xp.zeros((qn, k), dtype=idx.dtype)
         out_s = xp.zeros((qn, k), dtype=xp.float32)
         out_h = xp.zeros((qn, k), dtype=xp.float32)
@@ -232,7 +233,7 @@ class Index:
         for g in np.unique(groups):
             rows = np.flatnonzero(groups == g)
             r = xp.asarray(rows)
-            u = xp.unique(idx[r].ravel())  # at least k: each frame's own candidates are distinct
+            u = xp.unique(idx[r].ravel())  # at least k: each frame's own candidates are distinct rows
             score, heading = self.verify_all(q[r], u)
             at = xp.searchsorted(u, idx[r])  # the frame's own candidates among them (u is sorted)
             own_s[r] = xp.take_along_axis(score, at, axis=1)

@@ -27,7 +27,8 @@ EXTRACTORS = 8  # lenses whose remaps a Locator keeps
 DEFAULT_CLIP_FPS = 10.0  # timing assumed for a directory of frames, which carries none
 # A clip is located by its last MAX_CLIP_S seconds, at most MAX_CLIP_FRAMES frames of them: the
 # answer is the pose at the last frame, evidence from long ago says little more about it, and the
-# sequence aggregation costs (frames * candidates)^2. These are the engine's, not a venue's: a venue
+# sequence aggregation costs (frames * candidates)^2 (the tracker's fit reads twice the candidates a
+# frame: Locator.clip_matches). These are the engine's, not a venue's: a venue
 # modelled when a clip was cut to `max_clip_frames` (30) takes 5 s clips as well.
 MAX_CLIP_S = 5.0
 MAX_CLIP_FRAMES = 60
@@ -40,7 +41,11 @@ def clip_groups(times: np.ndarray) -> np.ndarray:
     (index.Index.shared). By the second, not the whole clip: a 5 s clip's first frames were filmed
     metres from its last, and the phase correlations grow with the square of the frames shared."""
     t = np.asarray(times, np.float64)
-    return np.floor((t[-1] - t) / SPAN_S + 1e-6).astype(np.int64) if len(t) else np.zeros(0, np.int64)
+    if len(t) == 0:
+        return np.zeros(0, np.int64)
+    back = np.nan_to_num(t[-1] - t, nan=0.0, posinf=0.0, neginf=0.0)  # a time that is no number: the last second
+    groups: np.ndarray = np.floor(np.clip(back, 0.0, MAX_CLIP_S) / SPAN_S + 1e-6).astype(np.int64)
+    return groups
 
 
 def answer_heading(h: float) -> float:
@@ -120,13 +125,14 @@ class Locator:
 
     def clip_matches(self, q_spec: np.ndarray, times: np.ndarray | None) -> tuple[Matches, Matches, np.ndarray]:
         """search_clip(), and the tracker's evidence: each frame's shared best and, beside them,
-        its own stage-1 candidates as verified (2 x `candidates` a frame; the shared best alone
-        without shared candidates). Why both for the tracker: its emission counts a node that none
-        of a frame's matches is near as the frame's worst kept score. Of the shared best alone,
-        that floor sits as high as every door of a corridor of identical doors, and a track along
-        one slid a door for seconds at a time (long-bare and ring-bare, with the phone's steps);
-        the frame's own candidates keep the floor where it was, and the shared best still give
-        the places the clip found their verified scores (docs/benchmarks.md, "Shared candidates")."""
+        its own stage-1 candidates as verified (2 x `candidates` a frame; with `shared_candidates`
+        off, the frame's own candidates, the same as the answer's). Why both for the tracker: its
+        emission counts a node that none of a frame's matches is near as the frame's worst kept
+        score. Of the shared best alone, that floor sits as high as every door of a corridor of
+        identical doors, and a track along one slid a door for seconds at a time (long-bare and
+        ring-bare, with the phone's steps); the frame's own candidates keep the floor where it
+        was, and the shared best still give the places the clip found their verified scores
+        (docs/benchmarks.md, "Shared candidates")."""
         if q_spec.ndim != 3 or q_spec.shape[0] == 0:
             raise OmninavError("a clip needs at least one frame")
         if times is None:
