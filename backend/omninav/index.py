@@ -214,8 +214,8 @@ class Index:
         return score, (self.heading[rows][None, :] + rel) % 360.0
 
     def shared(
-        self, q_spec: Any, idx: Any, groups: np.ndarray, k: int, exclude: tuple[Any, Any] | None
-    ) -> tuple[Matches, Matches]:
+        self, q_spec: Any, idx: Any, groups: np.ndarray, k: int, exclude: tuple[Any, Any] | None, own: bool = False
+    ) -> tuple[Matches, Matches | None]:
         """Stage 2 with shared candidates: each frame verified against every stage-1 candidate of
         its group (`groups` (Q,) labels); (Q, k) idx from coarse().
         -> (each frame's k best of them, best first; its own k stage-1 candidates as verified, for
@@ -235,9 +235,10 @@ class Index:
             r = xp.asarray(rows)
             u = xp.unique(idx[r].ravel())  # at least k: each frame's own candidates are distinct rows
             score, heading = self.verify_all(q[r], u)
-            at = xp.searchsorted(u, idx[r])  # the frame's own candidates among them (u is sorted)
-            own_s[r] = xp.take_along_axis(score, at, axis=1)
-            own_h[r] = xp.take_along_axis(heading, at, axis=1)
+            if own:  # the frame's own candidates among them (u is sorted)
+                at = xp.searchsorted(u, idx[r])
+                own_s[r] = xp.take_along_axis(score, at, axis=1)
+                own_h[r] = xp.take_along_axis(heading, at, axis=1)
             if exclude is not None:  # a row a frame may not match never wins over one it may
                 lo, hi = (xp.asarray(e)[r][:, None] for e in exclude)
                 score = xp.where((u[None, :] >= lo) & (u[None, :] < hi), -xp.inf, score)
@@ -248,19 +249,23 @@ class Index:
         # the magnitude bound of each kept pair (Matches.coarse): cheap for k rows a frame
         kq = magnitude_keys(q)
         coarse = (self.keys[out_i] @ kq[:, :, None])[..., 0]
-        own_c = (self.keys[idx] @ kq[:, :, None])[..., 0]
         if exclude is not None:  # kept for want of others (an excluded row): supports nothing
             bad = ~xp.isfinite(out_s)
             out_s = xp.where(bad, -1.0, out_s)
             coarse = xp.where(bad, -xp.inf, coarse)
         best_m = Matches(to_numpy(out_i), to_numpy(coarse), to_numpy(out_s), to_numpy(out_h))
+        if not own:  # (a plain search's: the tracker's own columns are not made for nothing)
+            return best_m, None
+        own_c = (self.keys[idx] @ kq[:, :, None])[..., 0]
         return best_m, Matches(to_numpy(idx), to_numpy(own_c), to_numpy(own_s), to_numpy(own_h))
 
     def search_shared(self, q_spec: np.ndarray, k: int, groups: np.ndarray) -> tuple[Matches, Matches]:
         """search() with `groups`, and each frame's own k stage-1 candidates as verified beside
         its shared best (what the tracker reads: tracking.Tracker.emission)."""
         idx, _ = self.coarse(q_spec, k)
-        return self.shared(q_spec, idx, groups, k, None)
+        best, own = self.shared(q_spec, idx, groups, k, None, own=True)
+        assert own is not None
+        return best, own
 
     def search(
         self, q_spec: np.ndarray, k: int, exclude: tuple[Any, Any] | None = None, groups: np.ndarray | None = None
