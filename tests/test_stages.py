@@ -140,6 +140,14 @@ def test_shared_candidates_is_true_or_false_and_not_a_feature_setting(bad):
     assert settings_id(on) == settings_id(off) and "shared_candidates" not in feature_keys(on)
 
 
+@pytest.mark.parametrize("bad", [None, 0, 1, "false"])
+def test_track_still_cap_is_true_or_false_and_not_a_feature_setting(bad):
+    with pytest.raises(OmninavError, match="track_still_cap"):
+        resolve("default", {"track_still_cap": bad})
+    on, off = resolve("default"), resolve("default", {"track_still_cap": False})
+    assert on["track_still_cap"] is True and settings_id(on) == settings_id(off)
+
+
 def test_band_channels_give_each_band_its_own_curves_in_the_records_order():
     pano = smooth_pano(41, 1440)
     el = np.linspace(20, -20, 41)

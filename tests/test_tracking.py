@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import struct
 import zlib
-from dataclasses import fields
+from dataclasses import fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -336,11 +336,11 @@ def test_the_recent_clips_mean_is_saved_with_the_state(twin: Venue) -> None:
     # the sections in another order are no state this code wrote
     rc = b"RC" + struct.pack("<d", 0.3)
     head = lone.to_bytes()[: -4 - len(rc)]
-    with_alike = new.to_bytes()[:-4]
+    with_alike = replace(new, best=None).to_bytes()[:-4]
     swapped = head + rc + with_alike[len(head) + 0 : -len(rc)]
     assert TrackState.from_bytes(swapped + struct.pack("<I", zlib.crc32(swapped)), twin.graph) is None
     # a mean that is no probability, or bytes after it: refused like any corrupt state
-    body = b[:-4]
+    body = replace(new, best=None).to_bytes()[:-4]
     for bad in (body[:-8] + struct.pack("<d", 1.5), body[:-8] + struct.pack("<d", float("nan")), body + b"x"):
         assert TrackState.from_bytes(bad + struct.pack("<I", zlib.crc32(bad)), twin.graph) is None
 
@@ -807,6 +807,88 @@ def test_standing_still_keeps_the_place(corridor: Venue) -> None:
         assert stay[d_stay > 2.5].sum() > 0.01 * dt  # never forbidden: clips can say otherwise
     assert stay[d_stay <= 2.5].sum() > 0.45
     assert walk[d_stay <= 13.0].sum() > 0.99  # 1.8 m/s at most (and a slack of a metre or two)
+
+
+def test_the_node_the_last_clip_matched_best_is_saved_with_the_state(twin: Venue) -> None:
+    x0, y0, _, _ = TWIN_RING
+    t, xy, hd = walk_poses([(12.0, y0), (x0, y0)])
+    state = run_walk(twin, t, xy, hd, twin_evidence(0.8, 0.8))[-1][-1]
+    assert state.best is not None and float(np.hypot(*(twin.tracker.xy[state.best] - xy[-1]))) <= 1.5
+    back = TrackState.from_bytes(state.to_bytes(), twin.graph)
+    assert back is not None and back.best == state.best and back.recent == state.recent
+    # saved before it existed: the same bytes less its section read with None
+    old = TrackState.from_bytes(replace(state, best=None).to_bytes(), twin.graph)
+    assert old is not None and old.best is None and old.alike is not None
+    # a node the graph does not have, or the sections in another order: refused like any corrupt state
+    body = replace(state, best=twin.tracker.n).to_bytes()[:-4]
+    assert TrackState.from_bytes(body + struct.pack("<I", zlib.crc32(body)), twin.graph) is None
+    both = replace(state, recent=0.3)
+    assert both.best is not None
+    bn, rc = b"BN" + struct.pack("<I", both.best), b"RC" + struct.pack("<d", 0.3)
+    body = both.to_bytes()[:-4]
+    assert body.endswith(rc + bn)
+    swapped = body[: -len(rc + bn)] + bn + rc
+    assert TrackState.from_bytes(swapped + struct.pack("<I", zlib.crc32(swapped)), twin.graph) is None
+
+
+def held_still(conf: dict, motion: Motion | None, updates: int = 30) -> tuple[list[float], float]:
+    """The same clip again and again, a second apart, from a fresh start: a phone held still
+    where the venue was never filmed, its view a moderate match to x = 20 m of a corridor and a
+    slightly worse one to x = 34 m. -> the answer's confidence after each update, and the
+    clip's own (what it answers alone, as Locator.track gives it)."""
+    v = Venue([(0.0, 0.0), (48.0, 0.0)], conf)
+    m = v.matches([[(20.0, 0.0, 90.0, 0.62), (34.0, 0.0, 90.0, 0.58)]] * 10, np.random.default_rng(4), per=2)
+    own = ClipAnswer.of(sequence(m, v.xy, np.arange(10) / FPS, v.conf), v.conf)
+    state, out = None, []
+    for u in range(updates):
+        times = u + np.arange(-0.9, 0.01, 0.1)
+        state, pose = v.tracker.update(state, m, times, float(times[-1]), motion if u else None, own)
+        assert err(pose, (20.0, 0.0)) <= 2.0  # the better match, every time
+        out.append(pose.confidence)
+    return out, own.confidence
+
+
+def test_a_phone_held_still_is_no_surer_than_its_clip() -> None:
+    """Its sensors say it has not moved (no step, no turn) and each clip is best where the last
+    was: the clip is the view filmed again, and the answer no surer than that clip alone.
+    Without the sensors (or with the rule off, as before) the repetition alone made it sure."""
+    unknown, clip = held_still({}, None)
+    still, _ = held_still({}, Motion(0, 0.0))
+    before, _ = held_still({"track_still_cap": False}, Motion(0, 0.0))
+    assert clip < 0.8  # a moderate match: the clip alone is not sure
+    assert max(unknown) >= 0.9 and max(before) >= 0.9
+    assert all(c <= clip + 1e-9 for c in still[1:])
+    # a turn is a move: the view changed, and the walk's evidence counts again
+    turned, _ = held_still({}, Motion(0, 40.0))
+    assert max(turned) >= 0.9
+
+
+def test_a_phone_counting_no_steps_while_its_user_moves_is_not_held_still(corridor: Venue) -> None:
+    """No step and no turn, yet each clip is best at another node than the last (a wheelchair,
+    a step counter that has stalled): the clips are new views, and the answers are those of the
+    filter without the rule."""
+    t, xy, hd = walk_poses([(0.5, 0.0), (40.0, 0.0)])
+
+    def unique(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
+        return [(x, y, h, 0.8)]
+
+    def walk(v: Venue) -> list:
+        rng = np.random.default_rng(0)
+        state, out = None, []
+        for e in range(int(FPS) - 1, len(t), int(FPS)):
+            w = slice(e - int(FPS) + 1, e + 1)
+            m = v.matches([unique(x, y, h) for (x, y), h in zip(xy[w], hd[w], strict=True)], rng, 1)
+            own = ClipAnswer.of(sequence(m, v.xy, t[w], v.conf), v.conf)
+            state, pose = v.tracker.update(state, m, t[w], float(t[e]), Motion(0, 0.0) if out else None, own)
+            out.append((pose, state.best, own.confidence, xy[e]))
+        return out
+
+    a = walk(corridor)
+    b = walk(Venue([(0.0, 0.0), (48.0, 0.0)], {"track_still_cap": False}))
+    assert [(p.node, p.confidence) for p, _, _, _ in a] == [(p.node, p.confidence) for p, _, _, _ in b]
+    assert all(err(p, truth) <= 2.0 for p, _, _, truth in a[2:])
+    # what keeps it out: each clip is best at another node than the last
+    assert all(b1 != b0 for (_, b0, _, _), (_, b1, _, _) in zip(a[:-1], a[1:], strict=True))
 
 
 def test_the_heading_without_a_match_near_the_answer_is_the_gyroscopes_or_unsure(corridor: Venue) -> None:

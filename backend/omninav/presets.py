@@ -82,6 +82,9 @@ DEFAULTS: dict[str, Any] = {
     "track_step_m": 0.7,
     "track_step_sigma_m": 0.5,
     "track_step_trust": 0.9,
+    # a phone held still (its sensors: no step, little turn) whose clip is best where the last was
+    # films the same view again: the answer is no surer than that clip alone (tracking.py)
+    "track_still_cap": True,
     "track_uniform": 1e-3,
     "track_backward": 0.3,
     "track_turn_gate_deg": 45.0,
@@ -194,9 +197,10 @@ def resolve(name: str = "default", overrides: dict[str, Any] | None = None) -> d
 
 def _check_shared(conf: dict[str, Any]) -> None:
     """true or false: a string such as "false" would read as true."""
-    v = conf.get("shared_candidates")
-    if not isinstance(v, bool):
-        raise OmninavError(f"shared_candidates must be true or false; got {v!r}")
+    for key in ("shared_candidates", "track_still_cap"):
+        v = conf.get(key)
+        if not isinstance(v, bool):
+            raise OmninavError(f"{key} must be true or false; got {v!r}")
 
 
 def _check_level(conf: dict[str, Any]) -> None:

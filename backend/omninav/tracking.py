@@ -53,6 +53,23 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
   median best score): the main belief, and so the answer, is unchanged; its confidence is not
   stood by until the walk and clips that match well agree. The second belief runs for this
   alone where a venue has no look-alikes.
+- **A phone held still** (`track_still_cap`): an HMM takes each clip as new evidence, but a
+  phone held on one spot films the same view again and again, and compounded every second a
+  moderate match to a place the user is not at (a room nobody filmed, another floor built like
+  the modelled one) became a sure answer within seconds: on the families' walks filmed where
+  the venue was never modelled, held still with the phone's sensors on, 90 of 246 spots ended
+  sure of a wrong place, 29 of 54 in a building like the modelled one (bench/elsewhere.py).
+  Held still, the walk adds nothing the clip does not say, so the answer is no surer than the
+  clip alone (its ClipAnswer confidence).
+  Held still: the phone's sensors say it has not moved since the last update (no step, a turn
+  under STILL_TURN_DEG) *and* the clip is best at the node the last one was. The node is the
+  guard: a wheelchair, or a phone whose step counter has stalled while its user walks, counts
+  no steps either, but each of its clips is best somewhere new. Without sensors nothing changes
+  (whether the phone moved is not known). The belief itself still gathers the repeated clips:
+  the first update that is not held (a step, a turn, another best node) answers with its full
+  confidence again. Tried first, and not kept: counting a held clip's
+  evidence a fifth as much; on the held-out families a fresh start held still inside the venue
+  then said "not sure" 21 % of the time instead of 8 % (docs/benchmarks.md).
 - **Facing**: the clip also says where the phone faces at each node (its best match's heading
   there). A move that walks backwards from that counts less (`track_backward`): people walk the
   way they hold the phone, and a corridor of repeating doors no longer lets the track slide back
@@ -127,6 +144,7 @@ MAGIC = b"ONT2"  # the nodes kept one by one
 MAGIC_ALL = b"ONTA"  # every node's belief and facing (zlib: a flat or broad belief packs small)
 ALIKE, ALIKE_ALL = b"AS", b"AW"  # then the second belief: its nodes one by one, or whole
 RECENT = b"RC"  # then the recent clips' mean confidence (float64)
+BEST = b"BN"  # then the node the last clip matched best (uint32)
 HEADER = "<4sdIfIB"  # magic, t, updates, heading (NaN: none), nodes of the graph, length of its key
 
 
@@ -167,6 +185,15 @@ class Motion:
 
     steps: int | None = None  # steps detected (DeviceMotion), None = unknown
     turn_deg: float | None = None  # gyroscope yaw change, clockwise +, None = unknown
+
+
+STILL_TURN_DEG = 10.0  # a phone that counted no step and turned less than this has not moved
+
+
+def _still(motion: Motion) -> bool:
+    """Whether the phone's sensors say it has not moved since the last update (no step, little
+    turn); unknown (no sensors) is not still."""
+    return motion.steps == 0 and motion.turn_deg is not None and abs(motion.turn_deg) < STILL_TURN_DEG
 
 
 def _clip_times(matches: Matches, times: np.ndarray) -> np.ndarray:
@@ -253,15 +280,19 @@ class TrackState:
     # the clips' own confidence, averaged over about the last track_recent_s seconds (None: no
     # clip said, or a state saved before it existed: the next clip's starts it)
     recent: float | None = None
+    # the node the last clip's evidence was best at (None: a state saved before it existed)
+    best: int | None = None
 
     def to_bytes(self) -> bytes:
         """A header with the graph's key, the belief (float16 relative to the largest) and facing
         (float16 degrees), then the second (cautious) belief if any (b"AS" or b"AW" and the same, without
-        facing), and a CRC-32. A belief's nodes with at least STORE_REL of the largest, when
-        there are at most MAX_STORED of them: each one's index (uint32), belief and facing, 8
-        bytes a node (6 without facing); more than that (a young belief, flat over much of a big
-        graph): every node's, zlib-compressed, so that the state says as much of every part
-        of the building as of the one that happens to be numbered first."""
+        facing), the recent clips' mean if any (b"RC", float64), the node the last clip was best at
+        if any (b"BN", uint32), in that order, and a CRC-32. A belief's nodes with at least
+        STORE_REL of the largest, when there are at most MAX_STORED of them: each one's index
+        (uint32), belief and facing, 8 bytes a node (6 without facing); more than that (a young
+        belief, flat over much of a big graph): every node's, zlib-compressed, so that the state
+        says as much of every part of the building as of the one that happens to be numbered
+        first."""
         p = np.asarray(self.belief, np.float64)
         face = np.full(len(p), np.nan) if self.facing is None else np.asarray(self.facing, np.float64)
         key = self.graph_key.encode()
@@ -281,6 +312,8 @@ class TrackState:
             body += (ALIKE_ALL if whole else ALIKE) + part
         if self.recent is not None:
             body += RECENT + struct.pack("<d", self.recent)
+        if self.best is not None:
+            body += BEST + struct.pack("<I", self.best)
         return body + struct.pack("<I", zlib.crc32(body))
 
     @staticmethod
@@ -288,7 +321,7 @@ class TrackState:
         """A state saved by to_bytes, or None: corrupt, or saved against another graph. A state
         saved without the second belief (or before it existed) reads with `alike` None (the
         next update starts it as the belief); one without the recent clips' confidence with
-        `recent` None."""
+        `recent` None; one without the last clip's best node with `best` None."""
         try:
             if len(b) < 4 or zlib.crc32(b[:-4]) != struct.unpack("<I", b[-4:])[0]:
                 return None
@@ -315,12 +348,18 @@ class TrackState:
                 off += len(RECENT) + 8
                 if not 0.0 <= recent <= 1.0:
                     return None
+            best = None
+            if b[off : off + len(BEST)] == BEST:
+                (best,) = struct.unpack_from("<I", b, off + len(BEST))
+                off += len(BEST) + 4
+                if best >= n:
+                    return None
             if off != len(b):
                 return None
         except (struct.error, UnicodeDecodeError, ValueError, zlib.error):
             return None
         h = float(heading) if np.isfinite(heading) else None
-        return TrackState(float(t), belief, key, int(updates), h, facing, alike, recent)
+        return TrackState(float(t), belief, key, int(updates), h, facing, alike, recent, best)
 
 
 def _pack(p: np.ndarray, face: np.ndarray | None) -> tuple[bool, bytes]:
@@ -766,6 +805,11 @@ class Tracker:
         # one clip can be an outlier (people in the way, a turn, a look-alike): it moves the odds
         # between two places by at most 1 / track_outlier
         rho = float(_conf(self.conf, "track_outlier"))
+        # held still: the sensors counted no step and little turn, and the clip is best at the
+        # node the last one was (a wheelchair, or a phone that counts no steps while its user
+        # walks, reaches other nodes' views): "A phone held still" above
+        best = int(np.argmax(e))
+        held = not fresh and state is not None and state.best == best and _still(motion)
         log_lik = float(_conf(self.conf, "track_beta")) * (e - e.max())
         post = prior * ((1 - rho) * np.exp(log_lik) + rho)
         post /= post.sum()
@@ -789,9 +833,11 @@ class Tracker:
             doubt = self.recent_min is not None and recent < self.recent_min
             if doubt or (clip.confidence >= SURE and self.elsewhere(pose, clip)):
                 pose = replace(pose, confidence=min(pose.confidence, self.doubt_cap))
+            if held and _conf(self.conf, "track_still_cap"):  # no surer than the clip alone
+                pose = replace(pose, confidence=min(pose.confidence, float(clip.confidence)))
         pose = replace(pose, restarted=bool(fresh))
         heading = pose.heading if pose.heading_known else None
-        state = TrackState(float(t_now), post, self.graph.key, updates + 1, heading, facing, post_a, recent)
+        state = TrackState(float(t_now), post, self.graph.key, updates + 1, heading, facing, post_a, recent, best)
         return state, pose
 
     def goes_on(self, state: TrackState, t_now: float) -> bool:
