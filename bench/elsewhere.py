@@ -92,41 +92,43 @@ def main() -> None:
         print(f"settings: {over}")
     names = family_names(a.families)
     seeds = [int(s) for s in a.seeds.split(",")]
-    locs: dict[tuple[str, int], tuple[Path, Locator]] = {}
+    locs: dict[tuple[str, int], Locator] = {}
+    walks: dict[tuple[str, int], Walk] = {}
 
-    def loc_of(name: str, seed: int) -> tuple[Path, Locator]:
+    def loc_of(name: str, seed: int) -> Locator:
         if (name, seed) not in locs:
-            root = dataset(name, seed)
-            locs[name, seed] = (root, venue(root, "default"))
+            locs[name, seed] = venue(dataset(name, seed), "default")
         return locs[name, seed]
+
+    def walk_of(name: str, seed: int) -> Walk:
+        """The walk's spectra, read once; a new Walk for each venue (its matches are that venue's)."""
+        if (name, seed) not in walks:
+            walks[name, seed] = walk(dataset(name, seed), loc_of(name, seed))
+        w = walks[name, seed]
+        return Walk(w.t, w.xy, w.heading, w.spec)
 
     out: list[dict[str, Any]] = []
     for name in names:
         split = FAMILIES[name].split
         for seed in seeds:
-            root, loc = loc_of(name, seed)
+            loc = loc_of(name, seed)
             fps = float(loc.conf["model_fps"])
             tr = graph_tracker(loc, over)
             queries = [("own", name, seed)]
             queries += [("look-alike", name, s) for s in seeds if s != seed]
             queries += [("other", n, seed) for n in names if n != name and FAMILIES[n].split == split]
             for kind, wname, wseed in queries:
-                wroot, wloc = loc_of(wname, wseed)
-                w = walk(wroot, wloc)
-                got = answered(run(loc, tr, w, 1.0, None, 0.0, True))
-                out.append({"split": split, "kind": kind, "mode": "walking", "venue": f"{name}/{seed}",
-                            "walk": f"{wname}/{wseed}", **got})  # fmt: skip
+                w = walk_of(wname, wseed)
+                where = {"split": split, "kind": kind, "venue": f"{name}/{seed}", "walk": f"{wname}/{wseed}"}
+                out.append({**where, "mode": "walking", **answered(run(loc, tr, w, 1.0, None, 0.0, True))})
                 for at in STILL_AT_S:
                     sw = still(w, at, fps)
                     if sw is None:
                         continue
-                    got = answered(run(loc, tr, sw, 1.0, None, 0.0, True))
-                    out.append({"split": split, "kind": kind, "mode": "still", "venue": f"{name}/{seed}",
-                                "walk": f"{wname}/{wseed}", "at": at, **got})  # fmt: skip
-                    # the same, with the phone's sensors: no step, no turn (what the app sends then)
-                    got = answered(run(loc, tr, sw, 1.0, STILL_IMU, 0.0, True))
-                    out.append({"split": split, "kind": kind, "mode": "still, IMU", "venue": f"{name}/{seed}",
-                                "walk": f"{wname}/{wseed}", "at": at, **got})  # fmt: skip
+                    # without and with the phone's sensors: no step, no turn (what the app sends then)
+                    for mode, imu in (("still", None), ("still, IMU", STILL_IMU)):
+                        got = answered(run(loc, tr, sw, 1.0, imu, 0.0, True))
+                        out.append({**where, "mode": mode, "at": at, **got})
                 print(f"  {name}/{seed} <- {wname}/{wseed} ({kind})", file=sys.stderr, flush=True)
 
     print(

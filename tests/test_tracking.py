@@ -127,18 +127,21 @@ def run_walk(
     seed: int = 0,
     motion=None,
     per: int = 4,
+    own: bool = False,
 ):
-    """Update the filter every `every` s with the 1 s clip ending there; -> per update (t, pose,
-    the single clip's Estimate, truth xy)."""
+    """Update the filter every `every` s with the 1 s clip ending there (`own`: with what the clip
+    answers alone, as Locator.track gives it); -> per update (t, pose, the single clip's Estimate,
+    truth xy, state)."""
     rng = np.random.default_rng(seed)
     state, out, t_prev = None, [], None
     for e in range(int(FPS) - 1, len(t), int(round(every * FPS))):
         w = slice(e - int(FPS) + 1, e + 1)
         m = v.matches([evidence(x, y, h) for (x, y), h in zip(xy[w], hd[w], strict=True)], rng, per)
         mo = motion(t_prev, t[e]) if motion is not None and t_prev is not None else None
-        state, pose = v.tracker.update(state, m, t[w], float(t[e]), mo)
+        est = sequence(m, v.xy, t[w], v.conf)
+        state, pose = v.tracker.update(state, m, t[w], float(t[e]), mo, ClipAnswer.of(est, v.conf) if own else None)
         t_prev = float(t[e])
-        out.append((float(t[e]), pose, sequence(m, v.xy, t[w], v.conf), xy[e], state))
+        out.append((float(t[e]), pose, est, xy[e], state))
     return out
 
 
@@ -872,23 +875,14 @@ def test_a_phone_counting_no_steps_while_its_user_moves_is_not_held_still(corrid
     def unique(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
         return [(x, y, h, 0.8)]
 
-    def walk(v: Venue) -> list:
-        rng = np.random.default_rng(0)
-        state, out = None, []
-        for e in range(int(FPS) - 1, len(t), int(FPS)):
-            w = slice(e - int(FPS) + 1, e + 1)
-            m = v.matches([unique(x, y, h) for (x, y), h in zip(xy[w], hd[w], strict=True)], rng, 1)
-            own = ClipAnswer.of(sequence(m, v.xy, t[w], v.conf), v.conf)
-            state, pose = v.tracker.update(state, m, t[w], float(t[e]), Motion(0, 0.0) if out else None, own)
-            out.append((pose, state.best, own.confidence, xy[e]))
-        return out
-
-    a = walk(corridor)
-    b = walk(Venue([(0.0, 0.0), (48.0, 0.0)], {"track_still_cap": False}))
-    assert [(p.node, p.confidence) for p, _, _, _ in a] == [(p.node, p.confidence) for p, _, _, _ in b]
-    assert all(err(p, truth) <= 2.0 for p, _, _, truth in a[2:])
+    still = lambda t0, t1: Motion(0, 0.0)  # noqa: E731
+    a = run_walk(corridor, t, xy, hd, unique, motion=still, per=1, own=True)
+    loose = Venue([(0.0, 0.0), (48.0, 0.0)], {"track_still_cap": False})
+    b = run_walk(loose, t, xy, hd, unique, motion=still, per=1, own=True)
+    assert [(p.node, p.confidence) for _, p, _, _, _ in a] == [(p.node, p.confidence) for _, p, _, _, _ in b]
+    assert all(err(p, truth) <= 2.0 for _, p, _, truth, _ in a[2:])
     # what keeps it out: each clip is best at another node than the last
-    assert all(b1 != b0 for (_, b0, _, _), (_, b1, _, _) in zip(a[:-1], a[1:], strict=True))
+    assert all(s1.best != s0.best for (*_, s0), (*_, s1) in zip(a[:-1], a[1:], strict=True))
 
 
 def test_the_heading_without_a_match_near_the_answer_is_the_gyroscopes_or_unsure(corridor: Venue) -> None:

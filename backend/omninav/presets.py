@@ -188,16 +188,19 @@ def resolve(name: str = "default", overrides: dict[str, Any] | None = None) -> d
     conf.update(copy.deepcopy(overrides or {}))
     conf["preset"] = name
     _check_confidence(conf)
-    _check_shared(conf)
+    _check_switches(conf)
     _check_soft_clip(conf)
     _check_band_channels(conf)
     _check_level(conf)
     return conf
 
 
-def _check_shared(conf: dict[str, Any]) -> None:
+SWITCHES = ("shared_candidates", "track_still_cap")  # settings that are true or false
+
+
+def _check_switches(conf: dict[str, Any]) -> None:
     """true or false: a string such as "false" would read as true."""
-    for key in ("shared_candidates", "track_still_cap"):
+    for key in SWITCHES:
         v = conf.get(key)
         if not isinstance(v, bool):
             raise OmninavError(f"{key} must be true or false; got {v!r}")
