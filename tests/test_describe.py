@@ -22,6 +22,7 @@ def test_the_thresholds_and_words_are_the_tables():
         TABLE["facing_deg"],
     )
     assert words.UNSURE == TABLE["unsure"] and words.DEFAULT_STYLE == TABLE["default_style"]
+    assert words.SURE == TABLE["sure"]
 
 
 @pytest.mark.parametrize(("case", "style"), CASES, ids=[f"{c['case']} [{s}]" for c, s in CASES])
@@ -36,7 +37,9 @@ POSES = [c for c in TABLE["cases"] if c.get("pose")]
 def test_a_pose_on_the_plan_gives_the_answers_fields_and_sentence(case: dict[str, Any]):
     """What locate() adds to an answer: the table's fields, and the default style's sentence."""
     a = case["answer"]
-    got = words.describe(a["x"], a["y"], a["heading_deg"], TABLE["places"], case["floor_name"], a["low_confidence"])
+    got = words.describe(
+        a["x"], a["y"], a["heading_deg"], TABLE["places"], case["floor_name"], a["low_confidence"], a["confidence"]
+    )
     want = {k: a[k] for k in ("place", "area", "nearest", "facing")}
     assert got == {**want, "sentence": case["say"][TABLE["default_style"]]}
 
@@ -63,3 +66,13 @@ def test_the_smallest_area_holding_the_point_is_the_one_named():
     w = words.describe(5, 5, 0, places, "Floor 2")
     assert w["area"] == "Room 7" and w["place"] == "Room 7" and w["nearest"] is None
     assert w["sentence"] == "You are in Room 7."
+
+
+def test_probably_is_said_exactly_under_the_sure_line():
+    """Every answer that is not "not sure" is "You are probably ..." under SURE and "You are ..." from it."""
+    sure = [c for c in TABLE["cases"] if not c["answer"]["low_confidence"]]
+    assert {c["answer"]["confidence"] < words.SURE for c in sure} == {True, False}
+    assert any(c["answer"]["confidence"] == words.SURE for c in sure)
+    for c in sure:
+        for said in c["say"].values():
+            assert said.startswith("You are probably ") == (c["answer"]["confidence"] < words.SURE), c["case"]

@@ -172,10 +172,16 @@ def test_green_agrees_with_an_independent_walk(twin: tuple[Dataset, Store], resu
         "median_error_m",
         "median_heading_error_deg",
         "not_sure",
+        "probably",
+        "sure_over_2m",
         "share_green",
     }
     assert s["clips"] == len(walk["clips"]) > 60
     assert s["not_sure"] == sum(c["answer"]["low_confidence"] for c in walk["clips"])
+    said = [(c["answer"]["low_confidence"], c["answer"]["confidence"] >= 0.8, c["error_m"] > 2) for c in walk["clips"]]
+    assert s["probably"] == sum(not low and not sure for low, sure, _ in said)
+    assert s["sure_over_2m"] == sum(sure and off for _, sure, off in said)
+    assert s["not_sure"] + s["probably"] + sum(sure for _, sure, _ in said) == s["clips"]
 
 
 def test_png_is_the_plan_size(result: dict[str, Any]) -> None:

@@ -185,6 +185,8 @@ def evaluate_walk(
 
 def walk_result(ev: Evaluation, low_confidence: float = LOW_CONFIDENCE) -> dict[str, Any]:
     """evaluate()'s rows -> evaluate_walk's document."""
+    from .server.describe import SURE  # the line of "probably": the words are the server's
+
     clips = []
     for r in ev.rows:
         margin = (r["support"] - r["rival"]) / r["support"] if r["support"] > 0 else 0.0
@@ -219,6 +221,10 @@ def walk_result(ev: Evaluation, low_confidence: float = LOW_CONFIDENCE) -> dict[
         "median_error_m": round(float(np.median(err)), 3) if n else 0.0,
         "median_heading_error_deg": round(float(np.median(herr)), 2) if n else 0.0,
         "not_sure": sum(c["answer"]["low_confidence"] for c in clips),
+        # said as "You are probably ...": a place, not "not sure", under the sure line
+        "probably": sum(not c["answer"]["low_confidence"] and c["answer"]["confidence"] < SURE for c in clips),
+        # what a user would trust and be misled by: said as sure, further than 2 m
+        "sure_over_2m": sum(c["answer"]["confidence"] >= SURE and c["error_m"] > RADIUS_M for c in clips),
         "share_green": round(green / n, 4) if n else 0.0,
     }
     return {"clips": clips, "summary": summary}

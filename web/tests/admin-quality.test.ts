@@ -158,10 +158,13 @@ describe('evaluation walk in words', () => {
         median_error_m: 1.5,
         median_heading_error_deg: 5.4,
         not_sure: 0,
+        probably: 1,
+        sure_over_2m: 0,
       },
     };
     expect(summaryText(e)).toBe(
-      '2 clips: 0 % within 1 m, 50 % within 2 m; median error 1.5 m, median heading error 5°; 0 spoken as "not sure"; 1 without an answer',
+      '2 clips: 0 % within 1 m, 50 % within 2 m; median error 1.5 m, median heading error 5°; ' +
+        '0 spoken as "not sure", 1 as "probably"; 0 said as sure and further than 2 m off; 1 without an answer',
     );
   });
 

@@ -77,6 +77,18 @@ describe('asking for more when the first second is not sure', () => {
     expect(said).toEqual([KEEP_TURNING, s.sentence(answer(false), VENUE)]);
   });
 
+  it('a place under the trusted confidence after the 3 s is said as "probably", with the usual cue', async () => {
+    const middling = { ...answer(false), confidence: TRUSTED_CONFIDENCE - 0.15 };
+    api.locate.mockResolvedValue(middling);
+    const { s, said, voice } = session();
+    await s.whereAmI();
+    expect(sent().map((r) => r.frames)).toEqual([10, 30]);
+    expect(said[0]).toBe(KEEP_TURNING);
+    expect(said[1]).toMatch(/^You are probably /);
+    expect(said[1].replace('You are probably ', 'You are ')).toBe(s.sentence(answer(false), VENUE));
+    expect(voice.say).toHaveBeenLastCalledWith(said[1], 'ok');
+  });
+
   it('unsure twice: the usual "not sure", and no third request', async () => {
     api.locate.mockResolvedValue(answer(true));
     const { s, said } = session();

@@ -1,7 +1,17 @@
 // The pieces of the answer in words. The whole sentences, in every style, are pinned by the table
 // that the server's describe.py is held to as well (sentences.test.ts, tests/data/sentences.json).
 import { describe as group, expect, it } from 'vitest';
-import { clockHour, describe, direction, gist, withArticle, type Answer } from '../src/client/directions';
+import {
+  SURE,
+  SURE_LEAVE,
+  clockHour,
+  describe,
+  direction,
+  gist,
+  withArticle,
+  type Answer,
+} from '../src/client/directions';
+import { planLabel } from '../src/client/views/plan';
 
 const answer = (over: Partial<Answer> = {}): Answer => ({
   clip: 'clip',
@@ -88,5 +98,35 @@ group('the gist', () => {
     // another place's "at" is no reason to stay: the rule is per place
     const elsewhere = gist(answer({ nearest: { name: 'Room 1', distance_m: 0.5, bearing_deg: 0 } }), 'clock');
     expect(g(1.1, elsewhere)).toBe(near);
+  });
+
+  it('"probably" firming up to sure is said again; a wobble about the sure line is not', () => {
+    const g = (confidence: number, last = '') => gist(answer({ confidence }), 'clock', last);
+    const probably = g(SURE - 0.05);
+    const sure = g(SURE);
+    expect(sure).not.toBe(probably); // "You are probably in ..." then "You are in ..."
+    expect(g(SURE - 0.01, probably)).toBe(probably);
+    // once sure, it stays sure down to SURE_LEAVE, then is "probably" again
+    expect([g(SURE - 0.05, sure), g(SURE_LEAVE, sure)]).toEqual([sure, sure]);
+    expect(g(SURE_LEAVE - 0.01, sure)).toBe(probably);
+    // and only from SURE back up
+    expect(g(SURE - 0.01, probably)).not.toBe(sure);
+    expect(g(SURE, probably)).toBe(sure);
+    expect(g(0.3, sure)).toBe(probably); // not low: still a place, said as probably
+  });
+});
+
+group("the plan's text alternative", () => {
+  it('says "probably" where the sentence does, and no position where it is not sure', () => {
+    const a = answer({ area: 'Corridor 1', nearest: { name: 'Room 1', distance_m: 3.2, bearing_deg: 88 } });
+    expect(planLabel('Floor 1', a)).toBe(
+      'Floor plan of Floor 1: you are in Corridor 1, within about 2 m, heading 250 degrees on the plan; nearest place Room 1, 3 m away.',
+    );
+    const p = answer({ confidence: SURE - 0.01 });
+    expect(planLabel('Floor 1', p)).toMatch(/^Floor plan of Floor 1: you are probably in Corridor 1, /);
+    expect(describe(p, 'clock')).toMatch(/^You are probably in Corridor 1, /);
+    expect(planLabel('Floor 1', answer({ low_confidence: true }))).toBe(
+      'Floor plan of Floor 1: no position shown, the last answer was not sure.',
+    );
   });
 });

@@ -4,7 +4,7 @@
 import { readFileSync } from 'node:fs';
 import { resolve } from 'node:path';
 import { describe as group, expect, it } from 'vitest';
-import { DEFAULT_STYLE, NEAR_M, UNSURE, describe, type Said, type Style } from '../src/client/directions';
+import { DEFAULT_STYLE, NEAR_M, SURE, UNSURE, describe, type Said, type Style } from '../src/client/directions';
 import { ROOT } from './global-setup';
 
 interface Case {
@@ -17,6 +17,7 @@ interface Case {
 const table = JSON.parse(readFileSync(resolve(ROOT, 'tests/data/sentences.json'), 'utf8')) as {
   near_m: number;
   unsure: string;
+  sure: number;
   default_style: Style;
   cases: Case[];
 };
@@ -25,6 +26,7 @@ group('the sentence table', () => {
   it('holds the thresholds and the words the app uses', () => {
     expect(NEAR_M).toBe(table.near_m);
     expect(UNSURE).toBe(table.unsure);
+    expect(SURE).toBe(table.sure);
     expect(DEFAULT_STYLE).toBe(table.default_style);
   });
   const rows = table.cases.flatMap((c) =>

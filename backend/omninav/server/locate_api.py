@@ -505,7 +505,8 @@ def locate(venue_id: str) -> Any:
     fl = rt.floors.get(floor)
     low = ans["confidence"] < app.config["LOW_CONFIDENCE"] or ambiguous
     places = rt.places.get(floor, [])
-    words = describe(ans["x"], ans["y"], ans["heading_deg"], places, fl["name"] if fl else floor, low)
+    fname = fl["name"] if fl else floor
+    words = describe(ans["x"], ans["y"], ans["heading_deg"], places, fname, low, ans["confidence"])
     ans.update(
         floor=floor,
         **words,  # place, area, nearest, facing, sentence

@@ -28,7 +28,8 @@ export function summaryText(e: Evaluation): string {
   return (
     `${s.clips} clips: ${percent(s.within_1m)} within 1 m, ${percent(s.within_2m)} within 2 m; ` +
     `median error ${metres(s.median_error_m)}, median heading error ${degrees(s.median_heading_error_deg)}; ` +
-    `${s.not_sure} spoken as "not sure"` +
+    `${s.not_sure} spoken as "not sure", ${s.probably} as "probably"; ` +
+    `${s.sure_over_2m} said as sure and further than 2 m off` +
     (answered < s.clips ? `; ${s.clips - answered} without an answer` : '')
   );
 }

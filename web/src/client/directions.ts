@@ -14,6 +14,20 @@ export type Style = 'clock' | 'sides' | 'degrees';
 
 export const DEFAULT_STYLE: Style = 'clock';
 export const UNSURE = 'Not sure where you are; turn slowly and try again.';
+/**
+ * An answer under this confidence, though not "not sure", is said as "You are probably ...": the
+ * line of CONVENTIONS.md (at least 80 % of the answers at or above it within 2 m) and the one under
+ * which "Where am I?" films on. Under it a fifth of the answers or more were further than 2 m off
+ * on the venue families we never tuned on, against 1-2 % above it (docs/benchmarks.md, "Said as
+ * probably"); a place heard as a fact is walked to.
+ */
+export const SURE = 0.8;
+/**
+ * Once said as sure, the gist stays sure until the confidence falls under this, as AT_LEAVE_M does
+ * for "at": a user standing still whose answers wobble about SURE is not told "probably" and
+ * "sure" by turns.
+ */
+export const SURE_LEAVE = 0.7;
 /** A place further than this (metres) is not "near". */
 export const NEAR_M = 10;
 /**
@@ -91,7 +105,7 @@ function metres(d: number): string {
 const nearOf = (a: Pick<Answer, 'nearest'>) => (a.nearest && a.nearest.distance_m <= NEAR_M ? a.nearest : null);
 
 /** What the sentence is made from: the answer's words, and whether it is sure. */
-export type Said = Pick<Answer, 'floor' | 'area' | 'nearest' | 'facing' | 'low_confidence'>;
+export type Said = Pick<Answer, 'floor' | 'area' | 'nearest' | 'facing' | 'low_confidence' | 'confidence'>;
 
 /**
  * The sentence to speak and show for an answer: "You are in the North corridor, near the lifts at
@@ -106,7 +120,7 @@ export function describe(a: Said, style: Style, floorName?: string | null): stri
   else if (near) parts.push(`near ${near.name} ${direction(near.bearing_deg, style)}, ${metres(near.distance_m)}`);
   if (parts.length === 0) parts.push(`on ${floorName ?? `floor ${a.floor}`}`);
   if (a.facing && !(near && a.facing === near.name)) parts.push(`facing ${a.facing}`);
-  return `You are ${parts.join(', ')}.`;
+  return `You are ${a.confidence < SURE ? 'probably ' : ''}${parts.join(', ')}.`;
 }
 
 /**
@@ -118,15 +132,18 @@ export const AT_LEAVE_M = AT_M + 0.5;
 
 /**
  * What a continuous-mode answer is "about": it is spoken only when this changes, so walking down a
- * corridor does not repeat the same sentence every few seconds. `last`: the gist last said.
+ * corridor does not repeat the same sentence every few seconds. `last`: the gist last said. Whether
+ * it is sure is part of it (with SURE_LEAVE's margin): "You are probably at the lifts" is followed
+ * by "You are at the lifts" once the answer firms up.
  */
 export function gist(a: Said, style: Style, last = ''): string {
   if (a.low_confidence) return 'unsure';
   const n = nearOf(a);
-  const [, , lastName, lastWay] = last.split('|');
+  const [lastSure, , , lastName, lastWay] = last.split('|');
   const atM = n && lastWay === 'at' && lastName === n.name ? AT_LEAVE_M : AT_M;
   const way = !n ? '' : n.distance_m < atM ? 'at' : direction(n.bearing_deg, style);
-  return [a.floor, a.area, n?.name, way, a.facing].join('|');
+  const sure = a.confidence >= (lastSure === 'sure' ? SURE_LEAVE : SURE) ? 'sure' : 'probably';
+  return [sure, a.floor, a.area, n?.name, way, a.facing].join('|');
 }
 
 // --- route guidance: the words of backend/omninav/server/describe.py's guidance_sentence and

@@ -30,7 +30,7 @@ import {
   type Venue,
 } from './api';
 import { CameraProblem, captureClip, joinClips, lensMismatch, openCamera, type Clip } from './camera';
-import { describe, gist, type Answer } from './directions';
+import { SURE, describe, gist, type Answer } from './directions';
 import { ExtractorClient } from './bridge';
 import { LensWatch, checkLensOn, lensWords, phoneStorage } from './lenscheck';
 import type { Motion, MotionFeed, MotionReading } from './motion';
@@ -48,11 +48,10 @@ const CLIP_INTERVAL_MS = 100;
 /** The most frames a tracked request films (4.5 s at 10 fps; the server takes up to 5 s). */
 const MAX_TRACK_FRAMES = 45;
 /**
- * An answer a user may trust without more evidence (docs/benchmarks.md, "Confidence": of the
- * answers at or above it, 1.8 % were further than 2 m off on the tuning venue families, 4.5 % on
- * the held-out ones). Below it, a press films on to 3 s.
+ * An answer a user may trust without more evidence: the line under which an answer is said as
+ * "probably" (directions.ts's SURE). Below it, a press films on to 3 s.
  */
-export const TRUSTED_CONFIDENCE = 0.8;
+export const TRUSTED_CONFIDENCE = SURE;
 const trusted = (a: Answer): boolean => !a.low_confidence && a.confidence >= TRUSTED_CONFIDENCE;
 /** Said (polite, no cue) when the first second was not enough and the phone films on. */
 export const KEEP_TURNING = 'Not sure yet. Keep turning slowly.';

@@ -89,6 +89,8 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     fig('Median error', metres(s.median_error_m), 'evaluation-median');
     fig('Median heading error', degrees(s.median_heading_error_deg), 'evaluation-heading');
     fig('Spoken as "not sure"', `${s.not_sure} of ${s.clips}`, 'evaluation-not-sure');
+    fig('Spoken as "probably"', `${s.probably} of ${s.clips}`, 'evaluation-probably');
+    fig('Said as sure, further than 2 m', `${s.sure_over_2m} of ${s.clips}`, 'evaluation-sure-over-2m');
 
     const legend = el('ul', { className: 'legend' });
     legend.setAttribute('aria-label', 'Legend');

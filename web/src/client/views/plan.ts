@@ -6,6 +6,7 @@
  * (shapes and outlines differ too). It knows nothing of the phone's session, so that any page that
  * shows a plan (the app, the admin pages) draws it the same way.
  */
+import { SURE } from '../directions';
 
 /** What the view needs of a floor (a venue document's floor is one). */
 export interface PlanFloor {
@@ -28,6 +29,7 @@ export interface PlanPose {
   y: number;
   heading_deg: number;
   low_confidence: boolean;
+  confidence: number;
   accuracy_m: number | null;
   area: string | null;
   nearest: { name: string; distance_m: number } | null;
@@ -100,7 +102,8 @@ export function planLabel(floorName: string | undefined, a: PlanPose | null): st
   const where = a.area ? `in ${a.area}` : `at ${a.x.toFixed(1)} m, ${a.y.toFixed(1)} m`;
   const near = a.nearest ? `; nearest place ${a.nearest.name}, ${a.nearest.distance_m.toFixed(0)} m away` : '';
   const acc = a.accuracy_m ? `, within about ${a.accuracy_m} m` : '';
-  return `Floor plan of ${fname}: you are ${where}${acc}, heading ${Math.round(a.heading_deg)} degrees on the plan${near}.`;
+  const probably = a.confidence < SURE ? 'probably ' : '';
+  return `Floor plan of ${fname}: you are ${probably}${where}${acc}, heading ${Math.round(a.heading_deg)} degrees on the plan${near}.`;
 }
 
 /** The words for a route on the plan: how far to go, and how far walked. */
