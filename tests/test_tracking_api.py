@@ -17,6 +17,7 @@ import pytest
 from conftest import db_url_for
 from omninav.server import create_app
 from omninav.server.describe import guidance_sentence
+from omninav.server.venues_api import filing_name
 from omninav.spectrum import encode_binary
 from omninav.tracking import FORGET_S
 from server_helpers import ADMIN, TOKEN, Api, clip_spectra, query_clip
@@ -281,7 +282,8 @@ def test_destinations_are_the_places_on_the_walk_graph_by_floor(lab: Any) -> Non
     assert doc["venue"] == "lab" and [f["id"] for f in doc["floors"]] == ["1"]  # nothing walked on floor 2
     (ground,) = doc["floors"]
     names = [p["name"] for p in ground["places"]]
-    assert ground["name"] == "Ground" and names == sorted(names, key=str.casefold)
+    assert ground["name"] == "Ground" and names == sorted(names, key=filing_name)
+    assert names.index("the lifts") < names.index("Room 1")  # under L, not under T
     assert "Room 1" in names and "the lifts" in names and "Far store" not in names
     room = next(p for p in ground["places"] if p["name"] == "Room 1")
     assert room["kind"] == "room" and (room["x"], room["y"]) == (11.0, 2.5)
@@ -347,3 +349,17 @@ def test_a_tracked_answers_plan_is_drawn_around_the_filtered_pose(lab: Any, walk
     fr = rt.locator.gen.frames
     row = _row_near(rt, a["x"], a["y"], a["floor"])
     assert np.hypot(fr["x"][row] - a["x"], fr["y"][row] - a["y"]) <= 1.0  # a modelled frame at the pose drawn
+
+
+def test_a_list_of_places_is_filed_without_case_or_a_leading_article_and_numbers_by_value() -> None:
+    names = ["the café", "Room 2", "an office", "The Lifts", "A", "the", "atrium", "Room 10"]
+    assert sorted(names, key=filing_name) == [
+        "A",
+        "atrium",
+        "the café",
+        "The Lifts",
+        "an office",
+        "Room 2",
+        "Room 10",
+        "the",
+    ]

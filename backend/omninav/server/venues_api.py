@@ -4,6 +4,7 @@ be guided to; and the public documents of a venue and a floor, which the admin A
 from __future__ import annotations
 
 import json
+import re
 from functools import cache
 from importlib.resources import files
 from typing import Any
@@ -102,17 +103,31 @@ def plan(venue_id: str, floor: str) -> Any:
     return send_file(cat.floors.plan_path(venue_id, floor), mimetype="image/png", max_age=60)
 
 
+def filing_name(name: str) -> tuple[tuple[int, int | str], ...]:
+    """A place's name as a list files it: without case, without a leading article, so that "the
+    café" comes under C and "the lifts" under L, where a user skimming the list by ear, or jumping
+    to a letter, looks for them; and numbers by their value, Room 2 before Room 10."""
+    n = name.casefold().strip()
+    for article in ("the ", "a ", "an "):
+        if n.startswith(article) and n[len(article) :].strip():
+            n = n[len(article) :].strip()
+            break
+    # (0, number) before (1, text), so that a key compares whatever its parts
+    return tuple((0, int(t)) if t.isdigit() else (1, t) for t in re.findall(r"\d+|\D+", n))
+
+
 @bp.get("/api/venues/<venue_id>/destinations")
 def destinations(venue_id: str) -> Any:
     """The places on the venue's walk graph (locate's ?to=), by floor in the venue's order, each
-    floor's sorted by name; floors without one are left out. 409 while the venue has no frames."""
+    floor's sorted by name as a list is read (`filing_name`); floors without one are left out. 409
+    while the venue has no frames."""
     rt = current_app.extensions["omninav"].runtimes.get(venue_id)
     nodes = rt.walk().nodes
     floors = []
     for fid, f in rt.floors.items():
         on = [p for p in rt.places.get(fid, []) if p["id"] in nodes]
         if on:
-            on.sort(key=lambda p: (p["name"].casefold(), p["name"], p["id"]))
+            on.sort(key=lambda p: (filing_name(p["name"]), p["name"], p["id"]))
             places = [{k: p.get(k) for k in ("id", "name", "kind", "x", "y")} for p in on]
             floors.append({"id": fid, "name": f["name"], "places": places})
     return jsonify({"venue": venue_id, "floors": floors})
