@@ -140,12 +140,13 @@ def test_shared_candidates_is_true_or_false_and_not_a_feature_setting(bad):
     assert settings_id(on) == settings_id(off) and "shared_candidates" not in feature_keys(on)
 
 
+@pytest.mark.parametrize("key", ["track_still_cap", "track_still_seen"])
 @pytest.mark.parametrize("bad", [None, 0, 1, "false"])
-def test_track_still_cap_is_true_or_false_and_not_a_feature_setting(bad):
-    with pytest.raises(OmninavError, match="track_still_cap"):
-        resolve("default", {"track_still_cap": bad})
-    on, off = resolve("default"), resolve("default", {"track_still_cap": False})
-    assert on["track_still_cap"] is True and settings_id(on) == settings_id(off)
+def test_the_held_still_rules_are_true_or_false_and_not_feature_settings(key, bad):
+    with pytest.raises(OmninavError, match=key):
+        resolve("default", {key: bad})
+    on, off = resolve("default"), resolve("default", {key: False})
+    assert on[key] is True and settings_id(on) == settings_id(off)
 
 
 def test_band_channels_give_each_band_its_own_curves_in_the_records_order():

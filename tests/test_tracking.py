@@ -211,10 +211,13 @@ def test_a_split_belief_is_ambiguous_with_low_confidence(twin: Venue) -> None:
         assert (pose.confidence < 0.5) if ambiguous else (pose.confidence >= 0.8)
 
 
-def test_a_sure_answer_is_not_stood_by_while_the_recent_clips_are_unsure(twin: Venue) -> None:
+def test_a_sure_answer_is_not_stood_by_while_the_recent_clips_are_unsure() -> None:
     """The walk has made the belief sure; then the clips stop matching the model well (their own
     confidence low): the answer's place is unchanged but it is no longer "sure" (held at
     track_doubt_cap) until the clips' mean over about track_recent_s seconds recovers."""
+    # the clips below are one view again and again, without sensors: what the clips alone take
+    # for a phone held still (track_still_seen, tested below); off, the rule here is alone
+    twin = Venue(twin_routes()[0], {"track_still_seen": False})
     x0, y0, _, _ = TWIN_RING
     t, xy, hd = walk_poses([(12.0, y0), (x0, y0), (x0, 16.0)])
     state = run_walk(twin, t, xy, hd, twin_evidence(0.8, 0.8))[-1][-1]
@@ -848,22 +851,56 @@ def held_still(conf: dict, motion: Motion | None, updates: int = 30) -> tuple[li
         state, pose = v.tracker.update(state, m, times, float(times[-1]), motion if u else None, own)
         assert err(pose, (20.0, 0.0)) <= 2.0  # the better match, every time
         out.append(pose.confidence)
-    return out, own.confidence
+    return out, own.said  # what a locate without a session answers for it
 
 
 def test_a_phone_held_still_is_no_surer_than_its_clip() -> None:
     """Its sensors say it has not moved (no step, no turn) and each clip is best where the last
     was: the clip is the view filmed again, and the answer no surer than that clip alone.
-    Without the sensors (or with the rule off, as before) the repetition alone made it sure."""
-    unknown, clip = held_still({}, None)
-    still, _ = held_still({}, Motion(0, 0.0))
+    With the rule off, as before, the repetition alone made it sure."""
+    still, clip = held_still({}, Motion(0, 0.0))
     before, _ = held_still({"track_still_cap": False}, Motion(0, 0.0))
     assert clip < 0.8  # a moderate match: the clip alone is not sure
-    assert max(unknown) >= 0.9 and max(before) >= 0.9
+    assert max(before) >= 0.9
     assert all(c <= clip + 1e-9 for c in still[1:])
     # a turn is a move: the view changed, and the walk's evidence counts again
     turned, _ = held_still({}, Motion(0, 40.0))
     assert max(turned) >= 0.9
+
+
+def test_without_sensors_the_clip_says_when_the_phone_is_held_still() -> None:
+    """No sensors (or a phone that refused them): the clip best where the last was and facing
+    as it did there is the view filmed again (track_still_seen), so the answer is no surer than
+    the clip; without that rule nothing was known to be still, and the repetition made it sure.
+    Sensors that say it moved (a step, a turn) overrule what the clip looks like."""
+    unknown, clip = held_still({}, None)
+    blind, _ = held_still({"track_still_seen": False}, None)
+    assert clip < 0.8 and max(blind) >= 0.9
+    assert all(c <= clip + 1e-9 for c in unknown[1:])
+    # steps counted, no gyroscope: the sensors say it moved
+    stepped, _ = held_still({}, Motion(2, None))
+    assert max(stepped) >= 0.9
+    # a step counter that says no step, no gyroscope: the clip's facing decides, as it faces alike here
+    no_gyro, _ = held_still({}, Motion(0, None))
+    assert all(c <= clip + 1e-9 for c in no_gyro[1:])
+
+
+def test_without_sensors_a_clip_facing_another_way_is_not_held_still() -> None:
+    """The same place, but each clip faces 40 degrees on from the last (the user turning where
+    they stand, with no gyroscope to say so): not the view filmed again, and the walk's evidence
+    counts as it did before the rule."""
+    out = {}
+    for seen in (True, False):
+        v = Venue([(0.0, 0.0), (48.0, 0.0)], {"track_still_seen": seen})
+        state, out[seen] = None, []
+        for u in range(12):
+            h = (90.0 + 40.0 * u) % 360.0
+            m = v.matches([[(20.0, 0.0, h, 0.62), (34.0, 0.0, h, 0.58)]] * 10, np.random.default_rng(4), per=2)
+            own = ClipAnswer.of(sequence(m, v.xy, np.arange(10) / FPS, v.conf), v.conf)
+            times = u + np.arange(-0.9, 0.01, 0.1)
+            state, pose = v.tracker.update(state, m, times, float(times[-1]), None, own)
+            out[seen].append(pose.confidence)
+    assert out[True] == out[False] and max(out[True]) >= 0.9
 
 
 def test_a_phone_counting_no_steps_while_its_user_moves_is_not_held_still(corridor: Venue) -> None:

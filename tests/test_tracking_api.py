@@ -363,3 +363,19 @@ def test_a_list_of_places_is_filed_without_case_or_a_leading_article_and_numbers
         "Room 10",
         "the",
     ]
+
+
+def test_the_same_clip_again_and_again_without_sensors_is_no_surer_than_alone(lab: Any, walk: Any) -> None:
+    """A phone held on one spot, its sensors refused: the same record sent every second in one
+    session. From the second answer on, the tracked confidence is no more than the clip's own
+    (track_still_seen): the view filmed again is not new evidence. The sentence says "probably"
+    exactly when the confidence is under 0.8."""
+    _, api = lab
+    record = walk[3][0]
+    out = [locate(api, record, session="heldstill0001", t=float(i + 1)).json for i in range(8)]
+    assert [a["tracking"]["updates"] for a in out] == list(range(1, 9))
+    for a in out[1:]:
+        assert a["confidence"] <= a["tracking"]["single"]["confidence"] + 1e-3
+    for a in out:
+        if not a["low_confidence"]:
+            assert a["sentence"].startswith("You are probably ") == (a["confidence"] < 0.8)

@@ -85,6 +85,9 @@ DEFAULTS: dict[str, Any] = {
     # a phone held still (its sensors: no step, little turn) whose clip is best where the last was
     # films the same view again: the answer is no surer than that clip alone (tracking.py)
     "track_still_cap": True,
+    # and without the sensors (or where they do not say the phone moved), a clip best where the
+    # last was and facing as it did there is taken as held still too (tracking.py)
+    "track_still_seen": True,
     "track_uniform": 1e-3,
     "track_backward": 0.3,
     "track_turn_gate_deg": 45.0,
@@ -195,7 +198,7 @@ def resolve(name: str = "default", overrides: dict[str, Any] | None = None) -> d
     return conf
 
 
-SWITCHES = ("shared_candidates", "track_still_cap")  # settings that are true or false
+SWITCHES = ("shared_candidates", "track_still_cap", "track_still_seen")  # settings that are true or false
 
 
 def _check_switches(conf: dict[str, Any]) -> None:

@@ -60,12 +60,20 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
   the venue was never modelled, held still with the phone's sensors on, 90 of 246 spots ended
   sure of a wrong place, 29 of 54 in a building like the modelled one (bench/elsewhere.py).
   Held still, the walk adds nothing the clip does not say, so the answer is no surer than the
-  clip alone (its ClipAnswer confidence).
+  clip alone: the confidence a locate without a session gives it (ClipAnswer.alone, the venue's
+  own model; the rules' older model of the clip, which the cap first read, said more than the
+  user would hear from "Where am I?" for the same clip when it matched well, and less when it
+  matched poorly).
   Held still: the phone's sensors say it has not moved since the last update (no step, a turn
   under STILL_TURN_DEG) *and* the clip is best at the node the last one was. The node is the
   guard: a wheelchair, or a phone whose step counter has stalled while its user walks, counts
-  no steps either, but each of its clips is best somewhere new. Without sensors nothing changes
-  (whether the phone moved is not known). The belief itself still gathers the repeated clips:
+  no steps either, but each of its clips is best somewhere new. Without sensors, or where they
+  do not say the phone moved (no step counted and no gyroscope, say), the clip says it
+  (`track_still_seen`): best at the node the last one was *and* facing there as the last clip
+  did, within STILL_TURN_DEG (the clip's own heading standing in for the gyroscope). A user
+  walking along a corridor faces alike from one second to the next, but is best at the next
+  node; one who turns where they stand faces another way. Sensors that say it moved (a step, a
+  turn) overrule the clip. The belief itself still gathers the repeated clips:
   the first update that is not held (a step, a turn, another best node) answers with its full
   confidence again. Tried first, and not kept: counting a held clip's
   evidence a fifth as much; on the held-out families a fresh start held still inside the venue
@@ -115,7 +123,7 @@ import numpy as np
 import scipy.sparse  # type: ignore[import-untyped]
 from scipy.spatial import cKDTree  # type: ignore[import-untyped]
 
-from .aggregate import SPAN_S, SURE, Estimate, confidence_inputs, field_of, logistic, sequence
+from .aggregate import SPAN_S, SURE, Estimate, confidence, confidence_inputs, field_of, logistic, sequence
 from .heading import wrap_deg
 from .index import Matches
 from .presets import DEFAULTS
@@ -161,22 +169,30 @@ def _number(v: Any) -> bool:
 @dataclass(frozen=True)
 class ClipAnswer:
     """What the clip of an update answers alone (Locator.track: its aggregate Estimate): its
-    calibrated confidence, and where (x, y and the venue frame row, whose floor it is; None: not
-    given, the "sure clip elsewhere" rule then does not apply)."""
+    calibrated confidence as the rules read it, and where (x, y and the venue frame row, whose
+    floor it is; None: not given, the "sure clip elsewhere" rule then does not apply); `alone`,
+    the confidence a locate without a session answers for it (None: not given, `confidence`
+    stands in)."""
 
     confidence: float
     x: float | None = None
     y: float | None = None
     row: int | None = None
+    alone: float | None = None
 
     @staticmethod
     def of(e: Estimate, conf: dict[str, Any]) -> ClipAnswer:
         """What a clip's aggregate Estimate answers, with its calibrated confidence as the rules
         read it: `track_clip_confidence_*`, the single clip's model they were chosen with (the
-        venue's own `confidence_*` answers the single clip, and may be a later refit)."""
+        venue's own `confidence_*` answers the single clip, and may be a later refit: `alone`)."""
         names = _conf(conf, "track_clip_confidence_features")
         c = logistic(_conf(conf, "track_clip_confidence_coef"), confidence_inputs(e, names))
-        return ClipAnswer(c, e.x, e.y, e.venue_row)
+        return ClipAnswer(c, e.x, e.y, e.venue_row, confidence(e, conf))
+
+    @property
+    def said(self) -> float:
+        """The clip's confidence as the user would hear it alone ("Where am I?")."""
+        return self.confidence if self.alone is None else self.alone
 
 
 @dataclass(frozen=True)
@@ -194,6 +210,20 @@ def _still(motion: Motion) -> bool:
     """Whether the phone's sensors say it has not moved since the last update (no step, little
     turn); unknown (no sensors) is not still."""
     return motion.steps == 0 and motion.turn_deg is not None and abs(motion.turn_deg) < STILL_TURN_DEG
+
+
+def _moved(motion: Motion) -> bool:
+    """Whether the phone's sensors say it moved since the last update (a step, or a turn of
+    STILL_TURN_DEG or more); unknown is not moved."""
+    return bool(motion.steps) or (motion.turn_deg is not None and abs(motion.turn_deg) >= STILL_TURN_DEG)
+
+
+def _faces_as_before(facing: np.ndarray, before: np.ndarray | None, node: int) -> bool:
+    """Whether the clip faces at `node` as the last clip did there, within STILL_TURN_DEG (what
+    the clip says of a turn where no gyroscope does)."""
+    if before is None or len(before) != len(facing) or not (np.isfinite(facing[node]) and np.isfinite(before[node])):
+        return False
+    return abs((float(facing[node]) - float(before[node]) + 180.0) % 360.0 - 180.0) < STILL_TURN_DEG
 
 
 def _clip_times(matches: Matches, times: np.ndarray) -> np.ndarray:
@@ -809,7 +839,12 @@ class Tracker:
         # node the last one was (a wheelchair, or a phone that counts no steps while its user
         # walks, reaches other nodes' views): "A phone held still" above
         best = int(np.argmax(e))
-        held = not fresh and state is not None and state.best == best and _still(motion)
+        held = False
+        if not fresh and state is not None and state.best == best:
+            # the sensors say so; or, where they do not say it moved (none, or none that
+            # answered), the clip does: best where the last was and facing as it did there
+            seen = _conf(self.conf, "track_still_seen") and not _moved(motion)
+            held = _still(motion) or bool(seen and _faces_as_before(facing, state.facing, best))
         log_lik = float(_conf(self.conf, "track_beta")) * (e - e.max())
         post = prior * ((1 - rho) * np.exp(log_lik) + rho)
         post /= post.sum()
@@ -833,8 +868,8 @@ class Tracker:
             doubt = self.recent_min is not None and recent < self.recent_min
             if doubt or (clip.confidence >= SURE and self.elsewhere(pose, clip)):
                 pose = replace(pose, confidence=min(pose.confidence, self.doubt_cap))
-            if held and _conf(self.conf, "track_still_cap"):  # no surer than the clip alone
-                pose = replace(pose, confidence=min(pose.confidence, float(clip.confidence)))
+            if held and _conf(self.conf, "track_still_cap"):  # no surer than the clip alone, as a locate says it
+                pose = replace(pose, confidence=min(pose.confidence, float(clip.said)))
         pose = replace(pose, restarted=bool(fresh))
         heading = pose.heading if pose.heading_known else None
         state = TrackState(float(t_now), post, self.graph.key, updates + 1, heading, facing, post_a, recent, best)
