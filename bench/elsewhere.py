@@ -42,7 +42,7 @@ from omninav.tracking import Imu
 sys.path.insert(0, str(Path(__file__).parent))
 from families import dataset, family_names, venue  # noqa: E402
 from search_speed import machine  # noqa: E402
-from tracking import SKIP_S, Walk, graph_tracker, run, walk  # noqa: E402
+from tracking import SKIP_S, Walk, graph_tracker, run, searched, walk  # noqa: E402
 
 LOW = 0.5  # below it the app says "not sure" (config.py LOW_CONFIDENCE)
 STILL_AT_S = (10.0, 30.0, 50.0)  # where along a walk the phone is held still
@@ -97,7 +97,7 @@ def main() -> None:
 
     def loc_of(name: str, seed: int) -> Locator:
         if (name, seed) not in locs:
-            locs[name, seed] = venue(dataset(name, seed), "default")
+            locs[name, seed] = venue(dataset(name, seed), "default", searched(over))
         return locs[name, seed]
 
     def walk_of(name: str, seed: int) -> Walk:

@@ -60,7 +60,7 @@ from omninav.tracking import (
 from omninav.walkgraph import from_frames
 
 sys.path.insert(0, str(Path(__file__).parent))
-from families import dataset, family_names, venue  # noqa: E402
+from families import SEARCH_KEYS, dataset, family_names, venue  # noqa: E402
 from search_speed import machine  # noqa: E402
 
 SKIP_S = 5.0  # the figures count the seconds after the first 5 of a walk
@@ -84,6 +84,12 @@ class Walk:
         if key not in self.seen:
             self.seen[key] = loc.clip_matches(self.spec[s], self.t[s])[:2]
         return self.seen[key]
+
+
+def searched(over: dict[str, Any]) -> dict[str, Any]:
+    """The --set keys that say how a clip is searched (SEARCH_KEYS: the venue's, not the
+    tracker's), so that --set shared_candidates=false reaches the search."""
+    return {k: v for k, v in over.items() if k in SEARCH_KEYS}
 
 
 def graph_tracker(loc: Locator, conf: dict[str, Any] | None = None) -> Tracker:
@@ -271,7 +277,7 @@ def calibration_rows(names: list[str], seeds: list[int], over: dict[str, Any]) -
     for name in names:
         for seed in seeds:
             root = dataset(name, seed)
-            loc = venue(root, "default")
+            loc = venue(root, "default", searched(over))
             tr = graph_tracker(loc, over)
             w = walk(root, loc)
             imu = walk_imu(root, seed=seed)
@@ -418,7 +424,7 @@ def main() -> None:
     for name in names:
         for seed in seeds:
             root = dataset(name, seed)
-            loc = venue(root, "default")
+            loc = venue(root, "default", searched(over))
             tr = graph_tracker(loc, over)
             sizes[f"{name}/{seed}"] = (len(loc.xy), tr.n)
             for wname in a.walks.split(","):
