@@ -837,6 +837,24 @@ def test_the_node_the_last_clip_matched_best_is_saved_with_the_state(twin: Venue
     assert TrackState.from_bytes(swapped + struct.pack("<I", zlib.crc32(swapped)), twin.graph) is None
 
 
+def test_the_best_nodes_facing_is_saved_even_where_the_belief_there_is_too_small_to_keep(twin: Venue) -> None:
+    """The next update compares its clip's facing at the last clip's best node with the one saved
+    (track_still_seen): a node the belief has all but left keeps its facing in the saved state."""
+    n = twin.tracker.n
+    belief = np.zeros(n)
+    belief[0] = 1.0
+    facing = np.full(n, np.nan)
+    far = n - 1
+    facing[[0, far]] = (10.0, 123.0)
+    state = TrackState(5.0, belief, twin.graph.key, 4, 10.0, facing, best=far)
+    back = TrackState.from_bytes(state.to_bytes(), twin.graph)
+    assert back is not None and back.best == far and back.facing is not None
+    assert back.facing[far] == 123.0 and back.facing[0] == 10.0 and back.belief[0] == pytest.approx(1.0)
+    # without a best node, only the belief's nodes keep theirs (as before)
+    plain = TrackState.from_bytes(replace(state, best=None).to_bytes(), twin.graph)
+    assert plain is not None and plain.facing is not None and np.isnan(plain.facing[far])
+
+
 def held_still(conf: dict, motion: Motion | None, updates: int = 30) -> tuple[list[float], float]:
     """The same clip again and again, a second apart, from a fresh start: a phone held still
     where the venue was never filmed, its view a moderate match to x = 20 m of a corridor and a

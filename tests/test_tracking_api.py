@@ -352,9 +352,11 @@ def test_a_tracked_answers_plan_is_drawn_around_the_filtered_pose(lab: Any, walk
 
 
 def test_a_list_of_places_is_filed_without_case_or_a_leading_article_and_numbers_by_value() -> None:
-    names = ["the café", "Room 2", "an office", "The Lifts", "A", "the", "atrium", "Room 10"]
+    names = ["the café", "Room 2", "an office", "The Lifts", "A", "the", "atrium", "Room 10", "A Wing", "A 4"]
     assert sorted(names, key=filing_name) == [
         "A",
+        "A 4",
+        "A Wing",
         "atrium",
         "the café",
         "The Lifts",
@@ -363,6 +365,8 @@ def test_a_list_of_places_is_filed_without_case_or_a_leading_article_and_numbers
         "Room 10",
         "the",
     ]
+    # a digit that is not a number is text, never an error
+    assert sorted(["Room 1²", "Room 1", "Room 12"], key=filing_name) == ["Room 1", "Room 1²", "Room 12"]
 
 
 def test_the_same_clip_again_and_again_without_sensors_is_no_surer_than_alone(lab: Any, walk: Any) -> None:

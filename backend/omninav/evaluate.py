@@ -185,11 +185,10 @@ def evaluate_walk(
 
 def walk_result(ev: Evaluation, low_confidence: float = LOW_CONFIDENCE) -> dict[str, Any]:
     """evaluate()'s rows -> evaluate_walk's document."""
-    from .server.describe import SURE  # the line of "probably": the words are the server's
-
     clips = []
     for r in ev.rows:
         margin = (r["support"] - r["rival"]) / r["support"] if r["support"] > 0 else 0.0
+        conf = round(r["confidence"], 3)  # as a locate answers it, and decides "not sure" on it
         clips.append(
             {
                 "t": round(r["t"], 3),
@@ -202,8 +201,8 @@ def walk_result(ev: Evaluation, low_confidence: float = LOW_CONFIDENCE) -> dict[
                     "x": round(r["x"], 3),
                     "y": round(r["y"], 3),
                     "heading_deg": round(r["heading"] % 360.0, 2),
-                    "confidence": round(r["confidence"], 3),
-                    "low_confidence": bool(r["confidence"] < low_confidence),
+                    "confidence": conf,
+                    "low_confidence": bool(conf < low_confidence),
                     "margin": round(margin, 3),
                 },
                 "error_m": round(r["err_m"], 3),

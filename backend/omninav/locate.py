@@ -242,10 +242,11 @@ class Locator:
         self, whole: Estimate, frames: int, aggregate: str | None = None
     ) -> Callable[[Matches, np.ndarray], ClipAnswer]:
         """What each part of a clip answers alone (the venue's aggregation; its confidence by the
-        rules' own model of the clip, ClipAnswer.of), for the filter's rules of the clip's own
-        answer (Tracker.update_clip): `whole`, the clip's own Estimate, when the part is the whole
-        clip (`frames` frames), else the part's, from the part's first `candidates` matches a
-        frame (of the tracker's evidence, clip_matches: the shared best, as a locate answers)."""
+        rules' own model of the clip and by the venue's, `alone`: ClipAnswer.of), for the filter's
+        rules of the clip's own answer (Tracker.update_clip): `whole`, the clip's own Estimate,
+        when the part is the whole clip (`frames` frames), else the part's, from the part's first
+        `candidates` matches a frame (of the tracker's evidence, clip_matches: the shared best, as
+        a locate answers)."""
         from .tracking import ClipAnswer
 
         agg = self._aggregation(aggregate)

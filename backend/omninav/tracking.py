@@ -326,7 +326,9 @@ class TrackState:
         p = np.asarray(self.belief, np.float64)
         face = np.full(len(p), np.nan) if self.facing is None else np.asarray(self.facing, np.float64)
         key = self.graph_key.encode()
-        whole, part = _pack(p, face)
+        # the last clip's best node keeps its facing even where the belief there is too small to
+        # keep: the next update compares its clip's facing with it (track_still_seen)
+        whole, part = _pack(p, face, self.best)
         head = struct.pack(
             HEADER,
             MAGIC_ALL if whole else MAGIC,
@@ -392,10 +394,13 @@ class TrackState:
         return TrackState(float(t), belief, key, int(updates), h, facing, alike, recent, best)
 
 
-def _pack(p: np.ndarray, face: np.ndarray | None) -> tuple[bool, bytes]:
-    """A belief (and facing): whether it is kept whole, and its bytes (TrackState.to_bytes)."""
+def _pack(p: np.ndarray, face: np.ndarray | None, also: int | None = None) -> tuple[bool, bytes]:
+    """A belief (and facing): whether it is kept whole, and its bytes (TrackState.to_bytes);
+    node `also` is kept whatever its belief."""
     big = max(float(p.max()), 1e-300) if len(p) else 1.0
     keep = np.flatnonzero(p >= STORE_REL * big)
+    if also is not None and 0 <= also < len(p):
+        keep = np.union1d(keep, [also]).astype(np.int64)
     if len(keep) > MAX_STORED:
         rel = np.where(p >= STORE_REL * big, p / big, 0.0).astype("<f2")
         raw = rel.tobytes() + (b"" if face is None else face.astype("<f2").tobytes())
@@ -835,9 +840,10 @@ class Tracker:
         # one clip can be an outlier (people in the way, a turn, a look-alike): it moves the odds
         # between two places by at most 1 / track_outlier
         rho = float(_conf(self.conf, "track_outlier"))
-        # held still: the sensors counted no step and little turn, and the clip is best at the
-        # node the last one was (a wheelchair, or a phone that counts no steps while its user
-        # walks, reaches other nodes' views): "A phone held still" above
+        # held still: the clip is best at the node the last one was (a wheelchair, or a phone that
+        # counts no steps while its user walks, reaches other nodes' views), and the sensors
+        # counted no step and little turn, or, where they do not say it moved, the clip faces as
+        # the last one did there: "A phone held still" above
         best = int(np.argmax(e))
         held = False
         if not fresh and state is not None and state.best == best:

@@ -1,7 +1,15 @@
 // The quality map and the evaluation walk in words and geometry (the admin page's text
 // alternatives): what each stretch, corridor and clip says, and the arrow from truth to answer.
 import { describe, expect, it } from 'vitest';
-import { arrow, clipRow, clipVerdict, evaluationVideos, notReady, summaryText } from '../src/admin/evaluation-view';
+import {
+  arrow,
+  clipRow,
+  clipVerdict,
+  evaluationVideos,
+  notReady,
+  saidCounts,
+  summaryText,
+} from '../src/admin/evaluation-view';
 import { progressPercent, progressText } from '../src/admin/jobprogress';
 import {
   clock,
@@ -166,6 +174,31 @@ describe('evaluation walk in words', () => {
       '2 clips: 0 % within 1 m, 50 % within 2 m; median error 1.5 m, median heading error 5°; ' +
         '0 spoken as "not sure", 1 as "probably"; 0 said as sure and further than 2 m off; 1 without an answer',
     );
+  });
+
+  it('counts "probably" and sure-but-off from the clips of a result stored before the summary had them', () => {
+    const c = (confidence: number, low_confidence: boolean, error_m: number) =>
+      clip({ answer: { x: 0, y: 0, heading_deg: 0, confidence, low_confidence }, error_m });
+    const e: Evaluation = {
+      clips: [c(0.9, false, 0.4), c(0.95, false, 3.1), c(0.7, false, 2.5), c(0.3, true, 9), clip({ answer: null })],
+      summary: {
+        clips: 5,
+        within_1m: 0.2,
+        within_2m: 0.2,
+        median_error_m: 2.8,
+        median_heading_error_deg: 1,
+        not_sure: 1,
+      },
+    };
+    expect(saidCounts(e)).toEqual({ probably: 1, sure_over_2m: 1 });
+    expect(summaryText(e)).toContain(
+      '1 spoken as "not sure", 1 as "probably"; 1 said as sure and further than 2 m off',
+    );
+    // a summary that has them is taken as it is
+    expect(saidCounts({ ...e, summary: { ...e.summary, probably: 4, sure_over_2m: 0 } })).toEqual({
+      probably: 4,
+      sure_over_2m: 0,
+    });
   });
 
   it('draws an arrow from truth to answer with its head at the answer', () => {

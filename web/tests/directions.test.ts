@@ -110,9 +110,20 @@ group('the gist', () => {
     expect([g(SURE - 0.05, sure), g(SURE_LEAVE, sure)]).toEqual([sure, sure]);
     expect(g(SURE_LEAVE - 0.01, sure)).toBe(probably);
     // and only from SURE back up
-    expect(g(SURE - 0.01, probably)).not.toBe(sure);
     expect(g(SURE, probably)).toBe(sure);
     expect(g(0.3, sure)).toBe(probably); // not low: still a place, said as probably
+  });
+
+  it('the margin holds at the same place only: another place is said as describe says it', () => {
+    const at = (confidence: number, area: string, last = '') => gist(answer({ confidence, area }), 'clock', last);
+    const sureA = at(0.9, 'Corridor 1');
+    const b = at(0.75, 'Corridor 2', sureA); // "You are probably in the Corridor 2 ..." is what is said
+    expect(b).toBe(at(0.75, 'Corridor 2'));
+    expect(b.startsWith('probably|')).toBe(true);
+    expect(at(0.85, 'Corridor 2', b)).not.toBe(b); // firming up there is said
+    // without `last`, the gist of the sentence said (what the session keeps after speaking)
+    expect(gist(answer({ confidence: 0.75 }), 'clock').startsWith('probably|')).toBe(true);
+    expect(describe(answer({ confidence: 0.75 }), 'clock')).toMatch(/^You are probably /);
   });
 });
 

@@ -19,6 +19,8 @@ import math
 from collections.abc import Mapping
 from typing import Any, Literal
 
+from ..aggregate import SURE
+
 NEAR_M = 10.0  # a landmark further than this is not "near"
 # nor one nearer than this "near ... at 3 o'clock": the user is *at* it. Under a metre the way to
 # it is noise (the answer's own error is about that), and, said every few seconds to someone
@@ -27,12 +29,11 @@ AT_M = 1.0
 FACING_M = 30.0  # nor one this far "faced"
 FACING_DEG = 30.0  # and "facing" means within this angle of the heading
 UNSURE = "Not sure where you are; turn slowly and try again."
-# An answer under this confidence, though not "not sure", is said as "You are probably ...". The line
-# is CONVENTIONS.md's (of the answers at or above it, at least 80 % within 2 m) and the app's
-# "film on" line; under it a fifth of the answers or more are further than 2 m off on the venue
-# families we never tuned on, against 1-2 % above it (docs/benchmarks.md, "Said as probably"), and a
-# user who hears a place as a fact walks off on it.
-SURE = 0.8
+# An answer under SURE (aggregate.py's: CONVENTIONS.md's line, of the answers at or above it at
+# least 80 % within 2 m, and the app's "film on" line), though not "not sure", is said as "You are
+# probably ...": under it a fifth to two fifths of the answers are further than 2 m off on the
+# venue families we never tuned on, against 1-2 % above it (docs/benchmarks.md, "Said as
+# probably"), and a user who hears a place as a fact walks off on it.
 
 Style = Literal["clock", "sides", "degrees"]
 DEFAULT_STYLE: Style = "clock"
@@ -128,7 +129,7 @@ def sentence(answer: Mapping[str, Any], style: Style = DEFAULT_STYLE, floor_name
     facing = answer["facing"]
     if facing and not (near and facing == near["name"]):
         parts.append(f"facing {facing}")
-    probably = "probably " if answer["confidence"] < SURE else ""
+    probably = "" if answer["confidence"] >= SURE else "probably "  # (NaN: probably)
     return f"You are {probably}{', '.join(parts)}."
 
 

@@ -106,14 +106,17 @@ def plan(venue_id: str, floor: str) -> Any:
 def filing_name(name: str) -> tuple[tuple[int, int | str], ...]:
     """A place's name as a list files it: without case, without a leading article, so that "the
     café" comes under C and "the lifts" under L, where a user skimming the list by ear, or jumping
-    to a letter, looks for them; and numbers by their value, Room 2 before Room 10."""
-    n = name.casefold().strip()
-    for article in ("the ", "a ", "an "):
-        if n.startswith(article) and n[len(article) :].strip():
-            n = n[len(article) :].strip()
-            break
-    # (0, number) before (1, text), so that a key compares whatever its parts
-    return tuple((0, int(t)) if t.isdigit() else (1, t) for t in re.findall(r"\d+|\D+", n))
+    to a letter, looks for them; and numbers by their value, Room 2 before Room 10. "A" or "An"
+    is an article only before a word in lower case: "A Wing" and "A 4" are names ("a café" is not)."""
+    words = name.split()
+    if len(words) > 1 and (
+        words[0].casefold() == "the" or (words[0].casefold() in ("a", "an") and words[1][:1].islower())
+    ):
+        words = words[1:]
+    n = " ".join(words).casefold()
+    # (0, number) before (1, text), so that a key compares whatever its parts; ASCII digits only
+    # ("²" is a digit to str.isdigit but no number to int())
+    return tuple((0, int(t)) if t[0] in "0123456789" else (1, t) for t in re.findall(r"[0-9]+|[^0-9]+", n))
 
 
 @bp.get("/api/venues/<venue_id>/destinations")

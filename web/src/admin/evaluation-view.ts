@@ -5,6 +5,7 @@
  */
 import type { Evaluation, EvaluationClip, Video } from './types';
 import { at, clock, percent } from './quality-view';
+import { SURE } from '../client/directions';
 
 /** Videos that can be evaluated: role 'evaluation' (tracked or not: the screen says which lack a track). */
 export const evaluationVideos = (videos: Video[]): Video[] => videos.filter((v) => v.role === 'evaluation');
@@ -21,9 +22,23 @@ export function notReady(v: Video): string | null {
 export const metres = (v: number | null): string => (v === null ? 'none' : `${v.toFixed(1)} m`);
 export const degrees = (v: number | null): string => (v === null ? 'none' : `${Math.round(v)}°`);
 
+/**
+ * The answers said as "probably" and those said as sure but further than 2 m off: the summary's,
+ * or, for a result stored before it had them, counted from its clips the same way.
+ */
+export function saidCounts(e: Evaluation): { probably: number; sure_over_2m: number } {
+  const { probably, sure_over_2m } = e.summary;
+  if (probably !== undefined && sure_over_2m !== undefined) return { probably, sure_over_2m };
+  const answered = e.clips.filter((c) => c.answer !== null);
+  return {
+    probably: answered.filter((c) => !c.answer!.low_confidence && !(c.answer!.confidence >= SURE)).length,
+    sure_over_2m: answered.filter((c) => c.answer!.confidence >= SURE && (c.error_m ?? 0) > 2).length,
+  };
+}
+
 /** The summary, as shown and announced. */
 export function summaryText(e: Evaluation): string {
-  const s = e.summary;
+  const s = { ...e.summary, ...saidCounts(e) };
   const answered = e.clips.filter((c) => c.answer !== null).length;
   return (
     `${s.clips} clips: ${percent(s.within_1m)} within 1 m, ${percent(s.within_2m)} within 2 m; ` +

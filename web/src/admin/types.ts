@@ -181,9 +181,9 @@ export interface Evaluation {
     median_error_m: number | null;
     median_heading_error_deg: number | null;
     not_sure: number;
-    /** Said as "You are probably ...": a place, under the sure line (0.8). */
-    probably: number;
-    /** Said as sure (0.8 or more) and further than 2 m off: what would mislead a user. */
-    sure_over_2m: number;
+    /** Said as "You are probably ...": a place, under the sure line (0.8). Absent from results stored before it. */
+    probably?: number;
+    /** Said as sure (0.8 or more) and further than 2 m off: what would mislead a user. Absent before it too. */
+    sure_over_2m?: number;
   };
 }

@@ -120,7 +120,7 @@ export function describe(a: Said, style: Style, floorName?: string | null): stri
   else if (near) parts.push(`near ${near.name} ${direction(near.bearing_deg, style)}, ${metres(near.distance_m)}`);
   if (parts.length === 0) parts.push(`on ${floorName ?? `floor ${a.floor}`}`);
   if (a.facing && !(near && a.facing === near.name)) parts.push(`facing ${a.facing}`);
-  return `You are ${a.confidence < SURE ? 'probably ' : ''}${parts.join(', ')}.`;
+  return `You are ${sure(a) ? '' : 'probably '}${parts.join(', ')}.`;
 }
 
 /**
@@ -130,20 +130,26 @@ export function describe(a: Said, style: Style, floorName?: string | null): stri
  */
 export const AT_LEAVE_M = AT_M + 0.5;
 
+/** Whether an answer is said as sure ("You are ...") rather than "probably" (NaN: probably). */
+const sure = (a: Pick<Said, 'confidence'>): boolean => a.confidence >= SURE;
+
 /**
  * What a continuous-mode answer is "about": it is spoken only when this changes, so walking down a
- * corridor does not repeat the same sentence every few seconds. `last`: the gist last said. Whether
- * it is sure is part of it (with SURE_LEAVE's margin): "You are probably at the lifts" is followed
- * by "You are at the lifts" once the answer firms up.
+ * corridor does not repeat the same sentence every few seconds. `last`: the gist last said (with
+ * no `last`, the gist of the sentence `describe` makes). Whether it is sure is part of it, with
+ * SURE_LEAVE's margin at the same place only: "You are probably at the lifts" is followed by "You
+ * are at the lifts" once the answer firms up, and another place is said as `describe` says it.
  */
 export function gist(a: Said, style: Style, last = ''): string {
   if (a.low_confidence) return 'unsure';
   const n = nearOf(a);
-  const [lastSure, , , lastName, lastWay] = last.split('|');
+  const [lastSure, ...lastRest] = last.split('|');
+  const [, , lastName, lastWay] = lastRest;
   const atM = n && lastWay === 'at' && lastName === n.name ? AT_LEAVE_M : AT_M;
   const way = !n ? '' : n.distance_m < atM ? 'at' : direction(n.bearing_deg, style);
-  const sure = a.confidence >= (lastSure === 'sure' ? SURE_LEAVE : SURE) ? 'sure' : 'probably';
-  return [sure, a.floor, a.area, n?.name, way, a.facing].join('|');
+  const rest = [a.floor, a.area, n?.name, way, a.facing].join('|');
+  const stay = lastSure === 'sure' && lastRest.join('|') === rest && a.confidence >= SURE_LEAVE;
+  return [stay || sure(a) ? 'sure' : 'probably', rest].join('|');
 }
 
 // --- route guidance: the words of backend/omninav/server/describe.py's guidance_sentence and

@@ -434,8 +434,11 @@ export class Session extends Emitter<SessionEvents> {
   /** Say an answer; `quiet` (continuous mode): only when what it is about changed since the last said. */
   private tell(a: Answer, v: Venue, quiet: boolean): void {
     const g = gist(a, this.prefs.style, this.lastGist);
-    if (!quiet || g !== this.lastGist) this.o.voice.say(this.sentence(a, v), a.low_confidence ? 'unsure' : 'ok');
-    this.lastGist = g;
+    const say = !quiet || g !== this.lastGist;
+    if (say) this.o.voice.say(this.sentence(a, v), a.low_confidence ? 'unsure' : 'ok');
+    // what was said is what the next answer is compared with: its own gist, without the margins
+    // that kept the last one ("probably" said at 0.75 after a sure answer is remembered as said)
+    this.lastGist = say ? gist(a, this.prefs.style) : g;
   }
 
   /** Say a problem (`quiet`: not again while it lasts); a camera gone ends "Keep telling me". */

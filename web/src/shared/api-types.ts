@@ -164,7 +164,7 @@ export interface Destination {
 export interface DestinationFloor {
   id: string;
   name: string;
-  /** Sorted by name. */
+  /** Sorted by name as a list files it: without case or a leading article, numbers by value. */
   places: Destination[];
 }
 

@@ -19,6 +19,7 @@ import {
   clipVerdict,
   evaluationVideos,
   notReady,
+  saidCounts,
   summaryText,
 } from '../evaluation-view';
 import { JobProgress } from '../jobprogress';
@@ -80,7 +81,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   const show = (e: Evaluation, name: string) => {
     dropMap();
     const summary = el('p', { id: 'evaluation-summary', className: 'summary', textContent: summaryText(e) });
-    const s = e.summary;
+    const s = { ...e.summary, ...saidCounts(e) };
     const figures = el('dl', { className: 'figures', id: 'evaluation-figures' });
     const fig = (dt: string, dd: string, id: string) =>
       figures.append(el('dt', { textContent: dt }), el('dd', { id, textContent: dd }));
