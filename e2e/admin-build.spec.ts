@@ -293,7 +293,7 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     await a.waiting(() => expect(share).toBeVisible({ timeout: 300_000 }));
     type Xy = { x: number; y: number };
     const e = await adminApi<{
-      summary: { within_2m: number; clips: number };
+      summary: { within_2m: number; clips: number; probably: number; sure_over_2m: number };
       clips: { t: number; truth: Xy; answer: Xy & { confidence: number }; error_m: number }[];
     }>('GET', `/api/admin/venues/${VENUE}/videos/eval.mp4/evaluation`);
     within2 = e.summary.within_2m;
@@ -305,6 +305,13 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     expect(within2, `the evaluation walk within 2 m; misses: ${misses.join('; ')}`).toBeGreaterThanOrEqual(0.8);
     await expect(page.locator('#evaluation-clips tbody tr')).toHaveCount(e.summary.clips);
     await expect(page.locator('#evaluation-summary')).toContainText('within 2 m');
+    // what a user would have heard as "probably", and as sure but further than 2 m off: the server's counts
+    const said = e.clips.filter((c) => c.answer.confidence >= 0.8);
+    expect(e.summary.sure_over_2m).toBe(said.filter((c) => c.error_m > 2).length);
+    await expect(page.locator('#evaluation-probably')).toHaveText(`${e.summary.probably} of ${e.summary.clips}`);
+    await expect(page.locator('#evaluation-sure-over-2m')).toHaveText(
+      `${e.summary.sure_over_2m} of ${e.summary.clips}`,
+    );
     await expectNoAxeViolations(page, 'the evaluation screen');
   });
 
