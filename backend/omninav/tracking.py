@@ -223,7 +223,7 @@ def _faces_as_before(facing: np.ndarray, before: np.ndarray | None, node: int) -
     the clip says of a turn where no gyroscope does)."""
     if before is None or len(before) != len(facing) or not (np.isfinite(facing[node]) and np.isfinite(before[node])):
         return False
-    return abs((float(facing[node]) - float(before[node]) + 180.0) % 360.0 - 180.0) < STILL_TURN_DEG
+    return abs(float(wrap_deg(facing[node] - before[node]))) < STILL_TURN_DEG
 
 
 def _clip_times(matches: Matches, times: np.ndarray) -> np.ndarray:
@@ -400,7 +400,7 @@ def _pack(p: np.ndarray, face: np.ndarray | None, also: int | None = None) -> tu
     big = max(float(p.max()), 1e-300) if len(p) else 1.0
     keep = np.flatnonzero(p >= STORE_REL * big)
     if also is not None and 0 <= also < len(p):
-        keep = np.union1d(keep, [also]).astype(np.int64)
+        keep = np.union1d(keep, [also])
     if len(keep) > MAX_STORED:
         rel = np.where(p >= STORE_REL * big, p / big, 0.0).astype("<f2")
         raw = rel.tobytes() + (b"" if face is None else face.astype("<f2").tobytes())
@@ -846,7 +846,7 @@ class Tracker:
         # the last one did there: "A phone held still" above
         best = int(np.argmax(e))
         held = False
-        if not fresh and state is not None and state.best == best:
+        if _conf(self.conf, "track_still_cap") and not fresh and state is not None and state.best == best:
             # the sensors say so; or, where they do not say it moved (none, or none that
             # answered), the clip does: best where the last was and facing as it did there
             seen = _conf(self.conf, "track_still_seen") and not _moved(motion)
@@ -874,7 +874,7 @@ class Tracker:
             doubt = self.recent_min is not None and recent < self.recent_min
             if doubt or (clip.confidence >= SURE and self.elsewhere(pose, clip)):
                 pose = replace(pose, confidence=min(pose.confidence, self.doubt_cap))
-            if held and _conf(self.conf, "track_still_cap"):  # no surer than the clip alone, as a locate says it
+            if held:  # no surer than the clip alone, as a locate says it
                 pose = replace(pose, confidence=min(pose.confidence, float(clip.said)))
         pose = replace(pose, restarted=bool(fresh))
         heading = pose.heading if pose.heading_known else None

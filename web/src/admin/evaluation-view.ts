@@ -5,7 +5,7 @@
  */
 import type { Evaluation, EvaluationClip, Video } from './types';
 import { at, clock, percent } from './quality-view';
-import { SURE } from '../client/directions';
+import { isSure } from '../client/directions';
 
 /** Videos that can be evaluated: role 'evaluation' (tracked or not: the screen says which lack a track). */
 export const evaluationVideos = (videos: Video[]): Video[] => videos.filter((v) => v.role === 'evaluation');
@@ -31,8 +31,8 @@ export function saidCounts(e: Evaluation): { probably: number; sure_over_2m: num
   if (probably !== undefined && sure_over_2m !== undefined) return { probably, sure_over_2m };
   const answered = e.clips.filter((c) => c.answer !== null);
   return {
-    probably: answered.filter((c) => !c.answer!.low_confidence && !(c.answer!.confidence >= SURE)).length,
-    sure_over_2m: answered.filter((c) => c.answer!.confidence >= SURE && (c.error_m ?? 0) > 2).length,
+    probably: answered.filter((c) => !c.answer!.low_confidence && !isSure(c.answer!)).length,
+    sure_over_2m: answered.filter((c) => isSure(c.answer!) && (c.error_m ?? 0) > 2).length,
   };
 }
 

@@ -104,6 +104,12 @@ function metres(d: number): string {
 /** The nearest place when it is near enough to name, else null. */
 const nearOf = (a: Pick<Answer, 'nearest'>) => (a.nearest && a.nearest.distance_m <= NEAR_M ? a.nearest : null);
 
+/**
+ * Whether an answer that is not "not sure" is said as sure ("You are ...") rather than "probably"
+ * (NaN: probably): the one test of the line, for the sentence, the gist, the plan and the admin.
+ */
+export const isSure = (a: { confidence: number }): boolean => a.confidence >= SURE;
+
 /** What the sentence is made from: the answer's words, and whether it is sure. */
 export type Said = Pick<Answer, 'floor' | 'area' | 'nearest' | 'facing' | 'low_confidence' | 'confidence'>;
 
@@ -120,7 +126,7 @@ export function describe(a: Said, style: Style, floorName?: string | null): stri
   else if (near) parts.push(`near ${near.name} ${direction(near.bearing_deg, style)}, ${metres(near.distance_m)}`);
   if (parts.length === 0) parts.push(`on ${floorName ?? `floor ${a.floor}`}`);
   if (a.facing && !(near && a.facing === near.name)) parts.push(`facing ${a.facing}`);
-  return `You are ${sure(a) ? '' : 'probably '}${parts.join(', ')}.`;
+  return `You are ${isSure(a) ? '' : 'probably '}${parts.join(', ')}.`;
 }
 
 /**
@@ -129,9 +135,6 @@ export function describe(a: Said, style: Style, floorName?: string | null): stri
  * 3 o'clock, 1 metre" at every answer of a user standing there.
  */
 export const AT_LEAVE_M = AT_M + 0.5;
-
-/** Whether an answer is said as sure ("You are ...") rather than "probably" (NaN: probably). */
-const sure = (a: Pick<Said, 'confidence'>): boolean => a.confidence >= SURE;
 
 /**
  * What a continuous-mode answer is "about": it is spoken only when this changes, so walking down a
@@ -149,7 +152,7 @@ export function gist(a: Said, style: Style, last = ''): string {
   const way = !n ? '' : n.distance_m < atM ? 'at' : direction(n.bearing_deg, style);
   const rest = [a.floor, a.area, n?.name, way, a.facing].join('|');
   const stay = lastSure === 'sure' && lastRest.join('|') === rest && a.confidence >= SURE_LEAVE;
-  return [stay || sure(a) ? 'sure' : 'probably', rest].join('|');
+  return [stay || isSure(a) ? 'sure' : 'probably', rest].join('|');
 }
 
 // --- route guidance: the words of backend/omninav/server/describe.py's guidance_sentence and

@@ -6,7 +6,7 @@
  * (shapes and outlines differ too). It knows nothing of the phone's session, so that any page that
  * shows a plan (the app, the admin pages) draws it the same way.
  */
-import { SURE } from '../directions';
+import { isSure } from '../directions';
 
 /** What the view needs of a floor (a venue document's floor is one). */
 export interface PlanFloor {
@@ -102,7 +102,7 @@ export function planLabel(floorName: string | undefined, a: PlanPose | null): st
   const where = a.area ? `in ${a.area}` : `at ${a.x.toFixed(1)} m, ${a.y.toFixed(1)} m`;
   const near = a.nearest ? `; nearest place ${a.nearest.name}, ${a.nearest.distance_m.toFixed(0)} m away` : '';
   const acc = a.accuracy_m ? `, within about ${a.accuracy_m} m` : '';
-  const probably = a.confidence >= SURE ? '' : 'probably ';
+  const probably = isSure(a) ? '' : 'probably ';
   return `Floor plan of ${fname}: you are ${probably}${where}${acc}, heading ${Math.round(a.heading_deg)} degrees on the plan${near}.`;
 }
 
