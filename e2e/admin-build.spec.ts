@@ -291,6 +291,8 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     await a.click(page.getByRole('button', { name: 'Run the evaluation' }));
     const share = page.locator('#evaluation-within-2m');
     await a.waiting(() => expect(share).toBeVisible({ timeout: 300_000 }));
+    // the Run button was disabled while it ran: the keyboard's place is now the result, not the page
+    await expect(page.locator('#evaluation-summary')).toBeFocused();
     type Xy = { x: number; y: number };
     const e = await adminApi<{
       summary: { within_2m: number; clips: number; probably: number; sure_over_2m: number };

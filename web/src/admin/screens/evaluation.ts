@@ -80,7 +80,13 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
 
   const show = (e: Evaluation, name: string) => {
     dropMap();
-    const summary = el('p', { id: 'evaluation-summary', className: 'summary', textContent: summaryText(e) });
+    // (focusable: the keyboard's place once a run ends, see `follow`)
+    const summary = el('p', {
+      id: 'evaluation-summary',
+      className: 'summary',
+      textContent: summaryText(e),
+      tabIndex: -1,
+    });
     const s = { ...e.summary, ...saidCounts(e) };
     const figures = el('dl', { className: 'figures', id: 'evaluation-figures' });
     const fig = (dt: string, dd: string, id: string) =>
@@ -186,6 +192,10 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     } finally {
       progress.busy = false;
       refreshButtons();
+      // the button pressed was disabled while the run went on, which left the focus on the page:
+      // keep the keyboard's place on what happened (the result, else the button), unless it moved
+      if (!document.activeElement || document.activeElement === document.body)
+        (document.getElementById('evaluation-summary') ?? run).focus();
     }
   };
 
