@@ -53,6 +53,7 @@ def test_every_kind_style_and_boundary_is_covered():
         "reassure",
         "off_route",
         "arrived",
+        "probably_arrived",
         "floor_change",
         "unsure",
     }

@@ -560,6 +560,52 @@ def test_arrival_is_said_once_with_the_places_bearing(ring: wg.WalkGraph):
     assert gs[1]["sentence"] == "You have arrived at Room 102; it is at 3 o'clock, 2 metres. The door is on your left."
 
 
+def test_an_arrival_under_sure_is_said_as_probably_and_guidance_goes_on_until_it_is_sure(ring: wg.WalkGraph):
+    near = Pose(39.0, 4.5, "1", 270.0)  # 1.5 m below Room 102's node, facing west
+    unsure, sure = replace(near, confidence=0.7), replace(near, confidence=0.8)
+    gs, _ = follow(ring, ROOM_102, [Pose(33.0, 3.0, "1", 90.0), unsure, unsure, sure, sure])
+    got = [(g["kind"], g["speak"], g["urgent"], g["arrived"]) for g in gs[1:]]
+    assert got == [
+        ("probably_arrived", True, True, False),  # said, cutting in, but not the end of the guidance
+        ("probably_arrived", False, True, False),  # not said again
+        ("arrived", True, True, True),  # the pose firmed up: now it is a fact, and the guidance ends
+        ("arrived", False, True, True),
+    ]
+    assert gs[1]["sentence"] == "You are probably at Room 102; it is at 3 o'clock, 2 metres. The door is on your left."
+    assert gs[3]["sentence"] == "You have arrived at Room 102; it is at 3 o'clock, 2 metres. The door is on your left."
+    assert gs[1]["remaining_m"] == 0.0 and gs[1]["on_route"]
+
+
+def test_a_probable_arrival_that_was_elsewhere_guides_on(ring: wg.WalkGraph):
+    # "probably at Room 102" at 0.7, then sure answers 10 m back along the corridor (the probable
+    # pose was a look-alike, or the walker went on): the guide does not stop; it guides from there
+    near = Pose(39.0, 4.5, "1", 270.0, confidence=0.7)
+    back = [Pose(29.0, 3.0, "1", 90.0), Pose(30.0, 3.0, "1", 90.0)]
+    gs, _ = follow(ring, ROOM_102, [Pose(33.0, 3.0, "1", 90.0), near, *back])
+    assert [g["kind"] for g in gs] == ["start", "probably_arrived", "off_route", "turn"]
+    assert not any(g["arrived"] for g in gs)
+    assert gs[-1]["sentence"] == "Walk straight ahead 9 metres, to Room 102." and gs[-1]["remaining_m"] == 9.0
+
+
+@pytest.mark.parametrize("confidence", [0.79, float("nan")])
+def test_a_route_started_at_the_place_is_not_arrived_there_unless_sure(ring: wg.WalkGraph, confidence: float):
+    at_place = Pose(39.0, 3.0, "1", 90.0, confidence=confidence)
+    gs, _ = follow(ring, ROOM_102, [at_place, replace(at_place, confidence=0.95)])
+    assert [(g["kind"], g["arrived"]) for g in gs] == [("probably_arrived", False), ("arrived", True)]
+    assert gs[0]["sentence"] == "You are probably at Room 102. The door is on your left."
+
+
+def test_a_single_low_answer_at_the_place_is_held_not_arrived(ring: wg.WalkGraph):
+    # a route with nowhere to walk (started at the place), then one low answer there: nothing
+    # decided on it, so it cannot end the guidance (it did, silently, before arrival needed a sure pose)
+    at_place = Pose(39.0, 3.0, "1", 90.0, confidence=0.7)
+    gs, _ = follow(ring, ROOM_102, [at_place, replace(at_place, confidence=0.45)])
+    assert [(g["kind"], g["speak"], g["arrived"]) for g in gs] == [
+        ("probably_arrived", True, False),
+        ("probably_arrived", False, False),
+    ]
+
+
 def test_a_route_given_by_the_caller_is_the_one_started(ring: wg.WalkGraph):
     at = wg.attach(ring, PLACES)
     r = rt.plan(ring, ring.nearest(15, 23), ROOM_102, at["p3"], PLACES)

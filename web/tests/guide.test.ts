@@ -35,7 +35,7 @@ function g(kind: Guidance['kind'], sentence: string, more: Partial<Guidance> = {
     to: TO,
     kind,
     speak: true,
-    urgent: kind === 'off_route' || kind === 'arrived',
+    urgent: kind === 'off_route' || kind === 'arrived' || kind === 'probably_arrived',
     bearing_deg: 0,
     walk_m: 10,
     in_m: null,
@@ -609,6 +609,40 @@ describe('Guide', () => {
     expect(r.said).toEqual([
       { text: 'You have arrived at Room 102. The door is on your left.', cue: 'ok', urgent: true },
     ]);
+  });
+
+  it('"probably at" cuts in but does not end guidance; the sure arrival after it does', async () => {
+    const words: Words = { guidance: guidanceSentence, preview: (x) => previewSentence(x.preview!, x.to) };
+    const to = { ...TO, say: SAY };
+    const start = g('start', '', { to, bearing_deg: 0, walk_m: 12, until: 'Room 102', preview: PREVIEW });
+    const probably = g('probably_arrived', '', { to, bearing_deg: 90, walk_m: 2, remaining_m: 0, next_turn_m: null });
+    const arrived = g('arrived', '', { to, bearing_deg: 90, walk_m: 2, remaining_m: 0, next_turn_m: null });
+    const r = rig([start, start, probably, { ...probably, speak: false }, arrived, REASSURE], { words });
+    const c = r.guide.choose({ id: 'p3', name: 'Room 102' });
+    await vi.advanceTimersByTimeAsync(1000);
+    await c;
+    r.guide.start();
+    await vi.advanceTimersByTimeAsync(1000 + INTERVAL_MS);
+    expect(r.guide.state).toBe('guiding'); // "probably" is not the end: still filming
+    expect(r.said.at(-1)).toEqual({
+      text: "You are probably at Room 102; it is at 3 o'clock, 2 metres. The door is on your left.",
+      cue: 'ok',
+      urgent: true,
+    });
+    await vi.advanceTimersByTimeAsync(INTERVAL_MS * 4);
+    expect(r.guide.state).toBe('arrived');
+    expect(r.requests.length).toBe(5); // the preview's, Start's, the probable two, the sure arrival
+    expect(r.said.filter((s) => s.urgent).map((s) => s.text)).toEqual([
+      "You are probably at Room 102; it is at 3 o'clock, 2 metres. The door is on your left.",
+      "You have arrived at Room 102; it is at 3 o'clock, 2 metres. The door is on your left.",
+    ]);
+    // a probable arrival at the preview (the walk began there): said, and Start may be pressed
+    const p = rig([{ ...probably, walk_m: 0.3 }], { words });
+    const cp = p.guide.choose({ id: 'p3', name: 'Room 102' });
+    await vi.advanceTimersByTimeAsync(1000);
+    await cp;
+    expect(p.guide.state).toBe('ready');
+    expect(p.texts()).toEqual(['You are probably at Room 102. The door is on your left.']);
   });
 
   it('a session id the server takes: [A-Za-z0-9_-]{8,64}, a new one each time', () => {

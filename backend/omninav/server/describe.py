@@ -224,11 +224,12 @@ def guidance_sentence(g: Mapping[str, Any], style: Style = DEFAULT_STYLE) -> str
     if kind == "unsure":
         return GUIDE_UNSURE
     b = g["bearing_deg"]
-    if kind == "arrived":
+    if kind in ("arrived", "probably_arrived"):
+        at = "You have arrived at" if kind == "arrived" else "You are probably at"
         if g["walk_m"] < 0.5:  # at the place itself: it has no bearing
-            said = f"You have arrived at {g['to']['name']}."
+            said = f"{at} {g['to']['name']}."
         else:
-            said = f"You have arrived at {g['to']['name']}; it is {direction(b, style)}, {metres(g['walk_m'])}."
+            said = f"{at} {g['to']['name']}; it is {direction(b, style)}, {metres(g['walk_m'])}."
         say = g["to"].get("say")
         return f"{said} {say}" if say else said
     if kind == "off_route":

@@ -207,11 +207,10 @@ export function guidanceSentence(g: Guided, style: Style): string {
   if (g.kind === 'unsure') return GUIDE_UNSURE;
   const b = g.bearing_deg ?? 0;
   const walk = g.walk_m ?? 0;
-  if (g.kind === 'arrived') {
+  if (g.kind === 'arrived' || g.kind === 'probably_arrived') {
+    const at = g.kind === 'arrived' ? 'You have arrived at' : 'You are probably at';
     const said =
-      walk < 0.5
-        ? `You have arrived at ${g.to.name}.`
-        : `You have arrived at ${g.to.name}; it is ${direction(b, style)}, ${metres(walk)}.`;
+      walk < 0.5 ? `${at} ${g.to.name}.` : `${at} ${g.to.name}; it is ${direction(b, style)}, ${metres(walk)}.`;
     return g.to.say ? `${said} ${g.to.say}` : said;
   }
   if (g.kind === 'off_route') {

@@ -9,7 +9,8 @@
  * the walk filmed is right more often: docs/benchmarks.md, "Filming throughout");
  * the server's filter and guide decide what is new, and this loop speaks only what it marks
  * `speak`. Off the route and arrival cut in (urgent); "not sure" is said once per spell; arrival
- * ends the loop. The screen is kept on while guiding (wakelock.ts) and the motion sensors run
+ * ends the loop, and only a sure one does: "You are probably at ..." (`probably_arrived`, a pose
+ * under 0.8) cuts in too, but the loop goes on until the server is sure or guides on elsewhere. The screen is kept on while guiding (wakelock.ts) and the motion sensors run
  * (motion.ts) only then.
  *
  * The motion sent is what the phone felt since the session's previous answered request: a
@@ -136,7 +137,8 @@ export interface GuideEvents {
   problem: string;
 }
 
-const URGENT_KINDS = new Set<Guidance['kind']>(['off_route', 'arrived']);
+// probably arrived cuts in too: the walker should stop and listen, though guidance goes on
+const URGENT_KINDS = new Set<Guidance['kind']>(['off_route', 'arrived', 'probably_arrived']);
 
 /** The vibration or earcon with a sentence: reassurance comes without one, so walking stays quiet. */
 function cueOf(g: Guidance): Cue | null {

@@ -123,10 +123,23 @@ export interface RoutePreview {
 /** The next instruction towards the place of `to` (docs/formats.md). */
 export interface Guidance {
   to: GuidanceTarget;
-  kind: 'start' | 'turn' | 'continue' | 'reassure' | 'off_route' | 'arrived' | 'floor_change' | 'unsure';
+  /**
+   * `probably_arrived`: within ~2 m of the place but the pose is under 0.8; said as "You are
+   * probably at ...", and guidance goes on (only `arrived` ends it).
+   */
+  kind:
+    | 'start'
+    | 'turn'
+    | 'continue'
+    | 'reassure'
+    | 'off_route'
+    | 'arrived'
+    | 'probably_arrived'
+    | 'floor_change'
+    | 'unsure';
   /** Say it now (false: nothing new since the last spoken sentence). */
   speak: boolean;
-  /** Cut in (off the route, arrived). */
+  /** Cut in (off the route, arrived or probably arrived). */
   urgent: boolean;
   /** Where to face to walk the route (on arrival: where the place is), clockwise from the heading, (-180, 180]. */
   bearing_deg: number | null;
