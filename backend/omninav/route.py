@@ -402,6 +402,7 @@ def guide(
     floor_names: Mapping[str, str] | None = None,
     style: str = "clock",
     low_confidence: float = LOW_CONFIDENCE,
+    sure: float = SURE,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """One answer's guidance towards `place` -> (guidance JSON, the new state JSON).
 
@@ -409,7 +410,8 @@ def guide(
     whose route no longer ends at `place_node`: start over). `route` is used for the start (the
     caller planned it); None plans from the pose. Later answers follow the state's route, and
     replan here when the user leaves it. `places` (the venue's) name what is at the legs' ends; the
-    sentence is in `style`; floors are named by `floor_names` (default "floor <id>")."""
+    sentence is in `style`; floors are named by `floor_names` (default "floor <id>"). Arrival is
+    said as a fact from `sure` (bench/guided.py passes `low_confidence` to measure the rule before)."""
     from .server.describe import guidance_sentence  # the words: pure, shared with the app
 
     ok = state is not None and _valid(state, graph, place, place_node)
@@ -499,9 +501,9 @@ def guide(
         st["away"] = 0
         # arrival ends the guidance, so it is said as a fact only from a sure pose; under that it is
         # "probably" there and the guide goes on until the pose firms up (or shows it was elsewhere)
-        sure = not hold and pose.confidence >= SURE
+        fact = not hold and pose.confidence >= sure
         return answer(
-            "arrived" if sure else "probably_arrived",
+            "arrived" if fact else "probably_arrived",
             speak=not hold,
             bearing_deg=_bearing(pose, px, py),
             walk_m=math.hypot(px - pose.x, py - pose.y),
