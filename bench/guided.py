@@ -54,7 +54,7 @@ import numpy as np
 
 from omninav import route as rt
 from omninav import walkgraph as wg
-from omninav.aggregate import SURE, sequence
+from omninav.aggregate import SURE, confidence, sequence
 from omninav.locate import Locator
 from omninav.synth.families import FAMILIES
 from omninav.tracking import Imu, Tracker
@@ -133,14 +133,24 @@ def guided(
         m, evidence = w.matches(loc, s)
         times = w.t[s]
         motion = imu.motion(t_prev, t_now) if imu is not None and t_prev is not None else None
-        own = loc.own_answers(sequence(m, loc.xy, times, loc.conf), len(times), "sequence")
+        est = sequence(m, loc.xy, times, loc.conf)  # the clip alone, as "Where am I?" answers it
+        own = loc.own_answers(est, len(times), "sequence")
         state, pose = tr.update_clip(state, evidence, times, t_now, motion, own)
         t_prev = t_now
         e = s.stop - 1
         off_m = float(np.hypot(w.xy[e, 0] - x, w.xy[e, 1] - y))  # the walker from the place
         truth = Truth(float(w.xy[e, 0]), float(w.xy[e, 1]), float(w.heading[e]))
-        poses.append({"t": t_now - t0, "confidence": pose.confidence, "ambiguous": pose.ambiguous, "off_m": off_m,
-                      "to_m": float(np.hypot(pose.x - x, pose.y - y))})  # fmt: skip
+        poses.append(
+            {
+                "t": t_now - t0,
+                "confidence": pose.confidence,
+                "ambiguous": pose.ambiguous,
+                "off_m": off_m,
+                "to_m": float(np.hypot(pose.x - x, pose.y - y)),
+                "single_to_m": float(np.hypot(est.x - x, est.y - y)),
+                "single_confidence": confidence(est, loc.conf),
+            }
+        )
         for k in guides:
             if k in done:
                 continue
