@@ -30,7 +30,8 @@ Per split and phone, over the destinations:
                   (median and worst, right arrivals);
   off the route   "You are off the route" said per destination, by the tracked guide and by the
                   guide fed the truth.
-Both rules, side by side from the same answers: arrival said as a fact from 0.8 (the guide now)
+The rules side by side from the same answers: arrival said as a fact from 0.8 on a track that
+has settled (no more than a third of the last 30 s of answers low: the guide now), from 0.8 alone,
 and from 0.5 (the guide before `probably_arrived`: every pose it acts on).
 
 And a walker where the venue was never modelled (as bench/elsewhere.py's look-alike: the same
@@ -70,7 +71,8 @@ APPROACH_M = 30.0  # the guidance starts this much walking before the stop
 GO_ON_S = 5.0  # the guidance runs on this long after the walker leaves the stop
 RIGHT_M = 3.0  # an arrival said with the walker this near the place is right (ARRIVE_M + 1 m of pose)
 LOW = 0.5  # config.py LOW_CONFIDENCE: the guide's own "not sure" line, as the server passes it
-RULES = {"0.8 (now)": SURE, "0.5 (before)": LOW}
+# arrival said as a fact: (from this confidence, on a track settled over this many seconds; 0: not asked)
+RULES = {"0.8, settled (now)": (SURE, rt.SETTLE_S), "0.8": (SURE, 0.0), "0.5 (before)": (LOW, 0.0)}
 
 
 @dataclass(frozen=True)
@@ -154,9 +156,9 @@ def guided(
         for k in guides:
             if k in done:
                 continue
-            p, sure = (truth, SURE) if k == "truth" else (pose, RULES[k])
+            p, (sure, settle) = (truth, (SURE, 0.0)) if k == "truth" else (pose, RULES[k])
             g, guides[k] = rt.guide(
-                graph, None, place, node, p, guides[k], t_now, [place], low_confidence=LOW, sure=sure
+                graph, None, place, node, p, guides[k], t_now, [place], low_confidence=LOW, sure=sure, settle_s=settle
             )
             guides[k] = json.loads(json.dumps(guides[k]))  # the server stores it as JSON
             if g["speak"]:

@@ -458,7 +458,8 @@ def test_a_confidence_hovering_about_the_threshold_says_a_handful_of_sentences(r
         ("turn", "In 2 metres, turn to 9 o'clock and walk 20 metres, to the lifts."),
         ("reassure", "Keep going, 10 metres to the lifts."),
         ("turn", "In 2 metres, turn to 3 o'clock and walk 12 metres, to Room 102."),
-        ("arrived", "You have arrived at Room 102; it is at 12 o'clock, 2 metres. The door is on your left."),
+        # half the answers of the last 30 s were low: a track that has not settled arrives "probably"
+        ("probably_arrived", "You are probably at Room 102; it is at 12 o'clock, 2 metres. The door is on your left."),
     ]
     assert all(g["on_route"] for g in gs) and "unsure" not in {g["kind"] for g in gs}
     # the other phase: the answers before the corners are the low ones, held; the turn is said at
@@ -585,6 +586,43 @@ def test_a_probable_arrival_that_was_elsewhere_guides_on(ring: wg.WalkGraph):
     assert [g["kind"] for g in gs] == ["start", "probably_arrived", "off_route", "turn"]
     assert not any(g["arrived"] for g in gs)
     assert gs[-1]["sentence"] == "Walk straight ahead 9 metres, to Room 102." and gs[-1]["remaining_m"] == 9.0
+
+
+def test_arrival_on_a_track_that_has_not_settled_is_probably_until_the_low_answers_are_30_s_old(ring: wg.WalkGraph):
+    # four low answers (two of them said as "not sure"), then sure answers at the place, 2.5 s apart:
+    # of the last 30 s, more than a third low until the low ones are older than 30 s
+    go, there = Pose(33.0, 3.0, "1", 90.0), Pose(39.0, 4.5, "1", 270.0)
+    low = Pose(34.0, 3.0, "1", 90.0, confidence=0.45)
+    gs, state = follow(ring, ROOM_102, [go, low, low, low, low] + [there] * 10)
+    kinds = [(g["kind"], g["speak"]) for g in gs]
+    assert kinds[2] == ("unsure", True) and kinds[5] == ("probably_arrived", True)
+    assert kinds[6:13] == [("probably_arrived", False)] * 7  # 4 of 5 ... 4 of 11 low: not settled
+    assert kinds[13:] == [("arrived", True), ("arrived", False)]  # at 32.5 s: 4 of 12, a third
+    assert gs[13]["sentence"].startswith("You have arrived at Room 102") and gs[13]["urgent"]
+    assert state is not None and [t for t, _ in state["recent"]][0] == 5.0  # the window: 30 s
+
+
+def test_the_first_answer_of_a_guidance_is_not_counted_against_settling(ring: wg.WalkGraph):
+    # a new session's first answer is young and low; a walk of sure answers after it arrives at once
+    first = Pose(33.0, 3.0, "1", 90.0, confidence=0.45)
+    gs, _ = follow(ring, ROOM_102, [first, Pose(33.0, 3.0, "1", 90.0), Pose(39.0, 4.5, "1", 270.0)])
+    assert [g["kind"] for g in gs] == ["unsure", "start", "arrived"]
+
+
+def test_answers_at_a_clock_that_stands_still_keep_the_state_small(ring: wg.WalkGraph):
+    p = Pose(33.0, 3.0, "1", 90.0)
+    _, state = follow(ring, ROOM_102, [p] * 200, dt=0.0)
+    assert state is not None and len(state["recent"]) == rt.RECENT_MAX and len(json.dumps(state)) < 2000
+
+
+@pytest.mark.parametrize("recent", [None, "junk", [[0.0]], [["x", 1]], [[float("inf"), 1]]])
+def test_a_state_without_readable_recent_answers_counts_none(ring: wg.WalkGraph, recent: Any):
+    # a state written before "recent", or one that cannot be read: nothing recent, arrival as ever
+    _, state = follow(ring, ROOM_102, [Pose(33.0, 3.0, "1", 90.0)])
+    assert state is not None
+    old = {k: v for k, v in state.items() if k != "recent"} | ({} if recent is None else {"recent": recent})
+    gs, state = follow(ring, ROOM_102, [Pose(39.0, 4.5, "1", 270.0)], old, t0=2.5)
+    assert gs[0]["kind"] == "arrived" and state is not None and state["recent"] == [[2.5, 0]]
 
 
 @pytest.mark.parametrize("confidence", [0.79, float("nan")])

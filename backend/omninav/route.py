@@ -24,14 +24,18 @@ takes ~3 s to say, and a listener needs a pause); a sentence just said is not sa
 false).
 
 Arrival ends the guidance (the app stops filming and says so), so it is said as a fact only from a
-sure pose (aggregate.SURE, 0.8, the line at which an answer stops being "probably"). Within
-ARRIVE_M at a lower confidence the guide says "You are probably at Room 102; ..." (`probably_arrived`,
-urgent too: the walker should stop and listen) and goes on: the next sure answer there says "You have
-arrived", and one that finds the walker elsewhere (a look-alike place, or walked on past it) guides on
-from there. In the modelled venue a tracked pose under 0.8 is within 2 m of the truth 84-100 % of the
-time, a sure one 99.5 %; where the venue was never modelled, over a quarter of the tracked answers
-fall between 0.5 and 0.8 (docs/benchmarks.md), and a guide that ended there would leave a blind user
-standing at the wrong door, told they had arrived.
+sure pose (aggregate.SURE, 0.8, the line at which an answer stops being "probably") on a track that
+has settled: no more than a third of the guidance's answers of the last SETTLE_S (30 s) low. Within
+ARRIVE_M otherwise the guide says "You are probably at Room 102; ..." (`probably_arrived`, urgent
+too: the walker should stop and listen) and goes on: the next sure answer there on a settled track
+says "You have arrived", and one that finds the walker elsewhere (a look-alike place, or walked on
+past it) guides on from there. Why both: in the modelled venue a tracked pose under 0.8 is within
+2 m of the truth 84-100 % of the time, a sure one 99.5 %; and the settling is the guide's "not
+here": a walker somewhere the venue never modelled gets two thirds of their answers low, and the
+odd sure one between them landed on the destination's look-alike in a quarter of such guidances
+(bench/guided.py, held-out, a look-alike building: 6 of 24, and 1 with the rule, for 1-2 of 24
+destinations in the venue told "probably" instead). SETTLE_S and SETTLE_LOW were chosen on the
+tuning families (docs/benchmarks.md, "Arrival").
 
 "Not sure" has hysteresis, since the filter's confidence of a split belief sits just under the
 threshold (capped at 0.45) and a pose that crosses it at every answer would make the guide talk at
@@ -88,6 +92,9 @@ REJOIN_M = 3.0  # metres walked along a new route that end a spell off the route
 LOW_CONFIDENCE = 0.5  # below it the pose is low (config.py's default for single answers)
 LOW_ANSWERS = 2  # low answers in a row before "not sure"
 CLEAR_LOW = 0.35  # a confidence under this is "not sure" at once
+SETTLE_S = 30.0  # arrival as a fact: the guidance's answers of the last 30 s ...
+SETTLE_LOW = 1.0 / 3.0  # ... no more than a third of them low
+RECENT_MAX = 64  # the most answers kept for it (a client's clock that stands still must not grow the state)
 INSTRUCTIONS = ("start", "turn", "floor_change")  # the kinds that say the instruction
 STATE_VERSION = 1
 END_OF_CORRIDOR = "the end of the corridor"
@@ -371,6 +378,7 @@ def new_state(graph: WalkGraph, place: Mapping[str, Any]) -> dict[str, Any]:
         "off": None,  # a spell off the route: {"t": its last warning, "way": the last way said}
         "on_route": False,
         "remaining_m": None,
+        "recent": [],  # the answers of the last SETTLE_S: [t, 1 if low else 0]
     }
 
 
@@ -403,6 +411,7 @@ def guide(
     style: str = "clock",
     low_confidence: float = LOW_CONFIDENCE,
     sure: float = SURE,
+    settle_s: float = SETTLE_S,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """One answer's guidance towards `place` -> (guidance JSON, the new state JSON).
 
@@ -411,7 +420,8 @@ def guide(
     caller planned it); None plans from the pose. Later answers follow the state's route, and
     replan here when the user leaves it. `places` (the venue's) name what is at the legs' ends; the
     sentence is in `style`; floors are named by `floor_names` (default "floor <id>"). Arrival is
-    said as a fact from `sure` (bench/guided.py passes `low_confidence` to measure the rule before)."""
+    said as a fact from `sure`, and only if no more than a third of the answers of the last
+    `settle_s` were low (0: not asked; bench/guided.py measures the rules before)."""
     from .server.describe import guidance_sentence  # the words: pure, shared with the app
 
     ok = state is not None and _valid(state, graph, place, place_node)
@@ -477,6 +487,11 @@ def guide(
     # held instead (a confidence that hovers about the threshold must not make the guide talk)
     low = bool(pose.ambiguous) or pose.confidence < low_confidence
     st["low"] = st["low"] + 1 if low else 0
+    # the guidance's answers of the last `settle_s`, for arrival (the one that started this state
+    # is not counted: a new session's first answer is always young)
+    past = _recent(st.get("recent"), float(t_now), settle_s) if ok else []
+    unsettled = bool(past) and sum(v for _, v in past) > SETTLE_LOW * len(past)
+    st["recent"] = (past + [[float(t_now), int(low)]])[-RECENT_MAX:] if ok else []
     if low and (not st["started"] or pose.confidence < CLEAR_LOW or st["low"] >= LOW_ANSWERS):
         return answer("unsure")
     hold = low  # nothing decided on this pose: not spoken, the state's progress kept
@@ -501,7 +516,7 @@ def guide(
         st["away"] = 0
         # arrival ends the guidance, so it is said as a fact only from a sure pose; under that it is
         # "probably" there and the guide goes on until the pose firms up (or shows it was elsewhere)
-        fact = not hold and pose.confidence >= sure
+        fact = not hold and pose.confidence >= sure and not unsettled
         return answer(
             "arrived" if fact else "probably_arrived",
             speak=not hold,
@@ -598,6 +613,16 @@ def guide(
             return answer("reassure", key=f"reassure:{ci}:{_round(common['walk_m'])}", **common)
     # nothing new: not spoken, but the sentence is there for "What next?"
     return answer("continue" if leg.via is None else kind, key=f"continue:{ci}", speak=False, **common)
+
+
+def _recent(v: Any, t_now: float, span_s: float) -> list[list[float]]:
+    """The state's recent answers within `span_s` before `t_now`, [[t, low]]; none for a state
+    written before them, or one that cannot be read (a clock gone back drops what is ahead of it)."""
+    try:
+        out = [[float(t), float(lo)] for t, lo in v]
+    except (TypeError, ValueError):
+        return []
+    return [[t, 1 if lo else 0] for t, lo in out if t_now - span_s <= t <= t_now and math.isfinite(t)]
 
 
 def _spell(v: Any) -> dict[str, Any] | None:

@@ -124,8 +124,9 @@ export interface RoutePreview {
 export interface Guidance {
   to: GuidanceTarget;
   /**
-   * `probably_arrived`: within ~2 m of the place but the pose is under 0.8; said as "You are
-   * probably at ...", and guidance goes on (only `arrived` ends it).
+   * `probably_arrived`: within ~2 m of the place but the pose is under 0.8 or the track has not
+   * settled (more than a third of the last 30 s of answers low); said as "You are probably at
+   * ...", and guidance goes on (only `arrived` ends it).
    */
   kind:
     | 'start'
