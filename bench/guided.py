@@ -37,7 +37,9 @@ and from 0.5 (the guide before `probably_arrived`: every pose it acts on).
 And a walker where the venue was never modelled (as bench/elsewhere.py's look-alike: the same
 family's other seed, another building of the same kind), guided towards each of the venue's own
 destinations for the whole of that building's walk with stops: every arrival said there is
-wrong, and so is every "probably at".
+wrong, and so is every "probably at"; "You may be outside the mapped area" (`not_here`) is right
+there. And each family's whole walk with stops guided towards its last stop (a minute and more:
+long enough for `not_here`, which is wrong in the venue).
 
     python bench/guided.py [--families all|tuning|held-out|NAME,...] [--seeds 0,1] [--json OUT]
 """
@@ -180,6 +182,7 @@ def verdicts(d: dict[str, Any], rule: str) -> dict[str, Any]:
         "probably": len(prob) > 0,
         "probably_far": any(s["off_m"] > RIGHT_M for s in prob),
         "off_route": sum(s["kind"] == "off_route" for s in said),
+        "not_here": sum(s["kind"] == "not_here" for s in said),
         "delay": None,
     }
     if arr is not None and v["arrived"] == "right" and d["t_near"] is not None:
@@ -218,6 +221,12 @@ def main() -> None:
                     out.append({"family": name, "split": FAMILIES[name].split, "seed": seed, "walk": seed,
                                 "stop": k, "imu": use, "kind": "own", **d})  # fmt: skip
                 set_off = dest[3]  # the next destination's guidance starts after the walker leaves this one
+            # the whole walk guided towards its last stop (a minute and more: what "not here" sees in the venue)
+            for use in (False, True):
+                d = guided(loc, tr, graph, Walk(w.t, w.xy, w.heading, w.spec, seen=w.seen), imu if use else None,
+                           dests[-1], float(w.t[0]))  # fmt: skip
+                out.append({"family": name, "split": FAMILIES[name].split, "seed": seed, "walk": seed,
+                            "stop": len(dests) - 1, "imu": use, "kind": "whole", **d})  # fmt: skip
             print(f"  {name}/{seed}: {k + 1} destinations", file=sys.stderr, flush=True)
             for other in seeds:  # the look-alike building's walk, guided towards this venue's places
                 if other == seed:
@@ -258,8 +267,8 @@ def main() -> None:
                 )
     print(
         "\nGuided in a look-alike building the venue never modelled (every sentence below is wrong):\n\n"
-        '| split | phone | arrival from | guidances | "You have arrived" said | "probably at" said |\n'
-        "| --- | --- | --- | ---: | ---: | ---: |"
+        '| split | phone | arrival from | guidances | "You have arrived" said | "probably at" said | '
+        '"outside the mapped area" said |\n| --- | --- | --- | ---: | ---: | ---: | ---: |'
     )
     for split in ("tuning", "held-out"):
         for use in (False, True):
@@ -270,7 +279,23 @@ def main() -> None:
                 vs = [verdicts(d, rule) for d in ds]
                 arrived = sum(v["arrived"] != "never" for v in vs)
                 prob = sum(v["probably"] for v in vs)
-                print(f"| {split} | {'IMU' if use else 'no IMU'} | {rule} | {len(ds)} | **{arrived}** | {prob} |")
+                lost = sum(v["not_here"] > 0 for v in vs)
+                print(
+                    f"| {split} | {'IMU' if use else 'no IMU'} | {rule} | {len(ds)} | **{arrived}** | {prob} | {lost} |"
+                )
+    print(
+        '\n"You may be outside the mapped area" (`not_here`), the guide now: guidances that heard it\n\n'
+        "| split | phone | in the venue, the whole walk guided (wrong) | in a look-alike building (right) |\n"
+        "| --- | --- | ---: | ---: |"
+    )
+    rule = next(iter(RULES))
+    for split in ("tuning", "held-out"):
+        for use in (False, True):
+            cells = []
+            for kind in ("whole", "look-alike"):
+                ds = [d for d in out if d["split"] == split and d["imu"] == use and d["kind"] == kind]
+                cells.append(f"{sum(verdicts(d, rule)['not_here'] > 0 for d in ds)} of {len(ds)}")
+            print(f"| {split} | {'IMU' if use else 'no IMU'} | {cells[0]} | {cells[1]} |")
     if a.json:
         a.json.write_text(json.dumps(out))
 

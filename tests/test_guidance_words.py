@@ -17,6 +17,7 @@ CASES = [(c, style) for c in TABLE["cases"] for style in c["say"]]
 
 def test_the_thresholds_and_words_are_the_tables():
     assert words.STRAIGHT_DEG == TABLE["straight_deg"] and words.GUIDE_UNSURE == TABLE["unsure"]
+    assert words.GUIDE_NOT_HERE == TABLE["not_here"]
     assert list(words.SECTOR_DEG) == TABLE["sector_deg"]
 
 
@@ -56,6 +57,7 @@ def test_every_kind_style_and_boundary_is_covered():
         "probably_arrived",
         "floor_change",
         "unsure",
+        "not_here",
     }
     assert all(set(c["say"]) == {"clock", "sides", "degrees"} for c in cases)
     bearings = {c["guidance"]["bearing_deg"] for c in cases}

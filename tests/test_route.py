@@ -615,6 +615,44 @@ def test_answers_at_a_clock_that_stands_still_keep_the_state_small(ring: wg.Walk
     assert state is not None and len(state["recent"]) == rt.RECENT_MAX and len(json.dumps(state)) < 2000
 
 
+def lost_walk(pattern: str, n: int) -> list[Pose]:
+    """Answers 2.5 s apart on the first leg: "s" a sure one, "l" a low one, the pattern repeated."""
+    sure, low = Pose(15.0, 23.0, "1", 90.0), Pose(16.0, 23.0, "1", 90.0, confidence=0.45)
+    return [sure] + [low if pattern[i % len(pattern)] == "l" else sure for i in range(n)]
+
+
+def test_most_of_a_minute_low_says_once_that_the_user_may_be_outside_the_mapped_area(ring: wg.WalkGraph):
+    gs, state = follow(ring, ROOM_102, lost_walk("lls", 40))
+    said = [(round(i * 2.5, 1), g["kind"]) for i, g in enumerate(gs) if g["speak"]]
+    lost = [t for t, k in said if k == "not_here"]
+    assert lost == [60.0]  # a whole minute guided, two thirds low: said once, not again while it lasts
+    g = gs[24]
+    assert g["sentence"] == "You may be outside the mapped area; keep walking slowly, or stop guidance."
+    assert not g["urgent"] and not g["on_route"] and g["bearing_deg"] is None
+    assert gs[25]["kind"] != "unsure" or not gs[25]["speak"]  # its "keep walking slowly" is not said twice
+    assert state is not None and state["lost"] is True
+    # the answers settle (a third low at most over the minute), then most are low again: said again
+    gs, state = follow(ring, ROOM_102, [Pose(15.0, 23.0, "1", 90.0)] * 20 + lost_walk("ll", 30)[1:], state, t0=102.5)
+    assert [k for k in (g["kind"] for g in gs if g["speak"]) if k == "not_here"] == ["not_here"]
+
+
+@pytest.mark.parametrize("pattern", ["lss", "l" * 30 + "s" * 30])
+def test_a_third_low_or_a_minute_not_yet_whole_says_nothing_of_the_map(ring: wg.WalkGraph, pattern: str):
+    # a third of a minute low (as in the venue, at worst); or all low for the first 23 answers
+    n = 40 if len(pattern) == 3 else 23
+    gs, _ = follow(ring, ROOM_102, lost_walk(pattern, n))
+    assert "not_here" not in {g["kind"] for g in gs}
+
+
+@pytest.mark.parametrize("t0", [None, "junk", float("nan"), 1e9])
+def test_a_guidance_whose_start_cannot_be_read_starts_its_minute_now(ring: wg.WalkGraph, t0: Any):
+    _, state = follow(ring, ROOM_102, lost_walk("l", 30))  # 75 s, all low after the first
+    assert state is not None and state["lost"] is True
+    state = {**state, "lost": False, "t0": t0}
+    gs, state = follow(ring, ROOM_102, lost_walk("l", 5)[1:], state, t0=80.0)
+    assert "not_here" not in {g["kind"] for g in gs} and state is not None and state["t0"] == 80.0
+
+
 @pytest.mark.parametrize("recent", [None, "junk", [[0.0]], [["x", 1]], [[float("inf"), 1]]])
 def test_a_state_without_readable_recent_answers_counts_none(ring: wg.WalkGraph, recent: Any):
     # a state written before "recent", or one that cannot be read: nothing recent, arrival as ever

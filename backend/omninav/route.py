@@ -37,6 +37,14 @@ odd sure one between them landed on the destination's look-alike in a quarter of
 destinations in the venue told "probably" instead). SETTLE_S and SETTLE_LOW were chosen on the
 tuning families (docs/benchmarks.md, "Arrival").
 
+"Not here": when more than half the answers of a whole minute of guidance (NOT_HERE_S) were low,
+the guide says once "You may be outside the mapped area; ..." (`not_here`, no instruction), and
+again only after the answers have settled meanwhile (no more than SETTLE_LOW of the minute low).
+Somewhere the venue never modelled two thirds of the answers are low; in the venue more than half
+of a minute never was on the tuning walks (bench/guided.py: heard in 20-23 of 24 held-out
+guidances in a look-alike building, in none of the 8 held-out walks guided in the venue). The
+state keeps the answers of the last minute for both rules (at most RECENT_MAX of them).
+
 "Not sure" has hysteresis, since the filter's confidence of a split belief sits just under the
 threshold (capped at 0.45) and a pose that crosses it at every answer would make the guide talk at
 every answer: the guide says "not sure" after LOW_ANSWERS low answers in a row (ambiguous, or under
@@ -94,7 +102,9 @@ LOW_ANSWERS = 2  # low answers in a row before "not sure"
 CLEAR_LOW = 0.35  # a confidence under this is "not sure" at once
 SETTLE_S = 30.0  # arrival as a fact: the guidance's answers of the last 30 s ...
 SETTLE_LOW = 1.0 / 3.0  # ... no more than a third of them low
-RECENT_MAX = 64  # the most answers kept for it (a client's clock that stands still must not grow the state)
+NOT_HERE_S = 60.0  # "not here": of the guidance's answers of the last minute (a whole minute guided) ...
+NOT_HERE_LOW = 0.5  # ... more than half low; said once, until no more than SETTLE_LOW of them are
+RECENT_MAX = 64  # the most answers kept (a client's clock that stands still must not grow the state)
 INSTRUCTIONS = ("start", "turn", "floor_change")  # the kinds that say the instruction
 STATE_VERSION = 1
 END_OF_CORRIDOR = "the end of the corridor"
@@ -378,7 +388,9 @@ def new_state(graph: WalkGraph, place: Mapping[str, Any]) -> dict[str, Any]:
         "off": None,  # a spell off the route: {"t": its last warning, "way": the last way said}
         "on_route": False,
         "remaining_m": None,
-        "recent": [],  # the answers of the last SETTLE_S: [t, 1 if low else 0]
+        "recent": [],  # the answers of the last NOT_HERE_S (after the first): [t, 1 if low else 0]
+        "t0": None,  # when this guidance's first answer came
+        "lost": False,  # "not here" was said, and the answers have not settled since
     }
 
 
@@ -470,6 +482,8 @@ def guide(
         key = key or kind
         if said is not None and said.get("key") == key:  # nothing said again that was just said
             g["speak"] = False
+        if kind == "unsure" and said is not None and said.get("kind") == "not_here":  # it said "not sure" too
+            g["speak"] = False
         if g["speak"]:
             st["said"] = {"kind": kind, "key": key, "t": float(t_now), "s": float(st["s"])}
             if kind in INSTRUCTIONS:
@@ -489,9 +503,23 @@ def guide(
     st["low"] = st["low"] + 1 if low else 0
     # the guidance's answers of the last `settle_s`, for arrival (the one that started this state
     # is not counted: a new session's first answer is always young)
-    past = _recent(st.get("recent"), float(t_now), settle_s) if ok else []
-    unsettled = bool(past) and sum(v for _, v in past) > SETTLE_LOW * len(past)
+    past = _recent(st.get("recent"), float(t_now), max(settle_s, NOT_HERE_S)) if ok else []
+    last = [v for t, v in past if t >= float(t_now) - settle_s]
+    unsettled = bool(last) and sum(last) > SETTLE_LOW * len(last)
     st["recent"] = (past + [[float(t_now), int(low)]])[-RECENT_MAX:] if ok else []
+    t0 = st.get("t0")
+    fine = ok and isinstance(t0, int | float) and math.isfinite(t0) and t0 <= float(t_now)
+    st["t0"] = float(t0) if fine else float(t_now)  # type: ignore[arg-type]
+    # not here: most of a minute's answers low (two thirds where the venue was never modelled, a
+    # tenth at most in it); said once, and again only after the answers have settled meanwhile
+    share = sum(v for _, v in st["recent"]) / len(st["recent"]) if st["recent"] else 0.0
+    whole = float(t_now) - float(st["t0"]) >= NOT_HERE_S
+    if st.get("lost") and share <= SETTLE_LOW:
+        st["lost"] = False
+    if whole and share > NOT_HERE_LOW and not st.get("lost"):
+        st["lost"] = True
+        st["low"] = LOW_ANSWERS  # what follows is "not sure" until a sure answer, said as ever
+        return answer("not_here", on_route=False)
     if low and (not st["started"] or pose.confidence < CLEAR_LOW or st["low"] >= LOW_ANSWERS):
         return answer("unsure")
     hold = low  # nothing decided on this pose: not spoken, the state's progress kept
@@ -595,14 +623,14 @@ def guide(
         # off again within the spell: the new route's instruction if the walker turned (or it has
         # not been said since a "not sure"), else nothing
         st["leg"] = ci
-        if said_kind == "unsure" or _turned(spell, _way(common)):
+        if said_kind in ("unsure", "not_here") or _turned(spell, _way(common)):
             return answer(kind, key=f"{kind}:{ci}:{cur.nodes[0]}:{float(t_now)}", **common)
         return answer("continue" if leg.via is None else kind, key=f"continue:{ci}", speak=False, **common)
     # a new leg ahead (never one behind: a pose that wavers about the corner says nothing twice),
     # or the route planned anew; after a spell of "not sure", the same leg again once QUIET_S has
     # passed since it was last said
     told = st["told"]
-    again = said_kind == "unsure" and (told is None or float(t_now) - float(told) >= QUIET_S)
+    again = said_kind in ("unsure", "not_here") and (told is None or float(t_now) - float(told) >= QUIET_S)
     if ci > st["leg"] or said_kind == "off_route" or again:
         st["leg"] = max(ci, int(st["leg"]))
         return answer(kind, key=f"{kind}:{ci}:{cur.nodes[-1]}", **common)

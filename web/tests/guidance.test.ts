@@ -6,6 +6,7 @@ import { resolve } from 'node:path';
 import { describe as group, expect, it } from 'vitest';
 import type { RoutePreview } from '../src/shared/api-types';
 import {
+  GUIDE_NOT_HERE,
   GUIDE_UNSURE,
   SECTOR_DEG,
   STRAIGHT_DEG,
@@ -36,6 +37,7 @@ const table = JSON.parse(readFileSync(resolve(ROOT, 'tests/data/guidance.json'),
   straight_deg: number;
   sector_deg: number[];
   unsure: string;
+  not_here: string;
   cases: Case[];
   previews: Preview[];
 };
@@ -45,6 +47,7 @@ group('the guidance table', () => {
     expect(STRAIGHT_DEG).toBe(table.straight_deg);
     expect([...SECTOR_DEG]).toEqual(table.sector_deg);
     expect(GUIDE_UNSURE).toBe(table.unsure);
+    expect(GUIDE_NOT_HERE).toBe(table.not_here);
   });
   it.each(['clock', 'sides', 'degrees'] as Style[])('turns and directions share the sectors [%s]', (style) => {
     for (let b = -180; b <= 180; b += 0.5) {

@@ -339,6 +339,28 @@ describe('Guide', () => {
     expect(r.texts().at(-1)).toBe(QUIET.sentence);
   });
 
+  it('"outside the mapped area" is said inside a spell of "not sure", once; What next? repeats it; guiding goes on', async () => {
+    const UNSURE = g('unsure', 'Not sure where you are yet; keep walking slowly.');
+    const LOST = g('not_here', 'You may be outside the mapped area; keep walking slowly, or stop guidance.', {
+      bearing_deg: null,
+      on_route: false,
+    });
+    const AGAIN = { ...GO, speak: true }; // the server says the instruction again once sure
+    const r = rig([START, GO, UNSURE, UNSURE, LOST, { ...UNSURE, speak: true }, { ...LOST, speak: false }, AGAIN]);
+    const c = r.guide.choose({ id: 'p3', name: 'Room 102' });
+    await vi.advanceTimersByTimeAsync(1000);
+    await c;
+    r.guide.start();
+    await vi.advanceTimersByTimeAsync(1000 + INTERVAL_MS * 5);
+    expect(r.texts().slice(1)).toEqual([GO.sentence, UNSURE.sentence, LOST.sentence]);
+    expect(r.said.find((x) => x.text === LOST.sentence)).toMatchObject({ cue: 'unsure', urgent: false });
+    r.guide.whatNext();
+    expect(r.texts().at(-1)).toBe(LOST.sentence);
+    expect(r.guide.state).toBe('guiding');
+    await vi.advanceTimersByTimeAsync(INTERVAL_MS * 2);
+    expect(r.texts().at(-1)).toBe(AGAIN.sentence); // sure again: the instruction, as after "not sure"
+  });
+
   it('Start’s request films 1 s (its instruction soon), then each films all it can, unsure or not', async () => {
     const UNSURE = g('unsure', 'Not sure where you are; keep walking slowly.');
     const r = rig([START, UNSURE, GO, QUIET, QUIET]);

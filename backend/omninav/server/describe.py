@@ -186,6 +186,7 @@ def describe(
 
 STRAIGHT_DEG = SECTOR_DEG[0]  # a bearing within this of straight ahead is "straight ahead": no turn
 GUIDE_UNSURE = "Not sure where you are yet; keep walking slowly."
+GUIDE_NOT_HERE = "You may be outside the mapped area; keep walking slowly, or stop guidance."
 
 
 def turn_phrase(bearing: float, style: Style) -> str | None:
@@ -223,6 +224,8 @@ def guidance_sentence(g: Mapping[str, Any], style: Style = DEFAULT_STYLE) -> str
     kind = g["kind"]
     if kind == "unsure":
         return GUIDE_UNSURE
+    if kind == "not_here":
+        return GUIDE_NOT_HERE
     b = g["bearing_deg"]
     if kind in ("arrived", "probably_arrived"):
         at = "You have arrived at" if kind == "arrived" else "You are probably at"

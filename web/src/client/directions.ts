@@ -161,6 +161,7 @@ export function gist(a: Said, style: Style, last = ''): string {
 /** A bearing within this of straight ahead is "straight ahead": no turn. */
 export const STRAIGHT_DEG = SECTOR_DEG[0];
 export const GUIDE_UNSURE = 'Not sure where you are yet; keep walking slowly.';
+export const GUIDE_NOT_HERE = 'You may be outside the mapped area; keep walking slowly, or stop guidance.';
 
 /** What a guidance sentence is made from: the answer's `guidance` (its `to` may carry the place's `say`). */
 export type Guided = Pick<Guidance, 'kind' | 'bearing_deg' | 'walk_m' | 'until' | 'floor_change'> &
@@ -205,6 +206,7 @@ export function instruction(
 /** The sentence for a guidance, in the user's style (the server's `sentence` is the default style's). */
 export function guidanceSentence(g: Guided, style: Style): string {
   if (g.kind === 'unsure') return GUIDE_UNSURE;
+  if (g.kind === 'not_here') return GUIDE_NOT_HERE;
   const b = g.bearing_deg ?? 0;
   const walk = g.walk_m ?? 0;
   if (g.kind === 'arrived' || g.kind === 'probably_arrived') {

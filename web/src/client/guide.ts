@@ -138,13 +138,15 @@ export interface GuideEvents {
   problem: string;
 }
 
+/** Where the user is, not what to do: no instruction in them ("not sure", "outside the mapped area"). */
+const LOST_KINDS = new Set<Guidance['kind']>(['unsure', 'not_here']);
 // probably arrived cuts in too: the walker should stop and listen, though guidance goes on
 const URGENT_KINDS = new Set<Guidance['kind']>(['off_route', 'arrived', 'probably_arrived']);
 
 /** The vibration or earcon with a sentence: reassurance comes without one, so walking stays quiet. */
 function cueOf(g: Guidance): Cue | null {
   if (g.kind === 'off_route') return 'error';
-  if (g.kind === 'unsure') return 'unsure';
+  if (LOST_KINDS.has(g.kind)) return 'unsure';
   if (g.kind === 'continue' || g.kind === 'reassure') return null;
   return 'ok';
 }
@@ -422,7 +424,7 @@ export class Guide extends Emitter<GuideEvents> {
 
   private show(g: Guidance, a: Answer): void {
     this.latest = g;
-    if (g.kind !== 'unsure') this.current = g;
+    if (!LOST_KINDS.has(g.kind)) this.current = g;
     this.emit('guidance', { guidance: g, answer: a });
   }
 
@@ -432,6 +434,12 @@ export class Guide extends Emitter<GuideEvents> {
     const first = this.owed;
     if (g.kind === 'unsure') {
       if ((g.speak || first) && !this.unsureSaid) this.say(this.words(g), 'unsure');
+      this.unsureSaid = true;
+      return true;
+    }
+    if (g.kind === 'not_here') {
+      // said when the server marks it (once a spell), even inside a spell of "not sure": it is news
+      if (g.speak || first) this.say(this.words(g), 'unsure');
       this.unsureSaid = true;
       return true;
     }
@@ -481,7 +489,7 @@ export class Guide extends Emitter<GuideEvents> {
 
   /** What next?: the current instruction again, in the user's style (or that it is not sure). */
   whatNext(): void {
-    const g = this.latest?.kind === 'unsure' ? this.latest : this.current;
+    const g = this.latest && LOST_KINDS.has(this.latest.kind) ? this.latest : this.current;
     if (!g) {
       this.voice(this.place ? 'No instruction yet.' : CHOOSE_FIRST, null, false, false);
       return;

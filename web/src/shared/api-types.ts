@@ -126,7 +126,9 @@ export interface Guidance {
   /**
    * `probably_arrived`: within ~2 m of the place but the pose is under 0.8 or the track has not
    * settled (more than a third of the last 30 s of answers low); said as "You are probably at
-   * ...", and guidance goes on (only `arrived` ends it).
+   * ...", and guidance goes on (only `arrived` ends it). `not_here`: more than half the answers of
+   * a whole minute's guidance were low ("You may be outside the mapped area; ..."), said once until
+   * the answers settle again.
    */
   kind:
     | 'start'
@@ -137,7 +139,8 @@ export interface Guidance {
     | 'arrived'
     | 'probably_arrived'
     | 'floor_change'
-    | 'unsure';
+    | 'unsure'
+    | 'not_here';
   /** Say it now (false: nothing new since the last spoken sentence). */
   speak: boolean;
   /** Cut in (off the route, arrived or probably arrived). */
