@@ -626,15 +626,30 @@ def test_most_of_a_minute_low_says_once_that_the_user_may_be_outside_the_mapped_
     gs, state = follow(ring, ROOM_102, lost_walk("lls", 40))
     said = [(round(i * 2.5, 1), g["kind"]) for i, g in enumerate(gs) if g["speak"]]
     lost = [t for t, k in said if k == "not_here"]
-    assert lost == [60.0]  # a whole minute guided, two thirds low: said once, not again while it lasts
-    g = gs[24]
+    # a whole minute guided, two thirds low: said at its first low answer (62.5 s; the one at 60 s is
+    # sure), once, not again while it lasts
+    assert lost == [62.5] and gs[24]["kind"] != "not_here"
+    g = gs[25]
     assert g["sentence"] == "You may be outside the mapped area; keep walking slowly, or stop guidance."
     assert not g["urgent"] and not g["on_route"] and g["bearing_deg"] is None
-    assert gs[25]["kind"] != "unsure" or not gs[25]["speak"]  # its "keep walking slowly" is not said twice
+    assert gs[26]["kind"] == "unsure" and not gs[26]["speak"]  # its "keep walking slowly" is not said twice
     assert state is not None and state["lost"] is True
     # the answers settle (a third low at most over the minute), then most are low again: said again
     gs, state = follow(ring, ROOM_102, [Pose(15.0, 23.0, "1", 90.0)] * 20 + lost_walk("ll", 30)[1:], state, t0=102.5)
     assert [k for k in (g["kind"] for g in gs if g["speak"]) if k == "not_here"] == ["not_here"]
+
+
+def test_a_pause_in_the_guidance_starts_its_minute_again(ring: wg.WalkGraph):
+    # a sure answer, then 90 s without answers (Start pressed late, the page hidden): the first low
+    # answer after it is not "most of a minute"
+    gs, state = follow(ring, ROOM_102, [Pose(15.0, 23.0, "1", 90.0)])
+    low = Pose(16.0, 23.0, "1", 90.0, confidence=0.45)
+    gs, state = follow(ring, ROOM_102, [low] * 3, state, t0=90.0)
+    assert "not_here" not in {g["kind"] for g in gs} and state is not None and state["t0"] == 90.0
+    # then all low: "not here" once a minute of answers has passed since the pause, not before
+    gs, _ = follow(ring, ROOM_102, [low] * 24, state, t0=97.5)
+    said = [round(97.5 + i * 2.5, 1) for i, g in enumerate(gs) if g["kind"] == "not_here"]
+    assert said == [150.0]
 
 
 @pytest.mark.parametrize("pattern", ["lss", "l" * 30 + "s" * 30])
@@ -664,12 +679,16 @@ def test_a_state_without_readable_recent_answers_counts_none(ring: wg.WalkGraph,
     assert gs[0]["kind"] == "arrived" and state is not None and state["recent"] == [[2.5, 0]]
 
 
-@pytest.mark.parametrize("confidence", [0.79, float("nan")])
-def test_a_route_started_at_the_place_is_not_arrived_there_unless_sure(ring: wg.WalkGraph, confidence: float):
+@pytest.mark.parametrize(("confidence", "first"), [(0.79, "probably_arrived"), (float("nan"), "unsure")])
+def test_a_route_started_at_the_place_is_not_arrived_there_unless_sure(
+    ring: wg.WalkGraph, confidence: float, first: str
+):
+    # under 0.8: "probably"; a confidence that is not a number is no confidence: "not sure"
     at_place = Pose(39.0, 3.0, "1", 90.0, confidence=confidence)
     gs, _ = follow(ring, ROOM_102, [at_place, replace(at_place, confidence=0.95)])
-    assert [(g["kind"], g["arrived"]) for g in gs] == [("probably_arrived", False), ("arrived", True)]
-    assert gs[0]["sentence"] == "You are probably at Room 102. The door is on your left."
+    assert [(g["kind"], g["arrived"]) for g in gs] == [(first, False), ("arrived", True)]
+    if first == "probably_arrived":
+        assert gs[0]["sentence"] == "You are probably at Room 102. The door is on your left."
 
 
 def test_a_single_low_answer_at_the_place_is_held_not_arrived(ring: wg.WalkGraph):

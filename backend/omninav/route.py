@@ -38,8 +38,11 @@ destinations in the venue told "probably" instead). SETTLE_S and SETTLE_LOW were
 tuning families (docs/benchmarks.md, "Arrival").
 
 "Not here": when more than half the answers of a whole minute of guidance (NOT_HERE_S) were low,
-the guide says once "You may be outside the mapped area; ..." (`not_here`, no instruction), and
-again only after the answers have settled meanwhile (no more than SETTLE_LOW of the minute low).
+the guide says once, of a low answer (never in place of a sure one), "You may be outside the
+mapped area; ..." (`not_here`, no instruction), and again only after the answers have settled
+meanwhile (no more than SETTLE_LOW of the minute low). The minute is one of answers: a pause of
+more than PAUSE_S between two (Start pressed a while after the preview, the page hidden) starts it
+again.
 Somewhere the venue never modelled two thirds of the answers are low; in the venue more than half
 of a minute never was on the tuning walks (bench/guided.py: heard in 20-23 of 24 held-out
 guidances in a look-alike building, in none of the 8 held-out walks guided in the venue). The
@@ -104,6 +107,7 @@ SETTLE_S = 30.0  # arrival as a fact: the guidance's answers of the last 30 s ..
 SETTLE_LOW = 1.0 / 3.0  # ... no more than a third of them low
 NOT_HERE_S = 60.0  # "not here": of the guidance's answers of the last minute (a whole minute guided) ...
 NOT_HERE_LOW = 0.5  # ... more than half low; said once, until no more than SETTLE_LOW of them are
+PAUSE_S = 10.0  # answers further apart than this start "not here"'s minute again
 RECENT_MAX = 64  # the most answers kept (a client's clock that stands still must not grow the state)
 INSTRUCTIONS = ("start", "turn", "floor_change")  # the kinds that say the instruction
 STATE_VERSION = 1
@@ -482,8 +486,8 @@ def guide(
         key = key or kind
         if said is not None and said.get("key") == key:  # nothing said again that was just said
             g["speak"] = False
-        if kind == "unsure" and said is not None and said.get("kind") == "not_here":  # it said "not sure" too
-            g["speak"] = False
+        if kind == "unsure" and st.get("lost") and said is not None and said.get("kind") == "not_here":
+            g["speak"] = False  # "not here" said "keep walking slowly" already
         if g["speak"]:
             st["said"] = {"kind": kind, "key": key, "t": float(t_now), "s": float(st["s"])}
             if kind in INSTRUCTIONS:
@@ -499,7 +503,8 @@ def guide(
 
     # not sure where the user is: say so once, and no instruction. One low answer on a route is
     # held instead (a confidence that hovers about the threshold must not make the guide talk)
-    low = bool(pose.ambiguous) or pose.confidence < low_confidence
+    c = float(pose.confidence)
+    low = bool(pose.ambiguous) or not (math.isfinite(c) and c >= low_confidence)  # NaN is not sure
     st["low"] = st["low"] + 1 if low else 0
     # the guidance's answers of the last `settle_s`, for arrival (the one that started this state
     # is not counted: a new session's first answer is always young)
@@ -507,8 +512,11 @@ def guide(
     last = [v for t, v in past if t >= float(t_now) - settle_s]
     unsettled = bool(last) and sum(last) > SETTLE_LOW * len(last)
     st["recent"] = (past + [[float(t_now), int(low)]])[-RECENT_MAX:] if ok else []
+    # the minute "not here" asks for is one of answers: a pause (Start pressed a while after the
+    # preview, the page hidden, Stop and Start) starts it again
     t0 = st.get("t0")
-    fine = ok and isinstance(t0, int | float) and math.isfinite(t0) and t0 <= float(t_now)
+    going = bool(past) and float(t_now) - past[-1][0] <= PAUSE_S
+    fine = ok and going and isinstance(t0, int | float) and math.isfinite(t0) and t0 <= float(t_now)
     st["t0"] = float(t0) if fine else float(t_now)  # type: ignore[arg-type]
     # not here: most of a minute's answers low (two thirds where the venue was never modelled, a
     # tenth at most in it); said once, and again only after the answers have settled meanwhile
@@ -516,10 +524,10 @@ def guide(
     whole = float(t_now) - float(st["t0"]) >= NOT_HERE_S
     if st.get("lost") and share <= SETTLE_LOW:
         st["lost"] = False
-    if whole and share > NOT_HERE_LOW and not st.get("lost"):
+    if low and whole and share > NOT_HERE_LOW and not st.get("lost"):  # said of a low answer, never of a sure one
         st["lost"] = True
         st["low"] = LOW_ANSWERS  # what follows is "not sure" until a sure answer, said as ever
-        return answer("not_here", on_route=False)
+        return answer("not_here", key=f"not_here:{float(t_now)}", on_route=False)
     if low and (not st["started"] or pose.confidence < CLEAR_LOW or st["low"] >= LOW_ANSWERS):
         return answer("unsure")
     hold = low  # nothing decided on this pose: not spoken, the state's progress kept
