@@ -49,6 +49,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -65,7 +66,7 @@ from omninav.tracking import Imu, Tracker
 sys.path.insert(0, str(Path(__file__).parent))
 from families import dataset, family_names, venue  # noqa: E402
 from search_speed import machine  # noqa: E402
-from tracking import Walk, graph_tracker, stops_walk, walk, walk_imu  # noqa: E402
+from tracking import Walk, graph_tracker, stops_walk, venue_graph, walk, walk_imu  # noqa: E402
 
 EVERY_S = 2.5  # the app's guided loop: a request every 2.5 s ...
 FILM_S = 2.0  # ... filming 2 s (its first request 1 s)
@@ -172,6 +173,19 @@ def guided(
     return {"t_near": float(w.t[near[0]]) - t0 if len(near) else None, "said": said, "poses": poses}
 
 
+def both(
+    loc: Locator,
+    tr: Tracker,
+    graph: wg.WalkGraph,
+    w: Walk,
+    imu: Imu,
+    dest: tuple[float, float, float, float],
+    t0: float,
+) -> list[dict[str, Any]]:
+    """`guided` without and with the phone's sensors, each with its "imu"."""
+    return [{"imu": use, **guided(loc, tr, graph, w, imu if use else None, dest, t0)} for use in (False, True)]
+
+
 def verdicts(d: dict[str, Any], rule: str) -> dict[str, Any]:
     """What a destination's walker heard under `rule`: arrival right / wrong / never, probably, delay, off the route."""
     said = d["said"][rule]
@@ -190,6 +204,15 @@ def verdicts(d: dict[str, Any], rule: str) -> dict[str, Any]:
     return v
 
 
+def groups(out: list[dict[str, Any]], kind: str) -> Iterator[tuple[str, str, list[dict[str, Any]]]]:
+    """The destinations of `kind` by split and phone: (split, "no IMU" | "IMU", them), none empty."""
+    for split in ("tuning", "held-out"):
+        for use in (False, True):
+            ds = [d for d in out if d["split"] == split and d["imu"] == use and d["kind"] == kind]
+            if ds:
+                yield split, "IMU" if use else "no IMU", ds
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--families", default="all")
@@ -199,103 +222,104 @@ def main() -> None:
     print(f"machine: {machine()}")
     out: list[dict[str, Any]] = []
     seeds = [int(s) for s in a.seeds.split(",")]
+    locs: dict[tuple[str, int], Locator] = {}
+    walks: dict[tuple[str, int], Walk] = {}
+
+    def loc_of(name: str, seed: int) -> Locator:
+        if (name, seed) not in locs:
+            locs[name, seed] = venue(dataset(name, seed), "default", {})
+        return locs[name, seed]
+
+    def walk_of(name: str, seed: int) -> Walk:
+        """The venue's walk with stops (its spectra read once); matched against its own venue."""
+        if (name, seed) not in walks:
+            walks[name, seed] = walk(
+                dataset(name, seed), loc_of(name, seed), stops_walk(dataset(name, seed), name, seed)
+            )
+        return walks[name, seed]
+
     for name in family_names(a.families):
         for seed in seeds:
             root = dataset(name, seed)
-            loc = venue(root, "default", {})
-            tr = graph_tracker(loc)
-            graph = wg.from_frames(loc.gen.frames, ["1"] * max(1, len(loc.gen.videos)))
-            wname = stops_walk(root, name, seed)
-            w = walk(root, loc, wname)
-            imu = walk_imu(root, wname, seed)
+            loc = loc_of(name, seed)
+            graph = venue_graph(loc)
+            tr = graph_tracker(loc, graph=graph)
+            w = walk_of(name, seed)
+            imu = walk_imu(root, "stops", seed)
+
+            base = {"family": name, "split": FAMILIES[name].split, "seed": seed}
             walked = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(w.xy, axis=0).T))])
             set_off = float(w.t[0])
-            dests = stops(json.loads((root / f"{wname}_track.json").read_text()))
+            dests = stops(json.loads((root / "stops_track.json").read_text()))
             for k, dest in enumerate(dests):
                 at = walked[int(np.searchsorted(w.t, dest[2] - 1e-6))]
                 t0 = max(set_off, float(w.t[int(np.searchsorted(walked, at - APPROACH_M))]))
-                for use in (False, True):
-                    d = guided(
-                        loc, tr, graph, Walk(w.t, w.xy, w.heading, w.spec, seen=w.seen), imu if use else None, dest, t0
-                    )
-                    out.append({"family": name, "split": FAMILIES[name].split, "seed": seed, "walk": seed,
-                                "stop": k, "imu": use, "kind": "own", **d})  # fmt: skip
+                out += [
+                    {**base, **d, "walk": seed, "stop": k, "kind": "own"}
+                    for d in both(loc, tr, graph, w, imu, dest, t0)
+                ]
                 set_off = dest[3]  # the next destination's guidance starts after the walker leaves this one
             # the whole walk guided towards its last stop (a minute and more: what "not here" sees in the venue)
-            for use in (False, True):
-                d = guided(loc, tr, graph, Walk(w.t, w.xy, w.heading, w.spec, seen=w.seen), imu if use else None,
-                           dests[-1], float(w.t[0]))  # fmt: skip
-                out.append({"family": name, "split": FAMILIES[name].split, "seed": seed, "walk": seed,
-                            "stop": len(dests) - 1, "imu": use, "kind": "whole", **d})  # fmt: skip
-            print(f"  {name}/{seed}: {k + 1} destinations", file=sys.stderr, flush=True)
+            whole = both(loc, tr, graph, w, imu, dests[-1], float(w.t[0]))
+            out += [{**base, **d, "walk": seed, "stop": len(dests) - 1, "kind": "whole"} for d in whole]
+            print(f"  {name}/{seed}: {len(dests)} destinations", file=sys.stderr, flush=True)
             for other in seeds:  # the look-alike building's walk, guided towards this venue's places
                 if other == seed:
                     continue
-                oroot = dataset(name, other)
-                ow = walk(oroot, venue(oroot, "default", {}), stops_walk(oroot, name, other))
+                ow = walk_of(name, other)
                 ow = Walk(ow.t, ow.xy, ow.heading, ow.spec)  # its matches: this venue's
-                oimu = walk_imu(oroot, "stops", other)  # what that walker's phone felt
+                oimu = walk_imu(dataset(name, other), "stops", other)  # what that walker's phone felt
+                end = float(ow.t[-1]) - GO_ON_S
                 for k, dest in enumerate(dests):
-                    whole = (dest[0], dest[1], float(ow.t[-1]) - GO_ON_S, float(ow.t[-1]) - GO_ON_S)
-                    for use in (False, True):
-                        d = guided(loc, tr, graph, ow, oimu if use else None, whole, float(ow.t[0]))
-                        out.append({"family": name, "split": FAMILIES[name].split, "seed": seed, "walk": other,
-                                    "stop": k, "imu": use, "kind": "look-alike", **d})  # fmt: skip
+                    ds = both(loc, tr, graph, ow, oimu, (dest[0], dest[1], end, end), float(ow.t[0]))
+                    out += [{**base, **d, "walk": other, "stop": k, "kind": "look-alike"} for d in ds]
 
     print(
         "\n| split | phone | arrival from | destinations | arrived, right | arrived, wrong | never | "
         "delay (median / worst) | probably said (of them far) | off the route said (truth-fed guide) |\n"
         "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"
     )
-    for split in ("tuning", "held-out"):
-        for use in (False, True):
-            ds = [d for d in out if d["split"] == split and d["imu"] == use and d["kind"] == "own"]
-            if not ds:
-                continue
-            truth_off = sum(verdicts(d, "truth")["off_route"] for d in ds)
-            for rule in RULES:
-                vs = [verdicts(d, rule) for d in ds]
-                n = {k: sum(v["arrived"] == k for v in vs) for k in ("right", "wrong", "never")}
-                delays = [v["delay"] for v in vs if v["delay"] is not None]
-                dl = f"{np.median(delays):.1f} / {max(delays):.1f} s" if delays else "-"
-                prob = sum(v["probably"] for v in vs)
-                far = sum(v["probably_far"] for v in vs)
-                off = sum(v["off_route"] for v in vs)
-                print(
-                    f"| {split} | {'IMU' if use else 'no IMU'} | {rule} | {len(ds)} | {n['right']} | "
-                    f"**{n['wrong']}** | {n['never']} | {dl} | {prob} ({far}) | {off} ({truth_off}) |"
-                )
+    for split, phone, ds in groups(out, "own"):
+        truth_off = sum(verdicts(d, "truth")["off_route"] for d in ds)
+        for rule in RULES:
+            vs = [verdicts(d, rule) for d in ds]
+            n = {k: sum(v["arrived"] == k for v in vs) for k in ("right", "wrong", "never")}
+            delays = [v["delay"] for v in vs if v["delay"] is not None]
+            dl = f"{np.median(delays):.1f} / {max(delays):.1f} s" if delays else "-"
+            prob = sum(v["probably"] for v in vs)
+            far = sum(v["probably_far"] for v in vs)
+            off = sum(v["off_route"] for v in vs)
+            print(
+                f"| {split} | {phone} | {rule} | {len(ds)} | {n['right']} | "
+                f"**{n['wrong']}** | {n['never']} | {dl} | {prob} ({far}) | {off} ({truth_off}) |"
+            )
     print(
         "\nGuided in a look-alike building the venue never modelled (every sentence below is wrong):\n\n"
         '| split | phone | arrival from | guidances | "You have arrived" said | "probably at" said | '
         '"outside the mapped area" said |\n| --- | --- | --- | ---: | ---: | ---: | ---: |'
     )
-    for split in ("tuning", "held-out"):
-        for use in (False, True):
-            ds = [d for d in out if d["split"] == split and d["imu"] == use and d["kind"] == "look-alike"]
-            if not ds:
-                continue
-            for rule in RULES:
-                vs = [verdicts(d, rule) for d in ds]
-                arrived = sum(v["arrived"] != "never" for v in vs)
-                prob = sum(v["probably"] for v in vs)
-                lost = sum(v["not_here"] > 0 for v in vs)
-                print(
-                    f"| {split} | {'IMU' if use else 'no IMU'} | {rule} | {len(ds)} | **{arrived}** | {prob} | {lost} |"
-                )
+    for split, phone, ds in groups(out, "look-alike"):
+        for rule in RULES:
+            vs = [verdicts(d, rule) for d in ds]
+            arrived = sum(v["arrived"] != "never" for v in vs)
+            prob = sum(v["probably"] for v in vs)
+            lost = sum(v["not_here"] > 0 for v in vs)
+            print(f"| {split} | {phone} | {rule} | {len(ds)} | **{arrived}** | {prob} | {lost} |")
     print(
         '\n"You may be outside the mapped area" (`not_here`), the guide now: guidances that heard it\n\n'
         "| split | phone | in the venue, the whole walk guided (wrong) | in a look-alike building (right) |\n"
         "| --- | --- | ---: | ---: |"
     )
-    rule = next(iter(RULES))
-    for split in ("tuning", "held-out"):
-        for use in (False, True):
-            cells = []
-            for kind in ("whole", "look-alike"):
-                ds = [d for d in out if d["split"] == split and d["imu"] == use and d["kind"] == kind]
-                cells.append(f"{sum(verdicts(d, rule)['not_here'] > 0 for d in ds)} of {len(ds)}")
-            print(f"| {split} | {'IMU' if use else 'no IMU'} | {cells[0]} | {cells[1]} |")
+    now = next(iter(RULES))
+    heard = {
+        (split, phone, kind): f"{sum(verdicts(d, now)['not_here'] > 0 for d in ds)} of {len(ds)}"
+        for kind in ("whole", "look-alike")
+        for split, phone, ds in groups(out, kind)
+    }
+    for split, phone, _ in groups(out, "whole"):
+        print(
+            f"| {split} | {phone} | {heard[split, phone, 'whole']} | {heard.get((split, phone, 'look-alike'), '-')} |"
+        )
     if a.json:
         a.json.write_text(json.dumps(out))
 

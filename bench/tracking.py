@@ -57,7 +57,7 @@ from omninav.tracking import (
     look_alikes,
     parse_imu,
 )
-from omninav.walkgraph import from_frames
+from omninav.walkgraph import WalkGraph, from_frames
 
 sys.path.insert(0, str(Path(__file__).parent))
 from families import SEARCH_KEYS, dataset, family_names, venue  # noqa: E402
@@ -92,9 +92,14 @@ def searched(over: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in over.items() if k in SEARCH_KEYS}
 
 
-def graph_tracker(loc: Locator, conf: dict[str, Any] | None = None) -> Tracker:
-    g = from_frames(loc.gen.frames, ["1"] * max(1, len(loc.gen.videos)))
-    return loc.new_tracker(g, np.full(len(loc.xy), "1"), conf)
+def venue_graph(loc: Locator) -> WalkGraph:
+    """The family venue's walk graph (one floor, "1")."""
+    return from_frames(loc.gen.frames, ["1"] * max(1, len(loc.gen.videos)))
+
+
+def graph_tracker(loc: Locator, conf: dict[str, Any] | None = None, graph: WalkGraph | None = None) -> Tracker:
+    """A tracker over the venue's walk graph (`graph`, when the caller built it already)."""
+    return loc.new_tracker(venue_graph(loc) if graph is None else graph, np.full(len(loc.xy), "1"), conf)
 
 
 def stops_walk(root: Path, family: str, seed: int) -> str:

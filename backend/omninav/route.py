@@ -110,6 +110,7 @@ NOT_HERE_LOW = 0.5  # ... more than half low; said once, until no more than SETT
 PAUSE_S = 10.0  # answers further apart than this start "not here"'s minute again
 RECENT_MAX = 64  # the most answers kept (a client's clock that stands still must not grow the state)
 INSTRUCTIONS = ("start", "turn", "floor_change")  # the kinds that say the instruction
+LOST = ("unsure", "not_here")  # the kinds that say where the user is not known, and no instruction
 STATE_VERSION = 1
 END_OF_CORRIDOR = "the end of the corridor"
 JUNCTION = "the junction"
@@ -552,7 +553,7 @@ def guide(
         st["away"] = 0
         # arrival ends the guidance, so it is said as a fact only from a sure pose; under that it is
         # "probably" there and the guide goes on until the pose firms up (or shows it was elsewhere)
-        fact = not hold and pose.confidence >= sure and not unsettled
+        fact = not hold and c >= sure and not unsettled
         return answer(
             "arrived" if fact else "probably_arrived",
             speak=not hold,
@@ -631,14 +632,14 @@ def guide(
         # off again within the spell: the new route's instruction if the walker turned (or it has
         # not been said since a "not sure"), else nothing
         st["leg"] = ci
-        if said_kind in ("unsure", "not_here") or _turned(spell, _way(common)):
+        if said_kind in LOST or _turned(spell, _way(common)):
             return answer(kind, key=f"{kind}:{ci}:{cur.nodes[0]}:{float(t_now)}", **common)
         return answer("continue" if leg.via is None else kind, key=f"continue:{ci}", speak=False, **common)
     # a new leg ahead (never one behind: a pose that wavers about the corner says nothing twice),
     # or the route planned anew; after a spell of "not sure", the same leg again once QUIET_S has
     # passed since it was last said
     told = st["told"]
-    again = said_kind in ("unsure", "not_here") and (told is None or float(t_now) - float(told) >= QUIET_S)
+    again = said_kind in LOST and (told is None or float(t_now) - float(told) >= QUIET_S)
     if ci > st["leg"] or said_kind == "off_route" or again:
         st["leg"] = max(ci, int(st["leg"]))
         return answer(kind, key=f"{kind}:{ci}:{cur.nodes[-1]}", **common)

@@ -432,14 +432,10 @@ export class Guide extends Emitter<GuideEvents> {
   private answered(g: Guidance, a: Answer): boolean {
     this.show(g, a);
     const first = this.owed;
-    if (g.kind === 'unsure') {
-      if ((g.speak || first) && !this.unsureSaid) this.say(this.words(g), 'unsure');
-      this.unsureSaid = true;
-      return true;
-    }
-    if (g.kind === 'not_here') {
-      // said when the server marks it (once a spell), even inside a spell of "not sure": it is news
-      if (g.speak || first) this.say(this.words(g), 'unsure');
+    if (LOST_KINDS.has(g.kind)) {
+      // "not sure" once a spell; "outside the mapped area" when the server marks it, even inside
+      // a spell of "not sure": it is news
+      if ((g.speak || first) && (g.kind === 'not_here' || !this.unsureSaid)) this.say(this.words(g), 'unsure');
       this.unsureSaid = true;
       return true;
     }

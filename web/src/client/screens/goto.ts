@@ -293,8 +293,7 @@ export function gotoScreen(session: Session, speaker: Speaker, guide: Guide): vo
     preview.textContent = guide.previewText || (g.kind === 'unsure' ? 'Not sure where you are yet.' : '');
     const rows: [string, string][] = [['Now', g.kind === 'unsure' ? 'Not sure where you are yet.' : guide.words(g)]];
     if (g.remaining_m !== null) rows.push(['To go', `${Math.round(g.remaining_m)} m`]);
-    if (g.next_turn_m !== null && g.kind !== 'arrived' && g.kind !== 'probably_arrived')
-      rows.push(['Next turn', `in ${Math.round(g.next_turn_m)} m`]);
+    if (g.next_turn_m !== null && g.kind !== 'arrived') rows.push(['Next turn', `in ${Math.round(g.next_turn_m)} m`]);
     if (g.floor_change) rows.push(['Floor change', `${g.floor_change.via} to ${g.floor_change.to_floor_name}`]);
     rows.push(['On the route', g.on_route ? 'yes' : 'no']);
     facts(routeFacts, rows);
