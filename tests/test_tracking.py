@@ -302,9 +302,47 @@ def test_a_sure_answer_is_not_stood_by_when_a_sure_clip_says_it_is_elsewhere(twi
     )
 
 
+def test_a_sure_clip_breaks_a_tie_the_walk_cannot_but_never_overrules_the_walk(twin: Venue) -> None:
+    """The belief is split between a spot of the west wing and its east twin, a little more on
+    the west; the clips score both alike. The clip alone is sure of the east twin: with
+    track_clip_tie the answer is the clip's place (still not sure: the walk holds the other), and
+    without it the walk's. A belief that has all but ruled the east out keeps its answer."""
+    x0, _, _, _ = TWIN_RING
+    ex, ey = half_turn(x0, 16.0)
+    a, b = twin.graph.nearest(x0, 16.0), twin.graph.nearest(ex, ey)
+    m = twin.matches([[(x0, 16.0, 180.0, 0.8), (ex, ey, 0.0, 0.8)]] * 10, np.random.default_rng(5))
+    times = 20.0 + np.arange(-0.9, 0.01, 0.1)
+    row = int(np.argmin(np.hypot(twin.xy[:, 0] - ex, twin.xy[:, 1] - ey)))
+    clip = ClipAnswer(0.95, ex, ey, row)
+
+    def answer(tie: float | None, west: float, c: ClipAnswer | None = clip):
+        belief = np.full(twin.tracker.n, 1e-6)
+        belief[a], belief[b] = west, 1.0 - west
+        state = TrackState(19.0, belief / belief.sum(), twin.graph.key, 10, None, None, None, None, None)
+        tr = Tracker(twin.graph, twin.xy, np.full(len(twin.xy), "1"), {**twin.conf, "track_clip_tie": tie})
+        return tr.update(state, m, times, float(times[-1]), None, c)[1]
+
+    walk = answer(None, 0.6)
+    assert np.hypot(walk.x - x0, walk.y - 16.0) <= 2.0  # the walk's place, a little the likelier
+    broken = answer(0.5, 0.6)
+    assert np.hypot(broken.x - ex, broken.y - ey) <= 2.0 and broken.node != walk.node
+    assert broken.confidence < 0.8
+    assert answer(0.5, 0.6, ClipAnswer(0.7, ex, ey, row)).node == walk.node  # a clip not sure itself
+    assert answer(0.5, 0.6, ClipAnswer(0.95)).node == walk.node  # a clip that does not say where
+    ruled_out = answer(0.5, 0.97)  # the walk holds the east twin 1 in 30: not about as likely
+    assert ruled_out.node == answer(None, 0.97).node and np.hypot(ruled_out.x - x0, ruled_out.y - 16.0) <= 2.0
+    assert answer(1.0, 0.6).node == walk.node  # asked for as much belief there as here: not broken
+
+
 @pytest.mark.parametrize(
     "key, bad",
     [
+        ("track_clip_tie", 0),
+        ("track_clip_tie", -1.0),
+        ("track_clip_tie", "0.5"),
+        ("track_clip_tie", float("nan")),
+        ("track_zero_steps_m", 0),
+        ("track_zero_steps_m", True),
         ("track_recent_s", 0),
         ("track_recent_s", -1.0),
         ("track_recent_s", None),
@@ -938,6 +976,29 @@ def test_a_phone_counting_no_steps_while_its_user_moves_is_not_held_still(corrid
     assert all(err(p, truth) <= 2.0 for _, p, _, truth, _ in a[2:])
     # what keeps it out: each clip is best at another node than the last
     assert all(s1.best != s0.best for (*_, s0), (*_, s1) in zip(a[:-1], a[1:], strict=True))
+
+
+def test_no_steps_counted_while_the_clips_move_on_is_read_as_no_count(corridor: Venue) -> None:
+    """A phone held steady (or a wheelchair) counts no steps while its user walks 3 m between
+    updates: each clip is best 2 m or more from where the last was, so with track_zero_steps_m
+    the zero is read as no count at all, and the walk is tracked exactly as a phone without a
+    step counter is. Off, the zero pulls the belief back towards standing still."""
+    t, xy, hd = walk_poses([(0.5, 0.0), (47.0, 0.0)])
+
+    def unique(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
+        return [(x, y, h, 0.8)]
+
+    def answers(conf: dict, steps: int | None) -> list[tuple[int, float]]:
+        v = Venue([(0.0, 0.0), (48.0, 0.0)], conf)
+        out = run_walk(v, t, xy, hd, unique, every=2.5, motion=lambda t0, t1: Motion(steps, 0.0), per=1)
+        assert all(s1.best != s0.best for (*_, s0), (*_, s1) in zip(out[:-1], out[1:], strict=True))
+        return [(p.node, round(p.confidence, 9)) for _, p, _, _, _ in out]
+
+    uncounted = answers({"track_zero_steps_m": 2.0}, None)
+    assert answers({"track_zero_steps_m": 2.0}, 0) == uncounted
+    assert answers({"track_zero_steps_m": None}, 0) != uncounted
+    # a clip best where the last one was keeps the zero: held still is what it says then
+    # (test_standing_still_keeps_the_place and the held-still tests above, with the default on)
 
 
 def test_the_heading_without_a_match_near_the_answer_is_the_gyroscopes_or_unsure(corridor: Venue) -> None:

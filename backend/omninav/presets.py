@@ -82,6 +82,10 @@ DEFAULTS: dict[str, Any] = {
     "track_step_m": 0.7,
     "track_step_sigma_m": 0.5,
     "track_step_trust": 0.9,
+    # a count of no steps is read as no count at all when the clip is best this far (m) from
+    # where the last clip was best: the phone counts none while its user moves on; None: off
+    # (chosen on the tuning families' walks among 1, 2 and 4 m: 1 and 2 alike, 2 moves less)
+    "track_zero_steps_m": 2.0,
     # a phone held still (its sensors: no step, little turn) whose clip is best where the last was
     # films the same view again: the answer is no surer than that clip alone (tracking.py)
     "track_still_cap": True,
@@ -108,6 +112,11 @@ DEFAULTS: dict[str, Any] = {
     "track_recent_s": 1.0,
     "track_recent_min": 0.5,
     "track_doubt_cap": 0.79,
+    # when the clip alone is sure of another place and the belief holds that place at least
+    # track_clip_tie times as likely as the answer's, the answer is the clip's place (still not
+    # "sure": the two disagreed); None: off (tracking.py, "The clip's own answer"; chosen on the
+    # tuning families' walks among 0.25, 0.5 and 0.75)
+    "track_clip_tie": 0.5,
     # the clip's own confidence as those two rules read it: the single clip's model they were
     # chosen with, kept apart from confidence_* so that a refit of the single answers' model (it
     # was refit with ring-bare) does not move the rules under them

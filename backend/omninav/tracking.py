@@ -16,8 +16,13 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
   d within reach. The steps sharpen, never forbid: a count that is wrong (a phone held steady, a
   slow walker or a wheelchair counting no steps, a stalled sensor feed; a person who turned back
   walked more than d) costs a few answers, since clips that agree win against it (one clip moves
-  the odds by up to 1 / `track_outlier`, more). A little of a uniform belief is mixed in at every update
-  (`track_uniform`), so that a wrong lock-in is undone by evidence, never by luck.
+  the odds by up to 1 / `track_outlier`, more). A count of none while the clip is best
+  `track_zero_steps_m` or more from where the last clip was best is read as no count at all: the
+  phone is held steady, or rolls, while its user moves on (each such zero pulled the belief back
+  towards standing still, and a walk fell behind by a door or two; chosen on the tuning families'
+  walks, docs/benchmarks.md). A phone held still is best where it was, and its zero counts. A
+  little of a uniform belief is mixed in at every update (`track_uniform`), so that a wrong
+  lock-in is undone by evidence, never by luck.
 - **Emission** (the clip): each query frame's verified candidate matches (index.Matches, with
   scores), the best one within `track_radius_m` of a node counting for that node; a node without
   one counts the frame's worst kept score (it was not among the best). The mean over the clip's
@@ -109,6 +114,15 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
   elsewhere"), with the single clip's confidence model of then (support and margin): the clip's
   confidence here is `track_clip_confidence_*`, not the venue's `confidence_*`, which was refit
   since and gives other numbers to the same clips.
+  And where the answer is (`track_clip_tie`, `Tracker.tie_node`): when a sure clip says
+  elsewhere and the belief holds the clip's place at least `track_clip_tie` times as likely as
+  the answer's (1.5 m neighbourhoods), the answer is the clip's place, held below sure all the
+  same. In a corridor of identical doors the belief splits between two doors 4 m apart for
+  seconds at a time, and the walk's slightly likelier door was the wrong one about as often as
+  not, while the sure clip of the moment, which reads how its frames follow one another, was
+  mostly right. A sure clip of a place the walk has all but ruled out (a look-alike corridor
+  20 m away) moves nothing: ruling those out is what the walk is for. Chosen on the tuning
+  families' walks (docs/benchmarks.md, "A sure clip breaks a split belief").
 """
 
 from __future__ import annotations
@@ -562,6 +576,14 @@ class Tracker:
         self.recent_s = float(tau)
         self.recent_min = None if low is None else float(low)
         self.doubt_cap = float(cap)
+        tie = _conf(conf, "track_clip_tie")
+        if tie is not None and not (_number(tie) and float(tie) > 0):
+            raise ValueError(f"track_clip_tie must be a number > 0 or None (off), got {tie!r}")
+        self.clip_tie = None if tie is None else float(tie)
+        zero = _conf(conf, "track_zero_steps_m")
+        if zero is not None and not (_number(zero) and float(zero) > 0):
+            raise ValueError(f"track_zero_steps_m must be a number of metres > 0 or None (off), got {zero!r}")
+        self.zero_steps_m = None if zero is None else float(zero)
         self.xy = np.asarray(graph.xy, np.float64)
         self.floor = np.asarray(graph.floor).astype(str)
         vxy = np.asarray(venue_xy, np.float64)
@@ -826,7 +848,17 @@ class Tracker:
             if twin:  # both beliefs walk alike: one pass (a state saved without it starts it as the belief)
                 a = state.alike if state.alike is not None and len(state.alike) == self.n else state.belief
                 both = np.stack([state.belief, a], axis=1)
-            moved, kk, start = self._transition(both, t_now - state.t, motion.steps, facing, turn)
+            steps = motion.steps
+            if steps == 0 and self.zero_steps_m is not None and state.best is not None and 0 <= state.best < self.n:
+                # no step counted, yet the clip is best a good way from where the last one was: a
+                # phone held steady, or a wheelchair, walking on; the zero says nothing then
+                b0 = int(np.argmax(e))
+                if (
+                    self.floor[b0] != self.floor[state.best]
+                    or np.hypot(*(self.xy[b0] - self.xy[state.best])) >= self.zero_steps_m
+                ):
+                    steps = None
+            moved, kk, start = self._transition(both, t_now - state.t, steps, facing, turn)
             if twin:
                 moved, prior_a, start = moved[:, 0], moved[:, 1], start[:, 0]
                 prior_a = (1 - eps) * prior_a / max(prior_a.sum(), 1e-300) + eps * uniform
@@ -872,7 +904,12 @@ class Tracker:
             before, dt = (None, 0.0) if fresh or state is None else (state.recent, t_now - state.t)
             recent = self.recent(before, float(clip.confidence), dt)
             doubt = self.recent_min is not None and recent < self.recent_min
-            if doubt or (clip.confidence >= SURE and self.elsewhere(pose, clip)):
+            split = clip.confidence >= SURE and self.elsewhere(pose, clip)
+            if split:  # the walk's place or the clip's: the clip's, if the walk holds it about as likely
+                node = self.tie_node(post, pose.node, clip)
+                if node is not None:
+                    pose = self.pose(post, matches, times, t_now, gyro, updates + 1, last, post_a, node)
+            if doubt or split:
                 pose = replace(pose, confidence=min(pose.confidence, self.doubt_cap))
             if held:  # no surer than the clip alone, as a locate says it
                 pose = replace(pose, confidence=min(pose.confidence, float(clip.said)))
@@ -935,6 +972,26 @@ class Tracker:
             return True
         return bool(np.hypot(clip.x - pose.x, clip.y - pose.y) >= FAR_M)
 
+    def tie_node(self, p: np.ndarray, node: int, clip: ClipAnswer) -> int | None:
+        """The node of the clip's own place, when the belief p (N,) holds its neighbourhood at
+        least `track_clip_tie` times as likely as the answer's node's (None: not so, or off).
+
+        A sure clip elsewhere that the walk has all but ruled out (a look-alike 20 m away) leaves
+        the answer where it is; one the walk itself finds about as likely (the next door of a
+        corridor of identical doors, where the belief is split) is the fresher evidence of the
+        two, and breaks the tie."""
+        if self.clip_tie is None or clip.x is None or clip.y is None or clip.row is None:
+            return None
+        if not 0 <= clip.row < len(self.venue_floor):
+            return None
+        # the node nearest the clip's place on its floor (a pass over the nodes: no tree built a call)
+        on = self.floor == str(self.venue_floor[clip.row])
+        if not on.any():
+            return None
+        c = int(np.argmin(np.where(on, np.hypot(self.xy[:, 0] - clip.x, self.xy[:, 1] - clip.y), np.inf)))
+        there, here = (float(np.asarray(self.place[i] @ p).ravel()[0]) for i in (c, node))
+        return c if c != node and there >= self.clip_tie * here else None
+
     def recent(self, before: float | None, clip: float, dt: float) -> float:
         """The recent clips' mean confidence after a clip of confidence `clip`, `dt` s after the
         last: an exponential mean over about track_recent_s seconds (the same whether the phone
@@ -955,15 +1012,17 @@ class Tracker:
         updates: int = 1,
         last: tuple[float, bool] | None = None,
         alike: np.ndarray | None = None,
+        node: int | None = None,
     ) -> TrackPose:
         """The belief p (N,) after `updates` clips -> the answer. `gyro`: the last transition's
         weights, the belief it started from and (the last clip's facing per node, the turn), for
         the gyroscope's heading at the answer (_predicted); `last`: the last answer's heading plus
         the gyroscope's turn since, and whether the turn was known (the heading when the clip's
         matches do not give one there); `alike`: the second (cautious) belief, whose own confidence at
-        the answer caps the answer's (and whose split makes it ambiguous)."""
-        place_mass = np.asarray(self.place @ p)
-        node = int(np.argmax(place_mass))
+        the answer caps the answer's (and whose split makes it ambiguous); `node`: the answer's
+        node (None: the one whose neighbourhood holds the most belief)."""
+        if node is None:
+            node = int(np.argmax(np.asarray(self.place @ p)))
         on = self.floor == self.floor[node]
         d = np.where(on, np.hypot(self.xy[:, 0] - self.xy[node, 0], self.xy[:, 1] - self.xy[node, 1]), np.inf)
         mass = float(p[d <= NEAR_M].sum())
