@@ -41,7 +41,7 @@ wrong, and so is every "probably at"; "You may be outside the mapped area" (`not
 there. And each family's whole walk with stops guided towards its last stop (a minute and more:
 long enough for `not_here`, which is wrong in the venue).
 
-    python bench/guided.py [--families all|tuning|held-out|NAME,...] [--seeds 0,1] [--json OUT]
+    python bench/guided.py [--families all|tuning|held-out|NAME,...] [--seeds 0,1] [--json OUT] [--set KEY=JSON]
 """
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ from omninav.tracking import Imu, Tracker
 sys.path.insert(0, str(Path(__file__).parent))
 from families import dataset, family_names, venue  # noqa: E402
 from search_speed import machine  # noqa: E402
-from tracking import Walk, graph_tracker, stops_walk, venue_graph, walk, walk_imu  # noqa: E402
+from tracking import Walk, graph_tracker, searched, stops_walk, venue_graph, walk, walk_imu  # noqa: E402
 
 EVERY_S = 2.5  # the app's guided loop: a request every 2.5 s ...
 FILM_S = 2.0  # ... filming 2 s (its first request 1 s)
@@ -218,8 +218,12 @@ def main() -> None:
     ap.add_argument("--families", default="all")
     ap.add_argument("--seeds", default="0,1")
     ap.add_argument("--json", type=Path, help="every destination's sentences, here")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=JSON", help="a tracking setting (tuning)")
     a = ap.parse_args()
     print(f"machine: {machine()}")
+    over = {k: json.loads(v) for k, v in (kv.split("=", 1) for kv in a.set)}
+    if over:
+        print(f"settings: {over}")
     out: list[dict[str, Any]] = []
     seeds = [int(s) for s in a.seeds.split(",")]
     locs: dict[tuple[str, int], Locator] = {}
@@ -227,7 +231,7 @@ def main() -> None:
 
     def loc_of(name: str, seed: int) -> Locator:
         if (name, seed) not in locs:
-            locs[name, seed] = venue(dataset(name, seed), "default", {})
+            locs[name, seed] = venue(dataset(name, seed), "default", searched(over))
         return locs[name, seed]
 
     def walk_of(name: str, seed: int) -> Walk:
@@ -243,7 +247,7 @@ def main() -> None:
             root = dataset(name, seed)
             loc = loc_of(name, seed)
             graph = venue_graph(loc)
-            tr = graph_tracker(loc, graph=graph)
+            tr = graph_tracker(loc, over, graph=graph)
             w = walk_of(name, seed)
             imu = walk_imu(root, "stops", seed)
 
