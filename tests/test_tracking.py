@@ -315,20 +315,25 @@ def test_a_sure_clip_breaks_a_tie_the_walk_cannot_but_never_overrules_the_walk(t
     row = int(np.argmin(np.hypot(twin.xy[:, 0] - ex, twin.xy[:, 1] - ey)))
     clip = ClipAnswer(0.95, ex, ey, row)
 
-    def answer(tie: float | None, west: float, c: ClipAnswer | None = clip):
+    def answer(tie: float | None, west: float, c: ClipAnswer | None = clip, **conf):
         belief = np.full(twin.tracker.n, 1e-6)
         belief[a], belief[b] = west, 1.0 - west
         state = TrackState(19.0, belief / belief.sum(), twin.graph.key, 10, None, None, None, None, None)
-        tr = Tracker(twin.graph, twin.xy, np.full(len(twin.xy), "1"), {**twin.conf, "track_clip_tie": tie})
+        tr = Tracker(twin.graph, twin.xy, np.full(len(twin.xy), "1"), {**twin.conf, "track_clip_tie": tie, **conf})
         return tr.update(state, m, times, float(times[-1]), None, c)[1]
 
     walk = answer(None, 0.6)
     assert np.hypot(walk.x - x0, walk.y - 16.0) <= 2.0  # the walk's place, a little the likelier
     broken = answer(0.5, 0.6)
     assert np.hypot(broken.x - ex, broken.y - ey) <= 2.0 and broken.node != walk.node
-    assert broken.confidence < 0.8
+    assert broken.confidence < 0.8 and broken.alike_mass is not None  # (the second belief read there too)
+    # the clip's place is held below sure like the walk's would be: the two sources disagreed
+    low = answer(0.5, 0.6, track_doubt_cap=0.2)
+    assert low.node == broken.node and low.confidence <= 0.2
     assert answer(0.5, 0.6, ClipAnswer(0.7, ex, ey, row)).node == walk.node  # a clip not sure itself
     assert answer(0.5, 0.6, ClipAnswer(0.95)).node == walk.node  # a clip that does not say where
+    assert answer(0.5, 0.6, ClipAnswer(0.95, float("nan"), ey, row)).node == walk.node  # nor as a point
+    assert answer(0.5, 0.6, ClipAnswer(0.95, ex + 6.0, ey, row)).node == walk.node  # 6 m from any node
     ruled_out = answer(0.5, 0.97)  # the walk holds the east twin 1 in 30: not about as likely
     assert ruled_out.node == answer(None, 0.97).node and np.hypot(ruled_out.x - x0, ruled_out.y - 16.0) <= 2.0
     assert answer(1.0, 0.6).node == walk.node  # asked for as much belief there as here: not broken
@@ -341,6 +346,7 @@ def test_a_sure_clip_breaks_a_tie_the_walk_cannot_but_never_overrules_the_walk(t
         ("track_clip_tie", -1.0),
         ("track_clip_tie", "0.5"),
         ("track_clip_tie", float("nan")),
+        ("track_clip_tie", 1.5),
         ("track_zero_steps_m", 0),
         ("track_zero_steps_m", True),
         ("track_recent_s", 0),
@@ -997,8 +1003,34 @@ def test_no_steps_counted_while_the_clips_move_on_is_read_as_no_count(corridor: 
     uncounted = answers({"track_zero_steps_m": 2.0}, None)
     assert answers({"track_zero_steps_m": 2.0}, 0) == uncounted
     assert answers({"track_zero_steps_m": None}, 0) != uncounted
-    # a clip best where the last one was keeps the zero: held still is what it says then
-    # (test_standing_still_keeps_the_place and the held-still tests above, with the default on)
+
+
+def test_no_steps_counted_where_the_clips_stay_put_or_say_nothing_still_count(corridor: Venue) -> None:
+    """Standing still (the clip best where the last one was), or a blank clip (best nowhere),
+    the count of no steps is kept with track_zero_steps_m as without it, and is not the same as
+    no count at all."""
+    t, xy, hd = walk_poses([(0.5, 0.0), (20.0, 0.0)])
+
+    def unique(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
+        return [(x, y, h, 0.8)]
+
+    walked = run_walk(corridor, t, xy, hd, unique, per=1)[-1][-1]
+    here = corridor.matches([[(20.0, 0.0, 90.0, 0.8)]] * 10, np.random.default_rng(7))
+    blank = Matches(here.index, np.zeros_like(here.score), np.zeros_like(here.score), here.heading)
+
+    def stay(conf: dict, steps: int | None, m: Matches) -> list[tuple[int, float, float]]:
+        tr = Tracker(corridor.graph, corridor.xy, np.full(len(corridor.xy), "1"), {**corridor.conf, **conf})
+        state, out = walked, []
+        for k in range(1, 6):
+            times = walked.t + k + np.arange(-0.9, 0.01, 0.1)
+            state, p = tr.update(state, m, times, float(times[-1]), Motion(steps, 0.0))
+            out.append((p.node, round(p.mass, 9), round(p.confidence, 9)))
+        return out
+
+    for m in (here, blank):
+        kept = stay({"track_zero_steps_m": None}, 0, m)
+        assert stay({"track_zero_steps_m": 2.0}, 0, m) == kept
+        assert stay({"track_zero_steps_m": 2.0}, None, m) != kept
 
 
 def test_the_heading_without_a_match_near_the_answer_is_the_gyroscopes_or_unsure(corridor: Venue) -> None:
@@ -1064,6 +1096,34 @@ def test_a_lift_takes_the_belief_to_the_other_floor() -> None:
         state, pose = tr.update(state, clip(20.0, y, "2"), t + np.arange(-0.9, 0.01, 0.1), t)
         floors.append(pose.floor)
     assert floors[2:] == ["2"] * (len(floors) - 2) and pose.confidence >= 0.8
+
+
+def test_which_counts_of_no_steps_are_read_as_none() -> None:
+    """track_zero_steps_m: a zero says nothing only when the clip is best that far from where
+    the last one was, on the same floor; not a count of steps, not an unknown one, not a blank
+    clip (best nowhere), not across a lift (its ride counts no steps, truly), and not off."""
+    xy1, _ = frames_along([(0.0, 0.0), (20.0, 0.0)])
+    xy2, _ = frames_along([(20.0, 0.0), (20.0, 15.0)])
+    vxy = np.concatenate([xy1, xy2])
+    vfl = np.array(["1"] * len(xy1) + ["2"] * len(xy2))
+    lift = [{"name": "Lift", "kind": "lift", "floor": f, "x": 20.0, "y": 0.0} for f in ("1", "2")]
+    g = build([(xy1, "1"), (xy2, "2")], lift)
+    tr = Tracker(g, vxy, vfl, {**CONF, "track_zero_steps_m": 2.0})
+    at = lambda x, y, f: int(g.snap(np.array([[x, y]]), np.array([f]))[0])  # noqa: E731
+    here, on, near, up = at(10.0, 0.0, "1"), at(13.0, 0.0, "1"), at(11.0, 0.0, "1"), at(20.0, 1.0, "2")
+    zero = Motion(0, 0.0)
+    assert tr.zero_read_as_none(zero, here, on)  # 3 m on, no step: the count says nothing
+    assert not tr.zero_read_as_none(zero, here, near)  # 1 m: a held phone's clip, a node on
+    assert not tr.zero_read_as_none(zero, here, here)
+    assert not tr.zero_read_as_none(Motion(4, 0.0), here, on) and not tr.zero_read_as_none(Motion(), here, on)
+    assert not tr.zero_read_as_none(zero, here, None) and not tr.zero_read_as_none(zero, None, on)
+    assert not tr.zero_read_as_none(zero, at(20.0, 0.0, "1"), up)  # out of the lift on floor 2
+    off = Tracker(g, vxy, vfl, {**CONF, "track_zero_steps_m": None})
+    assert not off.zero_read_as_none(zero, here, on)
+    # and a blank clip is best nowhere: what the update passes for it
+    blank = Matches(np.zeros((10, K), np.int64), *(np.zeros((3, 10, K), np.float32)))
+    state, _ = tr.update(None, blank, np.arange(0.1, 1.01, 0.1), 1.0)
+    assert state.best is None
 
 
 def test_imu_motion_between_two_moments_and_bad_files() -> None:

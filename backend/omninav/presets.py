@@ -84,7 +84,8 @@ DEFAULTS: dict[str, Any] = {
     "track_step_trust": 0.9,
     # a count of no steps is read as no count at all when the clip is best this far (m) from
     # where the last clip was best: the phone counts none while its user moves on; None: off
-    # (chosen on the tuning families' walks among 1, 2 and 4 m: 1 and 2 alike, 2 moves less)
+    # (on the tuning families' walks 1 m was one answer better than 2 m, 4 m worse; 2 m kept:
+    # the answer's own "near", and a phone held still is best a node away now and then)
     "track_zero_steps_m": 2.0,
     # a phone held still (its sensors: no step, little turn) whose clip is best where the last was
     # films the same view again: the answer is no surer than that clip alone (tracking.py)

@@ -20,7 +20,10 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
   `track_zero_steps_m` or more from where the last clip was best is read as no count at all: the
   phone is held steady, or rolls, while its user moves on (each such zero pulled the belief back
   towards standing still, and a walk fell behind by a door or two; chosen on the tuning families'
-  walks, docs/benchmarks.md). A phone held still is best where it was, and its zero counts. A
+  walks, docs/benchmarks.md). A phone held still is mostly best where it was, and its zero
+  counts then; at a stop in a corridor of identical doors a clip now and then is best a door on,
+  and the zero is dropped (its cost, in the walks with stops, is measured there). A blank clip
+  (best nowhere) and a change of floor (a lift's ride counts no steps, truly) keep the zero. A
   little of a uniform belief is mixed in at every update (`track_uniform`), so that a wrong
   lock-in is undone by evidence, never by luck.
 - **Emission** (the clip): each query frame's verified candidate matches (index.Matches, with
@@ -577,8 +580,9 @@ class Tracker:
         self.recent_min = None if low is None else float(low)
         self.doubt_cap = float(cap)
         tie = _conf(conf, "track_clip_tie")
-        if tie is not None and not (_number(tie) and float(tie) > 0):
-            raise ValueError(f"track_clip_tie must be a number > 0 or None (off), got {tie!r}")
+        # (above 1 it could never hold: the answer's neighbourhood is the one with the most belief)
+        if tie is not None and not (_number(tie) and 0.0 < float(tie) <= 1.0):
+            raise ValueError(f"track_clip_tie must be in (0, 1] or None (off), got {tie!r}")
         self.clip_tie = None if tie is None else float(tie)
         zero = _conf(conf, "track_zero_steps_m")
         if zero is not None and not (_number(zero) and float(zero) > 0):
@@ -829,6 +833,9 @@ class Tracker:
         fresh = state is None or not self.goes_on(state, t_now)
         uniform = np.full(self.n, 1.0 / self.n)
         e, facing = self.emission(matches, times, t_now)
+        # the node the clip is best at; None for a blank clip (no match scored: every node alike,
+        # and argmax would name node 0, a place the clip never said)
+        best: int | None = int(np.argmax(e)) if float(e.max() - e.min()) > 1e-9 else None
         gyro = None
         # the last answer's heading plus the gyroscope's turn since (True), or alone (False: a
         # stand-in, not a heading the answer may be sure of)
@@ -848,16 +855,7 @@ class Tracker:
             if twin:  # both beliefs walk alike: one pass (a state saved without it starts it as the belief)
                 a = state.alike if state.alike is not None and len(state.alike) == self.n else state.belief
                 both = np.stack([state.belief, a], axis=1)
-            steps = motion.steps
-            if steps == 0 and self.zero_steps_m is not None and state.best is not None and 0 <= state.best < self.n:
-                # no step counted, yet the clip is best a good way from where the last one was: a
-                # phone held steady, or a wheelchair, walking on; the zero says nothing then
-                b0 = int(np.argmax(e))
-                if (
-                    self.floor[b0] != self.floor[state.best]
-                    or np.hypot(*(self.xy[b0] - self.xy[state.best])) >= self.zero_steps_m
-                ):
-                    steps = None
+            steps = None if self.zero_read_as_none(motion, state.best, best) else motion.steps
             moved, kk, start = self._transition(both, t_now - state.t, steps, facing, turn)
             if twin:
                 moved, prior_a, start = moved[:, 0], moved[:, 1], start[:, 0]
@@ -876,9 +874,9 @@ class Tracker:
         # counts no steps while its user walks, reaches other nodes' views), and the sensors
         # counted no step and little turn, or, where they do not say it moved, the clip faces as
         # the last one did there: "A phone held still" above
-        best = int(np.argmax(e))
         held = False
-        if _conf(self.conf, "track_still_cap") and not fresh and state is not None and state.best == best:
+        still_cap = _conf(self.conf, "track_still_cap")
+        if still_cap and not fresh and state is not None and best is not None and state.best == best:
             # the sensors say so; or, where they do not say it moved (none, or none that
             # answered), the clip does: best where the last was and facing as it did there
             seen = _conf(self.conf, "track_still_seen") and not _moved(motion)
@@ -905,11 +903,13 @@ class Tracker:
             recent = self.recent(before, float(clip.confidence), dt)
             doubt = self.recent_min is not None and recent < self.recent_min
             split = clip.confidence >= SURE and self.elsewhere(pose, clip)
-            if split:  # the walk's place or the clip's: the clip's, if the walk holds it about as likely
+            # where the walk is itself split between the two places, its small differences between
+            # look-alikes are the weaker evidence, and the sure clip of the moment decides
+            if split:
                 node = self.tie_node(post, pose.node, clip)
                 if node is not None:
                     pose = self.pose(post, matches, times, t_now, gyro, updates + 1, last, post_a, node)
-            if doubt or split:
+            if doubt or split:  # two calibrated sources disagree: not sure, wherever the answer is
                 pose = replace(pose, confidence=min(pose.confidence, self.doubt_cap))
             if held:  # no surer than the clip alone, as a locate says it
                 pose = replace(pose, confidence=min(pose.confidence, float(clip.said)))
@@ -963,14 +963,32 @@ class Tracker:
         assert state is not None and pose is not None
         return state, replace(pose, restarted=restarted)
 
+    def clip_floor(self, clip: ClipAnswer) -> str | None:
+        """The floor of the clip's own answer (its venue frame's); None when its place was not
+        given, or not as a finite point and a frame of this venue."""
+        if clip.x is None or clip.y is None or clip.row is None or not 0 <= clip.row < len(self.venue_floor):
+            return None
+        return str(self.venue_floor[clip.row]) if np.isfinite(clip.x) and np.isfinite(clip.y) else None
+
     def elsewhere(self, pose: TrackPose, clip: ClipAnswer) -> bool:
         """Whether the clip's own answer is another place than the pose: FAR_M or more from it,
         or on another floor (False when the clip's place was not given)."""
-        if clip.x is None or clip.y is None or clip.row is None or not 0 <= clip.row < len(self.venue_floor):
+        floor = self.clip_floor(clip)
+        if floor is None or clip.x is None or clip.y is None:
             return False
-        if str(self.venue_floor[clip.row]) != pose.floor:
-            return True
-        return bool(np.hypot(clip.x - pose.x, clip.y - pose.y) >= FAR_M)
+        return floor != pose.floor or bool(np.hypot(clip.x - pose.x, clip.y - pose.y) >= FAR_M)
+
+    def zero_read_as_none(self, motion: Motion, before: int | None, best: int | None) -> bool:
+        """Whether a count of no steps says nothing (`track_zero_steps_m`): the clip is best that
+        far from where the last clip was best, on the same floor. A phone held steady, or a
+        wheelchair, counts no steps while its user moves on. Not on a blank clip (best nowhere),
+        nor across floors: a lift's ride is counted no steps, truly, and its floor-change weight
+        is only worth what the other moves are (a zero read as none would thin it)."""
+        if motion.steps != 0 or self.zero_steps_m is None or best is None or before is None:
+            return False
+        if not 0 <= before < self.n or self.floor[best] != self.floor[before]:
+            return False
+        return bool(np.hypot(*(self.xy[best] - self.xy[before])) >= self.zero_steps_m)
 
     def tie_node(self, p: np.ndarray, node: int, clip: ClipAnswer) -> int | None:
         """The node of the clip's own place, when the belief p (N,) holds its neighbourhood at
@@ -980,15 +998,15 @@ class Tracker:
         the answer where it is; one the walk itself finds about as likely (the next door of a
         corridor of identical doors, where the belief is split) is the fresher evidence of the
         two, and breaks the tie."""
-        if self.clip_tie is None or clip.x is None or clip.y is None or clip.row is None:
+        floor = self.clip_floor(clip)
+        if self.clip_tie is None or floor is None or clip.x is None or clip.y is None:
             return None
-        if not 0 <= clip.row < len(self.venue_floor):
+        # the node nearest the clip's place on its floor (a pass over the nodes: no tree built a
+        # call); none within FIT_M (a place nobody walked): the clip's place is no node's
+        d = np.where(self.floor == floor, np.hypot(self.xy[:, 0] - clip.x, self.xy[:, 1] - clip.y), np.inf)
+        c = int(np.argmin(d))
+        if not d[c] <= FIT_M:
             return None
-        # the node nearest the clip's place on its floor (a pass over the nodes: no tree built a call)
-        on = self.floor == str(self.venue_floor[clip.row])
-        if not on.any():
-            return None
-        c = int(np.argmin(np.where(on, np.hypot(self.xy[:, 0] - clip.x, self.xy[:, 1] - clip.y), np.inf)))
         there, here = (float(np.asarray(self.place[i] @ p).ravel()[0]) for i in (c, node))
         return c if c != node and there >= self.clip_tie * here else None
 
