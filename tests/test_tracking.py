@@ -31,6 +31,7 @@ from omninav.synth.walks import imu_for, track_for
 from omninav.track import parse_track
 from omninav.tracking import (
     MAX_STORED,
+    STEPS_WORK_S,
     ClipAnswer,
     Motion,
     Tracker,
@@ -881,6 +882,30 @@ def test_the_node_the_last_clip_matched_best_is_saved_with_the_state(twin: Venue
     assert TrackState.from_bytes(swapped + struct.pack("<I", zlib.crc32(swapped)), twin.graph) is None
 
 
+def test_when_the_phone_last_counted_a_step_is_kept_with_the_state(corridor: Venue) -> None:
+    """`stepped`: set by an update whose phone counted steps, carried through counts of none,
+    forgotten when the belief starts over; saved and read back, and a state saved before it
+    existed (no section) reads with None; a time that is no number is refused as corrupt."""
+    t, xy, hd = walk_poses([(0.5, 0.0), (12.0, 0.0)])
+
+    def unique(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
+        return [(x, y, h, 0.8)]
+
+    counts = lambda t0, t1: Motion(2 if t1 < 6.0 else 0, 0.0)  # noqa: E731
+    out = run_walk(corridor, t, xy, hd, unique, motion=counts, per=1)
+    stepped = [s.stepped for *_, s in out]
+    assert stepped[0] is None  # a fresh start: no reading yet
+    last = max(tt for tt, *_ in out if tt < 6.0)
+    assert all(v == pytest.approx(last) for (tt, *_), v in zip(out, stepped, strict=True) if tt >= last)
+    state = out[-1][-1]
+    back = TrackState.from_bytes(state.to_bytes(), corridor.graph)
+    assert back is not None and back.stepped == pytest.approx(last) and back.best == state.best
+    old = TrackState.from_bytes(replace(state, stepped=None).to_bytes(), corridor.graph)
+    assert old is not None and old.stepped is None and old.best == state.best
+    body = replace(state, stepped=float("nan")).to_bytes()[:-4]
+    assert TrackState.from_bytes(body + struct.pack("<I", zlib.crc32(body)), corridor.graph) is None
+
+
 def test_the_best_nodes_facing_is_saved_even_where_the_belief_there_is_too_small_to_keep(twin: Venue) -> None:
     """The next update compares its clip's facing at the last clip's best node with the one saved
     (track_still_seen): a node the belief has all but left keeps its facing in the saved state."""
@@ -1120,6 +1145,9 @@ def test_which_counts_of_no_steps_are_read_as_none() -> None:
     assert not tr.zero_read_as_none(zero, at(20.0, 0.0, "1"), up)  # out of the lift on floor 2
     off = Tracker(g, vxy, vfl, {**CONF, "track_zero_steps_m": None})
     assert not off.zero_read_as_none(zero, here, on)
+    # a counter that counted a step within STEPS_WORK_S works: its zero is a stop, kept
+    assert not tr.zero_read_as_none(zero, here, on, stepped=70.0, t_now=70.0 + STEPS_WORK_S)
+    assert tr.zero_read_as_none(zero, here, on, stepped=70.0, t_now=71.0 + STEPS_WORK_S)
     # and a blank clip is best nowhere: what the update passes for it
     blank = Matches(np.zeros((10, K), np.int64), *(np.zeros((3, 10, K), np.float32)))
     state, _ = tr.update(None, blank, np.arange(0.1, 1.01, 0.1), 1.0)

@@ -20,10 +20,10 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
   `track_zero_steps_m` or more from where the last clip was best is read as no count at all: the
   phone is held steady, or rolls, while its user moves on (each such zero pulled the belief back
   towards standing still, and a walk fell behind by a door or two; chosen on the tuning families'
-  walks, docs/benchmarks.md). A phone held still is mostly best where it was, and its zero
-  counts then; at a stop in a corridor of identical doors a clip now and then is best a door on,
-  and the zero is dropped (its cost, in the walks with stops, is measured there). A blank clip
-  (best nowhere) and a change of floor (a lift's ride counts no steps, truly) keep the zero. A
+  walks, docs/benchmarks.md). A phone whose counter counted a step in the last STEPS_WORK_S
+  keeps its zeros: it is standing (at a stop in a corridor of identical doors its clip is now and
+  then best a door on, and dropping those zeros cost answers there). A blank clip (best
+  nowhere) and a change of floor (a lift's ride counts no steps, truly) keep the zero too. A
   little of a uniform belief is mixed in at every update (`track_uniform`), so that a wrong
   lock-in is undone by evidence, never by luck.
 - **Emission** (the clip): each query frame's verified candidate matches (index.Matches, with
@@ -170,6 +170,11 @@ MAGIC_ALL = b"ONTA"  # every node's belief and facing (zlib: a flat or broad bel
 ALIKE, ALIKE_ALL = b"AS", b"AW"  # then the second belief: its nodes one by one, or whole
 RECENT = b"RC"  # then the recent clips' mean confidence (float64)
 BEST = b"BN"  # then the node the last clip matched best (uint32)
+STEPPED = b"ST"  # then when the phone last counted a step (float64 seconds)
+# a step counter that counted a step this recently (s) works, and its count of none is a stop:
+# kept whatever the clips say (track_zero_steps_m is for a phone that counts nothing while its
+# user moves on). Longer than a stop at a door or a junction, shorter than a walk along a corridor.
+STEPS_WORK_S = 30.0
 HEADER = "<4sdIfIB"  # magic, t, updates, heading (NaN: none), nodes of the graph, length of its key
 
 
@@ -329,12 +334,16 @@ class TrackState:
     recent: float | None = None
     # the node the last clip's evidence was best at (None: a state saved before it existed)
     best: int | None = None
+    # when the phone last counted a step (None: not in this belief's life, or a state saved
+    # before it existed): its counter works, and its zeros are stops (Tracker.zero_read_as_none)
+    stepped: float | None = None
 
     def to_bytes(self) -> bytes:
         """A header with the graph's key, the belief (float16 relative to the largest) and facing
         (float16 degrees), then the second (cautious) belief if any (b"AS" or b"AW" and the same, without
         facing), the recent clips' mean if any (b"RC", float64), the node the last clip was best at
-        if any (b"BN", uint32), in that order, and a CRC-32. A belief's nodes with at least
+        if any (b"BN", uint32), when the phone last counted a step if it did (b"ST", float64), in
+        that order, and a CRC-32. A belief's nodes with at least
         STORE_REL of the largest, when there are at most MAX_STORED of them: each one's index
         (uint32), belief and facing, 8 bytes a node (6 without facing); more than that (a young
         belief, flat over much of a big graph): every node's, zlib-compressed, so that the state
@@ -363,6 +372,8 @@ class TrackState:
             body += RECENT + struct.pack("<d", self.recent)
         if self.best is not None:
             body += BEST + struct.pack("<I", self.best)
+        if self.stepped is not None:
+            body += STEPPED + struct.pack("<d", self.stepped)
         return body + struct.pack("<I", zlib.crc32(body))
 
     @staticmethod
@@ -370,7 +381,8 @@ class TrackState:
         """A state saved by to_bytes, or None: corrupt, or saved against another graph. A state
         saved without the second belief (or before it existed) reads with `alike` None (the
         next update starts it as the belief); one without the recent clips' confidence with
-        `recent` None; one without the last clip's best node with `best` None."""
+        `recent` None; one without the last clip's best node with `best` None; one without the
+        time of the last step counted with `stepped` None."""
         try:
             if len(b) < 4 or zlib.crc32(b[:-4]) != struct.unpack("<I", b[-4:])[0]:
                 return None
@@ -403,12 +415,18 @@ class TrackState:
                 off += len(BEST) + 4
                 if best >= n:
                     return None
+            stepped = None
+            if b[off : off + len(STEPPED)] == STEPPED:
+                (stepped,) = struct.unpack_from("<d", b, off + len(STEPPED))
+                off += len(STEPPED) + 8
+                if not np.isfinite(stepped):
+                    return None
             if off != len(b):
                 return None
         except (struct.error, UnicodeDecodeError, ValueError, zlib.error):
             return None
         h = float(heading) if np.isfinite(heading) else None
-        return TrackState(float(t), belief, key, int(updates), h, facing, alike, recent, best)
+        return TrackState(float(t), belief, key, int(updates), h, facing, alike, recent, best, stepped)
 
 
 def _pack(p: np.ndarray, face: np.ndarray | None, also: int | None = None) -> tuple[bool, bytes]:
@@ -855,7 +873,7 @@ class Tracker:
             if twin:  # both beliefs walk alike: one pass (a state saved without it starts it as the belief)
                 a = state.alike if state.alike is not None and len(state.alike) == self.n else state.belief
                 both = np.stack([state.belief, a], axis=1)
-            steps = None if self.zero_read_as_none(motion, state.best, best) else motion.steps
+            steps = None if self.zero_read_as_none(motion, state.best, best, state.stepped, t_now) else motion.steps
             moved, kk, start = self._transition(both, t_now - state.t, steps, facing, turn)
             if twin:
                 moved, prior_a, start = moved[:, 0], moved[:, 1], start[:, 0]
@@ -915,7 +933,12 @@ class Tracker:
                 pose = replace(pose, confidence=min(pose.confidence, float(clip.said)))
         pose = replace(pose, restarted=bool(fresh))
         heading = pose.heading if pose.heading_known else None
-        state = TrackState(float(t_now), post, self.graph.key, updates + 1, heading, facing, post_a, recent, best)
+        stepped = None if fresh or state is None else state.stepped
+        if motion.steps:  # (a count of one or more: the counter works)
+            stepped = float(t_now)
+        state = TrackState(
+            float(t_now), post, self.graph.key, updates + 1, heading, facing, post_a, recent, best, stepped
+        )
         return state, pose
 
     def goes_on(self, state: TrackState, t_now: float) -> bool:
@@ -978,13 +1001,25 @@ class Tracker:
             return False
         return floor != pose.floor or bool(np.hypot(clip.x - pose.x, clip.y - pose.y) >= FAR_M)
 
-    def zero_read_as_none(self, motion: Motion, before: int | None, best: int | None) -> bool:
+    def zero_read_as_none(
+        self,
+        motion: Motion,
+        before: int | None,
+        best: int | None,
+        stepped: float | None = None,
+        t_now: float = 0.0,
+    ) -> bool:
         """Whether a count of no steps says nothing (`track_zero_steps_m`): the clip is best that
-        far from where the last clip was best, on the same floor. A phone held steady, or a
-        wheelchair, counts no steps while its user moves on. Not on a blank clip (best nowhere),
-        nor across floors: a lift's ride is counted no steps, truly, and its floor-change weight
-        is only worth what the other moves are (a zero read as none would thin it)."""
+        far from where the last clip was best, on the same floor, and the phone has counted no
+        step in the last STEPS_WORK_S (`stepped`: when it last did). A phone held steady, or a
+        wheelchair, counts no steps while its user moves on; one whose counter counted steps a
+        moment ago is standing (at a stop in a corridor of identical doors its clip is now and
+        then best a door on). Not on a blank clip (best nowhere), nor across floors: a lift's ride
+        is counted no steps, truly, and its floor-change weight is only worth what the other
+        moves are (a zero read as none would thin it)."""
         if motion.steps != 0 or self.zero_steps_m is None or best is None or before is None:
+            return False
+        if stepped is not None and t_now - stepped <= STEPS_WORK_S:
             return False
         if not 0 <= before < self.n or self.floor[best] != self.floor[before]:
             return False
