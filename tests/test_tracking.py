@@ -904,6 +904,42 @@ def test_when_the_phone_last_counted_a_step_is_kept_with_the_state(corridor: Ven
     assert old is not None and old.stepped is None and old.best == state.best
     body = replace(state, stepped=float("nan")).to_bytes()[:-4]
     assert TrackState.from_bytes(body + struct.pack("<I", zlib.crc32(body)), corridor.graph) is None
+    # one false step (a phone held steady) does not say the counter works; a walker's two do
+    m = corridor.matches([[(12.0, 0.0, 90.0, 0.8)]] * 10, np.random.default_rng(8))
+    times = state.t + 1 + np.arange(-0.9, 0.01, 0.1)
+    one, _ = corridor.tracker.update(replace(state, stepped=None), m, times, float(times[-1]), Motion(1, 0.0))
+    two, _ = corridor.tracker.update(replace(state, stepped=None), m, times, float(times[-1]), Motion(2, 0.0))
+    assert one.stepped is None and two.stepped == pytest.approx(times[-1])
+    # the belief starting over (the phone's clock gone back) forgets it; a clip whose request
+    # counted steps sets it even then (update_clip: the parts get no motion of the walk before)
+    back_in_time = state.t - 5.0 + np.arange(-0.9, 0.01, 0.1)
+    fresh, _ = corridor.tracker.update(state, m, back_in_time, float(back_in_time[-1]), Motion(0, 0.0))
+    assert fresh.updates == 1 and fresh.stepped is None
+    fresh, _ = corridor.tracker.update_clip(state, m, back_in_time, float(back_in_time[-1]), Motion(3, 0.0))
+    assert fresh.updates == 1 and fresh.stepped == pytest.approx(back_in_time[-1])
+
+
+def test_a_counter_that_counted_a_moment_ago_keeps_its_zeros_then_not(corridor: Venue) -> None:
+    """A phone counts steps for its first 5 s, then none while its user walks on (a stalled
+    feed): for STEPS_WORK_S its zeros are stops, tracked exactly as with the zero rule off;
+    after that they say nothing (the rule on tracks otherwise)."""
+    t, xy, hd = walk_poses([(0.5, 0.0), (47.0, 0.0)], speed=1.0)
+
+    def unique(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
+        return [(x, y, h, 0.8)]
+
+    stalls = lambda t0, t1: Motion(3 if t1 < 5.0 else 0, 0.0)  # noqa: E731
+
+    def answers(zero: float | None) -> list[tuple[float, int, float]]:
+        v = Venue([(0.0, 0.0), (48.0, 0.0)], {"track_zero_steps_m": zero})
+        out = run_walk(v, t, xy, hd, unique, every=2.5, motion=stalls, per=1)
+        return [(tt, p.node, round(p.confidence, 9)) for tt, p, *_ in out]
+
+    on, off = answers(2.0), answers(None)
+    last = max(tt for tt, *_ in on if tt < 5.0)
+    within = [a for a in on if a[0] <= last + STEPS_WORK_S]
+    assert within == off[: len(within)] and len(within) < len(on)
+    assert on[len(within) :] != off[len(within) :]
 
 
 def test_the_best_nodes_facing_is_saved_even_where_the_belief_there_is_too_small_to_keep(twin: Venue) -> None:

@@ -20,12 +20,12 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
   `track_zero_steps_m` or more from where the last clip was best is read as no count at all: the
   phone is held steady, or rolls, while its user moves on (each such zero pulled the belief back
   towards standing still, and a walk fell behind by a door or two; chosen on the tuning families'
-  walks, docs/benchmarks.md). A phone whose counter counted a step in the last STEPS_WORK_S
-  keeps its zeros: it is standing (at a stop in a corridor of identical doors its clip is now and
-  then best a door on, and dropping those zeros cost answers there). A blank clip (best
-  nowhere) and a change of floor (a lift's ride counts no steps, truly) keep the zero too. A
-  little of a uniform belief is mixed in at every update (`track_uniform`), so that a wrong
-  lock-in is undone by evidence, never by luck.
+  walks, docs/benchmarks.md). A phone whose counter counted STEPS_WORK_N steps in one update
+  within the last STEPS_WORK_S works, and keeps its zeros: it is standing (at a stop in a
+  corridor of identical doors its clip is now and then best a door on, and dropping those zeros
+  cost answers there). A blank clip (best nowhere) and a change of floor (a lift's ride counts
+  no steps, truly) keep the zero too. A little of a uniform belief is mixed in at every update
+  (`track_uniform`), so that a wrong lock-in is undone by evidence, never by luck.
 - **Emission** (the clip): each query frame's verified candidate matches (index.Matches, with
   scores), the best one within `track_radius_m` of a node counting for that node; a node without
   one counts the frame's worst kept score (it was not among the best). The mean over the clip's
@@ -175,6 +175,9 @@ STEPPED = b"ST"  # then when the phone last counted a step (float64 seconds)
 # kept whatever the clips say (track_zero_steps_m is for a phone that counts nothing while its
 # user moves on). Longer than a stop at a door or a junction, shorter than a walk along a corridor.
 STEPS_WORK_S = 30.0
+# ... counted this many in one update: a walker's second holds one or two, a few seconds' more;
+# a phone held steady (or a wheelchair over a threshold) counts the odd false step, one at a time
+STEPS_WORK_N = 2
 HEADER = "<4sdIfIB"  # magic, t, updates, heading (NaN: none), nodes of the graph, length of its key
 
 
@@ -334,8 +337,9 @@ class TrackState:
     recent: float | None = None
     # the node the last clip's evidence was best at (None: a state saved before it existed)
     best: int | None = None
-    # when the phone last counted a step (None: not in this belief's life, or a state saved
-    # before it existed): its counter works, and its zeros are stops (Tracker.zero_read_as_none)
+    # when the phone last counted STEPS_WORK_N or more steps in one update (None: not in this
+    # belief's life, or a state saved before it existed): its counter works, and its zeros are
+    # stops (Tracker.zero_read_as_none)
     stepped: float | None = None
 
     def to_bytes(self) -> bytes:
@@ -873,6 +877,8 @@ class Tracker:
             if twin:  # both beliefs walk alike: one pass (a state saved without it starts it as the belief)
                 a = state.alike if state.alike is not None and len(state.alike) == self.n else state.belief
                 both = np.stack([state.belief, a], axis=1)
+            # (a part of a longer clip can get none of a request's one or two steps by rounding,
+            # `share`: kept as a stop, as a walker that slow about is)
             steps = None if self.zero_read_as_none(motion, state.best, best, state.stepped, t_now) else motion.steps
             moved, kk, start = self._transition(both, t_now - state.t, steps, facing, turn)
             if twin:
@@ -934,7 +940,7 @@ class Tracker:
         pose = replace(pose, restarted=bool(fresh))
         heading = pose.heading if pose.heading_known else None
         stepped = None if fresh or state is None else state.stepped
-        if motion.steps:  # (a count of one or more: the counter works)
+        if (motion.steps or 0) >= STEPS_WORK_N:
             stepped = float(t_now)
         state = TrackState(
             float(t_now), post, self.graph.key, updates + 1, heading, facing, post_a, recent, best, stepped
@@ -984,6 +990,11 @@ class Tracker:
             state, pose = self.update(state, m, times[c], end, mv, own)
             restarted = restarted or pose.restarted
         assert state is not None and pose is not None
+        # started over, the parts were given no motion (it was of the walk before); that the
+        # counter counted is still news: it works
+        counted = 0 if motion is None else motion.steps or 0
+        if restarted and state.stepped is None and counted >= STEPS_WORK_N:
+            state = replace(state, stepped=float(ends[-1]))
         return state, replace(pose, restarted=restarted)
 
     def clip_floor(self, clip: ClipAnswer) -> str | None:
@@ -1010,8 +1021,9 @@ class Tracker:
         t_now: float = 0.0,
     ) -> bool:
         """Whether a count of no steps says nothing (`track_zero_steps_m`): the clip is best that
-        far from where the last clip was best, on the same floor, and the phone has counted no
-        step in the last STEPS_WORK_S (`stepped`: when it last did). A phone held steady, or a
+        far from where the last clip was best, on the same floor, and the phone's counter has not
+        shown it works in the last STEPS_WORK_S (`stepped`: when it last counted STEPS_WORK_N or
+        more steps in one update). A phone held steady, or a
         wheelchair, counts no steps while its user moves on; one whose counter counted steps a
         moment ago is standing (at a stop in a corridor of identical doors its clip is now and
         then best a door on). Not on a blank clip (best nowhere), nor across floors: a lift's ride
