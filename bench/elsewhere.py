@@ -27,6 +27,7 @@ walks, the same way, beside them (the share of sure answers a user inside the ve
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 from pathlib import Path
@@ -35,14 +36,13 @@ from typing import Any
 import numpy as np
 
 from omninav.aggregate import SURE
-from omninav.locate import Locator
 from omninav.synth.families import FAMILIES
 from omninav.tracking import Imu
 
 sys.path.insert(0, str(Path(__file__).parent))
-from families import dataset, family_names, venue  # noqa: E402
+from families import dataset, family_names, settings  # noqa: E402
 from search_speed import machine  # noqa: E402
-from tracking import SKIP_S, Walk, graph_tracker, run, searched, walk  # noqa: E402
+from tracking import SKIP_S, Walk, graph_tracker, run, venues, walk  # noqa: E402
 
 LOW = 0.5  # below it the app says "not sure" (config.py LOW_CONFIDENCE)
 STILL_AT_S = (10.0, 30.0, 50.0)  # where along a walk the phone is held still
@@ -86,25 +86,18 @@ def main() -> None:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=JSON", help="a tracking setting (tuning)")
     ap.add_argument("--json", type=Path, help="every answer's confidences, here")
     a = ap.parse_args()
-    over = {k: json.loads(v) for k, v in (kv.split("=", 1) for kv in a.set)}
+    over = settings(a.set)
     print(f"machine: {machine()}")
     if over:
         print(f"settings: {over}")
     names = family_names(a.families)
     seeds = [int(s) for s in a.seeds.split(",")]
-    locs: dict[tuple[str, int], Locator] = {}
-    walks: dict[tuple[str, int], Walk] = {}
-
-    def loc_of(name: str, seed: int) -> Locator:
-        if (name, seed) not in locs:
-            locs[name, seed] = venue(dataset(name, seed), "default", searched(over))
-        return locs[name, seed]
+    loc_of = venues(over)
+    spectra = functools.cache(lambda name, seed: walk(dataset(name, seed), loc_of(name, seed)))
 
     def walk_of(name: str, seed: int) -> Walk:
         """The walk's spectra, read once; a new Walk for each venue (its matches are that venue's)."""
-        if (name, seed) not in walks:
-            walks[name, seed] = walk(dataset(name, seed), loc_of(name, seed))
-        w = walks[name, seed]
+        w = spectra(name, seed)
         return Walk(w.t, w.xy, w.heading, w.spec)
 
     out: list[dict[str, Any]] = []

@@ -51,6 +51,11 @@ CONFIDENCE_KEYS = ("confidence_features", "confidence_coef")
 SEARCH_KEYS = ("shared_candidates",)  # how a clip is searched: the same venue, other answers
 
 
+def settings(pairs: list[str]) -> dict[str, Any]:
+    """The benches' --set KEY=JSON pairs -> the settings they override."""
+    return {k: json.loads(v) for k, v in (kv.split("=", 1) for kv in pairs)}
+
+
 def family_names(spec: str) -> list[str]:
     if spec in ("all", "tuning", "held-out"):
         return [n for n, f in FAMILIES.items() if spec == "all" or f.split == spec]
@@ -184,7 +189,7 @@ def main() -> None:
     seeds = [int(s) for s in a.seeds.split(",")]
     clips = [float(c) for c in a.clips.split(",")]
     configs = [c.strip() for c in a.configs.split(",")]
-    over = {k: json.loads(v) for k, v in (kv.split("=", 1) for kv in a.set)}
+    over = settings(a.set)
     if over:
         print(f"settings over the configurations: {over}")
     print(f"machine: {machine()}")

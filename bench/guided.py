@@ -47,6 +47,7 @@ long enough for `not_here`, which is wrong in the venue).
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 from collections.abc import Iterator
@@ -64,9 +65,9 @@ from omninav.synth.families import FAMILIES
 from omninav.tracking import Imu, Tracker
 
 sys.path.insert(0, str(Path(__file__).parent))
-from families import dataset, family_names, venue  # noqa: E402
+from families import dataset, family_names, settings  # noqa: E402
 from search_speed import machine  # noqa: E402
-from tracking import Walk, graph_tracker, searched, stops_walk, venue_graph, walk, walk_imu  # noqa: E402
+from tracking import Walk, graph_tracker, stops_walk, venue_graph, venues, walk, walk_imu  # noqa: E402
 
 EVERY_S = 2.5  # the app's guided loop: a request every 2.5 s ...
 FILM_S = 2.0  # ... filming 2 s (its first request 1 s)
@@ -221,26 +222,17 @@ def main() -> None:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=JSON", help="a tracking setting (tuning)")
     a = ap.parse_args()
     print(f"machine: {machine()}")
-    over = {k: json.loads(v) for k, v in (kv.split("=", 1) for kv in a.set)}
+    over = settings(a.set)
     if over:
         print(f"settings: {over}")
     out: list[dict[str, Any]] = []
     seeds = [int(s) for s in a.seeds.split(",")]
-    locs: dict[tuple[str, int], Locator] = {}
-    walks: dict[tuple[str, int], Walk] = {}
+    loc_of = venues(over)
 
-    def loc_of(name: str, seed: int) -> Locator:
-        if (name, seed) not in locs:
-            locs[name, seed] = venue(dataset(name, seed), "default", searched(over))
-        return locs[name, seed]
-
+    @functools.cache
     def walk_of(name: str, seed: int) -> Walk:
         """The venue's walk with stops (its spectra read once); matched against its own venue."""
-        if (name, seed) not in walks:
-            walks[name, seed] = walk(
-                dataset(name, seed), loc_of(name, seed), stops_walk(dataset(name, seed), name, seed)
-            )
-        return walks[name, seed]
+        return walk(dataset(name, seed), loc_of(name, seed), stops_walk(dataset(name, seed), name, seed))
 
     for name in family_names(a.families):
         for seed in seeds:

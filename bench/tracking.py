@@ -28,9 +28,11 @@ from __future__ import annotations
 
 import argparse
 import fcntl
+import functools
 import json
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -60,7 +62,7 @@ from omninav.tracking import (
 from omninav.walkgraph import WalkGraph, from_frames
 
 sys.path.insert(0, str(Path(__file__).parent))
-from families import SEARCH_KEYS, dataset, family_names, venue  # noqa: E402
+from families import SEARCH_KEYS, dataset, family_names, settings, venue  # noqa: E402
 from search_speed import machine  # noqa: E402
 
 SKIP_S = 5.0  # the figures count the seconds after the first 5 of a walk
@@ -90,6 +92,12 @@ def searched(over: dict[str, Any]) -> dict[str, Any]:
     """The --set keys that say how a clip is searched (SEARCH_KEYS: the venue's, not the
     tracker's), so that --set shared_candidates=false reaches the search."""
     return {k: v for k, v in over.items() if k in SEARCH_KEYS}
+
+
+def venues(over: dict[str, Any]) -> Callable[[str, int], Locator]:
+    """(family, seed) -> its venue with the --set keys of its search (`searched`), each loaded
+    once a run (a bench that visits a venue more than once: its own walk, elsewhere's)."""
+    return functools.cache(lambda name, seed: venue(dataset(name, seed), "default", searched(over)))
 
 
 def venue_graph(loc: Locator) -> WalkGraph:
@@ -415,7 +423,7 @@ def main() -> None:
     ap.add_argument("--json", type=Path, help="every answer, here")
     ap.add_argument("--fit", action="store_true", help="fit the confidence on the tuning families, then judge it")
     a = ap.parse_args()
-    over = {k: json.loads(v) for k, v in (kv.split("=", 1) for kv in a.set)}
+    over = settings(a.set)
     print(f"machine: {machine()}")
     if a.fit:
         fit_confidence(over)

@@ -574,6 +574,11 @@ def corridor() -> Venue:
     return Venue([(0.0, 0.0), (48.0, 0.0)])
 
 
+def unique(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
+    """Every place looks like itself alone: the truth scores 0.8."""
+    return [(x, y, h, 0.8)]
+
+
 def periodic(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
     """Near the west end (x < 3) the place is unique; beyond it, every 4 m looks the same."""
     if x < 3.0:
@@ -688,9 +693,6 @@ def test_steps_that_miss_a_walk_cost_a_few_answers_at_most(corridor: Venue) -> N
     forbid a move, so clips that agree keep a confident right answer (a wrong count once left
     the moves the steps did not explain ~1e-8 and drove the answer to "not sure" for good)."""
     t, xy, hd = walk_poses([(0.5, 0.0), (47.0, 0.0)])
-
-    def unique(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
-        return [(x, y, h, 0.8)]
 
     out = run_walk(corridor, t, xy, hd, unique, every=2.5, motion=lambda t0, t1: Motion(0, 0.0), per=1)
     assert len(out) >= 15
@@ -888,9 +890,6 @@ def test_when_the_phone_last_counted_a_step_is_kept_with_the_state(corridor: Ven
     existed (no section) reads with None; a time that is no number is refused as corrupt."""
     t, xy, hd = walk_poses([(0.5, 0.0), (12.0, 0.0)])
 
-    def unique(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
-        return [(x, y, h, 0.8)]
-
     counts = lambda t0, t1: Motion(2 if t1 < 6.0 else 0, 0.0)  # noqa: E731
     out = run_walk(corridor, t, xy, hd, unique, motion=counts, per=1)
     stepped = [s.stepped for *_, s in out]
@@ -924,9 +923,6 @@ def test_a_counter_that_counted_a_moment_ago_keeps_its_zeros_then_not(corridor: 
     feed): for STEPS_WORK_S its zeros are stops, tracked exactly as with the zero rule off;
     after that they say nothing (the rule on tracks otherwise)."""
     t, xy, hd = walk_poses([(0.5, 0.0), (47.0, 0.0)], speed=1.0)
-
-    def unique(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
-        return [(x, y, h, 0.8)]
 
     stalls = lambda t0, t1: Motion(3 if t1 < 5.0 else 0, 0.0)  # noqa: E731
 
@@ -1032,9 +1028,6 @@ def test_a_phone_counting_no_steps_while_its_user_moves_is_not_held_still(corrid
     filter without the rule."""
     t, xy, hd = walk_poses([(0.5, 0.0), (40.0, 0.0)])
 
-    def unique(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
-        return [(x, y, h, 0.8)]
-
     still = lambda t0, t1: Motion(0, 0.0)  # noqa: E731
     a = run_walk(corridor, t, xy, hd, unique, motion=still, per=1, own=True)
     loose = Venue([(0.0, 0.0), (48.0, 0.0)], {"track_still_cap": False})
@@ -1052,9 +1045,6 @@ def test_no_steps_counted_while_the_clips_move_on_is_read_as_no_count(corridor: 
     step counter is. Off, the zero pulls the belief back towards standing still."""
     t, xy, hd = walk_poses([(0.5, 0.0), (47.0, 0.0)])
 
-    def unique(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
-        return [(x, y, h, 0.8)]
-
     def answers(conf: dict, steps: int | None) -> list[tuple[int, float]]:
         v = Venue([(0.0, 0.0), (48.0, 0.0)], conf)
         out = run_walk(v, t, xy, hd, unique, every=2.5, motion=lambda t0, t1: Motion(steps, 0.0), per=1)
@@ -1071,9 +1061,6 @@ def test_no_steps_counted_where_the_clips_stay_put_or_say_nothing_still_count(co
     the count of no steps is kept with track_zero_steps_m as without it, and is not the same as
     no count at all."""
     t, xy, hd = walk_poses([(0.5, 0.0), (20.0, 0.0)])
-
-    def unique(x: float, y: float, h: float) -> list[tuple[float, float, float, float]]:
-        return [(x, y, h, 0.8)]
 
     walked = run_walk(corridor, t, xy, hd, unique, per=1)[-1][-1]
     here = corridor.matches([[(20.0, 0.0, 90.0, 0.8)]] * 10, np.random.default_rng(7))
