@@ -10,7 +10,17 @@ share answered with confidence >= 0.8 and how many of those were further than 2 
 preset's model's reliability diagram. A refit goes into presets.py's `confidence_coef` only when
 it does better on the held-out families as well (docs/benchmarks.md says what was tried).
 
-    python bench/calibrate.py [--seeds 0,1] [--clips 0.5,1,2,3] [--features support,margin,...]
+--extra FAMILY:SEEDS adds more seeds of a tuning family to the fit (ring-bare:3,4,5,6: the
+tuning side's corridor of identical doors, rendered again for the ties it holds). --cover
+preset moves the refit's intercept so that it answers as large a share of the tuning answers
+with confidence >= 0.8 as the preset's model does: a log-loss fit on clips this accurate says
+"sure" to nearly all of them, and the held-out families are harder than the tuning ones, so the
+refit keeps the preset's boldness and changes only which answers it trusts (a fixed point: the
+preset refit so answers the same share).
+
+    python bench/calibrate.py [--seeds 0,1] [--held-out-seeds 0,1,2,3] [--clips 0.5,1,2,3]
+                              [--features support,margin,...] [--extra ring-bare:3,4,5,6]
+                              [--cover preset|SHARE]
                               [--look-alike-prior W] [--png docs/reliability.png]
 """
 
@@ -28,7 +38,7 @@ from omninav.aggregate import SURE, confidence, confidence_inputs
 from omninav.presets import resolve
 
 sys.path.insert(0, str(Path(__file__).parent))
-from families import family_names, rows_for  # noqa: E402
+from families import FAMILIES, family_names, rows_for  # noqa: E402
 from search_speed import machine  # noqa: E402
 
 BINS = (0.0, 0.2, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0001)
@@ -57,6 +67,25 @@ def fit(x: np.ndarray, y: np.ndarray, l2: float = 1e-4, weight: np.ndarray | Non
         return float(np.sum(wt * (np.logaddexp(0, z) - y * z)) / wt.sum() + l2 * np.sum(w[1:] ** 2))
 
     return np.asarray(minimize(loss, np.zeros(x.shape[1]), method="BFGS").x)
+
+
+def cover(x: np.ndarray, w: np.ndarray, share: float) -> np.ndarray:
+    """w with its intercept moved so that `share` of the answers x get confidence >= SURE."""
+    z = x @ w
+    out = w.copy()
+    out[0] += np.log(SURE / (1.0 - SURE)) - float(np.quantile(z, 1.0 - share))
+    return out
+
+
+def extra_seeds(specs: list[str]) -> list[tuple[str, int]]:
+    """--extra FAMILY:S1,S2 -> (family, seed) pairs; only tuning families may be fit on."""
+    out = []
+    for spec in specs:
+        fam, _, seeds = spec.partition(":")
+        if FAMILIES.get(fam) is None or FAMILIES[fam].split != "tuning":
+            raise SystemExit(f"--extra {spec}: not a tuning family (the held-out ones are never fit on)")
+        out += [(fam, int(s)) for s in seeds.split(",") if s.strip()]
+    return out
 
 
 def reliability(p: np.ndarray, y: np.ndarray) -> list[tuple[float, float, int, float, float]]:
@@ -116,6 +145,9 @@ def main() -> None:
     ap.add_argument("--png", type=Path)
     ap.add_argument("--l2", type=float, default=1e-4)
     ap.add_argument("--features", help="inputs of aggregate.CONFIDENCE_INPUTS (default: the preset's)")
+    ap.add_argument("--held-out-seeds", help="the held-out families' seeds judged (default: --seeds)")
+    ap.add_argument("--extra", action="append", default=[], help="FAMILY:SEEDS, more seeds of a tuning family")
+    ap.add_argument("--cover", help="preset, or a share: the refit's share of tuning answers >= 0.8")
     ap.add_argument("--look-alike-prior", type=float, default=0.0, help="weight of the look-alike rows")
     a = ap.parse_args()
     conf = resolve("default")
@@ -123,11 +155,15 @@ def main() -> None:
     seeds = [int(s) for s in a.seeds.split(",")]
     clips = [float(c) for c in a.clips.split(",")]
     rows: dict[str, list[dict[str, Any]]] = {"tuning": [], "held-out": []}
+    judged = [int(s) for s in a.held_out_seeds.split(",")] if a.held_out_seeds else seeds
     for split in rows:
         for fam in family_names(split):
-            for seed in seeds:
+            for seed in seeds if split == "tuning" else judged:
                 for rs in rows_for(fam, seed, "default", clips).values():
                     rows[split] += rs
+    for fam, seed in extra_seeds(a.extra):
+        for rs in rows_for(fam, seed, "default", clips).values():
+            rows["tuning"] += rs
     print(f"machine: {machine()}")
     x, y = design(rows["tuning"], names)
     wt = np.ones(len(y))
@@ -136,6 +172,12 @@ def main() -> None:
         x, y = np.vstack([x, px]), np.concatenate([y, py])
         wt = np.concatenate([wt, np.full(len(py), a.look_alike_prior)])
     w = fit(x, y, a.l2, wt)
+    if a.cover:
+        xt = x[: len(rows["tuning"])]  # the answers themselves, not the look-alike prior's rows
+        now = np.array([confidence(r, conf) for r in rows["tuning"]])
+        share = float(np.mean(now >= SURE)) if a.cover == "preset" else float(a.cover)
+        w = cover(xt, w, share)
+        print(f"intercept moved: {share:.1%} of the tuning answers at >= {SURE}")
     print(f"features: {names}; look-alike prior weight {a.look_alike_prior}")
     print("confidence_coef:", [round(float(v), 3) for v in w])
     curves = []

@@ -62,7 +62,7 @@ from omninav.tracking import (
 from omninav.walkgraph import WalkGraph, from_frames
 
 sys.path.insert(0, str(Path(__file__).parent))
-from families import SEARCH_KEYS, dataset, family_names, settings, venue  # noqa: E402
+from families import CONFIDENCE_KEYS, SEARCH_KEYS, dataset, family_names, settings, venue  # noqa: E402
 from search_speed import machine  # noqa: E402
 
 SKIP_S = 5.0  # the figures count the seconds after the first 5 of a walk
@@ -89,9 +89,10 @@ class Walk:
 
 
 def searched(over: dict[str, Any]) -> dict[str, Any]:
-    """The --set keys that say how a clip is searched (SEARCH_KEYS: the venue's, not the
-    tracker's), so that --set shared_candidates=false reaches the search."""
-    return {k: v for k, v in over.items() if k in SEARCH_KEYS}
+    """The --set keys that are the venue's, not the tracker's: how a clip is searched
+    (SEARCH_KEYS: --set shared_candidates=false reaches the search) and the venue's confidence
+    model (CONFIDENCE_KEYS: the single clip's answer, and the cap of a phone held still)."""
+    return {k: v for k, v in over.items() if k in SEARCH_KEYS or k in CONFIDENCE_KEYS}
 
 
 def venues(over: dict[str, Any]) -> Callable[[str, int], Locator]:

@@ -27,11 +27,13 @@ def test_a_superseded_default_model_is_refreshed_and_any_other_kept() -> None:
     for old in (
         {"confidence_coef": [-6.68, 10.731, 10.215], "x": 1},  # before confidence_features was a key
         {"confidence_features": ["support", "margin"], "confidence_coef": [-6.68, 10.731, 10.215], "x": 1},
+        {"confidence_features": ["support", "margin"], "confidence_coef": [-3.45, 5.677, 9.197], "x": 1},
     ):
+        coef = list(old["confidence_coef"])
         new = current_confidence(old)
         assert new["confidence_coef"] == today["confidence_coef"] != old["confidence_coef"]
         assert new["confidence_features"] == today["confidence_features"] and new["x"] == 1
-        assert old["confidence_coef"] == [-6.68, 10.731, 10.215]  # the venue's own dict untouched
+        assert old["confidence_coef"] == coef  # the venue's own dict untouched
     own = {"confidence_features": ["support", "margin"], "confidence_coef": [-6.0, 10.0, 10.0]}
     assert current_confidence(own) is own
     assert current_confidence(today) is today
@@ -52,6 +54,25 @@ def test_the_default_model_grows_with_every_input_and_a_clip_of_one_matching_fra
     c = [confidence(_est(s, 0.0), conf) for s in grid]
     assert c == sorted(c)
     assert confidence(_est(0.095, 0.03, 0.1), conf) < 0.5  # one frame of ten at 0.95, no rival to speak of
+
+
+def test_a_tie_between_two_places_is_never_sure_however_well_both_match() -> None:
+    """Two places >= ALT_M apart that explain a clip equally well are a coin toss: the model before
+    the square root of the margin said 0.80-0.87 to such ties at high support, and on the held-out
+    corridor of identical doors one in six of them was the wrong door. A clear margin still is."""
+    conf = resolve("default")
+    for s in (0.6, 0.8, 0.9, 0.95, 1.0):
+        assert confidence(_est(s, s), conf) < 0.8
+    assert confidence(_est(0.9, 0.899), conf) < 0.8  # a margin of 0.001 is a tie too
+    assert confidence(_est(0.9, 0.8), conf) >= 0.95
+    assert confidence(_est(0.7, 0.5), conf) >= 0.9  # a clear margin at moderate support
+    old = {"confidence_features": ["support", "margin"], "confidence_coef": [-3.45, 5.677, 9.197]}
+    assert confidence(_est(0.95, 0.95), old) > 0.8  # what a venue modelled before said (refreshed since)
+
+
+def test_inputs_of_the_square_root_of_the_margin() -> None:
+    assert confidence_inputs(_est(0.9, 0.81), ["sqrt_margin"]) == pytest.approx([0.3])
+    assert confidence_inputs(_est(0.5, 0.7), ["sqrt_margin"]) == [0.0]  # the median's rival may beat it
 
 
 def test_an_evaluation_row_scores_as_its_estimate() -> None:

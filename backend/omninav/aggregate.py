@@ -173,10 +173,14 @@ def logistic(coef: Sequence[float], inputs: Sequence[float]) -> float:
 
 # What the confidence model may read from an answer (an Estimate, or an evaluation row with the
 # same fields). Support: how well the clip's frames agree with the place; margin: how much better
-# it is than the best other place >= ALT_M away (repetitive corridors make that rival close).
+# it is than the best other place >= ALT_M away (repetitive corridors make that rival close);
+# sqrt_margin: its square root (0 for the median's negative margins), steep where two places
+# nearly tie: a margin of 0.01 is half of one of 0.04, and a tie between two doors of a corridor
+# of identical doors is a coin toss however well both match (docs/benchmarks.md, "Ties").
 CONFIDENCE_INPUTS: dict[str, Callable[[Estimate | Mapping[str, Any]], float]] = {
     "support": lambda e: field_of(e, "support"),
     "margin": lambda e: field_of(e, "support") - field_of(e, "rival"),
+    "sqrt_margin": lambda e: float(np.sqrt(max(field_of(e, "support") - field_of(e, "rival"), 0.0))),
     "rel_margin": lambda e: (field_of(e, "support") - field_of(e, "rival")) / max(field_of(e, "support"), 1e-6),
     "agree": lambda e: field_of(e, "agree"),
 }

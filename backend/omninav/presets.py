@@ -50,12 +50,14 @@ DEFAULTS: dict[str, Any] = {
     "clip_radius_m": 1.5,
     "heading_gate_deg": 35.0,
     # logistic(w0 + w . inputs) -> P(within 2 m), inputs named in aggregate.CONFIDENCE_INPUTS;
-    # fit by bench/calibrate.py on the tuning families' answers, ring-bare's identical doors with
-    # them (before it: [-6.68, 10.731, 10.215], SUPERSEDED_CONFIDENCE; docs/benchmarks.md,
-    # "Confidence"). Two inputs, both weights positive: fits that gave an input a negative
-    # weight, or read the relative margin, answered a clip of one matching frame as sure
-    "confidence_features": ["support", "margin"],
-    "confidence_coef": [-3.45, 5.677, 9.197],
+    # fit by bench/calibrate.py on the tuning families' answers (ring-bare's identical doors with
+    # them, seven seeds of it), its intercept moved to answer as many of them sure as the model
+    # before (`--cover preset`). The square root of the margin: a near tie between two places is
+    # not sure however well both match (docs/benchmarks.md, "Ties"). Models before it:
+    # SUPERSEDED_CONFIDENCE. Both weights positive: fits that gave an input a negative weight, or
+    # read the relative margin, answered a clip of one matching frame as sure
+    "confidence_features": ["support", "sqrt_margin"],
+    "confidence_coef": [-5.981, 7.319, 8.666],
     # Modelling
     "model_fps": 10.0,  # modelling frames sampled at this rate from the video
     # Tracking while walking (tracking.py), read with these defaults by a venue modelled before:
@@ -129,7 +131,8 @@ DEFAULTS: dict[str, Any] = {
 # answers with the default's model now (current_confidence). The confidence reads no feature, so
 # nothing has to be extracted again; a model set otherwise (an admin's own fit) is kept.
 SUPERSEDED_CONFIDENCE: tuple[tuple[tuple[str, ...], tuple[float, ...]], ...] = (
-    (("support", "margin"), (-6.68, 10.731, 10.215)),
+    (("support", "margin"), (-6.68, 10.731, 10.215)),  # before ring-bare
+    (("support", "margin"), (-3.45, 5.677, 9.197)),  # before the square root of the margin
 )
 
 
