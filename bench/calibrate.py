@@ -10,6 +10,12 @@ share answered with confidence >= 0.8 and how many of those were further than 2 
 preset's model's reliability diagram. A refit goes into presets.py's `confidence_coef` only when
 it does better on the held-out families as well (docs/benchmarks.md says what was tried).
 
+--elsewhere FILE (bench/elsewhere.py --json) adds the single answers of the tuning families'
+clips filmed where the venue was never modelled (another seed's building, another family's), each
+labelled wrong, weighing --elsewhere-weight W of the venue's own answers in all: a user also asks
+in a room nobody filmed, and a model fit on the venue's own clips alone calls more of those sure
+(docs/benchmarks.md, "Ties"). Its sure share there is printed for both splits.
+
 --extra FAMILY:SEEDS adds more seeds of a tuning family to the fit (ring-bare:3,4,5,6: the
 tuning side's corridor of identical doors, rendered again for the ties it holds). --cover
 preset moves the refit's intercept so that it answers as large a share of the tuning answers
@@ -20,13 +26,14 @@ preset refit so answers the same share).
 
     python bench/calibrate.py [--seeds 0,1] [--held-out-seeds 0,1,2,3] [--clips 0.5,1,2,3]
                               [--features support,margin,...] [--extra ring-bare:3,4,5,6]
-                              [--cover preset|SHARE]
+                              [--cover preset|SHARE] [--elsewhere E.json --elsewhere-weight W]
                               [--look-alike-prior W] [--png docs/reliability.png]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -77,14 +84,55 @@ def cover(x: np.ndarray, w: np.ndarray, share: float) -> np.ndarray:
     return out
 
 
-def extra_seeds(specs: list[str]) -> list[tuple[str, int]]:
-    """--extra FAMILY:S1,S2 -> (family, seed) pairs; only tuning families may be fit on."""
+def cover_share(spec: str | None) -> float | None:
+    """--cover: None (no cover, or "preset": the preset's own share, known once the rows are)."""
+    if spec is None or spec == "preset":
+        return None
+    try:
+        share = float(spec)
+    except ValueError:
+        share = float("nan")
+    if not 0.0 < share < 1.0:
+        raise SystemExit(f"--cover {spec}: 'preset' or a share between 0 and 1 (0.89, not 89)")
+    return share
+
+
+def extra_seeds(specs: list[str], seeds: list[int]) -> list[tuple[str, int]]:
+    """--extra FAMILY:S1,S2 -> (family, seed) pairs; only tuning families may be fit on, and a
+    seed already fit on (`seeds`, every tuning family's) is not counted twice."""
     out = []
     for spec in specs:
-        fam, _, seeds = spec.partition(":")
-        if FAMILIES.get(fam) is None or FAMILIES[fam].split != "tuning":
-            raise SystemExit(f"--extra {spec}: not a tuning family (the held-out ones are never fit on)")
-        out += [(fam, int(s)) for s in seeds.split(",") if s.strip()]
+        fam, _, more = spec.partition(":")
+        if fam not in FAMILIES:
+            raise SystemExit(f"--extra {spec}: unknown family {fam!r} (known: {', '.join(FAMILIES)})")
+        if FAMILIES[fam].split != "tuning":
+            raise SystemExit(f"--extra {spec}: {fam} is held out (the held-out families are never fit on)")
+        try:
+            got = [int(v) for v in more.split(",") if v.strip()]
+        except ValueError:
+            raise SystemExit(f"--extra {spec}: seeds are whole numbers, FAMILY:3,4") from None
+        if not got or set(got) & set(seeds):
+            raise SystemExit(f"--extra {spec}: name seeds beyond --seeds {seeds}, FAMILY:3,4")
+        out += [(fam, v) for v in got]
+    return out
+
+
+def elsewhere_rows(path: Path | None) -> dict[str, list[dict[str, Any]]]:
+    """bench/elsewhere.py --json -> per split, the single answers of clips filmed where the venue
+    was never modelled (no answer is right: err_m inf)."""
+    out: dict[str, list[dict[str, Any]]] = {"tuning": [], "held-out": []}
+    if path is None:
+        return out
+    for w in json.loads(path.read_text()):
+        if w["kind"] == "own" or w["mode"] == "still, IMU":  # (the same single answers as "still")
+            continue
+        keys = ("single_support", "single_rival", "single_agree")
+        if not all(k in w for k in keys):
+            raise SystemExit(f"{path}: made before bench/elsewhere.py kept the answers' inputs; run it again")
+        out[w["split"]] += [
+            {"support": s, "rival": r, "agree": g, "err_m": float("inf")}
+            for s, r, g in zip(*(w[k] for k in keys), strict=True)
+        ]
     return out
 
 
@@ -148,6 +196,8 @@ def main() -> None:
     ap.add_argument("--held-out-seeds", help="the held-out families' seeds judged (default: --seeds)")
     ap.add_argument("--extra", action="append", default=[], help="FAMILY:SEEDS, more seeds of a tuning family")
     ap.add_argument("--cover", help="preset, or a share: the refit's share of tuning answers >= 0.8")
+    ap.add_argument("--elsewhere", type=Path, help="bench/elsewhere.py --json: clips filmed elsewhere, all wrong")
+    ap.add_argument("--elsewhere-weight", type=float, default=0.0, help="their weight, a share of the answers'")
     ap.add_argument("--look-alike-prior", type=float, default=0.0, help="weight of the look-alike rows")
     a = ap.parse_args()
     conf = resolve("default")
@@ -156,14 +206,19 @@ def main() -> None:
     clips = [float(c) for c in a.clips.split(",")]
     rows: dict[str, list[dict[str, Any]]] = {"tuning": [], "held-out": []}
     judged = [int(s) for s in a.held_out_seeds.split(",")] if a.held_out_seeds else seeds
+    extra = extra_seeds(a.extra, seeds)  # (refused before anything is rendered)
+    share = cover_share(a.cover)
     for split in rows:
         for fam in family_names(split):
             for seed in seeds if split == "tuning" else judged:
                 for rs in rows_for(fam, seed, "default", clips).values():
                     rows[split] += rs
-    for fam, seed in extra_seeds(a.extra):
+    for fam, seed in extra:
         for rs in rows_for(fam, seed, "default", clips).values():
             rows["tuning"] += rs
+    # the confidence each answer gets from the preset's model (the diagram's, and --cover preset's)
+    now = {split: np.array([confidence(r, conf) for r in rs]) for split, rs in rows.items()}
+    away = elsewhere_rows(a.elsewhere)
     print(f"machine: {machine()}")
     x, y = design(rows["tuning"], names)
     wt = np.ones(len(y))
@@ -171,23 +226,32 @@ def main() -> None:
         px, py = look_alikes(rows["tuning"], names)
         x, y = np.vstack([x, px]), np.concatenate([y, py])
         wt = np.concatenate([wt, np.full(len(py), a.look_alike_prior)])
+    if away["tuning"] and a.elsewhere_weight > 0:
+        ex, ey = design(away["tuning"], names)
+        x, y = np.vstack([x, ex]), np.concatenate([y, ey])
+        wt = np.concatenate([wt, np.full(len(ey), a.elsewhere_weight * len(rows["tuning"]) / len(ey))])
     w = fit(x, y, a.l2, wt)
     if a.cover:
         xt = x[: len(rows["tuning"])]  # the answers themselves, not the look-alike prior's rows
-        now = np.array([confidence(r, conf) for r in rows["tuning"]])
-        share = float(np.mean(now >= SURE)) if a.cover == "preset" else float(a.cover)
-        w = cover(xt, w, share)
-        print(f"intercept moved: {share:.1%} of the tuning answers at >= {SURE}")
-    print(f"features: {names}; look-alike prior weight {a.look_alike_prior}")
+        target = float(np.mean(now["tuning"] >= SURE)) if share is None else share
+        w = cover(xt, w, target)
+        print(f"intercept moved: {target:.1%} of the tuning answers at >= {SURE}")
+    print(f"features: {names}; look-alike prior weight {a.look_alike_prior}; elsewhere weight {a.elsewhere_weight}")
     print("confidence_coef:", [round(float(v), 3) for v in w])
     curves = []
     for split, rs in rows.items():
         xs, ys = design(rs, names)
         err = np.array([r["err_m"] for r in rs])
-        now = np.array([confidence(r, conf) for r in rs])
-        for label, p in (("the preset's", now), ("refit", 1 / (1 + np.exp(-(xs @ w))))):
+        for label, p in (("the preset's", now[split]), ("refit", 1 / (1 + np.exp(-(xs @ w))))):
             report(f"{split}, {label} coefficients", p, ys, err)
-        curves.append((split, now, ys))  # the diagram: the model answers are given with
+        curves.append((split, now[split], ys))  # the diagram: the model answers are given with
+        if away[split]:
+            xe, _ = design(away[split], names)
+            pre = np.mean([confidence(r, conf) >= SURE for r in away[split]])
+            print(
+                f"\n{split}, clips filmed elsewhere ({len(xe)}, all wrong): called sure by the preset's model "
+                f"{pre:.1%}, by the refit {np.mean(xe @ w >= np.log(SURE / (1 - SURE))):.1%}"
+            )
     if a.png:
         diagram(a.png, curves)
         print(f"\nwrote {a.png}")

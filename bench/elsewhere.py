@@ -71,6 +71,8 @@ def answered(rows: list[dict[str, Any]]) -> dict[str, list[float]]:
         "single": [r["single_confidence"] for r in rs],
         "tracked_err_m": [r["err_m"] for r in rs],
         "single_err_m": [r["single_err_m"] for r in rs],
+        # the single answer's confidence inputs (a model fit with clips filmed elsewhere)
+        **{f"single_{k}": [r[f"single_{k}"] for r in rs] for k in ("support", "rival", "agree")},
     }
 
 

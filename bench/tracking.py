@@ -96,7 +96,7 @@ def searched(over: dict[str, Any]) -> dict[str, Any]:
 
 
 def venues(over: dict[str, Any]) -> Callable[[str, int], Locator]:
-    """(family, seed) -> its venue with the --set keys of its search (`searched`), each loaded
+    """(family, seed) -> its venue with the --set keys that are the venue's (`searched`), each loaded
     once a run (a bench that visits a venue more than once: its own walk, elsewhere's)."""
     return functools.cache(lambda name, seed: venue(dataset(name, seed), "default", searched(over)))
 
@@ -226,6 +226,8 @@ def run(
             "cpu_s": cpu,
         }
         row["single_confidence"] = c1
+        # what the confidence model reads (aggregate.CONFIDENCE_INPUTS): a model can be fit on these
+        row.update(single_support=est.support, single_rival=est.rival, single_agree=est.agree)
         row["disagree_m"] = float(np.hypot(pose.x - est.x, pose.y - est.y))  # the clip's answer from the filter's
         if single:
             row.update(

@@ -48,8 +48,8 @@ def locate(api: Api, record: bytes) -> Any:
 @pytest.fixture(scope="module")
 def old_lab(small_ds: Any, tmp_path_factory: pytest.TempPathFactory) -> tuple[Any, Api, dict[str, Any]]:
     """Venue 'lab' modelled from walk.mp4 as an omninav from before the soft clipping did: the
-    default preset without it (and so in its two bands, 12 curves), and a settings.json without
-    either key."""
+    default preset without it (and so in its two bands, 12 curves), a settings.json without
+    either key, and the confidence model that was the default then."""
     app, api = prepared(small_ds, tmp_path_factory.mktemp("anew"))
     runner, store = app.extensions["omninav"].jobs, app.extensions["omninav"].catalog.store
     with pytest.MonkeyPatch.context() as m:
@@ -60,6 +60,7 @@ def old_lab(small_ds: Any, tmp_path_factory: pytest.TempPathFactory) -> tuple[An
         assert runner.run_next() and job(api, first["id"])["state"] == "done"
     path = store.venue_dir("lab") / store.generation("lab") / "settings.json"
     old = {k: v for k, v in json.loads(path.read_text()).items() if k not in ("soft_clip_sd", "band_channels")}
+    old.update(confidence_features=["support", "margin"], confidence_coef=[-6.68, 10.731, 10.215])
     path.write_text(json.dumps(old))
     return app, api, old
 
@@ -70,7 +71,11 @@ def test_the_admin_venue_says_its_frames_have_older_settings(old_lab: Any) -> No
     assert doc["features"]["settings_id"] == settings_id(old) != settings_id(resolve("default"))
     assert doc["settings_current"] is False and doc["preset_settings_id"] == settings_id(resolve("default"))
     # the phone reads the venue's settings, not the preset's: its records still match the frames
-    assert "soft_clip_sd" not in api.get("/api/venues/lab").json["features"]["settings"]
+    published = api.get("/api/venues/lab").json["features"]["settings"]
+    assert "soft_clip_sd" not in published
+    # ... and the confidence model it answers with, the default's now, not the superseded one it stores
+    assert published["confidence_coef"] == resolve("default")["confidence_coef"] != old["confidence_coef"]
+    assert published["confidence_features"] == resolve("default")["confidence_features"]
 
 
 def test_bad_requests_for_a_modelling_anew_say_why(old_lab: Any) -> None:

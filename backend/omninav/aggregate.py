@@ -175,13 +175,17 @@ def logistic(coef: Sequence[float], inputs: Sequence[float]) -> float:
 # same fields). Support: how well the clip's frames agree with the place; margin: how much better
 # it is than the best other place >= ALT_M away (repetitive corridors make that rival close);
 # sqrt_margin: its square root (0 for the median's negative margins), steep where two places
-# nearly tie: a margin of 0.01 is half of one of 0.04, and a tie between two doors of a corridor
-# of identical doors is a coin toss however well both match (docs/benchmarks.md, "Ties").
+# nearly tie: a margin of 0.01 counts half of one of 0.04. A tie between two doors of a corridor
+# of identical doors is a coin toss, however well both match (docs/benchmarks.md, "Ties").
+def _margin(e: Estimate | Mapping[str, Any]) -> float:
+    return field_of(e, "support") - field_of(e, "rival")
+
+
 CONFIDENCE_INPUTS: dict[str, Callable[[Estimate | Mapping[str, Any]], float]] = {
     "support": lambda e: field_of(e, "support"),
-    "margin": lambda e: field_of(e, "support") - field_of(e, "rival"),
-    "sqrt_margin": lambda e: float(np.sqrt(max(field_of(e, "support") - field_of(e, "rival"), 0.0))),
-    "rel_margin": lambda e: (field_of(e, "support") - field_of(e, "rival")) / max(field_of(e, "support"), 1e-6),
+    "margin": _margin,
+    "sqrt_margin": lambda e: float(np.sqrt(max(_margin(e), 0.0))),
+    "rel_margin": lambda e: _margin(e) / max(field_of(e, "support"), 1e-6),
     "agree": lambda e: field_of(e, "agree"),
 }
 

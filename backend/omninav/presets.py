@@ -51,13 +51,15 @@ DEFAULTS: dict[str, Any] = {
     "heading_gate_deg": 35.0,
     # logistic(w0 + w . inputs) -> P(within 2 m), inputs named in aggregate.CONFIDENCE_INPUTS;
     # fit by bench/calibrate.py on the tuning families' answers (ring-bare's identical doors with
-    # them, seven seeds of it), its intercept moved to answer as many of them sure as the model
-    # before (`--cover preset`). The square root of the margin: a near tie between two places is
-    # not sure however well both match (docs/benchmarks.md, "Ties"). Models before it:
-    # SUPERSEDED_CONFIDENCE. Both weights positive: fits that gave an input a negative weight, or
-    # read the relative margin, answered a clip of one matching frame as sure
+    # them, seven seeds of it) and, weighing 3 % of them, their clips filmed where the venue was
+    # never modelled (all wrong: `--elsewhere-weight`, the least that calls no more of those sure
+    # than the model before), its intercept then moved to answer as many of the venue's own sure
+    # as the model before (`--cover preset`). The square root of the margin: a near tie between
+    # two places is not sure unless both match almost perfectly (docs/benchmarks.md, "Ties").
+    # Models before it: SUPERSEDED_CONFIDENCE. Both weights positive: fits that gave an input a
+    # negative weight, or read the relative margin, answered a clip of one matching frame as sure
     "confidence_features": ["support", "sqrt_margin"],
-    "confidence_coef": [-5.981, 7.319, 8.666],
+    "confidence_coef": [-7.67, 9.761, 7.692],
     # Modelling
     "model_fps": 10.0,  # modelling frames sampled at this rate from the video
     # Tracking while walking (tracking.py), read with these defaults by a venue modelled before:
