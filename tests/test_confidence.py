@@ -77,13 +77,12 @@ def test_a_tie_between_two_places_is_not_sure_unless_both_match_almost_perfectly
     assert confidence(_est(0.7, 0.5), conf) >= 0.9  # a clear margin at moderate support
 
 
-def test_the_refit_keeps_the_share_it_is_told_and_never_fits_a_held_out_family() -> None:
+def test_the_refit_keeps_the_share_it_is_told_and_never_fits_a_held_out_family(monkeypatch: pytest.MonkeyPatch) -> None:
     """bench/calibrate.py: --cover moves the intercept to the share of answers called sure (the
     preset's boldness), and --extra takes more seeds of tuning families only."""
-    import sys
     from pathlib import Path
 
-    sys.path.insert(0, str(Path(__file__).parents[1] / "bench"))
+    monkeypatch.syspath_prepend(str(Path(__file__).parents[1] / "bench"))
     from calibrate import cover, extra_seeds
 
     rng = np.random.default_rng(0)
