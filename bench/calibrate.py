@@ -8,7 +8,9 @@ applied unchanged to the held-out families. Printed for both splits, for the pre
 the refit: the reliability table (answers binned by confidence against the share within 2 m), the
 share answered with confidence >= 0.8 and how many of those were further than 2 m. --png draws the
 preset's model's reliability diagram. A refit goes into presets.py's `confidence_coef` only when
-it does better on the held-out families as well (docs/benchmarks.md says what was tried).
+it does better on the held-out families as well: fewer of the answers it calls sure wrong, and no
+more clips filmed elsewhere called sure (docs/benchmarks.md says what was tried; the model since
+"Ties" has the worse held-out Brier, modest about the venues' own clips).
 
 --elsewhere FILE (bench/elsewhere.py --json) adds the single answers of the tuning families'
 clips filmed where the venue was never modelled (another seed's building, another family's), each
