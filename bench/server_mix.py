@@ -469,7 +469,8 @@ class SlowClients:
 
 
 # ---- the run ------------------------------------------------------------------------------------
-def _children() -> dict[int, list[int]]:
+def process_children() -> dict[int, list[int]]:
+    """pid -> its children, of every process (Linux /proc)."""
     kids: dict[int, list[int]] = {}
     for d in Path("/proc").iterdir():
         if d.name.isdigit():
@@ -481,7 +482,7 @@ def _children() -> dict[int, list[int]]:
     return kids
 
 
-def _cpu_s(pid: int) -> float:
+def cpu_s(pid: int) -> float:
     try:
         f = (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()
     except OSError:
@@ -492,14 +493,30 @@ def _cpu_s(pid: int) -> float:
 def cpu_by_role(front: int) -> dict[str, float]:
     """CPU seconds used so far by the server's front, its gunicorn workers (arbiter and workers) and
     its job runner, and by this client (Linux /proc; a process that ended is not counted)."""
-    kids = _children()
-    out = {"front": _cpu_s(front), "workers": 0.0, "job runner": 0.0}
+    kids = process_children()
+    out = {"front": cpu_s(front), "workers": 0.0, "job runner": 0.0}
     for c in kids.get(front, []):
         if kids.get(c):  # the gunicorn arbiter has the workers under it; the job runner has none
-            out["workers"] += _cpu_s(c) + sum(_cpu_s(w) for w in kids[c])
+            out["workers"] += cpu_s(c) + sum(cpu_s(w) for w in kids[c])
         else:
-            out["job runner"] += _cpu_s(c)
-    out["client"] = _cpu_s(os.getpid())
+            out["job runner"] += cpu_s(c)
+    out["client"] = cpu_s(os.getpid())
+    return out
+
+
+def gunicorn_workers(front: int) -> list[int]:
+    """The server's gunicorn workers: the children of the arbiter, the one child of the front that
+    has children of its own (the job runner has none); [] until the arbiter has forked them."""
+    kids = process_children()
+    return sorted(next((kids[c] for c in kids.get(front, []) if kids.get(c)), []))
+
+
+def descendants(pid: int) -> list[int]:
+    """pid and every process under it."""
+    kids, out, todo = process_children(), [], [pid]
+    while todo:
+        out.append(todo.pop())
+        todo += kids.get(out[-1], [])
     return out
 
 

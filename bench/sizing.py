@@ -53,6 +53,7 @@ from omninav.store import FRAME_DTYPE, Generation, Store  # noqa: E402
 from omninav.synth import donut_lens  # noqa: E402
 from search_speed import machine  # noqa: E402
 from search_speed import venue as random_spectra  # noqa: E402
+from server_mix import cpu_s, descendants, gunicorn_workers  # noqa: E402
 from tracking import serpentine  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
@@ -125,37 +126,6 @@ def feature_record(data: Path, out: Path) -> tuple[bytes, str]:
 # --- /proc ------------------------------------------------------------------------------------------
 
 
-def children(pid: int) -> list[int]:
-    out = []
-    for tid in os.listdir(f"/proc/{pid}/task"):
-        try:
-            out += [int(x) for x in Path(f"/proc/{pid}/task/{tid}/children").read_text().split()]
-        except OSError:
-            pass
-    return out
-
-
-def tree(pid: int) -> list[int]:
-    out, todo = [], [pid]
-    while todo:
-        p = todo.pop()
-        out.append(p)
-        todo += children(p)
-    return out
-
-
-def workers(front: int) -> list[int]:
-    """gunicorn's workers: children of the arbiter, the front's child forked with the front's command line."""
-    cmd = Path(f"/proc/{front}/cmdline").read_bytes()
-    for c in children(front):
-        try:
-            if Path(f"/proc/{c}/cmdline").read_bytes() == cmd:
-                return sorted(children(c))
-        except OSError:
-            pass
-    return []
-
-
 def rollup(pid: int) -> dict[str, int]:
     out = {}
     for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
@@ -188,15 +158,10 @@ def status(pid: int, key: str) -> int:
     return 0
 
 
-def cpu_s(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-
 def snapshot(front: int, data: Path) -> dict[int, dict[str, int]]:
     """pid -> Rss, Pss, Anonymous, map_rss, map_pss, VmHWM (kB) of every process of the server."""
     out = {}
-    for pid in tree(front):
+    for pid in descendants(front):
         try:
             out[pid] = {**rollup(pid), **venue_maps(pid, data), "VmHWM": status(pid, "VmHWM")}
         except OSError:  # a process that ended meanwhile
@@ -214,7 +179,7 @@ def serve(data: Path, nworkers: int, warm: bool) -> ServeProcess:
 
 def wait_workers(front: int, n: int, timeout: float = 60.0) -> list[int]:
     deadline = time.monotonic() + timeout
-    while len(ws := workers(front)) < n:
+    while len(ws := gunicorn_workers(front)) < n:
         if time.monotonic() > deadline:
             raise RuntimeError(f"{n} workers did not start within {timeout:g} s (found {ws})")
         time.sleep(0.2)

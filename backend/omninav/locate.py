@@ -16,7 +16,7 @@ from .errors import OmninavError
 from .extract import Extractor, Extractors
 from .index import Index, Matches
 from .lens import Lens
-from .presets import DEFAULTS, current_confidence
+from .presets import DEFAULTS
 from .store import Store, key_dims_for
 
 if TYPE_CHECKING:
@@ -79,7 +79,7 @@ class Locator:
         self.floor = floor
         self.generation = store.generation(venue_id)  # read first: a newer load is only ever refreshed again
         self.gen = store.load(venue_id)
-        self.conf = current_confidence(self.gen.settings)  # its settings, a superseded confidence model refreshed
+        self.conf = self.gen.settings  # (a superseded confidence model is read as today's: store._read_settings)
         self.xy = np.stack([self.gen.frames["x"], self.gen.frames["y"]], -1).astype(np.float64)
         self.index = Index(
             self.gen.spectra,

@@ -29,6 +29,7 @@ import numpy as np
 from .errors import Conflict, OmninavError
 from .index import index_arrays
 from .lens import Lens, lens_from_dict
+from .presets import current_confidence
 
 INDEX_ARRAYS = ("keys", "keys_t", "basis")
 VENUE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
@@ -80,6 +81,13 @@ def key_dims_for(settings: dict[str, Any], n_frames: int) -> int:
     return int(settings.get("key_dims", 0)) if n_frames > settings.get("key_project_above", 0) else 0
 
 
+def _read_settings(g: Path) -> dict[str, Any]:
+    """A generation's settings.json as every reader takes it: a confidence model that was once the
+    default and has been refit since is read as today's (presets.current_confidence; the file, and
+    the frames, stay as they were modelled)."""
+    return current_confidence(json.loads((g / "settings.json").read_text()))
+
+
 class Store:
     """The modelled frames of every venue, as generations; what a venue *is* (its name, floors,
     places, lenses) is the catalogue's (catalog/). A venue's folder appears with its first commit."""
@@ -94,7 +102,7 @@ class Store:
     def settings(self, venue_id: str) -> dict[str, Any] | None:
         """The feature settings of the live generation (None: not modelled yet)."""
         g = self._current(self.venue_dir(venue_id))
-        return json.loads((g / "settings.json").read_text()) if g else None
+        return _read_settings(g) if g else None
 
     def _current(self, d: Path) -> Path | None:
         cur = d / "CURRENT"
@@ -109,7 +117,7 @@ class Store:
         if g is None:
             raise Conflict(f"venue {venue_id!r} has no modelled frames yet (model it: 'omninav model', or a job)")
         mode: Literal["r"] | None = "r" if mmap else None
-        settings = json.loads((g / "settings.json").read_text())
+        settings = _read_settings(g)
         lens = lens_from_dict(json.loads((g / "lens.json").read_text()), where=f"{venue_id} lens")
         frames = np.load(g / "frames.npy", mmap_mode=mode)
         if len(frames) == 0:  # every video was removed

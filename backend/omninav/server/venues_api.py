@@ -15,7 +15,7 @@ from flask import Blueprint, current_app, jsonify, send_file
 from .. import __version__
 from ..catalog import Catalog
 from ..errors import NotFound
-from ..presets import current_confidence, feature_keys, n_curves, settings_id
+from ..presets import feature_keys, n_curves, settings_id
 from ..spectrum import HEADER_BYTES, record_bytes_per_frame
 
 bp = Blueprint("venues", __name__)
@@ -45,7 +45,7 @@ def floor_doc(venue_id: str, f: dict[str, Any], url_root: str = "") -> dict[str,
 def venue_doc(cat: Catalog, venue_id: str, url_root: str = "") -> dict[str, Any]:
     """The public description of a venue: all a client needs to extract matching features."""
     v = cat.venues.get(venue_id)
-    conf = current_confidence(cat.venues.settings(venue_id))  # the model it answers with, not a superseded one
+    conf = cat.venues.settings(venue_id)
     frames = cat.store.frame_count(venue_id)
     return {
         "id": v["id"],
