@@ -48,7 +48,7 @@ CONFIGS: dict[str, tuple[str, dict[str, Any], str]] = {  # name: preset, overrid
     "paper": ("paper", {}, "median"),
 }
 CONFIDENCE_KEYS = ("confidence_features", "confidence_coef")
-SEARCH_KEYS = ("shared_candidates",)  # how a clip is searched: the same venue, other answers
+SEARCH_KEYS = ("shared_candidates", "shortlist")  # how a clip is searched: the same venue, other answers
 
 
 def settings(pairs: list[str]) -> dict[str, Any]:
@@ -121,8 +121,7 @@ def rows_for(
     """Every clip's answer and confidence features, per clip length (cached beside the venue)."""
     root = dataset(family, seed)
     loc = venue(root, config, overrides)
-    # (rows of a search without shared candidates keep the name they had before it existed)
-    cache = root / f"rows-{loc.venue_id}{'-shared' if loc.conf['shared_candidates'] else ''}.json"
+    cache = root / f"rows-{loc.venue_id}{search_tag(loc.conf)}.json"
     have: dict[str, list[dict[str, Any]]] = json.loads(cache.read_text()) if cache.exists() else {}
     todo = [c for c in clips if f"{c:g}" not in have]
     if todo:
@@ -137,6 +136,15 @@ def rows_for(
             have[f"{c:g}"] = rows
         cache.write_text(json.dumps(have))
     return {c: have[f"{c:g}"] for c in clips}
+
+
+def search_tag(conf: dict[str, Any]) -> str:
+    """How the rows' clips were searched, in their cache's name. Rows searched as before shared
+    candidates, and before the shortlist, keep the names they had then."""
+    if not conf["shared_candidates"]:
+        return ""
+    wider = int(conf["shortlist"]) > int(conf["candidates"])
+    return f"-shared-sl{int(conf['shortlist'])}" if wider else "-shared"
 
 
 def rescore(rows: list[dict[str, Any]], conf: dict[str, Any]) -> np.ndarray:

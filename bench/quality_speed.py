@@ -9,7 +9,10 @@ The venue is synthetic: the spectra of a smooth random walk (search_speed.venue)
 serpentine walk at 1.2 m/s and 10 fps, cut into 5-minute videos, written and loaded through the
 store as a modelled venue is (so the index arrays are precomputed and memory-mapped).
 
-    python bench/quality_speed.py [--sizes 1000,5000,20000] [--device cpu|gpu]
+    python bench/quality_speed.py [--sizes 1000,5000,20000] [--device cpu|gpu] [--shortlists 16,32]
+
+`--shortlists`: the search's stage-1 shortlist a frame (index.py, "The shortlist"), one row each in
+the same run; by default the default preset's.
 """
 
 from __future__ import annotations
@@ -35,9 +38,9 @@ SPEED = 1.2
 VIDEO_FRAMES = 3000  # 5 minutes at 10 fps
 
 
-def generation(n: int) -> Generation:
+def generation(n: int, shortlist: int | None = None) -> Generation:
     """N frames of a serpentine walk: 60 m legs 4 m apart, videos of VIDEO_FRAMES frames."""
-    conf = resolve("default")
+    conf = resolve("default", {"shortlist": shortlist} if shortlist else None)
     spec = venue(n, n_curves(conf), conf["n_harmonics"])
     s = np.arange(n) * SPEED / FPS  # metres walked
     leg, along = np.divmod(s, 60.0)
@@ -57,15 +60,18 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", default="1000,5000,20000")
     ap.add_argument("--device", default="cpu", choices=["cpu", "gpu"])
+    ap.add_argument("--shortlists", help="stage 1's shortlists a frame, comma-separated (default: the preset's)")
     args = ap.parse_args()
+    shortlists = [int(v) for v in args.shortlists.split(",")] if args.shortlists else [resolve("default")["shortlist"]]
     print(f"machine: {machine()}, device {args.device}")
-    head = f"{'frames':>8}{'clips':>7}{'quality s':>11}{'s / 1k frames':>15}{'locate s':>10}{'s / 1k':>8}{'ratio':>7}"
+    head = f"{'frames':>8}{'list':>5}{'clips':>7}{'quality s':>11}{'s / 1k frames':>15}"
+    head += f"{'locate s':>10}{'s / 1k':>8}{'ratio':>7}"
     print(head)
     print("-" * len(head))
-    for n in (int(v) for v in args.sizes.split(",")):
+    for n, shortlist in ((int(v), sl) for v in args.sizes.split(",") for sl in shortlists):
         with tempfile.TemporaryDirectory() as tmp:
             st = Store(tmp)
-            st.commit("bench", generation(n))
+            st.commit("bench", generation(n, shortlist))
             gen = st.load("bench")
             t0 = time.perf_counter()
             r = quality_map(gen, [], {}, device=args.device)
@@ -78,7 +84,8 @@ def main() -> None:
                 loc.estimate(np.asarray(gen.spectra[s : s + clip]), t[s : s + clip] - t[s])
             tl = time.perf_counter() - t0
             clips = len(r["segments"])
-            print(f"{n:>8}{clips:>7}{tq:>11.2f}{1000 * tq / n:>15.3f}{tl:>10.2f}{1000 * tl / n:>8.3f}{tl / tq:>6.1f}x")
+            quality = f"{n:>8}{shortlist:>5}{clips:>7}{tq:>11.2f}{1000 * tq / n:>15.3f}"
+            print(f"{quality}{tl:>10.2f}{1000 * tl / n:>8.3f}{tl / tq:>6.1f}x")
 
 
 if __name__ == "__main__":

@@ -6,7 +6,7 @@ For N = 1,000 ... 8,000, then 100,000 and 1,000,000, it times
   - `shared`: the same with the clip's candidates shared (each frame verified against every
     frame's; what `omninav locate` searches), for a clip of one place (its frames a little noisy,
     so that their candidates differ as a real clip's do: `union` rows verified a frame) and for
-    the worst case, ten frames from ten places (160 rows a frame),
+    the worst case, ten frames from ten places (10 x the shortlist rows a frame),
   - `locate`: the shared search plus clip aggregation (what `omninav locate` does after extraction),
   - `loop`: the paper's sequential CPU search, a per-frame Python loop (N <= 8,000 only);
     `speed-up` is loop against locate (since shared candidates, the shared search's locate),
@@ -14,9 +14,12 @@ in the same run on the same data, and prints the machine it ran on. Venue spectr
 (a smooth random walk in the Fourier domain), which costs the same to search as real ones.
 
     python bench/search_speed.py [--sizes 1000,8000] [--device cpu|gpu] [--repeat 30] [--curves 12,14]
+                                 [--shortlists 16,32]
 
 `--curves`: curves a frame (each with the default's 16 harmonics), one table row per size and
 count in the same run; by default the default preset's (14 since the five bands of intensity).
+`--shortlists`: stage 1's shortlist a frame in the shared search (index.py, "The shortlist"), one
+row each in the same run; by default the default preset's (32; 16 is the search before it).
 """
 
 from __future__ import annotations
@@ -79,20 +82,23 @@ def main() -> None:
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--repeat", type=int, default=30)
     ap.add_argument("--curves", help="curves a frame, comma-separated (default: the default preset's)")
+    ap.add_argument("--shortlists", help="stage 1's shortlists a frame, comma-separated (default: the preset's)")
     a = ap.parse_args()
     conf = resolve("default")
     curves = [int(c) for c in a.curves.split(",")] if a.curves else [n_curves(conf)]
+    shortlists = [int(s) for s in a.shortlists.split(",")] if a.shortlists else [conf["shortlist"]]
     print(f"machine: {machine()}; device {a.device}")
     cols = ["batched ms", "p90", "shared ms", "p90", "union", "worst ms", "locate ms", "p90", "loop ms", "speed-up"]
     widths = [11, 7, 10, 7, 6, 9, 10, 7, 9, 9]
-    head = f"{'frames':>9} {'curves':>6} {'dims':>5} "
+    head = f"{'frames':>9} {'curves':>6} {'dims':>5} {'list':>4} "
     print(head + " ".join(f"{c:>{w}}" for c, w in zip(cols, widths, strict=True)))
     for n in [int(s) for s in a.sizes.split(",")]:
         for c in curves:
-            print(bench_size(n, a.device, a.repeat, conf, c), flush=True)
+            for sl in shortlists:
+                print(bench_size(n, a.device, a.repeat, conf, c, sl), flush=True)
 
 
-def bench_size(n: int, device: str, repeat: int, conf: dict, curves: int) -> str:
+def bench_size(n: int, device: str, repeat: int, conf: dict, curves: int, shortlist: int) -> str:
     rng = np.random.default_rng(n)
     spec = venue(n, c=curves, k=conf["n_harmonics"])
     heads = rng.uniform(0, 360, n).astype(np.float32)
@@ -104,22 +110,22 @@ def bench_size(n: int, device: str, repeat: int, conf: dict, curves: int) -> str
     noise = rng.normal(size=(10, *spec.shape[1:])) + 1j * rng.normal(size=(10, *spec.shape[1:]))
     q = spec[row : row + 10] * np.exp(1j * 0.7) + 0.03 * noise  # each frame ~0.3 of its energy in noise
     q = (q / np.sqrt((np.abs(q) ** 2).sum(axis=(1, 2), keepdims=True))).astype(np.complex64)
-    apart = spec[rng.choice(n, 10, replace=False)]  # the worst case: ten places, 160 rows to verify
+    apart = spec[rng.choice(n, 10, replace=False)]  # the worst case: ten places, 10 x shortlist rows to verify
     times = np.arange(10) / 10.0
     one = np.zeros(10, np.int64)  # a 1 s clip: one group (locate.clip_groups)
     k = conf["candidates"]
     rep = repeat if n <= 100_000 else max(5, repeat // 6)
     b50, b90 = timeit(lambda: ix.search(q, k), rep, sync)
-    s50, s90 = timeit(lambda: ix.search(q, k, groups=one), rep, sync)
-    union = len(np.unique(ix.search(q, k).index))
-    w50, _ = timeit(lambda: ix.search(apart, k, groups=one), rep, sync)
-    l50, l90 = timeit(lambda: sequence(ix.search(q, k, groups=one), xy, times, conf), rep, sync)
+    s50, s90 = timeit(lambda: ix.search(q, k, groups=one, shortlist=shortlist), rep, sync)
+    union = len(np.unique(ix.coarse(q, max(k, shortlist))[0]))
+    w50, _ = timeit(lambda: ix.search(apart, k, groups=one, shortlist=shortlist), rep, sync)
+    l50, l90 = timeit(lambda: sequence(ix.search(q, k, groups=one, shortlist=shortlist), xy, times, conf), rep, sync)
     if n <= 8000:
         lp, _ = timeit(lambda: sequential_search(q, spec), 1)
         loop = f"{lp:9.1f} {lp / l50:8.0f}x"
     else:
         loop = f"{'-':>9} {'-':>9}"
-    size = f"{n:>9} {curves:>6} {dims or spec.shape[1] * spec.shape[2]:>5}"
+    size = f"{n:>9} {curves:>6} {dims or spec.shape[1] * spec.shape[2]:>5} {shortlist:>4}"
     shared = f"{s50:10.3f} {s90:7.3f} {union:6d} {w50:9.3f}"
     return f"{size} {b50:11.3f} {b90:7.3f} {shared} {l50:10.3f} {l90:7.3f} {loop}"
 

@@ -121,21 +121,24 @@ def test_clip_groups_are_the_seconds_counted_back_from_the_last_frame():
 
 def test_each_second_of_a_clip_shares_its_candidates(loc, small_ds, monkeypatch):
     """A locate searches its clip second by second, every frame of a second verified against the
-    candidates of all of them; with `shared_candidates` off, each frame keeps its own."""
+    shortlists of all of them (`shortlist` a frame, by stage 1), each keeping its `candidates`
+    best; with `shared_candidates` off, each frame keeps its own."""
     frames, _ = query_clip(small_ds, 60, n=25)
     spec = clip_spectra(small_ds, frames, loc.conf)
     t = np.arange(25) / FPS
     k = loc.conf["candidates"]
+    assert loc.conf["shortlist"] > k
     own = loc.index.search(spec, k)
+    listed, _ = loc.index.coarse(spec, loc.conf["shortlist"])
     m, times = loc.search_clip(spec, t)
     assert m.index.shape == (25, k) and np.array_equal(times, t)
     groups = clip_groups(t)
     gained = 0
     for g in np.unique(groups):
         rows = np.flatnonzero(groups == g)
-        union = set(own.index[rows].ravel().tolist())
+        union = set(listed[rows].ravel().tolist())
         for i in rows:
-            assert set(m.index[i].tolist()) <= union  # only the second's own candidates, no other's
+            assert set(m.index[i].tolist()) <= union  # only the second's own shortlists, no other's
             assert m.score[i, 0] >= own.score[i].max() - 1e-5  # never worse than its own best
             gained += len(set(m.index[i].tolist()) - set(own.index[i].tolist()))
     assert gained > 0  # some frame kept a place only another frame of its second had found
@@ -148,6 +151,32 @@ def test_each_second_of_a_clip_shares_its_candidates(loc, small_ds, monkeypatch)
     plain, _ = loc.search_clip(spec, t)
     assert np.array_equal(plain.index, own.index) and np.array_equal(plain.score, own.score)
     assert loc.clip_matches(spec, t)[1].index.shape == (25, k)  # without sharing: the frame's own
+    monkeypatch.setitem(loc.conf, "shared_candidates", True)
+    # a venue modelled before the shortlist (no key) searches with the default's; a shortlist of
+    # `candidates` is the search before it
+    monkeypatch.delitem(loc.conf, "shortlist")
+    assert np.array_equal(loc.search_clip(spec, t)[0].index, m.index)
+    monkeypatch.setitem(loc.conf, "shortlist", k)
+    before, _ = loc.search_clip(spec, t)
+    for i in range(25):
+        assert set(before.index[i].tolist()) <= set(own.index[groups == groups[i]].ravel().tolist())
+    assert np.all(m.score[:, 0] >= before.score[:, 0] - 1e-5)
+
+
+def test_the_benches_keep_the_answers_of_each_search_apart(monkeypatch):
+    """bench/families.py caches a venue's answers under a name that says how its clips were
+    searched: the answers of the search before the shortlist keep their names (and their figures),
+    and the shortlist's are not read for them, nor they for it."""
+    from pathlib import Path
+
+    monkeypatch.syspath_prepend(str(Path(__file__).parents[1] / "bench"))
+    from families import SEARCH_KEYS, search_tag
+
+    assert "shortlist" in SEARCH_KEYS  # a --set shortlist reaches the search, not a new venue
+    conf = resolve("default")
+    assert search_tag(conf) == "-shared-sl32"
+    assert search_tag({**conf, "shortlist": 16}) == search_tag({**conf, "shortlist": 8}) == "-shared"
+    assert search_tag(resolve("paper")) == ""
 
 
 def test_a_tracked_clip_gives_the_tracker_both_and_each_part_answers_from_the_shared_best(loc, small_ds, monkeypatch):

@@ -163,6 +163,50 @@ def test_shared_candidates_on_a_venue_smaller_than_k_and_rows_kept_for_want_of_o
     assert np.all(m.score[allowed] > -1.0) and np.all(np.isfinite(m.coarse[allowed]))
 
 
+def _look_alikes(seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """A venue of 300 frames and twelve look-alikes of row 150 (identical doors: its magnitudes,
+    other phases), and a clip of three frames filmed at row 150, turned by 25 degrees. The
+    look-alikes' magnitudes are the clip's own, closer to it than row 150's: stage 1 ranks all
+    twelve first for every frame, and only the phase correlation tells them apart."""
+    rng = np.random.default_rng(seed)
+    filler = venue_spectra(300, seed=seed)
+    turn = np.exp(2j * np.pi * np.arange(1, 33) * 25.0 / 360.0)
+    q = filler[150] * turn * (1 + 0.05 * rng.normal(size=(3, *filler.shape[1:])))
+    q = quantise(q / np.linalg.norm(q, axis=(1, 2), keepdims=True))
+    mag = np.abs(q).mean(axis=0)
+    alike = mag / np.linalg.norm(mag) * np.exp(2j * np.pi * rng.uniform(size=(12, *mag.shape)))
+    return quantise(np.concatenate([filler, alike])), q
+
+
+def test_a_longer_shortlist_finds_the_place_that_look_alikes_outrank_by_magnitude():
+    spec, q = _look_alikes()
+    ix = Index(spec, np.zeros(len(spec)), device="cpu")
+    one = np.zeros(3, np.int64)
+    short = ix.search(q, 4, groups=one)  # stage 1 keeps 4: twelve look-alikes fill them
+    assert np.all(short.index >= 300) and np.all(short.score < 0.5)
+    m = ix.search(q, 4, groups=one, shortlist=16)
+    assert m.index.shape == (3, 4)  # each frame still keeps k
+    assert np.all(np.abs(m.index - 150) <= 2) and np.all(m.score[:, 0] > 0.95)
+    assert np.allclose(m.heading[:, 0], 25.0, atol=1.0)
+    assert np.all(np.diff(m.score, axis=1) <= 1e-6)
+    # the tracker's own candidates are still a frame's k best by stage 1, not its whole shortlist
+    best, own = ix.search_shared(q, 4, one, 16)
+    assert np.array_equal(best.index, m.index) and own.index.shape == (3, 4)
+    assert np.array_equal(own.index, ix.coarse(q, 16)[0][:, :4]) and np.all(own.index >= 300)
+
+
+def test_the_shortlist_through_projected_keys_is_the_exact_one():
+    """Above key_project_above frames the projection still shortlists PREFILTER x k a frame and
+    the exact magnitudes choose the shortlist among them: on a smooth venue, the same answer."""
+    spec = venue_spectra(3000, seed=3)
+    rng = np.random.default_rng(4)
+    q = quantise(spec[[100, 101, 102]] * (1 + 0.2 * rng.normal(size=(3, 6, 32))))
+    one = np.zeros(3, np.int64)
+    exact = Index(spec, np.zeros(3000), device="cpu").search(q, 16, groups=one, shortlist=32)
+    proj = Index(spec, np.zeros(3000), device="cpu", key_dims=32).search(q, 16, groups=one, shortlist=32)
+    assert np.array_equal(exact.index, proj.index) and np.allclose(exact.score, proj.score, atol=1e-5)
+
+
 @pytest.mark.parametrize("dtype", [np.complex64, np.complex128])
 def test_the_correlation_over_shifts_is_the_inverse_fft_of_the_cross_power(dtype):
     rng = np.random.default_rng(11)

@@ -140,6 +140,15 @@ def test_shared_candidates_is_true_or_false_and_not_a_feature_setting(bad):
     assert settings_id(on) == settings_id(off) and "shared_candidates" not in feature_keys(on)
 
 
+@pytest.mark.parametrize("bad", [None, 0, 257, 32.0, "32", True])
+def test_the_shortlist_is_a_whole_number_of_frames_and_not_a_feature_setting(bad):
+    with pytest.raises(OmninavError, match="shortlist"):
+        resolve("default", {"shortlist": bad})
+    wide, narrow = resolve("default"), resolve("default", {"shortlist": 16})
+    assert wide["shortlist"] == 32 and narrow["shortlist"] == 16
+    assert settings_id(wide) == settings_id(narrow) and "shortlist" not in feature_keys(wide)
+
+
 @pytest.mark.parametrize("key", ["track_still_cap", "track_still_seen"])
 @pytest.mark.parametrize("bad", [None, 0, 1, "false"])
 def test_the_held_still_rules_are_true_or_false_and_not_feature_settings(key, bad):

@@ -22,6 +22,15 @@ only the best of them lost most of that gain, so all of them are verified: a 1 s
 verify 3-8 times the candidates a lone frame does (26-132 a frame on the venue families), the
 cross-power as one complex matrix product per harmonic (verify_all).
 
+The shortlist: with shared candidates, stage 1 keeps more a frame (`shortlist`, 32) than each
+frame keeps after verification (k, 16). In a corridor of identical doors every frame's magnitudes
+look alike, and the right place, which verifies at 0.95, can rank 20th by magnitude for every
+frame of the second. Keeping 32 after verification instead adds as many weak supporters and
+rivals to the clip's aggregation as it finds places, and was worse (docs/benchmarks.md, "The
+shortlist"). With projected keys the projection still shortlists PREFILTER*k, and the exact
+magnitudes choose the 32 among them: a wider projected pass cost a tenth of a millisecond at
+8,000 frames and chose the same 32.
+
 The code is written once over the array namespace `xp`: NumPy here, CuPy on a GPU. Results leave
 as NumPy at the `search` boundary (they are small: frames x candidates).
 """
@@ -158,20 +167,22 @@ class Index:
         self.heading = self.xp.asarray(np.asarray(headings, np.float32))
         self.n = int(spectra.shape[0])
 
-    def coarse(self, q_spec: Any, k: int, exclude: tuple[Any, Any] | None = None) -> tuple[Any, Any]:
+    def coarse(
+        self, q_spec: Any, k: int, exclude: tuple[Any, Any] | None = None, prefilter: int | None = None
+    ) -> tuple[Any, Any]:
         """Stage 1: (Q, C, K) -> (Q, k) candidate rows and magnitude scores, on the device.
 
-        With projected keys, the projection shortlists PREFILTER*k frames per query frame and
-        the full magnitude inner product re-ranks them: the memory traffic of d dims, the ranking
-        of all C*K. `exclude`: per query frame, a range [lo, hi) of venue rows it may not match
-        ((Q,) arrays; leave-one-out, quality.py); such a row comes back only if nothing else is
-        left, with score -inf.
+        With projected keys, the projection shortlists PREFILTER*k frames per query frame
+        (`prefilter` where given, at least k) and the full magnitude inner product re-ranks them: the
+        memory traffic of d dims, the ranking of all C*K. `exclude`: per query frame, a range
+        [lo, hi) of venue rows it may not match ((Q,) arrays; leave-one-out, quality.py); such a
+        row comes back only if nothing else is left, with score -inf.
         """
         kq = magnitude_keys(self.xp.asarray(q_spec))
         if self.basis is None:
             return top_k(self._masked(kq @ self.keys_t, exclude), k)
         first = self._masked((kq @ self.basis) @ self.keys_t, exclude)
-        short, first_v = top_k(first, PREFILTER * k, ordered=False)
+        short, first_v = top_k(first, max(k, prefilter or PREFILTER * k), ordered=False)
         exact = (self.keys[short] @ kq[:, :, None])[..., 0]  # (Q, s, D) @ (Q, D, 1): batched GEMV
         if exclude is not None:
             exact = self.xp.where(self.xp.isfinite(first_v), exact, -self.xp.inf)
@@ -217,18 +228,20 @@ class Index:
         self, q_spec: Any, idx: Any, groups: np.ndarray, k: int, exclude: tuple[Any, Any] | None, own: bool = False
     ) -> tuple[Matches, Matches | None]:
         """Stage 2 with shared candidates: each frame verified against every stage-1 candidate of
-        its group (`groups` (Q,) labels); (Q, k) idx from coarse().
-        -> (each frame's k best of them, best first; its own k stage-1 candidates as verified, for
-        search_shared, which excludes nothing)."""
+        its group (`groups` (Q,) labels); (Q, s) idx from coarse(), best first, s >= k (the
+        shortlist: search's `shortlist`).
+        -> (each frame's k best of them, best first; its own k best stage-1 candidates as
+        verified, for search_shared, which excludes nothing)."""
         xp = self.xp
         q = xp.asarray(q_spec)
         qn = q.shape[0]
-        k = int(idx.shape[1])  # coarse() keeps min(k, venue frames)
+        k = min(int(k), int(idx.shape[1]))  # coarse() keeps min(shortlist, venue frames)
+        mine = idx[:, :k]  # a frame's own candidates: its k best by stage 1, however long the shortlist
         out_i = xp.zeros((qn, k), dtype=idx.dtype)
         out_s = xp.zeros((qn, k), dtype=xp.float32)
         out_h = xp.zeros((qn, k), dtype=xp.float32)
-        own_s = xp.zeros(idx.shape, dtype=xp.float32)
-        own_h = xp.zeros(idx.shape, dtype=xp.float32)
+        own_s = xp.zeros(mine.shape, dtype=xp.float32)
+        own_h = xp.zeros(mine.shape, dtype=xp.float32)
         groups = np.asarray(groups)
         for g in np.unique(groups):
             rows = np.flatnonzero(groups == g)
@@ -236,7 +249,7 @@ class Index:
             u = xp.unique(idx[r].ravel())  # at least k: each frame's own candidates are distinct rows
             score, heading = self.verify_all(q[r], u)
             if own:  # the frame's own candidates among them (u is sorted)
-                at = xp.searchsorted(u, idx[r])
+                at = xp.searchsorted(u, mine[r])
                 own_s[r] = xp.take_along_axis(score, at, axis=1)
                 own_h[r] = xp.take_along_axis(heading, at, axis=1)
             if exclude is not None:  # a row a frame may not match never wins over one it may
@@ -256,26 +269,35 @@ class Index:
         best_m = Matches(to_numpy(out_i), to_numpy(coarse), to_numpy(out_s), to_numpy(out_h))
         if not own:  # (a plain search's: the tracker's own columns are not made for nothing)
             return best_m, None
-        own_c = (self.keys[idx] @ kq[:, :, None])[..., 0]
-        return best_m, Matches(to_numpy(idx), to_numpy(own_c), to_numpy(own_s), to_numpy(own_h))
+        own_c = (self.keys[mine] @ kq[:, :, None])[..., 0]
+        return best_m, Matches(to_numpy(mine), to_numpy(own_c), to_numpy(own_s), to_numpy(own_h))
 
-    def search_shared(self, q_spec: np.ndarray, k: int, groups: np.ndarray) -> tuple[Matches, Matches]:
-        """search() with `groups`, and each frame's own k stage-1 candidates as verified beside
-        its shared best (what the tracker reads: tracking.Tracker.emission)."""
-        idx, _ = self.coarse(q_spec, k)
+    def search_shared(
+        self, q_spec: np.ndarray, k: int, groups: np.ndarray, shortlist: int | None = None
+    ) -> tuple[Matches, Matches]:
+        """search() with `groups`, and each frame's own k best stage-1 candidates as verified
+        beside its shared best (what the tracker reads: tracking.Tracker.emission)."""
+        idx, _ = self.coarse(q_spec, max(k, shortlist or k), prefilter=PREFILTER * k)
         best, own = self.shared(q_spec, idx, groups, k, None, own=True)
         assert own is not None
         return best, own
 
     def search(
-        self, q_spec: np.ndarray, k: int, exclude: tuple[Any, Any] | None = None, groups: np.ndarray | None = None
+        self,
+        q_spec: np.ndarray,
+        k: int,
+        exclude: tuple[Any, Any] | None = None,
+        groups: np.ndarray | None = None,
+        shortlist: int | None = None,
     ) -> Matches:
         """(Q, C, K) query spectra -> each frame's k candidates, verified. `groups` (Q,) labels:
-        the frames of a group (a second of one clip) share their candidates (`shared`); None:
-        every frame keeps its own. `exclude`: coarse()'s."""
-        idx, coarse = self.coarse(q_spec, k, exclude)
+        the frames of a group (a second of one clip) share their candidates (`shared`): stage 1
+        then keeps `shortlist` (>= k) a frame, all of the group's verified, and each frame keeps
+        its k best; None: every frame verifies its own k. `exclude`: coarse()'s."""
         if groups is not None:
+            idx, _ = self.coarse(q_spec, max(k, shortlist or k), exclude, prefilter=PREFILTER * k)
             return self.shared(q_spec, idx, groups, k, exclude)[0]
+        idx, coarse = self.coarse(q_spec, k, exclude)
         score, heading = self.verify(q_spec, idx)
         if exclude is not None:  # an excluded row kept for want of others supports nothing
             score = self.xp.where(self.xp.isfinite(coarse), score, -1.0)

@@ -147,7 +147,8 @@ class Locator:
         if not self.conf.get("shared_candidates", DEFAULTS["shared_candidates"]):
             m = self.index.search(q_spec, k)
             return m, m, times
-        best, own = self.index.search_shared(q_spec, k, clip_groups(times))
+        shortlist = int(self.conf.get("shortlist", DEFAULTS["shortlist"]))
+        best, own = self.index.search_shared(q_spec, k, clip_groups(times), shortlist)
         both = Matches(*(np.concatenate([getattr(best, f), getattr(own, f)], axis=1) for f in MATCH_FIELDS))
         return best, both, times
 

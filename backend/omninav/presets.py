@@ -38,6 +38,10 @@ DEFAULTS: dict[str, Any] = {
     # any frame of that second, keeping its `candidates` best (index.py, "Shared candidates"); a
     # search setting, not a feature one: a venue modelled before it reads this default
     "shared_candidates": True,
+    # with shared candidates, stage 1 shortlists this many a frame, every one of a second's
+    # shortlists verified, and each frame keeps its `candidates` best (index.py, "The shortlist";
+    # docs/benchmarks.md): a search setting too, which a venue modelled before it reads as this
+    "shortlist": 32,
     # Above `key_project_above` frames, stage 1 first shortlists with keys projected to
     # `key_dims` dims (less memory traffic), then re-ranks the shortlist with all C*K magnitudes
     "key_dims": 32,
@@ -210,6 +214,7 @@ def resolve(name: str = "default", overrides: dict[str, Any] | None = None) -> d
     _check_soft_clip(conf)
     _check_band_channels(conf)
     _check_level(conf)
+    _check_shortlist(conf)
     return conf
 
 
@@ -222,6 +227,16 @@ def _check_switches(conf: dict[str, Any]) -> None:
         v = conf.get(key)
         if not isinstance(v, bool):
             raise OmninavError(f"{key} must be true or false; got {v!r}")
+
+
+MAX_SHORTLIST = 256  # the second's verification grows with it: 10 frames x 256 rows a clip at most
+
+
+def _check_shortlist(conf: dict[str, Any]) -> None:
+    """A whole number of venue frames, 1-MAX_SHORTLIST (one below `candidates` is `candidates`)."""
+    v = conf.get("shortlist")
+    if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_SHORTLIST:
+        raise OmninavError(f"shortlist must be a whole number of venue frames, 1-{MAX_SHORTLIST}; got {v!r}")
 
 
 def _check_level(conf: dict[str, Any]) -> None:

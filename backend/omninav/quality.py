@@ -105,6 +105,7 @@ def quality_map(
     aggregate = AGGREGATORS[conf["aggregate"]]
     k = conf["candidates"]
     shared = conf.get("shared_candidates", DEFAULTS["shared_candidates"])
+    shortlist = int(conf.get("shortlist", DEFAULTS["shortlist"]))
     chunk = max(n, min(CHUNK_FRAMES, CHUNK_CELLS // max(n_frames, 1)))
     total = sum(len(r) for r in segs)
     out: list[dict[str, Any]] = []
@@ -124,7 +125,7 @@ def quality_map(
         hi = np.searchsorted(walked, walked[rows] + LEAVE_OUT_M, side="right")
         # each segment a clip: its frames share their candidates, as a locate's second does
         groups = np.repeat(np.arange(len(group)), [len(r) for r in group]) if shared else None
-        m = index.search(np.asarray(spectra[rows]), k, exclude=(lo, hi), groups=groups)
+        m = index.search(np.asarray(spectra[rows]), k, exclude=(lo, hi), groups=groups, shortlist=shortlist)
         at = 0
         for r in group:
             w = slice(at, at + len(r))
