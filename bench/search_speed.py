@@ -117,7 +117,7 @@ def bench_size(n: int, device: str, repeat: int, conf: dict, curves: int, shortl
     rep = repeat if n <= 100_000 else max(5, repeat // 6)
     b50, b90 = timeit(lambda: ix.search(q, k), rep, sync)
     s50, s90 = timeit(lambda: ix.search(q, k, groups=one, shortlist=shortlist), rep, sync)
-    union = len(np.unique(ix.coarse(q, max(k, shortlist))[0]))
+    union = len(np.unique(ix.shortlisted(q, k, shortlist)[0]))
     w50, _ = timeit(lambda: ix.search(apart, k, groups=one, shortlist=shortlist), rep, sync)
     l50, l90 = timeit(lambda: sequence(ix.search(q, k, groups=one, shortlist=shortlist), xy, times, conf), rep, sync)
     if n <= 8000:

@@ -129,7 +129,7 @@ def test_each_second_of_a_clip_shares_its_candidates(loc, small_ds, monkeypatch)
     k = loc.conf["candidates"]
     assert loc.conf["shortlist"] > k
     own = loc.index.search(spec, k)
-    listed, _ = loc.index.coarse(spec, loc.conf["shortlist"])
+    listed, _ = loc.index.shortlisted(spec, k, loc.conf["shortlist"])
     m, times = loc.search_clip(spec, t)
     assert m.index.shape == (25, k) and np.array_equal(times, t)
     groups = clip_groups(t)
@@ -161,6 +161,7 @@ def test_each_second_of_a_clip_shares_its_candidates(loc, small_ds, monkeypatch)
     for i in range(25):
         assert set(before.index[i].tolist()) <= set(own.index[groups == groups[i]].ravel().tolist())
     assert np.all(m.score[:, 0] >= before.score[:, 0] - 1e-5)
+    assert not np.array_equal(m.index, before.index)  # the venue's shortlist is the one searched
 
 
 def test_the_benches_keep_the_answers_of_each_search_apart(monkeypatch):

@@ -195,15 +195,23 @@ def test_a_longer_shortlist_finds_the_place_that_look_alikes_outrank_by_magnitud
     assert np.array_equal(own.index, ix.coarse(q, 16)[0][:, :4]) and np.all(own.index >= 300)
 
 
-def test_the_shortlist_through_projected_keys_is_the_exact_one():
-    """Above key_project_above frames the projection still shortlists PREFILTER x k a frame and
-    the exact magnitudes choose the shortlist among them: on a smooth venue, the same answer."""
+def test_the_shortlist_through_projected_keys_is_the_exact_one(monkeypatch):
+    """Above key_project_above frames the projection still shortlists PREFILTER x k a frame (not
+    PREFILTER x the shortlist: the cost of the projected pass) and the exact magnitudes choose
+    the shortlist among them: on a smooth venue, the same answer as exact keys."""
+    import omninav.index as index_module
+
     spec = venue_spectra(3000, seed=3)
     rng = np.random.default_rng(4)
     q = quantise(spec[[100, 101, 102]] * (1 + 0.2 * rng.normal(size=(3, 6, 32))))
     one = np.zeros(3, np.int64)
     exact = Index(spec, np.zeros(3000), device="cpu").search(q, 16, groups=one, shortlist=32)
-    proj = Index(spec, np.zeros(3000), device="cpu", key_dims=32).search(q, 16, groups=one, shortlist=32)
+    proj_ix = Index(spec, np.zeros(3000), device="cpu", key_dims=32)
+    cuts: list[int] = []
+    real_top_k = index_module.top_k
+    monkeypatch.setattr(index_module, "top_k", lambda s, k, ordered=True: cuts.append(k) or real_top_k(s, k, ordered))
+    proj = proj_ix.search(q, 16, groups=one, shortlist=32)
+    assert cuts[:2] == [index_module.PREFILTER * 16, 32]  # the projected pass, then the exact re-rank
     assert np.array_equal(exact.index, proj.index) and np.allclose(exact.score, proj.score, atol=1e-5)
 
 

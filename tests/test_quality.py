@@ -375,3 +375,26 @@ def test_quality_map_of_a_walk_in_two_videos() -> None:
     shuffled = Generation(gen.settings, gen.lens, gen.frames[order], gen.spectra[order], gen.videos)
     again = quality_map(shuffled, [], {})
     assert again["segments"] == plain["segments"] and again["summary"] == plain["summary"]
+
+
+def test_the_quality_map_searches_as_a_locate_does(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each clip of the walk is searched with the venue's shortlist (the default's where a venue
+    modelled before it has none): the map says what a locate would answer."""
+    seen: list[Any] = []
+    real = Index.search
+
+    def search(self: Index, *args: Any, **kwargs: Any) -> Any:
+        seen.append(kwargs.get("shortlist"))
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(Index, "search", search)
+    gen = _drifting_generation(400)
+    wide = quality_map(gen, [], {})
+    assert seen and set(seen) == {32}
+    seen.clear()
+    del gen.settings["shortlist"]  # a venue modelled before the shortlist
+    assert quality_map(gen, [], {})["segments"] == wide["segments"] and set(seen) == {32}
+    seen.clear()
+    gen.settings["shortlist"] = 16
+    quality_map(gen, [], {})
+    assert set(seen) == {16}

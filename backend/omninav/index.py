@@ -19,8 +19,9 @@ neighbours in time keep it: the phase verification, which sees the shape and not
 spectrum's magnitudes, then finds it (docs/benchmarks.md, "Shared candidates": held-out 1 s clips
 94.0 % -> 95.6 % within 2 m). Ranking the group's candidates by stage 1's bound first and verifying
 only the best of them lost most of that gain, so all of them are verified: a 1 s clip's frames
-verify 3-8 times the candidates a lone frame does (26-132 a frame on the venue families), the
-cross-power as one complex matrix product per harmonic (verify_all).
+verify 3-8 times the candidates a lone frame does (26-132 a frame on the venue families before
+the shortlist below; more since), the cross-power as one complex matrix product per harmonic
+(verify_all).
 
 The shortlist: with shared candidates, stage 1 keeps more a frame (`shortlist`, 32) than each
 frame keeps after verification (k, 16). In a corridor of identical doors every frame's magnitudes
@@ -272,12 +273,21 @@ class Index:
         own_c = (self.keys[mine] @ kq[:, :, None])[..., 0]
         return best_m, Matches(to_numpy(mine), to_numpy(own_c), to_numpy(own_s), to_numpy(own_h))
 
+    def shortlisted(
+        self, q_spec: Any, k: int, shortlist: int | None, exclude: tuple[Any, Any] | None = None
+    ) -> tuple[Any, Any]:
+        """Stage 1 of a shared search: each frame's `shortlist` (at least k) best by magnitude;
+        with projected keys the projection still shortlists PREFILTER*k ("The shortlist"), or
+        twice a shortlist longer than half that, so that the exact magnitudes still choose."""
+        s = max(k, shortlist or k)
+        return self.coarse(q_spec, s, exclude, prefilter=max(PREFILTER * k, 2 * s))
+
     def search_shared(
         self, q_spec: np.ndarray, k: int, groups: np.ndarray, shortlist: int | None = None
     ) -> tuple[Matches, Matches]:
         """search() with `groups`, and each frame's own k best stage-1 candidates as verified
         beside its shared best (what the tracker reads: tracking.Tracker.emission)."""
-        idx, _ = self.coarse(q_spec, max(k, shortlist or k), prefilter=PREFILTER * k)
+        idx, _ = self.shortlisted(q_spec, k, shortlist)
         best, own = self.shared(q_spec, idx, groups, k, None, own=True)
         assert own is not None
         return best, own
@@ -295,7 +305,7 @@ class Index:
         then keeps `shortlist` (>= k) a frame, all of the group's verified, and each frame keeps
         its k best; None: every frame verifies its own k. `exclude`: coarse()'s."""
         if groups is not None:
-            idx, _ = self.coarse(q_spec, max(k, shortlist or k), exclude, prefilter=PREFILTER * k)
+            idx, _ = self.shortlisted(q_spec, k, shortlist, exclude)
             return self.shared(q_spec, idx, groups, k, exclude)[0]
         idx, coarse = self.coarse(q_spec, k, exclude)
         score, heading = self.verify(q_spec, idx)
