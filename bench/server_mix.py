@@ -494,21 +494,27 @@ def cpu_by_role(front: int) -> dict[str, float]:
     """CPU seconds used so far by the server's front, its gunicorn workers (arbiter and workers) and
     its job runner, and by this client (Linux /proc; a process that ended is not counted)."""
     kids = process_children()
-    out = {"front": cpu_s(front), "workers": 0.0, "job runner": 0.0}
-    for c in kids.get(front, []):
-        if kids.get(c):  # the gunicorn arbiter has the workers under it; the job runner has none
-            out["workers"] += cpu_s(c) + sum(cpu_s(w) for w in kids[c])
-        else:
-            out["job runner"] += cpu_s(c)
-    out["client"] = cpu_s(os.getpid())
-    return out
+    arbiters, others = _front_children(front, kids)
+    return {
+        "front": cpu_s(front),
+        "workers": sum((cpu_s(c) + sum(cpu_s(w) for w in kids[c]) for c in arbiters), 0.0),
+        "job runner": sum((cpu_s(c) for c in others), 0.0),
+        "client": cpu_s(os.getpid()),
+    }
+
+
+def _front_children(front: int, kids: dict[int, list[int]]) -> tuple[list[int], list[int]]:
+    """The front's children: the gunicorn arbiter, which has the workers under it, and the rest
+    (the job runner has no children)."""
+    mine = kids.get(front, [])
+    return [c for c in mine if kids.get(c)], [c for c in mine if not kids.get(c)]
 
 
 def gunicorn_workers(front: int) -> list[int]:
-    """The server's gunicorn workers: the children of the arbiter, the one child of the front that
-    has children of its own (the job runner has none); [] until the arbiter has forked them."""
+    """The server's gunicorn workers: the children of the arbiter; [] until it has forked them."""
     kids = process_children()
-    return sorted(next((kids[c] for c in kids.get(front, []) if kids.get(c)), []))
+    arbiters, _ = _front_children(front, kids)
+    return sorted(kids[arbiters[0]]) if arbiters else []
 
 
 def descendants(pid: int) -> list[int]:

@@ -16,7 +16,7 @@ from .errors import OmninavError
 from .extract import Extractor, Extractors
 from .index import Index, Matches
 from .lens import Lens
-from .presets import DEFAULTS
+from .presets import setting
 from .store import Store, key_dims_for
 
 if TYPE_CHECKING:
@@ -144,10 +144,10 @@ class Locator:
         keep = max(1, min(MAX_CLIP_FRAMES, int(np.count_nonzero(times > times[-1] - MAX_CLIP_S + 1e-6))))
         q_spec, times = q_spec[-keep:], times[-keep:]
         k = self.conf["candidates"]
-        if not self.conf.get("shared_candidates", DEFAULTS["shared_candidates"]):
+        if not setting(self.conf, "shared_candidates"):
             m = self.index.search(q_spec, k)
             return m, m, times
-        shortlist = int(self.conf.get("shortlist", DEFAULTS["shortlist"]))
+        shortlist = int(setting(self.conf, "shortlist"))
         best, own = self.index.search_shared(q_spec, k, clip_groups(times), shortlist)
         both = Matches(*(np.concatenate([getattr(best, f), getattr(own, f)], axis=1) for f in MATCH_FIELDS))
         return best, both, times

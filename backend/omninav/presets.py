@@ -142,6 +142,12 @@ SUPERSEDED_CONFIDENCE: tuple[tuple[tuple[str, ...], tuple[float, ...]], ...] = (
 )
 
 
+def setting(conf: Mapping[str, Any], key: str) -> Any:
+    """A venue's search or tracking setting: its own, else today's default (a venue modelled
+    before the key existed answers with the default, as DEFAULTS' comments say)."""
+    return conf.get(key, DEFAULTS[key])
+
+
 def current_confidence(conf: dict[str, Any]) -> dict[str, Any]:
     """A venue's settings with a superseded default confidence model replaced by today's (the
     venue's own dict is not changed)."""

@@ -38,7 +38,7 @@ import numpy as np
 from .aggregate import AGGREGATORS
 from .index import Index, Matches
 from .model_venue import Progress
-from .presets import DEFAULTS
+from .presets import setting
 from .store import Generation, key_dims_for
 
 RADIUS_M = 2.0  # an answer this close to the walk is right
@@ -104,8 +104,8 @@ def quality_map(
     walked = _walked(xy, vid)
     aggregate = AGGREGATORS[conf["aggregate"]]
     k = conf["candidates"]
-    shared = conf.get("shared_candidates", DEFAULTS["shared_candidates"])
-    shortlist = int(conf.get("shortlist", DEFAULTS["shortlist"]))
+    shared = setting(conf, "shared_candidates")
+    shortlist = int(setting(conf, "shortlist"))
     chunk = max(n, min(CHUNK_FRAMES, CHUNK_CELLS // max(n_frames, 1)))
     total = sum(len(r) for r in segs)
     out: list[dict[str, Any]] = []

@@ -143,7 +143,7 @@ from scipy.spatial import cKDTree  # type: ignore[import-untyped]
 from .aggregate import SPAN_S, SURE, Estimate, confidence, confidence_inputs, field_of, logistic, sequence
 from .heading import wrap_deg
 from .index import Matches
-from .presets import DEFAULTS
+from .presets import setting
 from .walkgraph import nearest_on_floor
 
 if TYPE_CHECKING:
@@ -181,11 +181,6 @@ STEPS_WORK_N = 2
 HEADER = "<4sdIfIB"  # magic, t, updates, heading (NaN: none), nodes of the graph, length of its key
 
 
-def _conf(conf: Mapping[str, Any], key: str) -> Any:
-    """A tracking setting: the venue's, else today's default (venues modelled before tracking)."""
-    return conf.get(key, DEFAULTS[key])
-
-
 def _number(v: Any) -> bool:
     """A finite real number (not a bool, not a string that looks like one)."""
     return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
@@ -210,8 +205,8 @@ class ClipAnswer:
         """What a clip's aggregate Estimate answers, with its calibrated confidence as the rules
         read it: `track_clip_confidence_*`, the single clip's model they were chosen with (the
         venue's own `confidence_*` answers the single clip, and may be a later refit: `alone`)."""
-        names = _conf(conf, "track_clip_confidence_features")
-        c = logistic(_conf(conf, "track_clip_confidence_coef"), confidence_inputs(e, names))
+        names = setting(conf, "track_clip_confidence_features")
+        c = logistic(setting(conf, "track_clip_confidence_coef"), confidence_inputs(e, names))
         return ClipAnswer(c, e.x, e.y, e.venue_row, confidence(e, conf))
 
     @property
@@ -516,8 +511,8 @@ TRACK_CONFIDENCE_INPUTS: dict[str, Callable[[Any], float]] = {
 
 def track_confidence(pose: Any, conf: Mapping[str, Any]) -> float:
     """Calibrated P(within 2 m) of a filtered pose: logistic on `track_confidence_features`."""
-    names = _conf(conf, "track_confidence_features")
-    w = _conf(conf, "track_confidence_coef")
+    names = setting(conf, "track_confidence_features")
+    w = setting(conf, "track_confidence_coef")
     return logistic(w, [TRACK_CONFIDENCE_INPUTS[n](pose) for n in names])
 
 
@@ -561,7 +556,7 @@ def look_alikes(
     """(N, k) matches of each node's nearest modelling frame searched in the venue's own index
     (`search_rows`: frame_search, or Locator.frame_matches, which keeps them): what the Tracker
     takes as `alike`. None when the venue's settings turn look-alikes off, or without nodes."""
-    if _conf(conf, "track_alike_cost") is None or len(graph.xy) == 0:
+    if setting(conf, "track_alike_cost") is None or len(graph.xy) == 0:
         return None
     return search_rows(node_frames(graph, venue_xy, venue_floor), k)
 
@@ -585,13 +580,13 @@ class Tracker:
         self.n = n = len(graph.xy)
         if n == 0:
             raise ValueError("a walk graph without nodes cannot be tracked on")
-        ref = _conf(conf, "track_beta_ref")
+        ref = setting(conf, "track_beta_ref")
         if ref is not None and not 0.0 <= float(ref) < 1.0:  # 1 or more would turn the evidence over
             raise ValueError(f"track_beta_ref must be in [0, 1) or None, got {ref!r}")
         self.beta_ref = None if ref is None else float(ref)  # (beta; None: no tempering)
         # the rules of the clip's own answer: a bad value would fail every tracked locate, or write
         # states that cannot be read back (a mean outside [0, 1]): refused here, like track_beta_ref
-        tau, low, cap = (_conf(conf, k) for k in ("track_recent_s", "track_recent_min", "track_doubt_cap"))
+        tau, low, cap = (setting(conf, k) for k in ("track_recent_s", "track_recent_min", "track_doubt_cap"))
         if not (_number(tau) and float(tau) > 0):
             raise ValueError(f"track_recent_s must be a number of seconds > 0, got {tau!r}")
         if low is not None and not (_number(low) and 0.0 <= float(low) <= 1.0):
@@ -601,12 +596,12 @@ class Tracker:
         self.recent_s = float(tau)
         self.recent_min = None if low is None else float(low)
         self.doubt_cap = float(cap)
-        tie = _conf(conf, "track_clip_tie")
+        tie = setting(conf, "track_clip_tie")
         # (above 1 it could never hold: the answer's neighbourhood is the one with the most belief)
         if tie is not None and not (_number(tie) and 0.0 < float(tie) <= 1.0):
             raise ValueError(f"track_clip_tie must be in (0, 1] or None (off), got {tie!r}")
         self.clip_tie = None if tie is None else float(tie)
-        zero = _conf(conf, "track_zero_steps_m")
+        zero = setting(conf, "track_zero_steps_m")
         if zero is not None and not (_number(zero) and float(zero) > 0):
             raise ValueError(f"track_zero_steps_m must be a number of metres > 0 or None (off), got {zero!r}")
         self.zero_steps_m = None if zero is None else float(zero)
@@ -616,7 +611,7 @@ class Tracker:
         vfl = np.asarray(venue_floor).astype(str)
         self.venue_xy = vxy
         self.venue_floor = vfl
-        radius = float(_conf(conf, "track_radius_m"))
+        radius = float(setting(conf, "track_radius_m"))
         # venue frame -> nodes within radius (same floor); node -> nodes within PLACE_M / NEAR_M
         fr, fc, fd = self._by_floor(vxy, vfl, self.xy, self.floor, radius)
         # data: the distance + 1 (an explicit 0 could be dropped by a later sparse operation)
@@ -659,7 +654,7 @@ class Tracker:
         (1 - score), the best score of b's frames among a's node frame's matches, either way
         round: symmetric), and where each b's run starts (for one reduceat per update)."""
         none = np.zeros(0, np.int64)
-        cost = _conf(self.conf, "track_alike_cost")
+        cost = setting(self.conf, "track_alike_cost")
         if alike is None or cost is None:
             return none, none, np.zeros(0), none
         if float(cost) < 0 or len(alike.index) != self.n:
@@ -668,7 +663,7 @@ class Tracker:
         # a matched frame is its nearest node's look-alike only (not every node within reach: the
         # score says how alike *that* spot is, and a step away the panorama is another one)
         node = self.graph.snap(self.venue_xy, self.venue_floor)  # every venue frame's, once
-        near = np.hypot(*(self.xy[node] - self.venue_xy).T) <= float(_conf(self.conf, "track_radius_m"))
+        near = np.hypot(*(self.xy[node] - self.venue_xy).T) <= float(setting(self.conf, "track_radius_m"))
         rows = np.asarray(alike.index).ravel()
         ok = near[rows]
         r = np.flatnonzero(ok)
@@ -736,9 +731,9 @@ class Tracker:
         last clip said the phone faced at each node, the gyroscope's turn since): a move i -> j
         whose facing changed by other than the turn counts less (by how much more than
         `track_turn_gate_deg` it is off), hypothesis by hypothesis."""
-        vmax = float(_conf(self.conf, "track_max_mps"))
-        slack = float(_conf(self.conf, "track_slack_m"))
-        step_m = float(_conf(self.conf, "track_step_m"))
+        vmax = float(setting(self.conf, "track_max_mps"))
+        slack = float(setting(self.conf, "track_slack_m"))
+        step_m = float(setting(self.conf, "track_step_m"))
         dt = max(0.0, dt)
         parts = max(1, int(np.ceil((vmax * dt + slack) / (LIMIT_M - 1.0))))
         walked = None if steps is None else max(0, steps) * step_m / parts
@@ -754,10 +749,10 @@ class Tracker:
             # feed) or a walker who turned back (more walked than the graph distance) keeps the
             # flat part, so that clips that agree win within a few updates (one clip moves the odds
             # by up to 1 / track_outlier, more than the steps' 1 / (1 - trust))
-            sig = 0.12 * walked + float(_conf(self.conf, "track_step_sigma_m"))
-            trust = float(_conf(self.conf, "track_step_trust"))
+            sig = 0.12 * walked + float(setting(self.conf, "track_step_sigma_m"))
+            trust = float(setting(self.conf, "track_step_trust"))
             k = flat * (trust * np.exp(-0.5 * ((d - walked) / sig) ** 2) + (1 - trust))
-        k = np.where(d < 0, float(_conf(self.conf, "track_floor_change")), np.maximum(k, 1e-12))
+        k = np.where(d < 0, float(setting(self.conf, "track_floor_change")), np.maximum(k, 1e-12))
         rowsum = np.add.reduceat(k, self.t_indptr[:-1])
         k = k / rowsum[self.t_row]
         kk = k
@@ -765,12 +760,12 @@ class Tracker:
             h = np.deg2rad(facing)
             fs, fc = np.sin(h), np.cos(h)
             fwd = self.t_dx * fs[self.t_col] - self.t_dy * fc[self.t_col]
-            back = float(_conf(self.conf, "track_backward")) ** (parts == 1)
+            back = float(setting(self.conf, "track_backward")) ** (parts == 1)
             kk = np.where(fwd < -1.0 * parts, k * back, k)  # NaN facing: fwd is NaN, no change
             if turn is not None:
                 b = np.deg2rad(turn[0] + turn[1])
                 cos_off = fc[self.t_col] * np.cos(b)[self.t_row] + fs[self.t_col] * np.sin(b)[self.t_row]
-                gate = float(_conf(self.conf, "track_turn_gate_deg"))
+                gate = float(setting(self.conf, "track_turn_gate_deg"))
                 bad = np.flatnonzero(cos_off < np.cos(np.deg2rad(gate)))  # NaN: no change
                 off = np.degrees(np.arccos(np.clip(cos_off[bad], -1.0, 1.0)))
                 kk = kk.copy()
@@ -814,7 +809,7 @@ class Tracker:
         sub = self.f2n[idx.ravel()]
         r = np.repeat(np.arange(q * k), np.diff(sub.indptr))
         # a match counts for a node less the further it is from it: the emission peaks where it is
-        val = sc.ravel()[r] - float(_conf(self.conf, "track_dist_penalty")) * (sub.data - 1.0)
+        val = sc.ravel()[r] - float(setting(self.conf, "track_dist_penalty")) * (sub.data - 1.0)
         np.maximum.at(b, (r // k, sub.indices), val)
         # the facing: the best-scoring match near each node among the latest frames
         facing = np.full(self.n, np.nan)
@@ -831,7 +826,7 @@ class Tracker:
         """The second belief's evidence weight for a clip whose best node scores `best`:
         track_beta, times (1 - track_beta_ref) / (1 - best) below track_beta_ref (the scores of
         a clip that matches poorly differ by its conditions as much as by place)."""
-        beta = float(_conf(self.conf, "track_beta"))
+        beta = float(setting(self.conf, "track_beta"))
         if self.beta_ref is None or best >= self.beta_ref:
             return beta
         return beta * (1.0 - self.beta_ref) / max(1.0 - best, 1e-6)
@@ -872,7 +867,7 @@ class Tracker:
             turn = None
             if motion.turn_deg is not None and state.facing is not None and len(state.facing) == self.n:
                 turn = (state.facing, float(motion.turn_deg))
-            eps = float(_conf(self.conf, "track_uniform"))
+            eps = float(setting(self.conf, "track_uniform"))
             both = state.belief
             if twin:  # both beliefs walk alike: one pass (a state saved without it starts it as the belief)
                 a = state.alike if state.alike is not None and len(state.alike) == self.n else state.belief
@@ -893,19 +888,19 @@ class Tracker:
                 last = ((state.heading + float(motion.turn_deg or 0.0)) % 360.0, turned)
         # one clip can be an outlier (people in the way, a turn, a look-alike): it moves the odds
         # between two places by at most 1 / track_outlier
-        rho = float(_conf(self.conf, "track_outlier"))
+        rho = float(setting(self.conf, "track_outlier"))
         # held still: the clip is best at the node the last one was (a wheelchair, or a phone that
         # counts no steps while its user walks, reaches other nodes' views), and the sensors
         # counted no step and little turn, or, where they do not say it moved, the clip faces as
         # the last one did there: "A phone held still" above
         held = False
-        still_cap = _conf(self.conf, "track_still_cap")
+        still_cap = setting(self.conf, "track_still_cap")
         if still_cap and not fresh and state is not None and best is not None and state.best == best:
             # the sensors say so; or, where they do not say it moved (none, or none that
             # answered), the clip does: best where the last was and facing as it did there
-            seen = _conf(self.conf, "track_still_seen") and not _moved(motion)
+            seen = setting(self.conf, "track_still_seen") and not _moved(motion)
             held = _still(motion) or bool(seen and _faces_as_before(facing, state.facing, best))
-        log_lik = float(_conf(self.conf, "track_beta")) * (e - e.max())
+        log_lik = float(setting(self.conf, "track_beta")) * (e - e.max())
         post = prior * ((1 - rho) * np.exp(log_lik) + rho)
         post /= post.sum()
         post_a = None
@@ -1107,7 +1102,7 @@ class Tracker:
         x, y, h, known = self._fit(node, matches, times, t_now, guess, last)
         dx = np.where(on, np.hypot(self.xy[:, 0] - x, self.xy[:, 1] - y), 50.0)
         spread = float(np.sqrt((p * np.minimum(dx, 50.0) ** 2).sum()))
-        ambiguous = max(far, alike_far or 0.0) >= float(_conf(self.conf, "track_ambiguous"))
+        ambiguous = max(far, alike_far or 0.0) >= float(setting(self.conf, "track_ambiguous"))
         pose = TrackPose(x, y, str(self.floor[node]), h, 0.0, node, ambiguous, spread, mass, far, updates, known)
         pose = replace(pose, alike_mass=alike_mass, alike_far=alike_far)
         c = track_confidence(pose, self.conf)
@@ -1150,7 +1145,7 @@ class Tracker:
 
         e = fit(near)
         if predicted is not None:  # facing away from the gyroscope's heading: its matches, if any
-            gate = float(_conf(self.conf, "track_turn_gate_deg"))
+            gate = float(setting(self.conf, "track_turn_gate_deg"))
             ok = near & (np.abs(wrap_deg(m.heading - predicted)) <= gate)
             if abs(wrap_deg(e.heading - predicted)) > gate and (ok & (m.score > 0)).any():
                 e = fit(ok)
