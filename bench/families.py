@@ -40,12 +40,13 @@ from omninav.synth.families import FAMILIES, make_family_dataset
 from omninav.track import load_track
 
 sys.path.insert(0, str(Path(__file__).parent))
+from ablation import CONFIGS as LADDER  # noqa: E402
 from search_speed import machine  # noqa: E402
 
 DATA = Path("data") / "families"
-CONFIGS: dict[str, tuple[str, dict[str, Any], str]] = {  # name: preset, overrides, aggregation
-    "default": ("default", {}, "sequence"),
-    "paper": ("paper", {}, "median"),
+# name: preset, overrides, aggregation (bench/ablation.py's ladder of the changes since the paper)
+CONFIGS: dict[str, tuple[str, dict[str, Any], str]] = {
+    name: (preset, over, str(resolve(preset, over)["aggregate"])) for name, (preset, over) in LADDER.items()
 }
 CONFIDENCE_KEYS = ("confidence_features", "confidence_coef")
 SEARCH_KEYS = ("shared_candidates", "shortlist")  # how a clip is searched: the same venue, other answers
@@ -90,21 +91,26 @@ def venue(root: Path, config: str, overrides: dict[str, Any] | None = None) -> L
     return cached_venue(root, config, settings)
 
 
-def cached_venue(root: Path, tag: str, settings: dict[str, Any], lens: str = "model_lens.json") -> Locator:
-    """root's model.mp4 modelled with `settings` into root/bench-data, once per settings: the venue
-    id is `tag` and a hash of what is modelled, so a changed default is another venue, never a
-    stale one (bench/accuracy.py and bench/lens_shift.py cache their venues here too)."""
-    st = Store(root / "bench-data")
-    # the confidence model is not part of what is modelled: a recalibration reuses the venue
-    # nor is tracking (tracking.py's track_* keys): a venue modelled before them is the same venue
-    # nor how a clip is searched (SEARCH_KEYS: the answers' cache is named by them, rows_for)
+def venue_key(tag: str, settings: dict[str, Any]) -> str:
+    """A bench venue's id: `tag` and a hash of what is modelled with `settings`.
+
+    The confidence model is not part of what is modelled (a recalibration reuses the venue), nor
+    is tracking (tracking.py's track_* keys: a venue modelled before them is the same venue), nor
+    how a clip is searched (SEARCH_KEYS: the answers' cache is named by them, rows_for)."""
     kept = {
         k: v
         for k, v in settings.items()
         if k not in CONFIDENCE_KEYS and k not in SEARCH_KEYS and not k.startswith("track_")
     }
-    key = json.dumps(kept, sort_keys=True).encode()
-    vid = f"{tag}-{hashlib.sha1(key).hexdigest()[:10]}"
+    return f"{tag}-{hashlib.sha1(json.dumps(kept, sort_keys=True).encode()).hexdigest()[:10]}"
+
+
+def cached_venue(root: Path, tag: str, settings: dict[str, Any], lens: str = "model_lens.json") -> Locator:
+    """root's model.mp4 modelled with `settings` into root/bench-data, once per settings: the venue
+    id is `tag` and a hash of what is modelled, so a changed default is another venue, never a
+    stale one (bench/accuracy.py and bench/lens_shift.py cache their venues here too)."""
+    st = Store(root / "bench-data")
+    vid = venue_key(tag, settings)
     if st.generation(vid) is None:
         model_video(
             st, vid, root / "model.mp4", load_track(root / "model_track.json"), load_lens(root / lens),

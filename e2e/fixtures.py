@@ -93,6 +93,7 @@ def golden(out: Path) -> None:
     cases = [
         _case(out, "donut-default", donut, "default", dframes),
         _case(out, "donut-six", donut, "six", dframes[:1]),
+        _case(out, "donut-wide", donut, "wide", dframes[:1]),  # the venue option: one wide band, levelled
         _case(out, "equirect-default", eq, "default", eframes),
         # the default before per-band channels: what a phone makes for a venue modelled with it
         _case(out, "donut-before-bands", donut, "default", dframes[:1], TWO_BANDS),

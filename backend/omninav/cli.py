@@ -105,7 +105,9 @@ def venue() -> None:
 @click.option("--floor", default="1", show_default=True, help="Id of its first floor, given in answers.")
 @click.option("--floorplan", type=click.Path(path_type=Path), help="Floor plan image (PNG/JPEG).")
 @click.option("--px-per-m", type=float, help="Floor plan scale, pixels per metre.")
-@click.option("--preset", default="default", show_default=True, help="Feature preset (paper, six, default).")
+@click.option(
+    "--preset", default="default", show_default=True, help="Feature preset: default, wide (choose-preset), paper, six."
+)
 @click.option("--places", type=click.Path(path_type=Path), help="JSON list of {name, x, y[, area]} in metres.")
 @click.pass_context
 def venue_create(
@@ -548,6 +550,50 @@ def _table(rows: list[tuple[str, dict[str, Any]]], confident: bool = False) -> s
             )
         )
     return "\n".join(lines)
+
+
+@cli.command("choose-preset")
+@click.argument("walk", type=click.Path(path_type=Path))
+@click.option("--track", "track_path", required=True, type=click.Path(path_type=Path), help="The walk's track.json.")
+@click.option("--lens", "lens_path", required=True, type=click.Path(path_type=Path), help="The walk's lens.json.")
+@click.option("--eval", "eval_path", required=True, type=click.Path(path_type=Path), help="An evaluation walk (video).")
+@click.option("--eval-track", "eval_track_path", required=True, type=click.Path(path_type=Path), help="Its track.")
+@click.option("--eval-lens", "eval_lens_path", type=click.Path(path_type=Path), help="Its lens (default: --lens).")
+@click.option("--presets", help="Presets to choose among, comma-separated (default: default,wide; a tie: the first).")
+@click.option("--json", "as_json", is_flag=True, help="Print each preset's summary and the choice as JSON.")
+def choose_preset(
+    walk: Path,
+    track_path: Path,
+    lens_path: Path,
+    eval_path: Path,
+    eval_track_path: Path,
+    eval_lens_path: Path | None,
+    presets: str | None,
+    as_json: bool,
+) -> None:
+    """Model WALK with each preset, locate an evaluation walk against each, and say which preset to
+    create the building's venue with (nothing is written to the catalogue)."""
+    from .choose import CANDIDATES, check_presets, compare_presets, pick
+    from .lens import load_lens
+    from .track import load_track
+
+    asked = [p.strip() for p in presets.split(",") if p.strip()] if presets is not None else list(CANDIDATES)
+    names = check_presets(asked)  # before any work
+    for f in (walk, eval_path):
+        if not f.is_file():
+            raise OmninavError(f"{f}: video not found")
+    track, lens, eval_track = load_track(track_path), load_lens(lens_path), load_track(eval_track_path)
+    eval_lens = load_lens(eval_lens_path) if eval_lens_path else lens
+    say = None if as_json else (lambda m: click.echo(m, err=True))
+    results = compare_presets(walk, track, lens, eval_path, eval_track, eval_lens, names, say)
+    chosen = pick(results)
+    if as_json:
+        click.echo(json.dumps({"presets": results, "chosen": chosen}))
+        return
+    click.echo(_table([(r["preset"], r) for r in results]))
+    click.echo(
+        f"chosen: {chosen} (most clips within 2 m of the evaluation walk): omninav venue create VENUE --preset {chosen}"
+    )
 
 
 @cli.command("suggest-waypoints")

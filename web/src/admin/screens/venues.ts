@@ -29,6 +29,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   const preset = el('select', { name: 'preset' });
   for (const [v, label] of [
     ['default', 'default (recommended)'],
+    ['wide', 'wide (one wide band: for a building where the default’s evaluation walk misses)'],
     ['paper', 'paper (as published)'],
     ['six', 'six (fewer harmonics, faster)'],
   ])

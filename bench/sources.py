@@ -1,0 +1,301 @@
+"""One accuracy report over three sources, and the adoption rule that reads it.
+
+A change to features, search, aggregation or confidence is judged on three sources, side by side:
+
+- **own**: our renderer's held-out families (bench/families.py, 1 s clips, the seeds given),
+  pooled; never tuned on, but drawn by the same code that drew the tuning families;
+- **foreign**: the foreign pack (bench/foreign.py: each venue modelled and located as `omninav
+  model` and `omninav locate` do), venues from a renderer nobody on the team wrote;
+- **real**: the real donut photo of pyomniunwarp 0.2.5 (MIT; bench/real_optics.py fetches it):
+  with no second photo of known position to locate it against, it measures what a real picture
+  does to a match: the photo against itself read through a lens profile 2 degrees off in
+  elevation (either way), after another exposure, and turned about the lens axis (the heading).
+
+The adoption rule (docs/benchmarks.md, "Three sources"): a candidate becomes the default only
+where it loses on none of the sources by more than that source's noise; otherwise it is a venue
+option. The noise of a source of clips is the paired standard error of the difference in the
+share within 2 m (the clips both configurations answer, McNemar's: sqrt(b + c - (b - c)^2 / n) / n
+for b clips only the baseline gets and c only the candidate does); a loss is a drop of more than
+twice it, or more clips answered sure and > 2 m off than twice its own paired error. On the real
+photo, whose scores are on each feature set's own scale, a loss is a larger elevation cost (the
+score a lens 2 degrees off takes away) by more than twice its paired standard error over the
+photo's eight turns, or a heading error 0.5 degrees worse.
+
+    python bench/sources.py [--configs default,two-bands-shared] [--seeds 0,1,2] [--pack DIR]
+    python bench/sources.py --ladder [--seeds 0]   # every change since the paper, each judged
+                                                   # against the rung before it
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from omninav.aggregate import SURE
+from omninav.extract import Extractor
+from omninav.heading import relative_heading, wrap_deg
+from omninav.presets import resolve
+from omninav.synth.families import FAMILIES
+from omninav.synth.optics import reexpose
+
+sys.path.insert(0, str(Path(__file__).parent))
+import foreign  # noqa: E402
+from ablation import CONFIGS, LADDER, elevation_off  # noqa: E402
+from families import rescore, rows_for  # noqa: E402
+from real_optics import real_photo  # noqa: E402
+from search_speed import machine  # noqa: E402
+
+TURNS = (23.0, 71.0, 118.0, 167.0, 204.0, 251.0, 299.0, 337.0)  # the photo turned about its lens axis
+SHOT = {"gain": 0.6, "tone": 0.8, "wb": (0.9, 1.0, 1.12), "noise": 3.0, "jpeg": 60}  # real_optics' "all"
+
+
+def conf_of(config: str) -> dict[str, Any]:
+    preset, over = CONFIGS[config]
+    return {**resolve(preset), **over}
+
+
+def scores(rows: list[dict[str, Any]], conf: dict[str, Any]) -> dict[str, np.ndarray]:
+    """Per clip: within 2 m, within 1 m, sure, sure and > 2 m off, and the heading error."""
+    err = np.array([r["err_m"] for r in rows])
+    c = rescore(rows, conf)
+    sure = c >= SURE
+    return {
+        "confidence": c,
+        "near": err <= 2.0,
+        "near1": err <= 1.0,
+        "sure": sure,
+        "sure_far": sure & (err > 2.0),
+        "heading": np.abs([r["heading_err_deg"] for r in rows]),
+    }
+
+
+def summary(s: dict[str, np.ndarray]) -> dict[str, float]:
+    near = s["near"]
+    return {
+        "clips": float(len(near)),
+        "within_1m": float(s["near1"].mean()),
+        "within_2m": float(near.mean()),
+        "heading_deg": float(np.median(s["heading"][near])) if near.any() else math.nan,
+        "sure": float(s["sure"].mean()),
+        "sure_far": float(s["sure_far"].mean()),
+        "wrong_among_sure": float(s["sure_far"].sum() / max(1, s["sure"].sum())),
+    }
+
+
+def paired_se(a: np.ndarray, b: np.ndarray) -> float:
+    """Standard error of mean(b) - mean(a) over paired boolean outcomes (McNemar's)."""
+    n = len(a)
+    only_a, only_b = int(np.sum(a & ~b)), int(np.sum(b & ~a))
+    return math.sqrt(max(only_a + only_b - (only_b - only_a) ** 2 / n, 0.0)) / n
+
+
+def clip_verdict(base: dict[str, np.ndarray], cand: dict[str, np.ndarray]) -> tuple[str, dict[str, float]]:
+    """'loses', 'wins' or 'same' for a candidate against the baseline on one source of clips."""
+    d_near = float(cand["near"].mean() - base["near"].mean())
+    se_near = paired_se(base["near"], cand["near"])
+    d_far = float(cand["sure_far"].mean() - base["sure_far"].mean())
+    se_far = paired_se(base["sure_far"], cand["sure_far"])
+    loses = d_near < -2 * se_near or d_far > 2 * se_far
+    wins = not loses and (d_near > 2 * se_near or d_far < -2 * se_far)
+    return ("loses" if loses else "wins" if wins else "same"), {
+        "d_within_2m": d_near,
+        "se_within_2m": se_near,
+        "d_sure_far": d_far,
+        "se_sure_far": se_far,
+    }
+
+
+BINS = (0.0, 0.5, 0.8, 0.9, 0.95, 1.01)
+
+
+def reliability(s: dict[str, np.ndarray]) -> list[tuple[int, float]]:
+    """Per confidence bin (BINS): how many answers, and the share of them within 2 m (the
+    reliability diagram as a table: a calibrated confidence has each share inside its bin)."""
+    out = []
+    for lo, hi in zip(BINS[:-1], BINS[1:], strict=True):
+        m = (s["confidence"] >= lo) & (s["confidence"] < hi)
+        out.append((int(m.sum()), float(s["near"][m].mean()) if m.any() else math.nan))
+    return out
+
+
+# ---- own: the held-out families ---------------------------------------------------------------
+def own(config: str, seeds: list[int]) -> dict[str, np.ndarray]:
+    """Every held-out family's 1 s clips at each seed, pooled in one order (for pairing)."""
+    conf = conf_of(config)
+    rows: list[dict[str, Any]] = []
+    for name, fam in FAMILIES.items():
+        if fam.split != "held-out":
+            continue
+        for seed in seeds:
+            rows += rows_for(name, seed, config, [1.0])[1.0]
+    return scores(rows, conf)
+
+
+# ---- foreign: the pack ------------------------------------------------------------------------
+def foreign_scores(config: str, pack: Path, venues: list[str]) -> dict[str, dict[str, np.ndarray]]:
+    conf = conf_of(config)
+    return {v: scores(foreign.rows_for(pack, v, config, conf), conf) for v in venues}
+
+
+# ---- real: the photo --------------------------------------------------------------------------
+def turned(rgb: np.ndarray, centre: tuple[float, float], deg: float) -> np.ndarray:
+    """The donut photo turned `deg` about the lens axis (the phone turned the other way)."""
+    m = cv2.getRotationMatrix2D(centre, deg, 1.0)
+    out: np.ndarray = cv2.warpAffine(rgb, m, (rgb.shape[1], rgb.shape[0]), flags=cv2.INTER_LINEAR)
+    return out
+
+
+def real(config: str, cache: Path) -> dict[str, Any]:
+    """The photo against itself: through a lens 2 degrees off in elevation, another exposure, and
+    turned; mean verification score of each (the spread over TURNS: the noise) and the heading
+    error of the turned ones."""
+    rgb, lens, _, _ = real_photo(cache)
+    conf = conf_of(config)
+    ref = Extractor(lens, conf).spectrum(rgb[..., ::-1].copy())
+    n = max(64, 8 * ref.shape[-1])
+    out: dict[str, Any] = {}
+    for label, el in (("elev -2°", -2.0), ("elev +2°", 2.0)):
+        ext = Extractor(elevation_off(lens, el), conf)
+        per = []
+        for i, deg in enumerate(TURNS):
+            shot = reexpose(turned(rgb, lens.center, deg), rng=np.random.default_rng(i), **SHOT)
+            per.append(relative_heading(ext.spectrum(shot[..., ::-1].copy()), ref, n_shifts=n))
+        out[label] = np.array([float(v) for _, v in per])
+    ext = Extractor(lens, conf)
+    res, herr = [], []
+    for i, deg in enumerate(TURNS):
+        shot = reexpose(turned(rgb, lens.center, deg), rng=np.random.default_rng(i), **SHOT)
+        rel, val = relative_heading(ext.spectrum(shot[..., ::-1].copy()), ref, n_shifts=n)
+        res.append(float(val))
+        # a photo turned counter-clockwise by deg: the lens's sense decides the heading's sign
+        herr.append(min(abs(float(wrap_deg(float(rel) - deg))), abs(float(wrap_deg(float(rel) + deg)))))
+    out["turned"] = np.array(res)
+    out["heading_deg"] = float(np.median(herr))
+    return out
+
+
+def elevation_cost(r: dict[str, Any]) -> np.ndarray:
+    """Per turn, how much of the turned photo's score a lens 2 degrees off in elevation (the worse
+    way) takes away: scores of two feature sets are on scales of their own, their costs are not."""
+    cost: np.ndarray = r["turned"] - np.minimum(r["elev -2°"], r["elev +2°"])
+    return cost
+
+
+def real_verdict(base: dict[str, Any], cand: dict[str, Any]) -> str:
+    """'loses' where the elevation cost grows by more than twice its paired standard error over the
+    turns, or the heading error grows by more than 0.5 degrees; 'wins' the other way."""
+    d = elevation_cost(cand) - elevation_cost(base)
+    se = float(np.std(d)) / math.sqrt(len(d))
+    dh = cand["heading_deg"] - base["heading_deg"]
+    if float(np.mean(d)) > 2 * se or dh > 0.5:
+        return "loses"
+    return "wins" if float(np.mean(d)) < -2 * se or dh < -0.5 else "same"
+
+
+# ---- the report -------------------------------------------------------------------------------
+def row(label: str, s: dict[str, float]) -> str:
+    return (
+        f"  {label:<30}{int(s['clips']):>6}{s['within_1m']:>8.1%}{s['within_2m']:>8.1%}{s['heading_deg']:>8.2f}°"
+        f"{s['sure']:>7.0%}{s['sure_far']:>9.1%}{s['wrong_among_sure']:>8.1%}"
+    )
+
+
+HEAD = f"  {'config':<30}{'clips':>6}{'<=1 m':>8}{'<=2 m':>8}{'hdg med':>9}{'sure':>7}{'sure>2m':>9}{'of sure':>8}"
+
+
+def verdicts(
+    base: str, cand: str, own_s: dict, for_s: dict, real_s: dict, venues: list[str]
+) -> tuple[dict[str, tuple[str, dict[str, float]]], str]:
+    """The adoption rule's reading of `cand` against `base` on every source of clips, and on the photo."""
+    out = {"own": clip_verdict(own_s[base], own_s[cand])}
+    for v in venues:
+        out[f"foreign {v}"] = clip_verdict(for_s[base][v], for_s[cand][v])
+    return out, real_verdict(real_s[base], real_s[cand])
+
+
+def ladder(seeds: list[int], pack: Path, cache: Path) -> None:
+    """Item 3's table: each rung, its figures on the three sources, and the rule's verdict against
+    the rung before it (the change it adds)."""
+    venues = foreign.pack_venues(pack) if pack.is_dir() else []
+    own_s = {c: own(c, seeds) for c in LADDER}
+    for_s = {c: foreign_scores(c, pack, venues) for c in LADDER}
+    real_s = {c: real(c, cache) for c in LADDER}
+    head = f"{'rung':<16}{'own <=2m':>9}{'sure>2m':>8}" + "".join(f"{v + ' <=2m':>13}{'sure>2m':>8}" for v in venues)
+    print(head + f"{'el. cost':>9}  verdict against the rung before")
+    for i, c in enumerate(LADDER):
+        o = summary(own_s[c])
+        cells = "".join(
+            f"{summary(for_s[c][v])['within_2m']:>13.1%}{summary(for_s[c][v])['sure_far']:>8.1%}" for v in venues
+        )
+        word = "-"
+        if i:
+            vs, rv = verdicts(LADDER[i - 1], c, own_s, for_s, real_s, venues)
+            word = ", ".join(f"{k} {w}" for k, (w, _) in vs.items()) + f", real {rv}"
+        cost = float(np.mean(elevation_cost(real_s[c])))
+        print(f"{c:<16}{o['within_2m']:>9.1%}{o['sure_far']:>8.1%}{cells}{cost:>9.3f}  {word}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--configs", default="default,two-bands-shared", help="the first is the baseline")
+    ap.add_argument("--seeds", default="0", help="held-out families' seeds")
+    ap.add_argument("--pack", type=Path, default=foreign.PACK)
+    ap.add_argument("--cache", type=Path, default=Path("data/cache/real-optics"))
+    ap.add_argument("--no-paper", action="store_true", help="leave the paper's method out")
+    ap.add_argument("--ladder", action="store_true", help="the ablation: every rung against the one before")
+    a = ap.parse_args()
+    if a.ladder:
+        print(f"machine: {machine()}")
+        ladder([int(s) for s in a.seeds.split(",")], a.pack, a.cache)
+        return
+    configs = a.configs.split(",")
+    shown = configs + ([] if a.no_paper or "paper" in configs else ["paper"])
+    seeds = [int(s) for s in a.seeds.split(",")]
+    venues = foreign.pack_venues(a.pack) if a.pack.is_dir() else []
+    print(f"machine: {machine()}")
+    print(f"own: held-out families, seeds {seeds}; foreign: {', '.join(venues) or 'no pack'}; real: the photo")
+    own_s = {c: own(c, seeds) for c in shown}
+    for_s = {c: foreign_scores(c, a.pack, venues) for c in shown}
+    real_s = {c: real(c, a.cache) for c in shown}
+    print("\nown (held-out families, 1 s clips; 'sure>2m' of all clips, 'of sure' of the sure ones)")
+    print(HEAD)
+    for c in shown:
+        print(row(c, summary(own_s[c])))
+    for v in venues:
+        print(f"\nforeign {v} (1 s clips)")
+        print(HEAD)
+        for c in shown:
+            print(row(c, summary(for_s[c][v])))
+    print("\nreal (the photo against itself: mean verification score, spread over 8 turns; heading error)")
+    print(f"  {'config':<30}{'elev -2°':>14}{'elev +2°':>14}{'turned':>14}{'el. cost':>10}{'heading':>9}")
+    for c in shown:
+        r = real_s[c]
+        cells = "".join(f"{np.mean(r[k]):>8.3f} ±{np.std(r[k]):.3f}" for k in ("elev -2°", "elev +2°", "turned"))
+        print(f"  {c:<30}{cells}{np.mean(elevation_cost(r)):>10.3f}{r['heading_deg']:>8.2f}°")
+    print("\nreliability of the first configuration: answers in each confidence bin, and the share within 2 m")
+    edges = [f"{lo:.2f}-{min(hi, 1.0):.2f}" for lo, hi in zip(BINS[:-1], BINS[1:], strict=True)]
+    print(f"  {'source':<30}" + "".join(f"{e:>14}" for e in edges))
+    sources = {"own (held-out)": own_s[configs[0]], **{f"foreign {v}": for_s[configs[0]][v] for v in venues}}
+    for name, sc in sources.items():
+        cells = "".join(f"{n:>5} {share:>7.0%} " if n else f"{n:>5} {'-':>7} " for n, share in reliability(sc))
+        print(f"  {name:<30}{cells}")
+    base = configs[0]
+    print(f"\nadoption rule against {base} (loses: worse by more than the source's noise, docs/benchmarks.md)")
+    for c in configs[1:]:
+        vs, rv = verdicts(base, c, own_s, for_s, real_s, venues)
+        cells = [
+            f"{k} {w} ({d['d_within_2m']:+.1%} ±{d['se_within_2m']:.1%}, sure>2m {d['d_sure_far']:+.1%})"
+            for k, (w, d) in vs.items()
+        ]
+        adopt = all(w != "loses" for w, _ in vs.values()) and rv != "loses"
+        print(f"  {c}: {'; '.join(cells)}; real {rv} -> {'may become the default' if adopt else 'a venue option'}")
+
+
+if __name__ == "__main__":
+    main()
