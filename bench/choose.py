@@ -6,10 +6,12 @@ one wide band does the opposite. A building can say which it is: the admin films
 walk (the admin page's evaluation walks, `omninav evaluate`), and the venue is answered with the
 configuration that locates that walk best. Measured here without running anything again (the
 answers of bench/families.py and bench/foreign.py): each venue's queries in time order, the first
-half is the evaluation walk that chooses (within 2 m, ties to the first configuration), the second
-half is scored; beside them, each configuration fixed for every venue, on the same second halves.
+half is the evaluation walk that chooses (choose.pick, as `omninav choose-preset` does: the first
+configuration unless another places clearly more of the half within 2 m), the second half is
+scored; beside them, each configuration fixed for every venue, on the same second halves.
+`one-band-levelled` has the settings of the `wide` preset.
 
-    python bench/choose.py [--configs default,robust] [--seeds 0,1,2]
+    python bench/choose.py [--configs default,one-band-levelled] [--seeds 0,1,2]
 """
 
 from __future__ import annotations
@@ -21,13 +23,14 @@ from typing import Any
 
 import numpy as np
 
+from omninav.choose import pick
 from omninav.synth.families import FAMILIES
 
 sys.path.insert(0, str(Path(__file__).parent))
 import foreign  # noqa: E402
 from families import rows_for  # noqa: E402
+from scoring import conf_of, scores, summary  # noqa: E402
 from search_speed import machine  # noqa: E402
-from sources import conf_of, scores, summary  # noqa: E402
 
 
 def halves(s: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
@@ -36,8 +39,8 @@ def halves(s: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], dict[str, n
 
 
 def choose(per_config: dict[str, dict[str, np.ndarray]]) -> str:
-    """The configuration whose evaluation half is within 2 m most often (the first on a tie)."""
-    return max(per_config, key=lambda c: (float(halves(per_config[c])[0]["near"].mean()), -list(per_config).index(c)))
+    """The configuration the evaluation halves choose, by the engine's rule."""
+    return pick({c: halves(s)[0]["near"] for c, s in per_config.items()})
 
 
 def pooled(parts: list[dict[str, np.ndarray]]) -> dict[str, Any]:
@@ -46,7 +49,7 @@ def pooled(parts: list[dict[str, np.ndarray]]) -> dict[str, Any]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--configs", default="default,robust")
+    ap.add_argument("--configs", default="default,one-band-levelled", help="the one kept first")
     ap.add_argument("--seeds", default="0")
     ap.add_argument("--pack", type=Path, default=foreign.PACK)
     a = ap.parse_args()

@@ -4,8 +4,9 @@ Each venue of the pack (`../shared/foreign/` by default; docs/formats.md's forma
 what each holds) is modelled from its walk with each configuration through the same path as
 `omninav model` (model_venue.model_video), and each 1 s query clip is located as `omninav locate`
 does (the clip's frames, the pack's phone lens, the ring corrected per clip). Scores, as the pack's
-README asks: within 1 m / 2 m of truth.json, median heading error, the share answered sure
-(confidence >= 0.8), and the share of clips answered sure and more than 2 m off.
+README asks (scoring.summary): within 1 m / 2 m of truth.json, the median heading error of the
+answers within 2 m, the share answered sure (confidence >= 0.8), and the share of clips answered
+sure and more than 2 m off.
 
 Venues are cached under data/foreign/<venue>/ by what is modelled (a changed default is another
 venue, never a stale one), answers with their confidence inputs by venue and search, so a
@@ -26,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from omninav.aggregate import SURE, confidence
+from omninav.aggregate import confidence
 from omninav.heading import wrap_deg
 from omninav.lens import load_lens
 from omninav.locate import Locator, clip_frames
@@ -37,7 +38,8 @@ from omninav.track import load_track
 
 sys.path.insert(0, str(Path(__file__).parent))
 from ablation import CONFIGS, elevation_off  # noqa: E402
-from families import CONFIDENCE_KEYS, SEARCH_KEYS, rescore, search_tag, settings, venue_key  # noqa: E402
+from families import CONFIDENCE_KEYS, SEARCH_KEYS, search_tag, settings, venue_key  # noqa: E402
+from scoring import scores, summary  # noqa: E402
 from search_speed import machine  # noqa: E402
 
 PACK = Path(__file__).resolve().parents[1].parent / "shared" / "foreign"
@@ -118,30 +120,13 @@ def rows_for(pack: Path, venue: str, tag: str, conf: dict[str, Any], elev: float
     return rows
 
 
-def summarise(rows: list[dict[str, Any]], conf: dict[str, Any]) -> dict[str, Any]:
-    """The pack's scores; the heading error is the median over answers within 2 m (the README's)."""
-    err = np.array([r["err_m"] for r in rows])
-    herr = np.abs([r["heading_err_deg"] for r in rows])
-    sure = rescore(rows, conf) >= SURE
-    near = err <= 2.0
-    return {
-        "clips": len(rows),
-        "within_1m": float(np.mean(err <= 1.0)),
-        "within_2m": float(near.mean()),
-        "median_heading_deg": float(np.median(herr[near])) if near.any() else float("nan"),
-        "sure": float(sure.mean()),
-        "sure_far": float(np.mean(sure & ~near)),  # of all clips, as the pack's README scores it
-        "wrong_among_sure": float(np.mean(~near[sure])) if sure.any() else 0.0,
-    }
-
-
 HEAD = f"{'venue':<10}{'config':<26}{'clips':>6}{'<=1 m':>8}{'<=2 m':>8}{'hdg med':>9}{'sure':>7}{'sure>2m':>9}"
 
 
 def line(venue: str, config: str, s: dict[str, Any]) -> str:
     return (
-        f"{venue:<10}{config:<26}{s['clips']:>6}{s['within_1m']:>8.1%}{s['within_2m']:>8.1%}"
-        f"{s['median_heading_deg']:>8.2f}°{s['sure']:>7.0%}{s['sure_far']:>9.1%}"
+        f"{venue:<10}{config:<26}{int(s['clips']):>6}{s['within_1m']:>8.1%}{s['within_2m']:>8.1%}"
+        f"{s['heading_deg']:>8.2f}°{s['sure']:>7.0%}{s['sure_far']:>9.1%}"
     )
 
 
@@ -168,7 +153,7 @@ def main() -> None:
         conf = {**resolve(preset), **cover, **over}
         for venue in venues:
             for elev in (float(e) for e in a.elev.split(",")):
-                s = summarise(rows_for(a.pack, venue, config, conf, elev), conf)
+                s = summary(scores(rows_for(a.pack, venue, config, conf, elev), conf))
                 label = f"{config} {elev:+g}°" if elev else config
                 print(line(venue, label, s), flush=True)
                 out.append({"venue": venue, "config": config, "elev_deg": elev, **s})

@@ -9,7 +9,9 @@ phi the azimuth from the walking direction, r the offset as a share of the corri
 then the exposure. Each of a walk's 1 s segments (every `--every` seconds) is read through a remap
 with a random draw of all four, levelled as the configuration levels, and searched with its own
 frames and their neighbours within the quality map's LEAVE_OUT_M left out (quality.py). The score
-of a configuration is the share within 2 m; the venue picks the configuration that scores best.
+of a configuration is the share within 2 m; the venue would pick the configuration that scores
+best. Measured, not used: it could not tell the configurations apart (docs/decisions.md); a
+building's evaluation walk does (choose.py).
 
 Printed per venue: each configuration's self-check score beside its accuracy on the venue's real
 queries (bench/families.py's query walk, or the foreign pack's clips), the pick, and whether the
@@ -45,8 +47,8 @@ from omninav.unwarp import UnwarpMap
 sys.path.insert(0, str(Path(__file__).parent))
 import foreign  # noqa: E402
 from families import dataset, family_names, rows_for, venue  # noqa: E402
+from scoring import conf_of, scores  # noqa: E402
 from search_speed import machine  # noqa: E402
-from sources import conf_of, scores  # noqa: E402
 
 ELEV_DEG = 2.0  # lens profile off by up to this
 HEIGHT_DELTA = 0.08  # tan(elevation) shifted by up to this (0.24 m at walls 3 m away)

@@ -14,9 +14,10 @@ A change to features, search, aggregation or confidence is judged on three sourc
 The adoption rule (docs/benchmarks.md, "Three sources"): a candidate becomes the default only
 where it loses on none of the sources by more than that source's noise; otherwise it is a venue
 option. The noise of a source of clips is the paired standard error of the difference in the
-share within 2 m (the clips both configurations answer, McNemar's: sqrt(b + c - (b - c)^2 / n) / n
-for b clips only the baseline gets and c only the candidate does); a loss is a drop of more than
-twice it, or more clips answered sure and > 2 m off than twice its own paired error. On the real
+share within 2 m over the same clips (the Wald form of McNemar's test, choose.paired_se:
+sqrt(b + c - (b - c)^2 / n) / n for b clips only the baseline gets and c only the candidate
+does); a loss is a drop of more than twice it, or more clips answered sure and > 2 m off by more
+than twice their own paired error (scoring.clip_verdict). On the real
 photo, whose scores are on each feature set's own scale, a loss is a larger elevation cost (the
 score a lens 2 degrees off takes away) by more than twice its paired standard error over the
 photo's eight turns, or a heading error 0.5 degrees worse.
@@ -37,91 +38,21 @@ from typing import Any
 import cv2
 import numpy as np
 
-from omninav.aggregate import SURE
 from omninav.extract import Extractor
 from omninav.heading import relative_heading, wrap_deg
-from omninav.presets import resolve
 from omninav.synth.families import FAMILIES
 from omninav.synth.optics import reexpose
 
 sys.path.insert(0, str(Path(__file__).parent))
 import foreign  # noqa: E402
-from ablation import CONFIGS, LADDER, elevation_off  # noqa: E402
-from families import rescore, rows_for  # noqa: E402
+from ablation import LADDER, elevation_off  # noqa: E402
+from families import rows_for  # noqa: E402
 from real_optics import real_photo  # noqa: E402
+from scoring import BINS, clip_verdict, conf_of, reliability, scores, summary  # noqa: E402
 from search_speed import machine  # noqa: E402
 
 TURNS = (23.0, 71.0, 118.0, 167.0, 204.0, 251.0, 299.0, 337.0)  # the photo turned about its lens axis
 SHOT = {"gain": 0.6, "tone": 0.8, "wb": (0.9, 1.0, 1.12), "noise": 3.0, "jpeg": 60}  # real_optics' "all"
-
-
-def conf_of(config: str) -> dict[str, Any]:
-    preset, over = CONFIGS[config]
-    return {**resolve(preset), **over}
-
-
-def scores(rows: list[dict[str, Any]], conf: dict[str, Any]) -> dict[str, np.ndarray]:
-    """Per clip: within 2 m, within 1 m, sure, sure and > 2 m off, and the heading error."""
-    err = np.array([r["err_m"] for r in rows])
-    c = rescore(rows, conf)
-    sure = c >= SURE
-    return {
-        "confidence": c,
-        "near": err <= 2.0,
-        "near1": err <= 1.0,
-        "sure": sure,
-        "sure_far": sure & (err > 2.0),
-        "heading": np.abs([r["heading_err_deg"] for r in rows]),
-    }
-
-
-def summary(s: dict[str, np.ndarray]) -> dict[str, float]:
-    near = s["near"]
-    return {
-        "clips": float(len(near)),
-        "within_1m": float(s["near1"].mean()),
-        "within_2m": float(near.mean()),
-        "heading_deg": float(np.median(s["heading"][near])) if near.any() else math.nan,
-        "sure": float(s["sure"].mean()),
-        "sure_far": float(s["sure_far"].mean()),
-        "wrong_among_sure": float(s["sure_far"].sum() / max(1, s["sure"].sum())),
-    }
-
-
-def paired_se(a: np.ndarray, b: np.ndarray) -> float:
-    """Standard error of mean(b) - mean(a) over paired boolean outcomes (McNemar's)."""
-    n = len(a)
-    only_a, only_b = int(np.sum(a & ~b)), int(np.sum(b & ~a))
-    return math.sqrt(max(only_a + only_b - (only_b - only_a) ** 2 / n, 0.0)) / n
-
-
-def clip_verdict(base: dict[str, np.ndarray], cand: dict[str, np.ndarray]) -> tuple[str, dict[str, float]]:
-    """'loses', 'wins' or 'same' for a candidate against the baseline on one source of clips."""
-    d_near = float(cand["near"].mean() - base["near"].mean())
-    se_near = paired_se(base["near"], cand["near"])
-    d_far = float(cand["sure_far"].mean() - base["sure_far"].mean())
-    se_far = paired_se(base["sure_far"], cand["sure_far"])
-    loses = d_near < -2 * se_near or d_far > 2 * se_far
-    wins = not loses and (d_near > 2 * se_near or d_far < -2 * se_far)
-    return ("loses" if loses else "wins" if wins else "same"), {
-        "d_within_2m": d_near,
-        "se_within_2m": se_near,
-        "d_sure_far": d_far,
-        "se_sure_far": se_far,
-    }
-
-
-BINS = (0.0, 0.5, 0.8, 0.9, 0.95, 1.01)
-
-
-def reliability(s: dict[str, np.ndarray]) -> list[tuple[int, float]]:
-    """Per confidence bin (BINS): how many answers, and the share of them within 2 m (the
-    reliability diagram as a table: a calibrated confidence has each share inside its bin)."""
-    out = []
-    for lo, hi in zip(BINS[:-1], BINS[1:], strict=True):
-        m = (s["confidence"] >= lo) & (s["confidence"] < hi)
-        out.append((int(m.sum()), float(s["near"][m].mean()) if m.any() else math.nan))
-    return out
 
 
 # ---- own: the held-out families ---------------------------------------------------------------
@@ -145,7 +76,7 @@ def foreign_scores(config: str, pack: Path, venues: list[str]) -> dict[str, dict
 
 # ---- real: the photo --------------------------------------------------------------------------
 def turned(rgb: np.ndarray, centre: tuple[float, float], deg: float) -> np.ndarray:
-    """The donut photo turned `deg` about the lens axis (the phone turned the other way)."""
+    """The donut photo turned `deg` counter-clockwise (as drawn) about the lens axis."""
     m = cv2.getRotationMatrix2D(centre, deg, 1.0)
     out: np.ndarray = cv2.warpAffine(rgb, m, (rgb.shape[1], rgb.shape[0]), flags=cv2.INTER_LINEAR)
     return out
@@ -173,8 +104,10 @@ def real(config: str, cache: Path) -> dict[str, Any]:
         shot = reexpose(turned(rgb, lens.center, deg), rng=np.random.default_rng(i), **SHOT)
         rel, val = relative_heading(ext.spectrum(shot[..., ::-1].copy()), ref, n_shifts=n)
         res.append(float(val))
-        # a photo turned counter-clockwise by deg: the lens's sense decides the heading's sign
-        herr.append(min(abs(float(wrap_deg(float(rel) - deg))), abs(float(wrap_deg(float(rel) + deg)))))
+        # turned() turns the picture counter-clockwise: through a lens whose azimuths run
+        # counter-clockwise the phone has turned by -deg (clockwise headings), else by +deg
+        want = -deg if lens.ccw else deg
+        herr.append(abs(float(wrap_deg(float(rel) - want))))
     out["turned"] = np.array(res)
     out["heading_deg"] = float(np.median(herr))
     return out
@@ -191,7 +124,7 @@ def real_verdict(base: dict[str, Any], cand: dict[str, Any]) -> str:
     """'loses' where the elevation cost grows by more than twice its paired standard error over the
     turns, or the heading error grows by more than 0.5 degrees; 'wins' the other way."""
     d = elevation_cost(cand) - elevation_cost(base)
-    se = float(np.std(d)) / math.sqrt(len(d))
+    se = float(np.std(d, ddof=1)) / math.sqrt(len(d))
     dh = cand["heading_deg"] - base["heading_deg"]
     if float(np.mean(d)) > 2 * se or dh > 0.5:
         return "loses"
@@ -219,10 +152,18 @@ def verdicts(
     return out, real_verdict(real_s[base], real_s[cand])
 
 
-def ladder(seeds: list[int], pack: Path, cache: Path) -> None:
-    """Item 3's table: each rung, its figures on the three sources, and the rule's verdict against
-    the rung before it (the change it adds)."""
+def pack_or_exit(pack: Path) -> list[str]:
+    """The pack's venues; without them the rule would judge on two sources, so none is judged."""
     venues = foreign.pack_venues(pack) if pack.is_dir() else []
+    if not venues:
+        raise SystemExit(f"{pack}: no foreign pack there (--pack): the rule needs all three sources")
+    return venues
+
+
+def ladder(seeds: list[int], pack: Path, cache: Path) -> None:
+    """The ablation: each rung, its figures on the three sources, and the rule's verdict against
+    the rung before it (the change it adds)."""
+    venues = pack_or_exit(pack)
     own_s = {c: own(c, seeds) for c in LADDER}
     for_s = {c: foreign_scores(c, pack, venues) for c in LADDER}
     real_s = {c: real(c, cache) for c in LADDER}
@@ -257,9 +198,9 @@ def main() -> None:
     configs = a.configs.split(",")
     shown = configs + ([] if a.no_paper or "paper" in configs else ["paper"])
     seeds = [int(s) for s in a.seeds.split(",")]
-    venues = foreign.pack_venues(a.pack) if a.pack.is_dir() else []
+    venues = pack_or_exit(a.pack)
     print(f"machine: {machine()}")
-    print(f"own: held-out families, seeds {seeds}; foreign: {', '.join(venues) or 'no pack'}; real: the photo")
+    print(f"own: held-out families, seeds {seeds}; foreign: {', '.join(venues)}; real: the photo")
     own_s = {c: own(c, seeds) for c in shown}
     for_s = {c: foreign_scores(c, a.pack, venues) for c in shown}
     real_s = {c: real(c, a.cache) for c in shown}

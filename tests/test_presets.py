@@ -26,7 +26,7 @@ def test_wide_is_a_venue_option_with_a_record_of_its_own() -> None:
     assert wide["bands"] == [[-20.0, 20.0]] and wide["band_channels"] is None
     assert n_curves(wide) * wide["n_harmonics"] * 4 == 768  # bytes a frame: half-float complex
     assert wide["level_iters"] == 2 and wide["soft_clip_sd"] == 1.25 and wide["gray_world"]
-    # searched as the default searches; a record of the default is refused by it, and back
+    # searched as the default searches, with features of its own: another settings id in every record
     assert all(wide[k] == default[k] for k in ("shared_candidates", "shortlist", "candidates", "aggregate"))
     assert settings_id(wide) not in (settings_id(default), settings_id(resolve("six")))
     with pytest.raises(OmninavError, match="unknown preset"):

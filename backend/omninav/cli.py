@@ -559,7 +559,9 @@ def _table(rows: list[tuple[str, dict[str, Any]]], confident: bool = False) -> s
 @click.option("--eval", "eval_path", required=True, type=click.Path(path_type=Path), help="An evaluation walk (video).")
 @click.option("--eval-track", "eval_track_path", required=True, type=click.Path(path_type=Path), help="Its track.")
 @click.option("--eval-lens", "eval_lens_path", type=click.Path(path_type=Path), help="Its lens (default: --lens).")
-@click.option("--presets", help="Presets to choose among, comma-separated (default: default,wide; a tie: the first).")
+@click.option(
+    "--presets", help="Presets to choose among, comma-separated, the one to keep first (default: default,wide)."
+)
 @click.option("--json", "as_json", is_flag=True, help="Print each preset's summary and the choice as JSON.")
 def choose_preset(
     walk: Path,
@@ -573,26 +575,33 @@ def choose_preset(
 ) -> None:
     """Model WALK with each preset, locate an evaluation walk against each, and say which preset to
     create the building's venue with (nothing is written to the catalogue)."""
-    from .choose import CANDIDATES, check_presets, compare_presets, pick
+    import numpy as np
+
+    from .choose import CANDIDATES, check_presets, compare_presets
     from .lens import load_lens
     from .track import load_track
+    from .video import VideoInfo
 
     asked = [p.strip() for p in presets.split(",") if p.strip()] if presets is not None else list(CANDIDATES)
-    names = check_presets(asked)  # before any work
-    for f in (walk, eval_path):
-        if not f.is_file():
-            raise OmninavError(f"{f}: video not found")
+    names = check_presets(asked)  # every check before the minutes of modelling
+    if walk.resolve() == eval_path.resolve():
+        raise OmninavError("--eval must be another walk than the one modelled: a walk finds itself anywhere")
+    VideoInfo(walk)
+    info = VideoInfo(eval_path)
     track, lens, eval_track = load_track(track_path), load_lens(lens_path), load_track(eval_track_path)
     eval_lens = load_lens(eval_lens_path) if eval_lens_path else lens
+    # the track's times are its frames over its fps, as `evaluate` reads them
+    if not eval_track.pose_at(np.arange(max(info.frames, 1)) / eval_track.fps)[2].any():
+        raise OmninavError(f"{eval_path}: no frame lies within the times of {eval_track_path}")
     say = None if as_json else (lambda m: click.echo(m, err=True))
-    results = compare_presets(walk, track, lens, eval_path, eval_track, eval_lens, names, say)
-    chosen = pick(results)
+    results, chosen = compare_presets(walk, track, lens, eval_path, eval_track, eval_lens, names, say)
     if as_json:
         click.echo(json.dumps({"presets": results, "chosen": chosen}))
         return
     click.echo(_table([(r["preset"], r) for r in results]))
     click.echo(
-        f"chosen: {chosen} (most clips within 2 m of the evaluation walk): omninav venue create VENUE --preset {chosen}"
+        f"chosen: {chosen} (the first unless another places clearly more clips within 2 m): "
+        f"omninav venue create VENUE --preset {chosen}"
     )
 
 

@@ -202,12 +202,10 @@ PRESETS: dict[str, dict[str, Any]] = {
     # A venue option for buildings where the default's narrow bands do not hold (docs/benchmarks.md,
     # "Three sources"): the six curves of "six" with gray world and opponent colours over one wide
     # band, softly clipped and levelled, searched as the default searches. Where along the wall a
-    # row lands moves with the phone's height, its tilt, the user's place across the corridor and
-    # the lens's elevation calibration; a 40-degree band's column means barely move with it, five
-    # 10-degree bands' do. It gives up the narrow bands' hold on look-alike doors (our renderer's
-    # held-out families 95.4 % -> 88-91 % within 2 m) for the foreign pack's venues (73 -> 87 % and
-    # 90 -> 97 %). A building says which it is by an evaluation walk (`omninav evaluate` on a venue
-    # modelled with each): bench/choose.py measures that choice. 768 bytes a frame.
+    # row lands moves with the phone's height, its tilt and the user's place across the corridor;
+    # a 40-degree band's column means barely move with it, five 10-degree bands' do. It gives up
+    # part of the narrow bands' hold on look-alike doors for that. A building's evaluation walk
+    # says which preset it needs (`omninav choose-preset`, choose.py). 768 bytes a frame.
     "wide": {
         "gray_world": True,
         "channels": ["I", "O1", "O2", "dI", "dO1", "dO2"],
