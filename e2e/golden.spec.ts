@@ -31,9 +31,9 @@ test("the browser extracts the engine's records (relative error <= 1e-3) and its
       checked++;
     }
   }
-  // donut-default 3 frames, donut-six 1, equirect-default 1, donut-before-bands 1, donut-tilted 3
-  // (e2e/fixtures.py golden)
-  expect(checked).toBe(9);
+  // donut-default 3 frames, donut-six 1, donut-wide 1, equirect-default 1, donut-before-bands 1,
+  // donut-tilted 3 (e2e/fixtures.py golden)
+  expect(checked).toBe(10);
   expect(r.timing.width).toBe(960);
   test.info().annotations.push({
     type: 'extraction',
