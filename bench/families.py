@@ -105,17 +105,26 @@ def venue_key(tag: str, settings: dict[str, Any]) -> str:
     return f"{tag}-{hashlib.sha1(json.dumps(kept, sort_keys=True).encode()).hexdigest()[:10]}"
 
 
-def cached_venue(root: Path, tag: str, settings: dict[str, Any], lens: str = "model_lens.json") -> Locator:
-    """root's model.mp4 modelled with `settings` into root/bench-data, once per settings: the venue
-    id is `tag` and a hash of what is modelled, so a changed default is another venue, never a
-    stale one (bench/accuracy.py and bench/lens_shift.py cache their venues here too)."""
-    st = Store(root / "bench-data")
+def cached_venue(
+    root: Path,
+    tag: str,
+    settings: dict[str, Any],
+    lens: str = "model_lens.json",
+    track: str = "model_track.json",
+    store: Path | None = None,
+) -> Locator:
+    """root's model.mp4 (walked along root/`track`, through root/`lens`) modelled with `settings`
+    into `store` (default root/bench-data), once per settings: the venue id is `tag` and a hash of
+    what is modelled, so a changed default is another venue, never a stale one (bench/accuracy.py,
+    bench/lens_shift.py and bench/foreign.py cache their venues here too)."""
+    st = Store(store or root / "bench-data")
     vid = venue_key(tag, settings)
     if st.generation(vid) is None:
+        t = time.perf_counter()
         model_video(
-            st, vid, root / "model.mp4", load_track(root / "model_track.json"), load_lens(root / lens),
-            settings=settings,
+            st, vid, root / "model.mp4", load_track(root / track), load_lens(root / lens), settings=settings
         )  # fmt: skip
+        print(f"modelled {root.name} as {vid} in {time.perf_counter() - t:.0f} s", file=sys.stderr, flush=True)
     loc = Locator(st, vid, device="cpu")
     loc.conf.update({k: settings[k] for k in (*CONFIDENCE_KEYS, *SEARCH_KEYS)})
     return loc

@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -31,15 +30,11 @@ from omninav.aggregate import confidence
 from omninav.heading import wrap_deg
 from omninav.lens import load_lens
 from omninav.locate import Locator, clip_frames
-from omninav.model_venue import model_video
-from omninav.presets import resolve
-from omninav.store import Store
-from omninav.track import load_track
 
 sys.path.insert(0, str(Path(__file__).parent))
 from ablation import CONFIGS, elevation_off  # noqa: E402
-from families import CONFIDENCE_KEYS, SEARCH_KEYS, search_tag, settings, venue_key  # noqa: E402
-from scoring import scores, summary  # noqa: E402
+from families import cached_venue, search_tag, settings  # noqa: E402
+from scoring import conf_of, scores, summary  # noqa: E402
 from search_speed import machine  # noqa: E402
 
 PACK = Path(__file__).resolve().parents[1].parent / "shared" / "foreign"
@@ -53,16 +48,8 @@ def pack_venues(pack: Path) -> list[str]:
 def modelled(pack: Path, venue: str, tag: str, conf: dict[str, Any]) -> Locator:
     """The pack venue's walk modelled with `conf` (as `omninav model` does), once per settings."""
     src = pack / venue
-    st = Store(DATA / venue / "bench-data")
-    vid = venue_key(tag, conf)
-    if st.generation(vid) is None:
-        lens = src / ("model_lens.json" if (src / "model_lens.json").is_file() else "lens.json")
-        t = time.perf_counter()
-        model_video(st, vid, src / "model.mp4", load_track(src / "track.json"), load_lens(lens), settings=conf)
-        print(f"modelled {venue} as {vid} in {time.perf_counter() - t:.0f} s", file=sys.stderr, flush=True)
-    loc = Locator(st, vid, device="cpu")
-    loc.conf.update({k: conf[k] for k in (*CONFIDENCE_KEYS, *SEARCH_KEYS)})
-    return loc
+    lens = "model_lens.json" if (src / "model_lens.json").is_file() else "lens.json"
+    return cached_venue(src, tag, conf, lens=lens, track="track.json", store=DATA / venue / "bench-data")
 
 
 def query_spectra(
@@ -149,8 +136,7 @@ def main() -> None:
     print(HEAD)
     out = []
     for config in a.configs.split(","):
-        preset, cover = CONFIGS[config]
-        conf = {**resolve(preset), **cover, **over}
+        conf = {**conf_of(config), **over}
         for venue in venues:
             for elev in (float(e) for e in a.elev.split(",")):
                 s = summary(scores(rows_for(a.pack, venue, config, conf, elev), conf))

@@ -7,7 +7,7 @@ lands: the lens profile (a re-clipped lens, another phone: an elevation offset),
 walls nearer on one side and further on the other: tan(elevation) scaled by 1 / (1 - r sin(phi)),
 phi the azimuth from the walking direction, r the offset as a share of the corridor's half width);
 then the exposure. Each of a walk's 1 s segments (every `--every` seconds) is read through a remap
-with a random draw of all four, levelled as the configuration levels, and searched with its own
+with a random draw of all four (not levelled: the walk is filmed upright), and searched with its own
 frames and their neighbours within the quality map's LEAVE_OUT_M left out (quality.py). The score
 of a configuration is the share within 2 m; the venue would pick the configuration that scores
 best. Measured, not used: it could not tell the configurations apart (docs/decisions.md); a
@@ -29,20 +29,18 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 
 from omninav.aggregate import AGGREGATORS
-from omninav.curves import extract_curves
 from omninav.extract import Extractor
 from omninav.lens import Lens, direction_to_pixel, load_lens
 from omninav.locate import Locator
 from omninav.presets import setting
-from omninav.quality import LEAVE_OUT_M
-from omninav.spectrum import quantise, spectrum
+from omninav.quality import LEAVE_OUT_M, _walked
 from omninav.synth.families import FAMILIES
 from omninav.synth.optics import reexpose
 from omninav.unwarp import UnwarpMap
+from omninav.video import VideoInfo, iter_video
 
 sys.path.insert(0, str(Path(__file__).parent))
 import foreign  # noqa: E402
@@ -73,18 +71,14 @@ def perturbed_map(lens: Lens, base: UnwarpMap, rng: np.random.Generator) -> Unwa
 
 
 def read_frames(video: Path, wanted: set[int]) -> dict[int, np.ndarray]:
-    cap = cv2.VideoCapture(str(video))
+    """The frames of `video` with these indices (BGR), decoded once in order."""
     out: dict[int, np.ndarray] = {}
-    i = 0
     last = max(wanted)
-    while i <= last:
-        ok, f = cap.read()
-        if not ok:
-            break
+    for i, f in iter_video(VideoInfo(video)):
         if i in wanted:
             out[i] = f
-        i += 1
-    cap.release()
+        if i >= last:
+            break
     return out
 
 
@@ -100,7 +94,7 @@ def self_check(
     if not np.array_equal(order, np.arange(len(fr))):
         raise SystemExit("self_check expects one walk's frames in time order")
     xy = loc.xy
-    walked = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    walked = _walked(xy, fr["video"])  # the quality map's path length, a gap between videos
     step = max(n, int(round(every_s * conf["model_fps"])))
     segs = [np.arange(s, s + n) for s in range(0, len(fr) - n + 1, step)]
     frames = read_frames(video, {int(fr["frame"][r]) for s in segs for r in s})
@@ -117,10 +111,9 @@ def self_check(
         spec = []
         for r in s:
             rgb = reexpose(frames[int(fr["frame"][r])][..., ::-1].copy(), gain=gain, wb=wb, jpeg=80)
-            # the modelling walk is filmed upright: its frames are not levelled again here
-            pano = cv2.remap(rgb, m.map_x, m.map_y, cv2.INTER_LINEAR, borderMode=m.border)
-            curves = extract_curves(pano, ext.map.elevations, conf, m.valid)
-            spec.append(quantise(spectrum(curves, conf["n_harmonics"])))
+            # read through the perturbed map itself: the modelling walk is filmed upright, so its
+            # frames are not levelled again here
+            spec.append(ext.spectrum(np.ascontiguousarray(rgb[..., ::-1]), m))
         q = np.stack(spec)
         lo = np.searchsorted(walked, walked[s] - leave_m, side="left")
         hi = np.searchsorted(walked, walked[s] + leave_m, side="right")

@@ -30,6 +30,7 @@ photo's eight turns, or a heading error 0.5 degrees worse.
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import sys
 from pathlib import Path
@@ -40,6 +41,7 @@ import numpy as np
 
 from omninav.extract import Extractor
 from omninav.heading import relative_heading, wrap_deg
+from omninav.lens import Catadioptric
 from omninav.synth.families import FAMILIES
 from omninav.synth.optics import reexpose
 
@@ -82,27 +84,34 @@ def turned(rgb: np.ndarray, centre: tuple[float, float], deg: float) -> np.ndarr
     return out
 
 
+@functools.cache
+def shots(cache: Path) -> tuple[np.ndarray, Catadioptric, list[np.ndarray]]:
+    """The photo (RGB), its lens, and the photo turned by each of TURNS and re-exposed (BGR, as
+    the extractor reads frames): made once for every configuration."""
+    rgb, lens, _, _ = real_photo(cache)
+    turns = [
+        np.ascontiguousarray(reexpose(turned(rgb, lens.center, deg), rng=np.random.default_rng(i), **SHOT)[..., ::-1])
+        for i, deg in enumerate(TURNS)
+    ]
+    return rgb, lens, turns
+
+
 def real(config: str, cache: Path) -> dict[str, Any]:
     """The photo against itself: through a lens 2 degrees off in elevation, another exposure, and
     turned; mean verification score of each (the spread over TURNS: the noise) and the heading
     error of the turned ones."""
-    rgb, lens, _, _ = real_photo(cache)
+    rgb, lens, turns = shots(cache)
     conf = conf_of(config)
     ref = Extractor(lens, conf).spectrum(rgb[..., ::-1].copy())
     n = max(64, 8 * ref.shape[-1])
     out: dict[str, Any] = {}
     for label, el in (("elev -2°", -2.0), ("elev +2°", 2.0)):
         ext = Extractor(elevation_off(lens, el), conf)
-        per = []
-        for i, deg in enumerate(TURNS):
-            shot = reexpose(turned(rgb, lens.center, deg), rng=np.random.default_rng(i), **SHOT)
-            per.append(relative_heading(ext.spectrum(shot[..., ::-1].copy()), ref, n_shifts=n))
-        out[label] = np.array([float(v) for _, v in per])
+        out[label] = np.array([float(relative_heading(ext.spectrum(s), ref, n_shifts=n)[1]) for s in turns])
     ext = Extractor(lens, conf)
     res, herr = [], []
-    for i, deg in enumerate(TURNS):
-        shot = reexpose(turned(rgb, lens.center, deg), rng=np.random.default_rng(i), **SHOT)
-        rel, val = relative_heading(ext.spectrum(shot[..., ::-1].copy()), ref, n_shifts=n)
+    for deg, shot in zip(TURNS, turns, strict=True):
+        rel, val = relative_heading(ext.spectrum(shot), ref, n_shifts=n)
         res.append(float(val))
         # turned() turns the picture counter-clockwise: through a lens whose azimuths run
         # counter-clockwise the phone has turned by -deg (clockwise headings), else by +deg
