@@ -723,7 +723,7 @@ def serve(
     demo: str | None,
 ) -> None:
     """Run the server: the API and the web app (gunicorn, several workers). Each option overrides
-    its setting (omninav.cfg, OMNINAV_*; README "Settings")."""
+    its setting (omninav.cfg, OMNINAV_*; docs/operations.md, "Settings")."""
     from .server.serve import default_workers
     from .server.serve import serve as run
 

@@ -3,7 +3,7 @@
 
 Every key below can be set from the environment as OMNINAV_<KEY> (e.g. OMNINAV_LOCATE_RATE=20) or
 in omninav.cfg as `KEY = value` (Python syntax); an environment value is parsed as the type of its
-default. The README's "Settings" table lists them.
+default. The "Settings" table of docs/operations.md lists them.
 """
 
 from __future__ import annotations

@@ -117,7 +117,7 @@ def serve(
         ssl_ctx = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
         ssl_ctx.load_cert_chain(cert, key)
         if made:
-            echo(f"made a self-signed certificate: {cert} (see the README to trust it on a phone)")
+            echo(f"made a self-signed certificate: {cert} (docs/app.md says how to trust it on a phone)")
         urls = [f"{scheme}://{ip}:{port}/" for ip in lan_addresses()]
     else:
         shown = "localhost" if host in ("127.0.0.1", "0.0.0.0") else host

@@ -3,7 +3,7 @@
  * stops the camera and slows the page's timers, and guidance would go quiet. The browser drops
  * the lock whenever the page is hidden (another app, the power button), so it is asked for again
  * each time the page comes back while it is still wanted. Where the API is missing or refuses,
- * `hold()` says so and the user keeps the screen on themselves (README, "Going to a place").
+ * `hold()` says so and the user keeps the screen on themselves (docs/app.md, "Going to a place").
  */
 
 /** The part of a WakeLockSentinel used here (a fake in tests). */
