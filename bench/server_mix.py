@@ -11,8 +11,9 @@ run, each `--seconds` long (latency counts from each request's scheduled send ti
        Content-Range pieces at full speed (again and again) and a modelling job runs (the demo
        venue's real walk, registered under several names, so it models real frames for the whole
        phase); the job's frames/s over the phase;
-  (c)  the mix with 50 slow clients (a locate head, then its body one byte a second) and 50 idle
-       connections (nothing sent) held open: each reconnects as soon as the server drops it;
+  (c)  the mix with 50 slow clients (a locate head, then its body one byte a second), 50 idle
+       connections (nothing sent) held open, each reconnecting as soon as the server drops it, and
+       8 job-event streams of the admin page (`--streams`) open on a job held queued;
   (a') the mix alone again: the noise band of (a), and (c)'s neighbour in time.
 
 `--tracked` makes the phones what the app's phones are since tracking (issue 14): in "Keep telling
@@ -23,11 +24,15 @@ The presses stay plain 1 s clips. A first phase, (p), runs the plain mix of befo
 server, as the baseline of the same run. What it does not imitate: every phone sends the same
 clip (it never moves, while its steps say it walks), and no phone ever turns.
 
-All requests come from 127.0.0.1, so the per-client locate limit is off (OMNINAV_LOCATE_RATE=0):
-with it on, one address at 53 locates/s would be refused. The client runs on the same machine.
+Every phone connects from a loopback address of its own (127.1.x.y), each press from another
+(127.2.x.y), the slow and idle clients from ten addresses each (127.3.x.y, 127.4.x.y), as phones on
+a building's Wi-Fi have addresses of their own: nginx limits requests in progress per address
+(CLIENT_REQUESTS). The per-client locate limit is off (OMNINAV_LOCATE_RATE=0): a phone's tracked
+requests stay under it, but the presses' addresses are reused across phases. The client runs on the
+same machine.
 
     python bench/server_mix.py [--seconds 40] [--phones 100] [--presses 20] [--slow 50] [--idle 50]
-                               [--tracked [--period 4] [--guided 20]]
+                               [--streams 8] [--tracked [--period 4] [--guided 20]]
 """
 
 from __future__ import annotations
@@ -96,6 +101,15 @@ class Record:
             self.failures[why] += 1
 
 
+def address(group: int, i: int) -> str:
+    """The i-th loopback address of a group of clients (Linux routes all of 127/8 to loopback)."""
+    return f"127.{group}.{i // 250}.{i % 250 + 1}"
+
+
+def connect(port: int, source: str, timeout: float = 30) -> http.client.HTTPConnection:
+    return http.client.HTTPConnection("127.0.0.1", port, timeout=timeout, source_address=(source, 0))
+
+
 def _locate(c: http.client.HTTPConnection, body: bytes, close: bool = False, query: str = "") -> tuple[int, bytes]:
     headers = {"Content-Type": "application/octet-stream"}
     if close:
@@ -121,11 +135,13 @@ def _sleep_until(due: float) -> None:
         time.sleep(wait)
 
 
-def _phone(port: int, bodies: list[bytes], dues: list[float], rec: Record, session: str = "", to: str = "") -> None:
-    """One phone in continuous mode: its own keep-alive connection, a locate at each due time.
-    With a `session`, it tracks (the app's "Keep telling me", or guided `to` a place): `t` is its
-    clock; the first request sends bodies[0], the rest bodies[-1]."""
-    c = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+def _phone(
+    port: int, source: str, bodies: list[bytes], dues: list[float], rec: Record, session: str = "", to: str = ""
+) -> None:
+    """One phone in continuous mode: its own address and keep-alive connection, a locate at each
+    due time. With a `session`, it tracks (the app's "Keep telling me", or guided `to` a place): `t`
+    is its clock; the first request sends bodies[0], the rest bodies[-1]."""
+    c = connect(port, source)
     for k, due in enumerate(dues):
         _sleep_until(due)
         query = ""
@@ -152,7 +168,7 @@ def _presser(port: int, body: bytes, dues: list[float], nxt: list[int], lock: th
         if i >= len(dues):
             return
         _sleep_until(dues[i])
-        c = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+        c = connect(port, address(2, i % 5000))
         try:
             rec.done(dues[i], _locate(c, body, close=True))
         except (OSError, http.client.HTTPException) as e:
@@ -182,11 +198,15 @@ def run_mix(port: int, b: Bodies, a: argparse.Namespace, seed: int) -> dict[str,
     keep = [b.one, b.two] if b.tracked else [b.one]
     run = f"{RUN}-{seed}"
     ts = [
-        threading.Thread(target=_phone, args=(port, keep, d, rec, f"{run}-keep-{i:04d}" if b.tracked else ""))
+        threading.Thread(
+            target=_phone, args=(port, address(1, i), keep, d, rec, f"{run}-keep-{i:04d}" if b.tracked else "")
+        )
         for i, d in enumerate(phones)
     ]
     ts += [
-        threading.Thread(target=_phone, args=(port, [b.two], d, rec, f"{run}-guided-{i:04d}", GOAL))
+        threading.Thread(
+            target=_phone, args=(port, address(1, len(phones) + i), [b.two], d, rec, f"{run}-guided-{i:04d}", GOAL)
+        )
         for i, d in enumerate(guided)
     ]
     ts += [threading.Thread(target=_presser, args=(port, b.one, presses, nxt, lock, rec)) for _ in range(8)]
@@ -222,13 +242,19 @@ class Admin:
         h = {**AUTH, **(headers or {})}
         if isinstance(body, dict | list):
             body, h["Content-Type"] = json.dumps(body).encode(), "application/json"
-        try:
-            self.c.request(method, path, body=body, headers=h)
-            r = self.c.getresponse()
-            raw = r.read()
-        except (OSError, http.client.HTTPException):
-            self.c.close()
-            raise
+        for again in (True, False):
+            try:
+                self.c.request(method, path, body=body, headers=h)
+                r = self.c.getresponse()
+                raw = r.read()
+                break
+            except (http.client.RemoteDisconnected, BrokenPipeError, ConnectionResetError):
+                self.c.close()  # a kept-alive connection the server closed while it sat idle: once more
+                if not again:
+                    raise
+            except (OSError, http.client.HTTPException):
+                self.c.close()
+                raise
         self.status = r.status
         doc = json.loads(raw) if raw else {}
         if r.status not in ok:
@@ -417,6 +443,10 @@ class SlowClients:
         self.threads += [threading.Thread(target=self._client, args=(False, k), daemon=True) for k in range(idle)]
         self.threads.append(threading.Thread(target=self._count, daemon=True))
 
+    @staticmethod
+    def source(slow: bool, k: int) -> str:
+        return address(3 if slow else 4, k % 10)  # ten addresses each: five connections an address
+
     def start(self) -> None:
         for t in self.threads:
             t.start()
@@ -434,7 +464,7 @@ class SlowClients:
         self.stop.wait(k / 50)  # spread the starts over a second or two
         while not self.stop.is_set():
             try:
-                s = socket.create_connection(("127.0.0.1", self.port), timeout=5)
+                s = socket.create_connection(("127.0.0.1", self.port), 5, (self.source(slow, k), 0))
             except OSError as e:
                 with self.lock:
                     self.answers[f"connect: {type(e).__name__}"] += 1
@@ -468,6 +498,80 @@ class SlowClients:
         return None
 
 
+# ---- the admin page's job-event streams -----------------------------------------------------------
+def held_job(data: Path, venue: str) -> str:
+    """A quality job on `venue` that the job runner leaves queued for an hour (its not_before ahead,
+    as a retry's backoff sets it), written straight into the server's database: streams on it stay
+    open with no modelling running. -> its id (cancelled through the API afterwards)."""
+    from omninav.catalog.db import Db
+    from omninav.config import database_url
+
+    job = f"held{os.getpid():x}"
+    db = Db(database_url({"DATA": str(data), "DATABASE_URL": ""}))
+    db.run("DELETE FROM jobs WHERE venue = :v AND id LIKE 'held%' AND state = 'queued'", v=venue)  # a run cut short
+    db.run(
+        "INSERT INTO jobs (id, venue, videos, state, created, kind, not_before) "
+        "VALUES (:id, :v, '[]', 'queued', :t, 'quality', :nb)",
+        id=job, v=venue, t=time.time(), nb=time.time() + 3600,
+    )  # fmt: skip
+    db.engine.dispose()
+    return job
+
+
+class EventStreams:
+    """`n` job-event streams as the admin page opens them (the token in a header, one connection
+    each, from the admin's one address), on one job: each reads what the server sends and opens
+    again when the server ends it."""
+
+    def __init__(self, port: int, job: str, n: int):
+        self.port = port
+        self.head = (
+            f"GET /api/admin/jobs/{job}/events HTTP/1.1\r\nHost: 127.0.0.1\r\nAccept: text/event-stream\r\n"
+            f"Authorization: {AUTH['Authorization']}\r\n\r\n"
+        ).encode()
+        self.stop = threading.Event()
+        self.lock = threading.Lock()
+        self.answers: Counter[str] = Counter()  # the status line of each stream's answer
+        self.open = 0
+        self.counts: list[int] = []
+        self.threads = [threading.Thread(target=self._stream, daemon=True) for _ in range(n)]
+        self.threads.append(threading.Thread(target=self._count, daemon=True))
+
+    def start(self) -> None:
+        for t in self.threads:
+            t.start()
+
+    def finish(self) -> None:
+        self.stop.set()
+        for t in self.threads:
+            t.join()
+
+    def _count(self) -> None:
+        while not self.stop.wait(0.5):
+            self.counts.append(self.open)
+
+    def _stream(self) -> None:
+        while not self.stop.is_set():
+            try:
+                with socket.create_connection(("127.0.0.1", self.port), timeout=5) as s:
+                    s.sendall(self.head)
+                    first = s.recv(4096)
+                    with self.lock:
+                        self.answers[first.split(b"\r\n", 1)[0].decode("latin-1")[9:]] += 1
+                        self.open += 1
+                    try:
+                        while not self.stop.is_set():
+                            if select.select([s], [], [], 1.0)[0] and not s.recv(4096):
+                                break
+                    finally:
+                        with self.lock:
+                            self.open -= 1
+            except OSError as e:
+                with self.lock:
+                    self.answers[type(e).__name__] += 1
+                self.stop.wait(0.5)
+
+
 # ---- the run ------------------------------------------------------------------------------------
 def process_children() -> dict[int, list[int]]:
     """pid -> its children, of every process (Linux /proc)."""
@@ -490,31 +594,41 @@ def cpu_s(pid: int) -> float:
     return (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def cpu_by_role(front: int) -> dict[str, float]:
-    """CPU seconds used so far by the server's front, its gunicorn workers (arbiter and workers) and
-    its job runner, and by this client (Linux /proc; a process that ended is not counted)."""
+def roles(server: int) -> dict[str, list[int]]:
+    """The server's processes by role (the children of `omninav serve`): nginx (master and worker),
+    the app's gunicorn (arbiter and workers), the events gunicorn (arbiter and worker), and the rest,
+    the job runner. The two gunicorns are told apart by start order: serve starts the app's first."""
     kids = process_children()
-    arbiters, others = _front_children(front, kids)
+    mine = sorted(kids.get(server, []))
+    nginx = [p for p in mine if _comm(p) == "nginx"]
+    pools = [p for p in mine if p not in nginx and kids.get(p)]
     return {
-        "front": cpu_s(front),
-        "workers": sum((cpu_s(c) + sum(cpu_s(w) for w in kids[c]) for c in arbiters), 0.0),
-        "job runner": sum((cpu_s(c) for c in others), 0.0),
+        "nginx": [q for p in nginx for q in (p, *kids.get(p, []))],
+        "workers": [pools[0], *kids[pools[0]]] if pools else [],
+        "events": [pools[1], *kids[pools[1]]] if len(pools) > 1 else [],
+        "job runner": [p for p in mine if p not in nginx and p not in pools],
+    }
+
+
+def _comm(pid: int) -> str:
+    try:
+        return (Path("/proc") / str(pid) / "comm").read_text().strip()
+    except OSError:
+        return ""
+
+
+def cpu_by_role(server: int) -> dict[str, float]:
+    """CPU seconds used so far by each role of the server's processes, and by this client (Linux
+    /proc; a process that ended is not counted)."""
+    return {
+        **{role: sum(map(cpu_s, pids), 0.0) for role, pids in roles(server).items()},
         "client": cpu_s(os.getpid()),
     }
 
 
-def _front_children(front: int, kids: dict[int, list[int]]) -> tuple[list[int], list[int]]:
-    """The front's children: the gunicorn arbiter, which has the workers under it, and the rest
-    (the job runner has no children)."""
-    mine = kids.get(front, [])
-    return [c for c in mine if kids.get(c)], [c for c in mine if not kids.get(c)]
-
-
-def gunicorn_workers(front: int) -> list[int]:
-    """The server's gunicorn workers: the children of the arbiter; [] until it has forked them."""
-    kids = process_children()
-    arbiters, _ = _front_children(front, kids)
-    return sorted(kids[arbiters[0]]) if arbiters else []
+def gunicorn_workers(server: int) -> list[int]:
+    """The server's app workers: the children of the app's gunicorn arbiter; [] until it has forked them."""
+    return sorted(roles(server)["workers"][1:])
 
 
 def descendants(pid: int) -> list[int]:
@@ -552,6 +666,7 @@ def main() -> None:
     ap.add_argument("--presses", type=float, default=20.0, help="presses per second")
     ap.add_argument("--slow", type=int, default=50, help="clients trickling a body at one byte a second")
     ap.add_argument("--idle", type=int, default=50, help="connections that send nothing")
+    ap.add_argument("--streams", type=int, default=8, help="job-event streams of the admin page open in (c)")
     ap.add_argument("--upload-minutes", type=float, default=10.0, help="length of the uploaded video")
     ap.add_argument("--workers", type=int, default=None, help="server worker processes (default: as npm start)")
     a = ap.parse_args()
@@ -580,7 +695,7 @@ def main() -> None:
             + (f" + {mix.guided} guided phones, a 2 s record every {GUIDED_PERIOD:g} s" if mix.guided else "")
             + f" + {a.presses:g} presses/s (Poisson, new connection each) = {rate:.1f} locates/s; records "
             f"{len(record)} bytes (1 s), {len(mix.two)} bytes (2 s), against 8,000 frames; {a.seconds:g} s per "
-            "phase; OMNINAV_LOCATE_RATE=0 (one client address)"
+            "phase; a loopback address per phone; OMNINAV_LOCATE_RATE=0"
         )
         res: dict[str, Any] = {}
         cpu = {"start": cpu_by_role(srv.pid)}
@@ -610,12 +725,17 @@ def main() -> None:
         fps = job.frames_between(t0, t1) / (t1 - t0)
 
         slow = SlowClients(port, a.slow, a.idle)
+        held_id = held_job(REPO / "data" / "bench-server", "bench8k")
+        streams = EventStreams(port, held_id, a.streams)
         slow.start()
+        streams.start()
         time.sleep(2.0)  # all connected
         cpu["c0"] = cpu_by_role(srv.pid)
         res["c"] = run_mix(port, mix, a, seed=3)
         cpu["c"] = cpu_by_role(srv.pid)
         slow.finish()
+        streams.finish()
+        adm.call("POST", f"/api/admin/jobs/{held_id}/cancel", ok=(202, 409))
         res["a2"] = run_mix(port, mix, a, seed=4)
         cpu["a2"] = cpu_by_role(srv.pid)
 
@@ -625,7 +745,7 @@ def main() -> None:
             print(line("(p) the plain mix of before", res["p"]))
         print(line("(a) mix alone", res["a"]))
         print(line("(b) mix + upload + job", res["b"]))
-        print(line(f"(c) mix + {a.slow} slow + {a.idle} idle", res["c"]))
+        print(line(f"(c) + {a.slow} slow, {a.idle} idle, {a.streams} streams", res["c"]))
         print(line("(a') mix alone, again", res["a2"]))
         print(
             f"(b) modelling job: {fps:.1f} frames/s over the phase ({job.jobs} job(s) of {len(walks)} x 1,501 frames"
@@ -639,6 +759,10 @@ def main() -> None:
             f"(c) connections held open: {np.mean(slow.counts):.0f} on average (min {min(slow.counts)}) of "
             f"{a.slow + a.idle}; the server ended {len(slow.held)}, after {np.median(held):.1f} s median: "
             + ", ".join(f"{k} x{v}" for k, v in sorted(slow.answers.items()))
+        )
+        print(
+            f"(c) job-event streams open: {np.mean(streams.counts):.1f} on average (min {min(streams.counts)}) of "
+            f"{a.streams}; answers: " + ", ".join(f"{k} x{v}" for k, v in sorted(streams.answers.items()))
         )
         print("CPU used, in cores (CPU seconds per second of the phase):")
         phases = [("a", "(a)", "start"), ("b", "(b)", "b0"), ("c", "(c)", "c0"), ("a2", "(a')", "c")]

@@ -158,10 +158,10 @@ def status(pid: int, key: str) -> int:
     return 0
 
 
-def snapshot(front: int, data: Path) -> dict[int, dict[str, int]]:
+def snapshot(server: int, data: Path) -> dict[int, dict[str, int]]:
     """pid -> Rss, Pss, Anonymous, map_rss, map_pss, VmHWM (kB) of every process of the server."""
     out = {}
-    for pid in descendants(front):
+    for pid in descendants(server):
         try:
             out[pid] = {**rollup(pid), **venue_maps(pid, data), "VmHWM": status(pid, "VmHWM")}
         except OSError:  # a process that ended meanwhile
@@ -177,9 +177,9 @@ def serve(data: Path, nworkers: int, warm: bool) -> ServeProcess:
     return ServeProcess(data, "--demo", "none", "--workers", str(nworkers), env=env, timeout=120.0)
 
 
-def wait_workers(front: int, n: int, timeout: float = 60.0) -> list[int]:
+def wait_workers(server: int, n: int, timeout: float = 60.0) -> list[int]:
     deadline = time.monotonic() + timeout
-    while len(ws := gunicorn_workers(front)) < n:
+    while len(ws := gunicorn_workers(server)) < n:
         if time.monotonic() > deadline:
             raise RuntimeError(f"{n} workers did not start within {timeout:g} s (found {ws})")
         time.sleep(0.2)

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Sets up everything omninav needs on a fresh machine, idempotently: a Python venv with the
-# engine installed (editable) and its dev tools. Re-runs are cheap: a stamp of the inputs skips pip.
+# engine installed (editable) and its dev tools, nginx (scripts/nginx.sh), the npm packages and the
+# built web app. Re-runs are cheap: stamps of the inputs skip what has not changed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -26,6 +27,8 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   fi
   echo "$want" > "$stamp"
 fi
+
+bash scripts/nginx.sh  # omninav serve's front
 
 # The web app: npm packages (one install at the root: the web/ workspace and the e2e tools), then
 # the PWA built into web/dist, which the server serves at /. Stamps skip both when nothing changed.

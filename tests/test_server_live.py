@@ -215,18 +215,23 @@ def test_a_tracking_session_continues_on_every_worker_and_across_a_restart(venue
         srv.kill()
 
 
-def test_https_with_a_self_signed_certificate_for_the_lan(venue_data):
-    srv = Server(venue_data, "--https")
+def test_https_with_a_certificate_from_the_local_authority(venue_data):
+    srv = Server(venue_data, "--https")  # srv.ctx trusts data/tls/ca.pem only, as a phone does
     try:
         st, h = srv.call("GET", "/api/health")
         assert st == 200 and h["status"] == "ok" and srv.base.startswith("https://")
-        with pytest.raises(urllib.error.URLError):  # the certificate is not trusted by default
+        with pytest.raises(urllib.error.URLError):  # the authority is not trusted by default
             urllib.request.urlopen(srv.base + "/api/health", timeout=10, context=ssl.create_default_context())
         from cryptography import x509
 
-        cert = x509.load_pem_x509_certificate((venue_data / "tls" / "cert.pem").read_bytes())
-        san = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
-        assert "localhost" in san.get_values_for_type(x509.DNSName)
+        from omninav.server.tls import issued_by, san_hosts
+
+        ca_pem = (venue_data / "tls" / "ca.pem").read_bytes()
+        st, body = srv.call("GET", "/ca.pem")  # what the phone downloads to trust
+        assert st == 200 and body == ca_pem
+        leaf = x509.load_pem_x509_certificate((venue_data / "tls" / "cert.pem").read_bytes())  # the chain's first
+        assert issued_by(leaf, x509.load_pem_x509_certificate(ca_pem))
+        assert {"localhost", "127.0.0.1"} <= san_hosts(leaf)
     finally:
         srv.kill()
 

@@ -704,7 +704,7 @@ def _server_conf(ctx: click.Context, **options: Any) -> dict[str, Any]:
 @cli.command()
 @click.option("--host", help="Address to listen on (HOST; default 127.0.0.1, every interface with --https).")
 @click.option("--port", type=click.IntRange(1, 65535), help="Port (PORT; default 8000).")
-@click.option("--https", is_flag=True, default=None, help="HTTPS on the LAN, self-signed certificate (HTTPS).")
+@click.option("--https", is_flag=True, default=None, help="HTTPS on the LAN, certificate from a local CA (HTTPS).")
 @click.option("--workers", type=click.IntRange(1, 64), help="Worker processes (WORKERS; default: cores + 1).")
 @click.option("--threads", type=click.IntRange(1, 256), help="Threads per worker (THREADS; default 4).")
 @click.option(

@@ -20,7 +20,7 @@ DEFAULTS: dict[str, Any] = {
     "DATA": "data",  # feature files, uploads, floor plans, the SQLite database (relative: to the working folder)
     "HOST": "",  # omninav serve's address; empty: 127.0.0.1, or every interface (0.0.0.0) with HTTPS
     "PORT": 8000,  # and its port
-    "HTTPS": False,  # serve HTTPS on the LAN with a self-signed certificate (phones need it for the camera)
+    "HTTPS": False,  # serve HTTPS on the LAN, from a local certificate authority (phones need it for the camera)
     "WORKERS": 0,  # worker processes; 0: one per core plus one
     "THREADS": 4,  # threads per worker process
     "DEMO": "full",  # the demo venue set up on first start: full, quick or none
@@ -29,10 +29,13 @@ DEFAULTS: dict[str, Any] = {
     "MAX_CONTENT_LENGTH": 32 * 1024 * 1024,  # any request body but a video upload
     "MAX_UPLOAD_BYTES": 16 * 1024**3,  # one modelling video
     "MAX_LOCATE_FRAMES": 60,  # frames in one locate request (records or images)
-    "LOCATE_RATE": 10.0,  # sustained locate requests per second per client (the whole server: front.py)
+    "LOCATE_RATE": 10.0,  # sustained locate requests per second per client (the whole server: nginx's limit)
     "LOCATE_BURST": 30,  # and the burst it allows
     "TRUST_PROXY": False,  # behind another reverse proxy: the client is the last X-Forwarded-For entry
-    "FRONT_TIMEOUT_S": 10.0,  # TLS handshake, request head, a pause in a body: longer and the front hangs up
+    "FRONT_TIMEOUT_S": 10.0,  # TLS handshake, request head, a pause in a body: longer and nginx hangs up
+    "CLIENT_REQUESTS": 16,  # requests of one client address in progress at once (more: 503)
+    "EVENT_STREAMS": 8,  # job progress streams open at once (more: 503, and the admin page polls)
+    "NGINX": "",  # the nginx binary omninav serve runs in front; empty: nginx on PATH or in /usr/sbin
     "LOW_CONFIDENCE": 0.5,  # below it, the spoken answer says 'not sure' instead of a place
     "JOB_RUNNER": True,  # run modelling jobs in this process's background thread
     "JOB_STALE_S": 30.0,  # a running job with no heartbeat for this long died with its server

@@ -2,7 +2,7 @@
 
 The live tests (tests/), the benchmarks (bench/) and anyone scripting against a running server all
 need the same thing: start the command `npm start` runs on a data directory, wait until it answers
-`/api/health`, and later stop every process it made (front, gunicorn arbiter and workers, job
+`/api/health`, and later stop every process it made (nginx, gunicorn arbiters and workers, job
 runner). It lives in the package, rather than in tests/ or bench/, because the package is installed
 (editable) into `.venv`, so pytest and `.venv/bin/python bench/x.py` both import it with no
 `sys.path` edits; it is not part of the server (nothing under `omninav.server` imports it) and uses
@@ -99,13 +99,14 @@ class ServeProcess:
 
     @property
     def pid(self) -> int:
-        """The `omninav serve` process (the front); also the id of the server's process group."""
+        """The `omninav serve` process (it watches the rest); also the id of the server's process group."""
         return self.proc.pid
 
     @property
     def ctx(self) -> ssl.SSLContext | None:
-        """For https: trust exactly the certificate the server made (it exists once the server listens)."""
-        return ssl.create_default_context(cafile=str(self.data / "tls" / "cert.pem")) if self.https else None
+        """For https: trust exactly the local authority that issued the server's certificate, as a
+        phone does (it exists once the server listens)."""
+        return ssl.create_default_context(cafile=str(self.data / "tls" / "ca.pem")) if self.https else None
 
     def log_text(self) -> str:
         """What the server has written so far (stdout and stderr)."""

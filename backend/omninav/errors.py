@@ -2,8 +2,8 @@
 
 OmninavError is for everything a user can get wrong; the CLI prints its message as one line, never
 a traceback. Its subclasses say what kind of wrong it is (nothing there, in the way, unusable,
-too large, changed meanwhile, no room), so that the server's blueprints alone turn them into HTTP status codes
-(server/http.py): the catalogue and the engine know nothing of HTTP.
+too large, changed meanwhile, no room, busy), so that the server's blueprints alone turn them into
+HTTP status codes (server/http.py): the catalogue and the engine know nothing of HTTP.
 """
 
 from __future__ import annotations
@@ -52,6 +52,11 @@ class Stale(OmninavError):
 
 class NoRoom(OmninavError):
     """The disk is full: nothing was lost, and the same request succeeds once there is room."""
+
+
+class Busy(OmninavError):
+    """This process does as much of this work at once as it may: nothing was done, and the same
+    request succeeds in a moment (`retry_after_s` in its details)."""
 
 
 def read_json(path: str | Path, what: str) -> Any:

@@ -306,7 +306,8 @@ class Videos:
 
     def frame(self, venue_id: str, name: str, t: float, view: str, width: int | None) -> bytes:
         """The video's frame at t seconds as a JPEG: as filmed ('raw') or unwrapped with the
-        video's lens ('panorama'). Conflict while the video is not uploaded."""
+        video's lens ('panorama'). Conflict while the video is not uploaded; Busy while this
+        process makes other previews (preview.py)."""
         v = self.get(venue_id, name)
         path = self.dir(venue_id) / v["name"]
         if v["status"] == "uploading" or not path.is_file():

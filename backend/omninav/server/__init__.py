@@ -9,6 +9,7 @@ share the database and the memory-mapped feature files (serve.py runs several su
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -31,6 +32,7 @@ class Services:
     jobs: Jobs
     runtimes: Runtimes
     limiter: RateLimiter
+    streams: threading.BoundedSemaphore  # job-event streams open now (admin_api.job_events)
 
 
 def create_app(overrides: dict[str, Any] | None = None) -> Flask:
@@ -50,6 +52,7 @@ def create_app(overrides: dict[str, Any] | None = None) -> Flask:
         jobs,
         Runtimes(catalog, conf["VENUE_CACHE_S"], device, warm=conf["WARM_VENUES"]),
         RateLimiter(conf["LOCATE_RATE"], conf["LOCATE_BURST"]),
+        threading.BoundedSemaphore(conf["EVENT_STREAMS"]),
     )
     install_error_handlers(app)
 
@@ -61,6 +64,18 @@ def create_app(overrides: dict[str, Any] | None = None) -> Flask:
             raise ApiError(413, f"request body too large: {n} bytes (the limit here is {limit})")
 
     @app.after_request
+    def _read_what_was_refused(resp: Any) -> Any:
+        """A body refused before it was read (a record too long for its frames: 413) is read and
+        dropped before the answer goes: closing on unread bytes resets the connection, and nginx
+        answers 502 for the app's 413. The body is within MAX_CONTENT_LENGTH (nginx saw to that)
+        and waits whole on nginx's side; a video upload is streamed, so it is left alone."""
+        n = request.content_length
+        if n and n <= conf["MAX_CONTENT_LENGTH"] and request.endpoint != "admin.upload_content":
+            while request.stream.read(1 << 16):
+                pass
+        return resp
+
+    @app.after_request
     def _security_headers(resp: Any) -> Any:
         h = resp.headers
         h.setdefault("Content-Security-Policy", CSP)
@@ -68,7 +83,7 @@ def create_app(overrides: dict[str, Any] | None = None) -> Flask:
         h.setdefault("Referrer-Policy", "no-referrer")
         h.setdefault("X-Frame-Options", "DENY")
         h.setdefault("Permissions-Policy", "camera=(self), microphone=(), geolocation=()")
-        # the front says whether the client came over TLS (it terminates it; no client reaches us directly)
+        # nginx says whether the client came over TLS (it terminates it; no client reaches us directly)
         if request.is_secure or request.headers.get("X-Forwarded-Proto") == "https":
             h.setdefault("Strict-Transport-Security", "max-age=31536000")
         return resp

@@ -20,7 +20,7 @@ from flask import Blueprint, Response, current_app, g, jsonify, request
 
 from ..catalog import Catalog
 from ..catalog.venues import begin_write, end_write
-from ..errors import OmninavError, is_finite_number
+from ..errors import Busy, OmninavError, is_finite_number
 from ..presets import settings_id
 from .auth import require_admin
 from .http import ApiError, json_body, str_field
@@ -320,28 +320,49 @@ def cancel_job(job_id: str) -> Any:
     return resp
 
 
+@bp.get("/token")
+def check_token() -> Any:
+    """204: the token is right (require_admin checked it). nginx asks this before it reads the body
+    of an admin request (server/nginx.py), so a request without the token costs no upload."""
+    return Response(status=204)
+
+
+HEARTBEAT_S = 2.0  # a comment on a quiet stream: a client gone is noticed, and its thread let go, this soon
+
+
 @bp.get("/jobs/<job_id>/events")
 def job_events(job_id: str) -> Any:
-    """Server-sent events: 'progress' while it runs, then one of 'done', 'failed', 'cancelled'."""
-    jobs = _svc().jobs
-    jobs.get(job_id)  # 404 before the stream starts
+    """Server-sent events: 'progress' while it runs, then one of 'done', 'failed', 'cancelled'.
+
+    Each open stream holds a thread (of the events worker under `omninav serve`), so a process
+    serves at most EVENT_STREAMS at once: another gets 503, and the admin page reads the job
+    instead. The count is the app's, after the token check: a client without the token takes none."""
+    svc = _svc()
+    svc.jobs.get(job_id)  # 404 before the stream starts
+    if not svc.streams.acquire(blocking=False):
+        raise Busy(
+            f"at most {current_app.config['EVENT_STREAMS']} job-event streams at once: read the job instead",
+            retry_after_s=2,
+        )
 
     def stream() -> Any:
         last = None
         quiet = time.monotonic()
         while True:
-            doc = job_doc(jobs.get(job_id))
+            doc = job_doc(svc.jobs.get(job_id))
             if doc != last:
                 final = doc["state"] in FINAL
                 yield f"event: {doc['state'] if final else 'progress'}\ndata: {json.dumps(doc)}\n\n"
                 last, quiet = doc, time.monotonic()
                 if final:
                     return
-            elif time.monotonic() - quiet > 15:
-                yield ": still running\n\n"  # keeps proxies from closing an idle stream
+            elif time.monotonic() - quiet > HEARTBEAT_S:
+                yield ": still running\n\n"  # a write is how a stream whose client left ends
                 quiet = time.monotonic()
             time.sleep(0.5)
 
-    return Response(
+    resp = Response(
         stream(), mimetype="text/event-stream", headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"}
     )
+    resp.call_on_close(svc.streams.release)  # however it ends, or if it never starts
+    return resp

@@ -16,6 +16,8 @@ from ..catalog.db import Db
 from .http import ApiError
 
 KEY = "admin_token_sha256"
+UNAUTHORISED = "admin calls need 'Authorization: Bearer <admin token>' (printed at first start)"
+FORBIDDEN = "wrong admin token"
 
 
 def _digest(token: str) -> str:
@@ -40,7 +42,7 @@ def require_admin() -> None:
     head = request.headers.get("Authorization", "")
     scheme, _, token = head.partition(" ")
     if scheme.lower() != "bearer" or not token.strip():
-        raise ApiError(401, "admin calls need 'Authorization: Bearer <admin token>' (printed at first start)")
+        raise ApiError(401, UNAUTHORISED)
     want = current_app.extensions["omninav"].db.get_meta(KEY)
     if not want or not hmac.compare_digest(_digest(token.strip()), want):
-        raise ApiError(403, "wrong admin token")
+        raise ApiError(403, FORBIDDEN)

@@ -10,7 +10,7 @@ from typing import Any
 from flask import Flask, current_app, jsonify, request
 from werkzeug.exceptions import HTTPException, RequestEntityTooLarge
 
-from ..errors import Conflict, NoRoom, NotFound, OmninavError, OutOfRange, Stale, TooLarge, Unusable
+from ..errors import Busy, Conflict, NoRoom, NotFound, OmninavError, OutOfRange, Stale, TooLarge, Unusable
 
 log = logging.getLogger("omninav.server")
 
@@ -36,6 +36,7 @@ STATUS: dict[type[OmninavError], int] = {
     OutOfRange: 416,
     Unusable: 422,
     NoRoom: 507,
+    Busy: 503,
 }
 
 
@@ -72,7 +73,10 @@ def install_error_handlers(app: Flask) -> None:
 
     @app.errorhandler(OmninavError)
     def _engine(e: OmninavError) -> Any:  # the catalogue's and the engine's: their message is the answer
-        return error_response(status_of(e), str(e), **e.details)
+        resp = error_response(status_of(e), str(e), **e.details)
+        if "retry_after_s" in e.details:  # Busy: when the same request is likely to succeed
+            resp.headers["Retry-After"] = str(max(1, math.ceil(e.details["retry_after_s"])))
+        return resp
 
     @app.errorhandler(RequestEntityTooLarge)
     def _too_large(e: RequestEntityTooLarge) -> Any:
@@ -153,7 +157,7 @@ def _no_nan(name: str) -> Any:
 
 def client_address() -> str:
     """The client, for the in-app rate limit. Behind `omninav serve` the workers listen on a unix
-    socket that only the front reaches, and the front sets X-Forwarded-For to the one address it
+    socket that only nginx reaches, and nginx sets X-Forwarded-For to the one address it
     established; behind another proxy (TRUST_PROXY), the last entry is the one that proxy appended:
     everything left of it was written by the client and proves nothing."""
     fwd = request.headers.get("X-Forwarded-For", "")

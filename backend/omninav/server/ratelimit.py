@@ -1,9 +1,9 @@
-"""Per-client token buckets for `locate`.
+"""Per-client token buckets for `locate`, where the app is served some other way.
 
-`omninav serve` keeps one limiter in its front (server/front.py): one bucket per client for the
-whole server, however many workers answer behind it (serve sets the workers' own LOCATE_RATE to 0).
-The app's limiter (locate_api.py) applies only where the app is served some other way (a WSGI
-server of one's own, the tests): there it limits per process, so N processes allow N times the rate.
+`omninav serve` limits locate in nginx (server/nginx.py): one bucket per client for the whole
+server, however many workers answer behind it (serve sets the workers' own LOCATE_RATE to 0). This
+limiter applies where the app runs under a WSGI server of one's own, and in the tests: there it
+limits per process, so N processes allow N times the rate.
 """
 
 from __future__ import annotations

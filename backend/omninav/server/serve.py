@@ -1,25 +1,28 @@
-"""`omninav serve`: prepare the data directory, then run three kinds of process:
+"""`omninav serve`: prepare the data directory, then run four kinds of process:
 
-    front (this process, asyncio)  the network: TLS, deadlines, limits, the locate rate limit (front.py)
-    gunicorn workers (gthread)     the Flask app, on a unix socket only the front can reach
-    job runner (one, niced)        modelling jobs, outside any worker: a job never holds a worker's GIL
+    nginx (a child)                 the network: TLS, deadlines, limits, the locate rate limit (nginx.py)
+    gunicorn app workers (gthread)  the Flask app, on a unix socket only nginx reaches
+    gunicorn events worker          job progress streams, on a socket of its own: no number of open
+                                    streams takes an app worker
+    job runner (one, niced)         modelling jobs, outside any worker: a job never holds a worker's GIL
 
-Before any of them starts: the database schema is migrated, what an interrupted commit left in a
-venue's folder is dropped, an admin token is made (and printed once) if there is none, the demo venue
-is set up on first start, and with --https a self-signed certificate is made for this machine's LAN
-address. The children die with this process (SIGTERM on the parent's death, Linux).
+This process starts them and watches them: it stops everything when nginx or a worker pool stops,
+and starts the job runner again when it dies (e.g. killed for memory mid-job). Before any of them
+starts: the database schema is migrated, what an interrupted commit left in a venue's folder is
+dropped, an admin token is made (and printed once) if there is none, the demo venue is set up on
+first start, and with --https a certificate from the local certificate authority is issued for this
+machine's LAN addresses (tls.py). The children die with this process (SIGTERM on the parent's death).
 """
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 import ctypes
 import multiprocessing
 import os
 import shutil
 import signal
-import ssl
+import socket
 import sys
 import tempfile
 import time
@@ -33,10 +36,9 @@ from ..catalog.db import Db
 from ..config import database_url
 from ..demo import VENUE as DEMO_VENUE
 from ..errors import OmninavError
-from .auth import KEY, ensure_token
-from .front import Front, Limits, run_front
+from .auth import ensure_token
 from .jobs import Jobs
-from .ratelimit import RateLimiter
+from .nginx import Front, binary, start
 
 
 class _Gunicorn(BaseApplication):  # type: ignore[misc]
@@ -90,63 +92,99 @@ def serve(
     demo: str,
     echo: Any = print,
 ) -> None:
+    nginx = binary(conf["NGINX"])  # before anything is set up: a missing nginx says so at once
     prepare(conf, demo, echo)
     run_dir = tempfile.mkdtemp(prefix="omninav-")  # short: a unix socket path has ~100 bytes
-    sock = os.path.join(run_dir, "workers.sock")
-    options: dict[str, Any] = {
-        "bind": f"unix:{sock}",
-        "workers": workers,
-        "worker_class": "gthread",
-        "threads": threads,
-        "timeout": 60,
-        "graceful_timeout": 10,
-        "keepalive": 75,  # the front keeps its connections to the workers open
-        "accesslog": None,
-        "errorlog": "-",
-        "loglevel": "warning",
-        "proc_name": "omninav",
-    }
-    # the front limits locate per client for the whole server; jobs run in their own process
+    app_sock, events_sock = os.path.join(run_dir, "app.sock"), os.path.join(run_dir, "events.sock")
+    # nginx limits locate per client for the whole server; jobs run in their own process
     overrides = {"DATA": conf["DATA"], "JOB_RUNNER": False, "LOCATE_RATE": 0.0}
-    ssl_ctx = None
+    cert = key = ""
     scheme = "https" if https else "http"
     if https:
-        from .tls import ensure_cert, lan_addresses
+        from .tls import ca_cert, ca_fingerprint, ensure_cert, lan_addresses
 
-        cert, key, made = ensure_cert(Path(conf["DATA"]) / "tls")
-        ssl_ctx = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
-        ssl_ctx.load_cert_chain(cert, key)
+        tls_dir = Path(conf["DATA"]) / "tls"
+        c, k, made = ensure_cert(tls_dir)
+        cert, key = str(c), str(k)
         if made:
-            echo(f"made a self-signed certificate: {cert} (docs/app.md says how to trust it on a phone)")
+            echo(f"issued a server certificate from the local certificate authority {ca_cert(tls_dir)}")
+        echo(f"phones trust it once from /ca.pem (SHA-256 {ca_fingerprint(tls_dir)}; docs/app.md)")
         urls = [f"{scheme}://{ip}:{port}/" for ip in lan_addresses()]
     else:
         shown = "localhost" if host in ("127.0.0.1", "0.0.0.0") else host
         urls = [f"{scheme}://{shown}:{port}/"]
+    streams = conf["EVENT_STREAMS"]
+    front = Front(
+        run_dir=run_dir,
+        app_socket=app_sock,
+        events_socket=events_sock,
+        host=host,
+        port=port,
+        cert=cert,
+        key=key,
+        timeout_s=conf["FRONT_TIMEOUT_S"],
+        max_body=conf["MAX_CONTENT_LENGTH"],
+        max_upload=conf["MAX_UPLOAD_BYTES"],
+        locate_rate=conf["LOCATE_RATE"],
+        locate_burst=conf["LOCATE_BURST"],
+        client_requests=conf["CLIENT_REQUESTS"],
+        trust_proxy=conf["TRUST_PROXY"],
+        connections=max(256, min(65536, _raise_fd_limit() - 64)),  # idle ones cost nginx a few KB
+    )
     fork = multiprocessing.get_context("fork")  # before any thread exists in this process
-    children = [fork.Process(target=_run_workers, args=(options, overrides), name="omninav-workers", daemon=False)]
-    if conf["JOB_RUNNER"]:
-        children.append(_job_runner(conf))
-    for c in children:
-        c.start()
+    pools = [
+        fork.Process(
+            target=_run_workers, args=(_gunicorn(app_sock, workers, threads), overrides), name="omninav-workers"
+        ),
+        # one process for the streams: each holds a thread, EVENT_STREAMS at once (the app counts
+        # them), and a few threads more to answer the one over that 503
+        fork.Process(
+            target=_run_workers,
+            args=(_gunicorn(events_sock, 1, streams + 4), {**overrides, "WARM_VENUES": False}),
+            name="omninav-events",
+        ),
+    ]
+    runner = _job_runner(conf) if conf["JOB_RUNNER"] else None
+    proxy = None
+    stop = [False]
+
+    def stopping(*_: Any) -> None:
+        stop[0] = True
+
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(sig, stopping)
     try:
-        _wait_for_socket(sock, children[0])
+        for p in pools:
+            p.start()
+        if runner is not None:
+            runner.start()
+        for p, sock in zip(pools, (app_sock, events_sock), strict=True):
+            _wait_for_socket(sock, p)
+        proxy = start(nginx, front)
+        _wait_for_port(host, port, proxy)
         for u in urls:
             echo(f"omninav: {u}")
         echo(f"admin page: {urls[0]}admin (sign in with the token printed on the first start)")
         sys.stdout.flush()
-        t = conf["FRONT_TIMEOUT_S"]
-        fds = _raise_fd_limit()
-        limits = Limits(
-            max_conns=max(64, min(2048, fds - 256)),  # a socket each, and room for the workers' and files
-            handshake_s=t,
-            head_s=t,
-            first_byte_s=t,
-            body_idle_s=t,
-            max_body=conf["MAX_CONTENT_LENGTH"],
-            backend_concurrency=workers * threads,
-        )
-        asyncio.run(_front(conf, sock, host, port, ssl_ctx, limits, children))
+        while not stop[0]:
+            if proxy.poll() is not None:
+                print("omninav: nginx stopped; shutting down", file=sys.stderr)
+                break
+            if not all(p.is_alive() for p in pools):  # the server is down if its workers are
+                print("omninav: the worker processes stopped; shutting down", file=sys.stderr)
+                break
+            if runner is not None and not runner.is_alive():  # e.g. killed for memory mid-job
+                print("omninav: the job runner stopped; starting it again", file=sys.stderr)
+                runner = _job_runner(conf)  # its job is taken up again (Jobs.reap)
+                runner.start()
+                time.sleep(5.0)
+            time.sleep(0.5)
     finally:
+        if proxy is not None and proxy.poll() is None:
+            proxy.terminate()  # nginx's fast shutdown: open connections close now
+            with contextlib.suppress(Exception):
+                proxy.wait(10)
+        children = [*pools, *([runner] if runner is not None else [])]
         for c in children:
             if c.is_alive():
                 c.terminate()
@@ -157,57 +195,50 @@ def serve(
         shutil.rmtree(run_dir, ignore_errors=True)
 
 
-async def _front(
-    conf: dict[str, Any],
-    sock: str,
-    host: str,
-    port: int,
-    ssl_ctx: ssl.SSLContext | None,
-    limits: Limits,
-    children: list[Any],
-) -> None:
-    db = Db(database_url(conf))
-    front = Front(
-        sock,
-        limits,
-        RateLimiter(conf["LOCATE_RATE"], conf["LOCATE_BURST"]),
-        lambda: db.get_meta(KEY),
-        trust_proxy=conf["TRUST_PROXY"],
-        https=ssl_ctx is not None,
-        max_upload=conf["MAX_UPLOAD_BYTES"],
-    )
-    stop = asyncio.Event()
-    loop = asyncio.get_running_loop()
-    for sig in (signal.SIGTERM, signal.SIGINT):
-        loop.add_signal_handler(sig, stop.set)
+def _gunicorn(sock: str, workers: int, threads: int) -> dict[str, Any]:
+    """gunicorn's options for a pool behind nginx. Its own head limits are lifted: nginx's are the
+    ones that hold (a head nginx lets through must not come back as gunicorn's HTML 400 or 414)."""
+    return {
+        "bind": f"unix:{sock}",
+        "workers": workers,
+        "worker_class": "gthread",
+        "threads": threads,
+        "timeout": 60,
+        "graceful_timeout": 10,
+        "keepalive": 75,  # nginx keeps its connections to the workers open
+        "limit_request_line": 0,
+        "limit_request_field_size": 32768,  # 0 would be gunicorn's 8,190, under nginx's 16 KB
+        "limit_request_fields": 32768,
+        "permit_unconventional_http_method": True,  # nginx has checked the method: no HTML 400 here
+        "accesslog": None,
+        "errorlog": "-",
+        "loglevel": "warning",
+        "proc_name": "omninav",
+    }
 
-    async def watch() -> None:
-        while not stop.is_set():
-            if not children[0].is_alive():  # the server is down if its workers are: say so and stop
-                print("omninav: the worker processes stopped; shutting down", file=sys.stderr)
-                stop.set()
-            if len(children) > 1 and not children[1].is_alive():  # e.g. killed for memory mid-job
-                print("omninav: the job runner stopped; starting it again", file=sys.stderr)
-                children[1] = _job_runner(conf)  # its job is taken up again (Jobs.reap)
-                children[1].start()
-                await asyncio.sleep(5.0)
-            await asyncio.sleep(1.0)
 
-    watcher = asyncio.create_task(watch())
-    try:
-        await run_front(front, host, port, ssl_ctx, stop)
-    finally:
-        watcher.cancel()
-        db.engine.dispose()
+def _wait_for_port(host: str, port: int, proxy: Any, timeout_s: float = 30.0) -> None:
+    """Until nginx accepts connections on the port; an error if it exits first (port taken, say)."""
+    target = "127.0.0.1" if host in ("0.0.0.0", "") else ("::1" if host == "::" else host)
+    t0 = time.monotonic()
+    while True:
+        if proxy.poll() is not None:
+            raise OmninavError(f"nginx did not start on {host}:{port} (its message is above)")
+        with contextlib.suppress(OSError), socket.create_connection((target, port), timeout=1):
+            return
+        if time.monotonic() - t0 > timeout_s:
+            raise OmninavError(f"nginx did not listen on {host}:{port} within {timeout_s:g} s")
+        time.sleep(0.05)
 
 
 def _job_runner(conf: dict[str, Any]) -> Any:
-    # spawned, not forked: the front has threads by the time it may need a new runner
+    # spawned, not forked: a fresh interpreter, whatever this process holds by then
     return multiprocessing.get_context("spawn").Process(target=_run_jobs, args=(conf,), name="omninav-jobs")
 
 
 def _raise_fd_limit() -> int:
-    """Every connection is a file descriptor: raise the soft limit to the hard one; -> the limit."""
+    """Every connection is a file descriptor: raise the soft limit to the hard one (nginx, a child,
+    inherits it); -> the limit."""
     import resource
 
     soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
@@ -229,7 +260,7 @@ def _wait_for_socket(sock: str, proc: Any, timeout_s: float = 120.0) -> None:
 
 
 def _die_with_parent() -> None:
-    """Linux: this child gets SIGTERM when the front dies, even by kill -9 (prctl PR_SET_PDEATHSIG)."""
+    """Linux: this child gets SIGTERM when `omninav serve` dies, even by kill -9 (prctl PR_SET_PDEATHSIG)."""
     try:
         ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)
     except (OSError, AttributeError):

@@ -1,5 +1,6 @@
-"""The web app at / (the built PWA, web/dist, when there is one, else a page that says how to build it)
-and the admin page at /admin (admin.html of the same build; linked from nowhere in the phone app)."""
+"""The web app at / (the built PWA, web/dist, when there is one, else a page that says how to build it),
+the admin page at /admin (admin.html of the same build; linked from nowhere in the phone app), and
+the local certificate authority at /ca.pem (for a phone to trust once; tls.py)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,9 @@ from typing import Any
 
 from flask import Blueprint, Response, current_app, request, send_from_directory
 
+from ..errors import NotFound
 from .http import WORKER_CSP
+from .tls import CA_CERT
 
 bp = Blueprint("web", __name__)
 # The admin page runs no WebAssembly and needs no camera; Leaflet styles its elements through the
@@ -68,6 +71,17 @@ def admin() -> Any:
     resp.headers["Content-Security-Policy"] = ADMIN_CSP
     resp.headers["Permissions-Policy"] = "camera=(), microphone=(), geolocation=()"
     return resp
+
+
+@bp.get("/ca.pem")
+def ca_pem() -> Any:
+    """The certificate of the authority that issues this server's HTTPS certificate (data/tls/,
+    made by `omninav serve --https`): a phone that trusts it once trusts every certificate the
+    server is issued, whatever its address. It is public; its key never leaves data/tls/."""
+    d = Path(current_app.config["DATA"]) / "tls"
+    if not (d / CA_CERT).is_file():
+        raise NotFound("this server has no certificate authority: `omninav serve --https` makes one")
+    return send_from_directory(d, CA_CERT, mimetype="application/x-x509-ca-cert", max_age=0)
 
 
 @bp.get("/<path:asset>")

@@ -149,9 +149,18 @@ export class AdminApi {
    * An image (or any file) the server sends only with the token, as an object URL for <img src>.
    * The caller revokes it (URL.revokeObjectURL) when the image goes.
    */
-  async blobUrl(path: string, signal?: AbortSignal): Promise<string> {
-    const res = await this.request('GET', path, { signal });
-    return URL.createObjectURL(await res.blob());
+  async blobUrl(path: string, signal?: AbortSignal, waitMs = 1000): Promise<string> {
+    // a worker makes one frame preview at a time and answers 503 to more (Retry-After: 1): ask
+    // again, twice, after the wait it names, so scrubbing a video shows the frame a moment later
+    for (let tries = 0; ; tries++) {
+      try {
+        const res = await this.request('GET', path, { signal });
+        return URL.createObjectURL(await res.blob());
+      } catch (e) {
+        if (!(e instanceof AdminError && e.status === 503) || tries >= 2 || signal?.aborted) throw e;
+        await new Promise((r) => setTimeout(r, waitMs));
+      }
+    }
   }
 
   /**

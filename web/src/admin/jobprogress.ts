@@ -1,12 +1,61 @@
 /**
  * A background job (quality map, evaluation) followed on a screen: a labelled progress bar with
  * frames done, frames per second and time left, read from the job's event stream, and a Cancel
- * button. The stream ends with the job's final state, which `follow` resolves with.
+ * button. `follow` resolves with the job's final state.
  */
 import { AdminError, type AdminApi } from './api';
 import type { Job } from './types';
 
-const FINAL = new Set<Job['state']>(['done', 'failed', 'cancelled']);
+export const FINAL = new Set<Job['state']>(['done', 'failed', 'cancelled']);
+
+/** The parts of the admin API that following a job needs (a fake in the unit tests). */
+type JobReader = Pick<AdminApi, 'get' | 'stream'>;
+
+/**
+ * Follow a job to its final state: its event stream while the server keeps one open, else a read of
+ * the job every `pollMs`. The server bounds the streams an admin token may hold (503 over the bound)
+ * and drops idle ones; either way the page goes on by polling, so a seventh followed upload still
+ * shows its progress. Calls `onJob` with each new state; resolves with the final one (or the last
+ * seen when `signal` aborts). Other refusals (401, 404) are thrown.
+ */
+export async function followJob(
+  api: JobReader,
+  job: Job,
+  onJob: (j: Job) => void,
+  signal?: AbortSignal,
+  pollMs = 1000,
+): Promise<Job> {
+  const path = `/api/admin/jobs/${encodeURIComponent(job.id)}`;
+  let last = job;
+  let streams = true;
+  while (!FINAL.has(last.state) && !signal?.aborted) {
+    if (streams) {
+      try {
+        await api.stream(
+          `${path}/events`,
+          (e) => {
+            if (e.event === 'message' || !e.data) return;
+            last = JSON.parse(e.data) as Job;
+            onJob(last);
+          },
+          signal,
+        );
+      } catch (e) {
+        if (signal?.aborted) break;
+        if (!(e instanceof AdminError)) throw e;
+        if (e.status === 503 || e.status === 429)
+          streams = false; // over the bound: poll from now on
+        else if (e.status !== 0) throw e;
+      }
+    }
+    if (!FINAL.has(last.state) && !signal?.aborted) {
+      await new Promise((r) => setTimeout(r, pollMs));
+      last = await api.get<Job>(path, signal);
+      onJob(last);
+    }
+  }
+  return last;
+}
 
 /** "120 of 234 frames, 41 frames/s, about 3 s left" (or "waiting to start"). */
 export function progressText(job: Job): string {
@@ -77,34 +126,9 @@ export class JobProgress {
     }
   }
 
-  /**
-   * Follow `job` to its end through its event stream, showing each step; resolves with the final
-   * job. A dropped stream is re-opened (after a read of the job) until the job ends or `signal` aborts.
-   */
-  async follow(job: Job, signal: AbortSignal): Promise<Job> {
+  /** Follow `job` to its end (followJob), showing each step; resolves with the final job. */
+  follow(job: Job, signal: AbortSignal): Promise<Job> {
     this.show(job);
-    let last = job;
-    while (!FINAL.has(last.state) && !signal.aborted) {
-      try {
-        await this.api.stream(
-          `/api/admin/jobs/${encodeURIComponent(job.id)}/events`,
-          (e) => {
-            if (e.event === 'message' || !e.data) return;
-            last = JSON.parse(e.data) as Job;
-            this.show(last);
-          },
-          signal,
-        );
-      } catch (e) {
-        if (signal.aborted) break;
-        if (e instanceof AdminError && e.status !== 0) throw e;
-      }
-      if (!FINAL.has(last.state) && !signal.aborted) {
-        await new Promise((r) => setTimeout(r, 1000));
-        last = await this.api.get<Job>(`/api/admin/jobs/${encodeURIComponent(job.id)}`, signal);
-        this.show(last);
-      }
-    }
-    return last;
+    return followJob(this.api, job, (j) => this.show(j), signal);
   }
 }

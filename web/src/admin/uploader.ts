@@ -7,6 +7,7 @@
  * server's `received` (upload.ts).
  */
 import { AdminError, UNREACHABLE, venuePath, type AdminApi } from './api';
+import { followJob } from './jobprogress';
 import { formatBytes, formatDuration } from './format';
 import { probeFile, type VideoProbe } from './probe';
 import type { Job, Video } from './types';
@@ -37,7 +38,6 @@ type Listener = (u: Upload) => void;
 
 /** Retry waits after a dropped connection (seconds), the last one repeated. */
 const BACKOFF_S = [1, 2, 4, 8, 15, 30];
-const FINAL = new Set<Job['state']>(['done', 'failed', 'cancelled']);
 
 export class Upload {
   readonly name: string;
@@ -209,23 +209,10 @@ export class Upload {
       let job = await this.api.post<Job>(`${base}/suggest`, undefined, { ifMatch: false });
       this.suggest = job;
       this.changed(this);
-      const path = `/api/admin/jobs/${encodeURIComponent(job.id)}`;
-      for (let tries = 0; !FINAL.has(job.state) && tries < 100; tries++) {
-        try {
-          await this.api.stream(`${path}/events`, (e) => {
-            if (!e.data || e.event === 'message') return;
-            job = JSON.parse(e.data) as Job;
-            this.suggest = job;
-            this.changed(this);
-          });
-        } catch (e) {
-          if (!(e instanceof AdminError && e.status === 0)) throw e;
-        }
-        if (!FINAL.has(job.state)) {
-          await new Promise((r) => setTimeout(r, 1000));
-          job = await this.api.get<Job>(path);
-        }
-      }
+      job = await followJob(this.api, job, (j) => {
+        this.suggest = j;
+        this.changed(this);
+      });
       this.suggest = job;
       if (job.state === 'done') this.video = await this.api.get<Video>(base);
       this.changed(this);
