@@ -110,8 +110,14 @@ def test_malformed_requests_get_json_errors_not_html(tmp_path):
         for got in (line, fields):
             assert got.startswith(b"HTTP/1.1 200") and b"<html" not in got.lower(), got[:300]
         # odd bytes and methods are refused in JSON too (gunicorn's HTML 400 never reaches a client)
-        for odd in (b"GET /api/h\xc3\xa4lth HTTP/1.1", b"ET /api/health HTTP/1.1", b"GET /api/health HTTP/2.0"):
-            got = raw_request(srv.port, odd + b"\r\nHost: x\r\nConnection: close\r\n\r\n")
+        odd_heads = (
+            b"GET /api/h\xc3\xa4lth HTTP/1.1\r\n",
+            b"ET /api/health HTTP/1.1\r\n",
+            b"GET /api/health HTTP/2.0\r\n",
+            b"GET /api/health HTTP/1.1\r\nX-A: a\x01b\r\n",  # nginx passes it on; gunicorn refuses it
+        )
+        for odd in odd_heads:
+            got = raw_request(srv.port, odd + b"Host: x\r\nConnection: close\r\n\r\n")
             assert b"<html" not in got.lower() and json.loads(got.split(b"\r\n\r\n", 1)[1])["status"] >= 400, got
         got = raw_request(srv.port, b"GET /api/" + b"a" * 70000 + b" HTTP/1.1\r\nHost: x\r\n\r\n")
         status, _, rest = got.partition(b"\r\n")
@@ -358,6 +364,21 @@ def test_an_encoded_locate_path_is_still_limited_and_admin_bodies_need_the_token
         )
         got = raw_request(srv.port, head)  # no token, and no byte of the 30 MB body is sent
         assert got.startswith(b"HTTP/1.1 401") and b"admin token" in got and time.monotonic() - t0 < 5
+        # an upload over the other bodies' limit with a wrong token is told about the token, in JSON
+        got = raw_request(
+            srv.port,
+            b"PUT /api/admin/venues/lab/videos/a.mp4/content HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer nope\r\n"
+            b"Content-Length: 100000000\r\n\r\n",
+        )
+        assert got.startswith(b"HTTP/1.1 403") and json.loads(got.split(b"\r\n\r\n", 1)[1])["status"] == 403
+        # and with the token it reaches the app, whose own answer comes back (no such venue here)
+        got = raw_request(
+            srv.port,
+            b"PUT /api/admin/venues/lab/videos/a.mp4/content HTTP/1.1\r\nHost: x\r\nAuthorization: "
+            + ADMIN["Authorization"].encode()
+            + b"\r\nContent-Length: 100000000\r\nConnection: close\r\n\r\n",
+        )
+        assert got.startswith(b"HTTP/1.1 404") and b"lab" in got, got[:300]
     finally:
         srv.kill()
 

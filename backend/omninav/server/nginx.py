@@ -245,6 +245,7 @@ http {{
     }}
     location = {AUTH} {{
         internal;
+        client_max_body_size 0;  # it carries the asking request's head, not its body: no limit here
         proxy_method GET;
         proxy_pass_request_body off;
         proxy_set_header Content-Length "";

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import json
 import multiprocessing
 import os
 import shutil
@@ -52,14 +53,29 @@ class _Gunicorn(BaseApplication):  # type: ignore[misc]
             self.cfg.set(k, v)
 
     def load(self) -> Any:
+        import gunicorn.util  # type: ignore[import-untyped]
         from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
 
         from . import create_app
+
+        gunicorn.util.write_error = _json_error  # in this worker: see _json_error
 
         # Requests are the parallelism here (processes x threads): a BLAS thread pool per request
         # thread would only fight over the cores (measured: 106 locate/s with it, see benchmarks.md).
         threadpool_limits(1)
         return create_app(self.overrides)  # in each worker, after the fork: its own engine and threads
+
+
+def _json_error(sock: Any, status: int, reason: str, message: str) -> None:
+    """gunicorn's answer to a request it cannot parse (a control byte in a header value, say: nginx
+    passes those on), in the API's JSON rather than gunicorn's HTML page. gunicorn has no setting
+    for that page's form; its workers write it with util.write_error, which each worker replaces
+    with this."""
+    import gunicorn.util
+
+    body = json.dumps({"error": message or reason, "status": status}).encode()
+    head = f"HTTP/1.1 {status} {reason}\r\nConnection: close\r\nContent-Type: application/json\r\n"
+    gunicorn.util.write_nonblock(sock, f"{head}Content-Length: {len(body)}\r\n\r\n".encode("latin-1") + body)
 
 
 def prepare(conf: dict[str, Any], demo: str, echo: Any = print) -> None:
