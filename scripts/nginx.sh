@@ -20,3 +20,5 @@ if ! $sudo apt-get install -y --no-install-recommends nginx-light >/tmp/omninav-
   $sudo apt-get update >>/tmp/omninav-apt-nginx.log 2>&1
   $sudo apt-get install -y --no-install-recommends nginx-light >>/tmp/omninav-apt-nginx.log 2>&1 || { tail -n 20 /tmp/omninav-apt-nginx.log >&2; exit 1; }
 fi
+# nor at the next boot (on port 80)
+if command -v systemctl >/dev/null 2>&1; then $sudo systemctl disable nginx >/dev/null 2>&1 || true; fi

@@ -37,10 +37,11 @@ WH = (1920, 960)  # a 360-camera's frames, 1.8 megapixels
 LENS = {"model": "equirectangular", "image_size": list(WH), "forward_x": WH[0] / 2, "ccw": False}
 FRAME = "/api/admin/venues/v/videos/walk.mp4/frame"
 # The bound is 200 MB for a worker of about 135 MB: what the bursts may add to the warm
-# worker at its peak (before: 545 MB; now about 45). After them the worker keeps the maps for the
-# next request (12 MB) and what the preview thread's malloc arena holds for the next preview.
+# worker at its peak (measured about 45; docs/decisions.md, "Preview memory"). After them the
+# worker keeps the maps for the next request (12 MB) and what the preview thread's malloc arena
+# holds for the next preview.
 MAX_GROWTH_MB = 65
-MAX_KEPT_MB = 55  # after either burst (before: 380-410; now 30-45)
+MAX_KEPT_MB = 55  # after either burst (measured 30-45)
 # Each thread asks for these in turn: both views, many widths (every panorama width a map of its
 # own), times all along the video.
 BURST = [
@@ -194,7 +195,9 @@ def test_a_preview_beyond_the_cap_waits_briefly_or_is_told_to_ask_again(
     with PREVIEWS.admit("preview"):  # a preview at work
         th = threading.Thread(target=_get, args=(api, "t=1&view=panorama&width=720", waiting))
         th.start()
+        deadline = time.monotonic() + 10
         while PREVIEWS.queued < 1:  # the next waits for its place ...
+            assert time.monotonic() < deadline, "the second preview never came to wait"
             time.sleep(0.005)
         _get(api, "t=1&view=raw", refused)  # ... and one more is answered at once
         assert refused["s"] < 0.5

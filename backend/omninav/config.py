@@ -33,7 +33,7 @@ DEFAULTS: dict[str, Any] = {
     "LOCATE_BURST": 30,  # and the burst it allows
     "TRUST_PROXY": False,  # behind another reverse proxy: the client is the last X-Forwarded-For entry
     "FRONT_TIMEOUT_S": 10.0,  # TLS handshake, request head, a pause in a body: longer and nginx hangs up
-    "CLIENT_REQUESTS": 16,  # requests of one client address in progress at once (more: 503)
+    "CLIENT_REQUESTS": 16,  # requests of one client address in progress at once (more: 503; job streams apart)
     "EVENT_STREAMS": 8,  # job progress streams open at once (more: 503, and the admin page polls)
     "NGINX": "",  # the nginx binary omninav serve runs in front; empty: nginx on PATH or in /usr/sbin
     "LOW_CONFIDENCE": 0.5,  # below it, the spoken answer says 'not sure' instead of a place

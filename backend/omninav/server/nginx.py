@@ -29,8 +29,8 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import signal
 import subprocess
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -89,7 +89,7 @@ class Front:
     locate_burst: int = 30
     client_requests: int = 16  # requests of one client in progress at once (CLIENT_REQUESTS)
     trust_proxy: bool = False
-    connections: int = 8192  # open connections in all (idle ones cost a few KB)
+    connections: int = 8192  # connections open at once, clients and workers together (idle ones cost a few KB)
 
 
 def ms(seconds: float) -> str:
@@ -152,7 +152,7 @@ def config(f: Front) -> str:
     proxy = "        proxy_pass http://app;\n"
     return f"""# written by omninav serve (server/nginx.py) for this run; edits are lost at the next start
 worker_processes 1;
-worker_rlimit_nofile {2 * f.connections + 64};
+worker_rlimit_nofile {f.connections + 64};
 pid {run}/nginx.pid;
 error_log stderr error;
 events {{
@@ -181,6 +181,7 @@ http {{
     client_body_buffer_size {f.body_buffer};
 
     limit_conn_zone $binary_remote_addr zone=client:10m;
+    limit_conn_zone $binary_remote_addr zone=client_streams:1m;
 {locate_zone}    limit_conn_status 503;
     limit_req_status 429;
     limit_conn_log_level warn;  # a refused request is the limit working, not an error
@@ -239,7 +240,10 @@ http {{
         proxy_request_buffering off;
 {proxy}    }}
     location ~ {EVENTS} {{
-{admin}        proxy_buffering off;
+{admin}        # an admin's streams are counted apart from the address's other requests (the app
+        # bounds them in all: EVENT_STREAMS)
+        limit_conn client_streams {f.client_requests};
+        proxy_buffering off;
         proxy_read_timeout 60s;
         proxy_pass http://events;
     }}
@@ -248,7 +252,12 @@ http {{
         client_max_body_size 0;  # it carries the asking request's head, not its body: no limit here
         proxy_method GET;
         proxy_pass_request_body off;
+        # proxy_set_header here replaces the server's: all of them again
         proxy_set_header Content-Length "";
+        proxy_set_header Connection "";
+        proxy_set_header Host $omninav_host;
+        proxy_set_header X-Forwarded-For $remote_addr;
+        proxy_set_header X-Forwarded-Proto $scheme;
         proxy_pass http://app/api/admin/token;
     }}
     }}
@@ -268,12 +277,15 @@ def binary(name: str = "") -> str:
     return found
 
 
-def start(nginx: str, front: Front) -> subprocess.Popen[bytes]:
-    """Write the config into run_dir, check it with `nginx -t`, then run nginx in the foreground
-    as a child that dies with this process. Run as root, nginx's workers run as nobody, so the
-    run folder is theirs to write and the sockets theirs to reach."""
+TEMP_DIRS = ("body", "proxy", "fastcgi", "uwsgi", "scgi")  # nginx's temporary folders, in run_dir
+
+
+def check(nginx: str, front: Front) -> list[str]:
+    """Write the config into run_dir with nginx's temporary folders and have `nginx -t` check it;
+    -> the command that runs nginx with it. Run as root, nginx's workers run as nobody: the run
+    folder is then root's and nobody's group's only (0710), its temporary folders nobody's."""
     run = Path(front.run_dir)
-    for sub in ("body", "proxy", "fastcgi", "uwsgi", "scgi"):
+    for sub in TEMP_DIRS:
         (run / sub).mkdir(exist_ok=True)
     conf = run / "nginx.conf"
     conf.write_text(config(front))
@@ -281,21 +293,20 @@ def start(nginx: str, front: Front) -> subprocess.Popen[bytes]:
         import pwd
 
         nobody = pwd.getpwnam("nobody")
-        run.chmod(0o711)
-        for sub in ("body", "proxy", "fastcgi", "uwsgi", "scgi"):
+        os.chown(run, 0, nobody.pw_gid)
+        run.chmod(0o710)
+        for sub in TEMP_DIRS:
             os.chown(run / sub, nobody.pw_uid, nobody.pw_gid)
     cmd = [nginx, "-p", str(run), "-c", str(conf), "-e", "stderr"]
-    check = subprocess.run([*cmd, "-t", "-q"], capture_output=True, text=True, check=False)
-    if check.returncode:
-        raise OmninavError(f"nginx refused the configuration omninav wrote ({conf}): {check.stderr.strip()}")
-    return subprocess.Popen([*cmd, "-g", "daemon off;"], preexec_fn=_die_with_parent)  # noqa: PLW1509
+    got = subprocess.run([*cmd, "-t", "-q"], capture_output=True, text=True, check=False)
+    if got.returncode:
+        raise OmninavError(f"nginx refused the configuration omninav wrote ({conf}): {got.stderr.strip()}")
+    return cmd
 
 
-def _die_with_parent() -> None:
-    """Linux: nginx's master gets SIGTERM when `omninav serve` dies, even by kill -9."""
-    import ctypes
-
-    try:
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)
-    except (OSError, AttributeError):
-        pass
+def start(nginx: str, front: Front, preexec: Callable[[], None] | None = None) -> subprocess.Popen[bytes]:
+    """nginx in the foreground with the checked config, as a child in a process group of its own
+    (a terminal's Ctrl-C reaches `omninav serve`, which stops it); `preexec` runs in the child
+    first (serve's: die with the parent)."""
+    cmd = check(nginx, front)
+    return subprocess.Popen([*cmd, "-g", "daemon off;"], preexec_fn=preexec, process_group=0)  # noqa: PLW1509

@@ -110,8 +110,6 @@ def serve(
 ) -> None:
     nginx = binary(conf["NGINX"])  # before anything is set up: a missing nginx says so at once
     prepare(conf, demo, echo)
-    run_dir = tempfile.mkdtemp(prefix="omninav-")  # short: a unix socket path has ~100 bytes
-    app_sock, events_sock = os.path.join(run_dir, "app.sock"), os.path.join(run_dir, "events.sock")
     # nginx limits locate per client for the whole server; jobs run in their own process
     overrides = {"DATA": conf["DATA"], "JOB_RUNNER": False, "LOCATE_RATE": 0.0}
     cert = key = ""
@@ -129,6 +127,9 @@ def serve(
     else:
         shown = "localhost" if host in ("127.0.0.1", "0.0.0.0") else host
         urls = [f"{scheme}://{shown}:{port}/"]
+    _check_port_free(host, port)  # before anything starts: nginx would say so only in its log
+    run_dir = tempfile.mkdtemp(prefix="omninav-")  # short: a unix socket path has ~100 bytes
+    app_sock, events_sock = os.path.join(run_dir, "app.sock"), os.path.join(run_dir, "events.sock")
     streams = conf["EVENT_STREAMS"]
     front = Front(
         run_dir=run_dir,
@@ -145,7 +146,7 @@ def serve(
         locate_burst=conf["LOCATE_BURST"],
         client_requests=conf["CLIENT_REQUESTS"],
         trust_proxy=conf["TRUST_PROXY"],
-        connections=max(256, min(65536, _raise_fd_limit() - 64)),  # idle ones cost nginx a few KB
+        connections=max(256, min(65536, _raise_fd_limit() - 64)),  # its file limit, less its own files
     )
     fork = multiprocessing.get_context("fork")  # before any thread exists in this process
     pools = [
@@ -176,7 +177,7 @@ def serve(
             runner.start()
         for p, sock in zip(pools, (app_sock, events_sock), strict=True):
             _wait_for_socket(sock, p)
-        proxy = start(nginx, front)
+        proxy = start(nginx, front, _die_with_parent)
         _wait_for_port(host, port, proxy)
         for u in urls:
             echo(f"omninav: {u}")
@@ -184,10 +185,10 @@ def serve(
         sys.stdout.flush()
         while not stop[0]:
             if proxy.poll() is not None:
-                print("omninav: nginx stopped; shutting down", file=sys.stderr)
+                _say_unless(stop, "omninav: nginx stopped; shutting down")
                 break
             if not all(p.is_alive() for p in pools):  # the server is down if its workers are
-                print("omninav: the worker processes stopped; shutting down", file=sys.stderr)
+                _say_unless(stop, "omninav: the worker processes stopped; shutting down")
                 break
             if runner is not None and not runner.is_alive():  # e.g. killed for memory mid-job
                 print("omninav: the job runner stopped; starting it again", file=sys.stderr)
@@ -231,6 +232,24 @@ def _gunicorn(sock: str, workers: int, threads: int) -> dict[str, Any]:
         "loglevel": "warning",
         "proc_name": "omninav",
     }
+
+
+def _say_unless(stop: list[bool], message: str) -> None:
+    """A child's end is news only if this process was not told to stop (Ctrl-C reaches them all)."""
+    time.sleep(0.2)
+    if not stop[0]:
+        print(message, file=sys.stderr)
+
+
+def _check_port_free(host: str, port: int) -> None:
+    """OmninavError if another program listens on host:port (nginx would fail to bind it later)."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind((host, port))
+        except OSError as e:
+            raise OmninavError(f"cannot listen on {host}:{port} ({e.strerror}): use --port for another") from None
 
 
 def _wait_for_port(host: str, port: int, proxy: Any, timeout_s: float = 30.0) -> None:
@@ -296,8 +315,10 @@ def _run_jobs(conf: dict[str, Any]) -> None:
     db = Db(database_url(conf))
     jobs = Jobs(Catalog(db, Path(conf["DATA"])), stale_s=conf["JOB_STALE_S"], device=conf["DEVICE"] or None)
     # SIGTERM (the server stopping) ends the process at once: a job it was running wrote nothing
-    # live, and the next runner takes it up again (its owner is gone: Jobs.reap)
+    # live, and the next runner takes it up again (its owner is gone: Jobs.reap). A terminal's
+    # Ctrl-C is for `omninav serve`, which stops this process with SIGTERM.
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     jobs.run_forever()
 
 

@@ -151,7 +151,7 @@ export class AdminApi {
    */
   async blobUrl(path: string, signal?: AbortSignal, waitMs = 1000): Promise<string> {
     // a worker makes one frame preview at a time and answers 503 to more (Retry-After: 1): ask
-    // again, twice, after the wait it names, so scrubbing a video shows the frame a moment later
+    // again, twice, `waitMs` apart, so scrubbing a video shows the frame a moment later
     for (let tries = 0; ; tries++) {
       try {
         const res = await this.request('GET', path, { signal });

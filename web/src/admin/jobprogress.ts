@@ -13,9 +13,9 @@ type JobReader = Pick<AdminApi, 'get' | 'stream'>;
 
 /**
  * Follow a job to its final state: its event stream while the server keeps one open, else a read of
- * the job every `pollMs`. The server bounds the streams an admin token may hold (503 over the bound)
- * and drops idle ones; either way the page goes on by polling, so a seventh followed upload still
- * shows its progress. Calls `onJob` with each new state; resolves with the final one (or the last
+ * the job every `pollMs`. The server bounds the streams open at once (503 over the bound, and the
+ * page polls from then on) and a stream may drop (it is read again after a poll), so a ninth
+ * followed upload still shows its progress. Calls `onJob` with each new state; resolves with the final one (or the last
  * seen when `signal` aborts). Other refusals (401, 404) are thrown.
  */
 export async function followJob(
@@ -43,7 +43,7 @@ export async function followJob(
       } catch (e) {
         if (signal?.aborted) break;
         if (!(e instanceof AdminError)) throw e;
-        if (e.status === 503 || e.status === 429)
+        if (e.status === 503)
           streams = false; // over the bound: poll from now on
         else if (e.status !== 0) throw e;
       }
