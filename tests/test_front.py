@@ -12,6 +12,7 @@ import socket
 import threading
 import time
 import urllib.request
+from pathlib import Path
 
 import pytest
 
@@ -434,10 +435,10 @@ def session_rss_mb(srv: Server, name: str) -> float:
     total = 0
     for pid in (p for p in os.listdir("/proc") if p.isdigit()):
         try:
-            stat = open(f"/proc/{pid}/stat").read()
+            stat = Path(f"/proc/{pid}/stat").read_text()
             comm, rest = stat[stat.index("(") + 1 : stat.rindex(")")], stat[stat.rindex(")") + 2 :].split()
             if comm == name and int(rest[3]) == srv.pid:  # field 6: the session, the server's own
-                status = open(f"/proc/{pid}/status").read()
+                status = Path(f"/proc/{pid}/status").read_text()
                 total += int(status.split("VmRSS:")[1].split()[0])
         except (OSError, IndexError, ValueError):
             continue
