@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import socket
 import sys
 import tempfile
 import time
@@ -18,7 +17,7 @@ import urllib.error
 import urllib.request
 from pathlib import Path
 
-from omninav.devserver import ServeProcess
+from omninav.devserver import ServeProcess, unfinished_bodies
 
 sys.path.insert(0, str(Path(__file__).parent))
 from search_speed import machine  # noqa: E402
@@ -26,40 +25,9 @@ from search_speed import machine  # noqa: E402
 MB = 1 << 20
 
 
-def rss_mb(session: int, name: str | None = None) -> float:
-    """Resident memory of the processes of a session (the server's), or of those named `name`."""
-    total = 0
-    for pid in (p for p in os.listdir("/proc") if p.isdigit()):
-        try:
-            stat = Path(f"/proc/{pid}/stat").read_text()
-            comm, rest = stat[stat.index("(") + 1 : stat.rindex(")")], stat[stat.rindex(")") + 2 :].split()
-            if int(rest[3]) == session and name in (None, comm):
-                total += int(Path(f"/proc/{pid}/status").read_text().split("VmRSS:")[1].split()[0])
-        except (OSError, IndexError, ValueError):
-            continue
-    return total / 1024
-
-
 def free_bytes() -> int:
     st = os.statvfs(tempfile.gettempdir())
     return st.f_bavail * st.f_frsize
-
-
-def unfinished(port: int, addresses: list[str], each: int, mb: int) -> list[socket.socket]:
-    head = (
-        b"POST /api/venues/lab/locate HTTP/1.1\r\nHost: x\r\nContent-Type: application/octet-stream\r\n"
-        b"Content-Length: %d\r\n\r\n" % (mb * MB)
-    )
-    chunk, out = bytes(MB), []
-    for a in addresses:
-        for _ in range(each):
-            s = socket.create_connection(("127.0.0.1", port), source_address=(a, 0))
-            s.sendall(head)
-            for _ in range(mb - 1):
-                s.sendall(chunk)
-            s.sendall(chunk[:-1])
-            out.append(s)
-    return out
 
 
 def locate_ms(base: str) -> float:
@@ -91,25 +59,22 @@ def main() -> None:
             method="POST",
         )
         urllib.request.urlopen(req).read()
-        print(f"nginx before: {rss_mb(srv.pid, 'nginx'):.1f} MB (all of the server: {rss_mb(srv.pid):.0f} MB)")
+        print(f"nginx before: {srv.rss_mb('nginx'):.1f} MB (all of the server: {srv.rss_mb():.0f} MB)")
         for k in range(a.rounds):
             free0, t0 = free_bytes(), time.perf_counter()
-            socks = unfinished(srv.port, [f"127.0.0.{i}" for i in range(2, 6)], 4, 32)
+            socks = unfinished_bodies(srv.port, [f"127.0.0.{i}" for i in range(2, 6)], 4, 32, "/api/venues/lab/locate")
             sent_s = time.perf_counter() - t0
             time.sleep(0.5)
             worst = max(locate_ms(srv.base) for _ in range(10))
             print(
                 f"round {k + 1}: 16 x 32 MB sent (all but a byte) in {sent_s:.1f} s; nginx "
-                f"{rss_mb(srv.pid, 'nginx'):.1f} MB; disk taken {(free0 - free_bytes()) / MB:.0f} MB; "
+                f"{srv.rss_mb('nginx'):.1f} MB; disk taken {(free0 - free_bytes()) / MB:.0f} MB; "
                 f"another client's locate: slowest of 10 {worst:.0f} ms"
             )
             for s in socks:
                 s.close()
         time.sleep(a.after)
-        print(
-            f"nginx {a.after:g} s after: {rss_mb(srv.pid, 'nginx'):.1f} MB "
-            f"(all of the server: {rss_mb(srv.pid):.0f} MB)"
-        )
+        print(f"nginx {a.after:g} s after: {srv.rss_mb('nginx'):.1f} MB (all of the server: {srv.rss_mb():.0f} MB)")
 
 
 if __name__ == "__main__":

@@ -421,31 +421,17 @@ def long_video(minutes: float) -> Path:
     return out
 
 
-# ---- slow clients --------------------------------------------------------------------------------
-class SlowClients:
-    """`slow` connections that send a locate's head and then one byte of its body a second, and `idle`
-    ones that send nothing; each opens again as soon as the server drops it (what an attacker does)."""
+# ---- clients held open: slow ones, idle ones, job-event streams -----------------------------------
+class HeldClients:
+    """Threads that each hold a connection open until `finish`, counting how many are open twice a
+    second; a subclass gives the threads' work."""
 
-    def __init__(self, port: int, slow: int, idle: int):
-        self.port = port
-        self.head = (
-            f"POST {LOCATE} HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/octet-stream\r\n"
-            "Content-Length: 7700\r\n\r\n"
-        ).encode()
+    def __init__(self) -> None:
         self.stop = threading.Event()
         self.lock = threading.Lock()
         self.open = 0
-        self.answers: Counter[str] = Counter()  # how the server ended each connection
-        self.held: list[float] = []  # seconds each connection was held open by the server
-        self.ended: list[float] = []  # when (perf_counter)
         self.counts: list[int] = []  # connections open, sampled twice a second
-        self.threads = [threading.Thread(target=self._client, args=(True, k), daemon=True) for k in range(slow)]
-        self.threads += [threading.Thread(target=self._client, args=(False, k), daemon=True) for k in range(idle)]
-        self.threads.append(threading.Thread(target=self._count, daemon=True))
-
-    @staticmethod
-    def source(slow: bool, k: int) -> str:
-        return address(3 if slow else 4, k % 10)  # ten addresses each: five connections an address
+        self.threads = [threading.Thread(target=self._count, daemon=True)]
 
     def start(self) -> None:
         for t in self.threads:
@@ -459,6 +445,28 @@ class SlowClients:
     def _count(self) -> None:
         while not self.stop.wait(0.5):
             self.counts.append(self.open)
+
+
+class SlowClients(HeldClients):
+    """`slow` connections that send a locate's head and then one byte of its body a second, and `idle`
+    ones that send nothing; each opens again as soon as the server drops it (what an attacker does)."""
+
+    def __init__(self, port: int, slow: int, idle: int):
+        super().__init__()
+        self.port = port
+        self.head = (
+            f"POST {LOCATE} HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/octet-stream\r\n"
+            "Content-Length: 7700\r\n\r\n"
+        ).encode()
+        self.answers: Counter[str] = Counter()  # how the server ended each connection
+        self.held: list[float] = []  # seconds each connection was held open by the server
+        self.ended: list[float] = []  # when (perf_counter)
+        self.threads += [threading.Thread(target=self._client, args=(True, k), daemon=True) for k in range(slow)]
+        self.threads += [threading.Thread(target=self._client, args=(False, k), daemon=True) for k in range(idle)]
+
+    @staticmethod
+    def source(slow: bool, k: int) -> str:
+        return address(3 if slow else 4, k % 10)  # ten addresses each: five connections an address
 
     def _client(self, slow: bool, k: int) -> None:
         self.stop.wait(k / 50)  # spread the starts over a second or two
@@ -518,37 +526,20 @@ def held_job(data: Path, venue: str) -> str:
     return job
 
 
-class EventStreams:
+class EventStreams(HeldClients):
     """`n` job-event streams as the admin page opens them (the token in a header, one connection
     each, from the admin's one address), on one job: each reads what the server sends and opens
     again when the server ends it."""
 
     def __init__(self, port: int, job: str, n: int):
+        super().__init__()
         self.port = port
         self.head = (
             f"GET /api/admin/jobs/{job}/events HTTP/1.1\r\nHost: 127.0.0.1\r\nAccept: text/event-stream\r\n"
             f"Authorization: {AUTH['Authorization']}\r\n\r\n"
         ).encode()
-        self.stop = threading.Event()
-        self.lock = threading.Lock()
         self.answers: Counter[str] = Counter()  # the status line of each stream's answer
-        self.open = 0
-        self.counts: list[int] = []
-        self.threads = [threading.Thread(target=self._stream, daemon=True) for _ in range(n)]
-        self.threads.append(threading.Thread(target=self._count, daemon=True))
-
-    def start(self) -> None:
-        for t in self.threads:
-            t.start()
-
-    def finish(self) -> None:
-        self.stop.set()
-        for t in self.threads:
-            t.join()
-
-    def _count(self) -> None:
-        while not self.stop.wait(0.5):
-            self.counts.append(self.open)
+        self.threads += [threading.Thread(target=self._stream, daemon=True) for _ in range(n)]
 
     def _stream(self) -> None:
         while not self.stop.is_set():

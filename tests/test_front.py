@@ -12,10 +12,10 @@ import socket
 import threading
 import time
 import urllib.request
-from pathlib import Path
 
 import pytest
 
+from omninav.devserver import unfinished_bodies
 from server_helpers import ADMIN
 from test_server_live import Server
 
@@ -430,40 +430,6 @@ def test_an_answer_given_before_the_body_reaches_a_client_still_sending_it(tmp_p
         srv.kill()
 
 
-def session_rss_mb(srv: Server, name: str) -> float:
-    """Resident memory of the server's processes called `name` (nginx: master and worker), MB."""
-    total = 0
-    for pid in (p for p in os.listdir("/proc") if p.isdigit()):
-        try:
-            stat = Path(f"/proc/{pid}/stat").read_text()
-            comm, rest = stat[stat.index("(") + 1 : stat.rindex(")")], stat[stat.rindex(")") + 2 :].split()
-            if comm == name and int(rest[3]) == srv.pid:  # field 6: the session, the server's own
-                status = Path(f"/proc/{pid}/status").read_text()
-                total += int(status.split("VmRSS:")[1].split()[0])
-        except (OSError, IndexError, ValueError):
-            continue
-    return total / 1024
-
-
-def unfinished_bodies(port: int, addresses: list[str], each: int, mb: int) -> list[socket.socket]:
-    """`each` connections from each address, each sending all but the last byte of an `mb` MB body."""
-    out = []
-    head = (
-        b"POST /api/venues/lab/locate HTTP/1.1\r\nHost: x\r\nContent-Type: application/octet-stream\r\n"
-        b"Content-Length: %d\r\n\r\n" % (mb << 20)
-    )
-    chunk = bytes(1 << 20)
-    for a in addresses:
-        for _ in range(each):
-            s = socket.create_connection(("127.0.0.1", port), source_address=(a, 0))
-            s.sendall(head)
-            for _ in range(mb - 1):
-                s.sendall(chunk)
-            s.sendall(chunk[:-1])
-            out.append(s)
-    return out
-
-
 def test_unfinished_huge_bodies_keep_nginx_small_and_take_no_ones_share(tmp_path):
     """Breaks 2 and 3 of issue 39: 16 unfinished 32 MB bodies from 4 addresses grew the front to
     2.4 GB over four rounds (its budget 512 MB) and held it, and while they trickled every other
@@ -472,12 +438,12 @@ def test_unfinished_huge_bodies_keep_nginx_small_and_take_no_ones_share(tmp_path
     srv = Server(tmp_path / "data")
     try:
         assert srv.call("POST", "/api/admin/venues", {"id": "lab"}, admin=True)[0] == 201
-        base = session_rss_mb(srv, "nginx")
+        base = srv.rss_mb("nginx")
         assert base > 0
         peak = 0.0
         for _ in range(4):
-            socks = unfinished_bodies(srv.port, [f"127.0.0.{i}" for i in range(2, 6)], 4, 32)
-            peak = max(peak, session_rss_mb(srv, "nginx"))
+            socks = unfinished_bodies(srv.port, [f"127.0.0.{i}" for i in range(2, 6)], 4, 32, "/api/venues/lab/locate")
+            peak = max(peak, srv.rss_mb("nginx"))
             # another phone's locate goes through to the app (409: 'lab' is not modelled), at once
             t0 = time.monotonic()
             assert [srv.call("POST", "/api/venues/lab/locate", {"mag": []})[0] for _ in range(5)] == [409] * 5
@@ -485,7 +451,7 @@ def test_unfinished_huge_bodies_keep_nginx_small_and_take_no_ones_share(tmp_path
             for s in socks:
                 s.close()
         time.sleep(1.0)
-        after = session_rss_mb(srv, "nginx")
+        after = srv.rss_mb("nginx")
         assert peak - base < 64, (base, peak)  # 512 MB of bodies each round
         assert after - base < 16, (base, after)
     finally:

@@ -108,6 +108,20 @@ class ServeProcess:
         phone does (it exists once the server listens)."""
         return ssl.create_default_context(cafile=str(self.data / "tls" / "ca.pem")) if self.https else None
 
+    def rss_mb(self, name: str | None = None) -> float:
+        """Resident memory of the server's processes (its session's), or of those called `name`
+        (e.g. "nginx": master and worker), in MB (Linux /proc)."""
+        total = 0
+        for pid in (p for p in os.listdir("/proc") if p.isdigit()):
+            try:
+                stat = Path(f"/proc/{pid}/stat").read_text()
+                comm, rest = stat[stat.index("(") + 1 : stat.rindex(")")], stat[stat.rindex(")") + 2 :].split()
+                if int(rest[3]) == self.pid and name in (None, comm):  # field 6: the session
+                    total += int(Path(f"/proc/{pid}/status").read_text().split("VmRSS:")[1].split()[0])
+            except (OSError, IndexError, ValueError):
+                continue
+        return total / 1024
+
     def log_text(self) -> str:
         """What the server has written so far (stdout and stderr)."""
         try:
@@ -171,3 +185,22 @@ class ServeProcess:
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
     ) -> None:
         self.stop()
+
+
+def unfinished_bodies(port: int, addresses: list[str], each: int, mb: int, path: str) -> list[socket.socket]:
+    """An attacker's bodies: `each` connections from each (loopback) address, each sending all but
+    the last byte of an `mb` MB POST to `path`; -> the open sockets (the caller closes them)."""
+    head = (
+        f"POST {path} HTTP/1.1\r\nHost: x\r\nContent-Type: application/octet-stream\r\n"
+        f"Content-Length: {mb << 20}\r\n\r\n"
+    ).encode()
+    chunk, out = bytes(1 << 20), []
+    for a in addresses:
+        for _ in range(each):
+            s = socket.create_connection(("127.0.0.1", port), source_address=(a, 0))
+            out.append(s)
+            s.sendall(head)
+            for _ in range(mb - 1):
+                s.sendall(chunk)
+            s.sendall(chunk[:-1])
+    return out
