@@ -22,6 +22,7 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 from cryptography.x509.verification import PolicyBuilder, Store
 
+from omninav.errors import OmninavError
 from omninav.server import create_app
 from omninav.server.tls import ca_cert, ca_fingerprint, ensure_cert, issue_leaf, issued_by, san_hosts
 from server_helpers import TOKEN, Api
@@ -256,3 +257,22 @@ def _key_pem(key: ec.EllipticCurvePrivateKey) -> bytes:
     return key.private_bytes(
         serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption()
     )
+
+
+def test_an_authority_this_user_cannot_read_is_not_replaced(tmp_path: Path, monkeypatch) -> None:
+    """Phones trust the authority: one that is there but unreadable (made by root, say) is an
+    error that says so, never silently a new one."""
+    ensure_cert(tmp_path, ["127.0.0.1"])
+    before = (tmp_path / "ca.pem").read_bytes()
+    real = Path.read_bytes
+
+    def denied(self: Path) -> bytes:
+        if self.name == "ca-key.pem":
+            raise PermissionError(13, "Permission denied", str(self))
+        return real(self)
+
+    monkeypatch.setattr(Path, "read_bytes", denied)
+    with pytest.raises(OmninavError, match="cannot read the local certificate authority"):
+        ensure_cert(tmp_path, ["127.0.0.1", "10.0.0.9"])
+    monkeypatch.undo()
+    assert (tmp_path / "ca.pem").read_bytes() == before

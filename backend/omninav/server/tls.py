@@ -31,6 +31,8 @@ from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
+from ..errors import OmninavError
+
 CA_CERT, CA_KEY = "ca.pem", "ca-key.pem"
 CERT, KEY = "cert.pem", "key.pem"
 CA_DAYS = 3650
@@ -199,8 +201,15 @@ def _ensure_ca(d: Path) -> tuple[x509.Certificate, Key]:
         key = serialization.load_pem_private_key(key_p.read_bytes(), None)
         if isinstance(key, ec.EllipticCurvePrivateKey) and ca_fits(ca, key, now):
             return ca, key
-    except (OSError, ValueError, TypeError):
-        pass  # none yet, or unreadable: a new one
+    except FileNotFoundError:
+        pass  # none yet: a new one
+    except OSError as e:  # there, but not readable by this user: phones trust it, so it is not replaced
+        raise OmninavError(
+            f"cannot read the local certificate authority in {d} ({e.strerror}); phones trust it: "
+            "give this user access to it (or run as the user who made it) rather than make another"
+        ) from None
+    except (ValueError, TypeError):
+        pass  # garbled: a new one, which phones must trust anew
     ca, key = make_ca(socket.gethostname(), now)
     _write(key_p, _key_pem(key), private=True)
     _write(cert_p, ca.public_bytes(serialization.Encoding.PEM))
