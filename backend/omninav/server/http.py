@@ -61,12 +61,18 @@ def error_response(status: int, message: str, **extra: Any) -> Any:
     return resp
 
 
+def _retry_after(resp: Any, details: dict[str, Any]) -> None:
+    """Retry-After, in whole seconds, where an answer's details say when to ask again."""
+    if "retry_after_s" in details:
+        resp.headers["Retry-After"] = str(max(1, math.ceil(details["retry_after_s"])))
+
+
 def install_error_handlers(app: Flask) -> None:
     @app.errorhandler(ApiError)
     def _api(e: ApiError) -> Any:
         resp = error_response(e.status, e.message, **e.extra)
-        if e.status == 429 and "retry_after_s" in e.extra:
-            resp.headers["Retry-After"] = str(max(1, math.ceil(e.extra["retry_after_s"])))
+        if e.status == 429:
+            _retry_after(resp, e.extra)
         if e.status == 401:
             resp.headers["WWW-Authenticate"] = 'Bearer realm="omninav admin"'
         return resp
@@ -74,8 +80,7 @@ def install_error_handlers(app: Flask) -> None:
     @app.errorhandler(OmninavError)
     def _engine(e: OmninavError) -> Any:  # the catalogue's and the engine's: their message is the answer
         resp = error_response(status_of(e), str(e), **e.details)
-        if "retry_after_s" in e.details:  # Busy: when the same request is likely to succeed
-            resp.headers["Retry-After"] = str(max(1, math.ceil(e.details["retry_after_s"])))
+        _retry_after(resp, e.details)  # Busy: when the same request is likely to succeed
         return resp
 
     @app.errorhandler(RequestEntityTooLarge)

@@ -34,6 +34,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..config import DEFAULTS
 from ..errors import OmninavError
 from .auth import FORBIDDEN, UNAUTHORISED
 
@@ -77,18 +78,19 @@ class Front:
     port: int
     cert: str = ""  # with a key: HTTPS
     key: str = ""
-    timeout_s: float = 10.0  # a request's head, a pause in a body, a TLS handshake
+    # the bounds a setting names default to that setting's default (config.py): one place for each
+    timeout_s: float = DEFAULTS["FRONT_TIMEOUT_S"]  # a request's head, a pause in a body, a TLS handshake
     upload_idle_s: float = 60.0  # a pause in a streamed video upload
     keepalive_s: float = 30.0
     send_s: float = 30.0  # a client reading nothing of its answer
     max_head: int = 16 * 1024  # one header line or the request line
-    max_body: int = 32 * 1024 * 1024  # MAX_CONTENT_LENGTH
-    max_upload: int = 16 * 1024**3  # MAX_UPLOAD_BYTES
+    max_body: int = DEFAULTS["MAX_CONTENT_LENGTH"]
+    max_upload: int = DEFAULTS["MAX_UPLOAD_BYTES"]
     body_buffer: int = 64 * 1024  # of a body, held in memory; the rest waits on disk
-    locate_rate: float = 10.0  # per client, the whole server; 0: none
-    locate_burst: int = 30
-    client_requests: int = 16  # requests of one client in progress at once (CLIENT_REQUESTS)
-    trust_proxy: bool = False
+    locate_rate: float = DEFAULTS["LOCATE_RATE"]  # per client, the whole server; 0: none
+    locate_burst: int = DEFAULTS["LOCATE_BURST"]
+    client_requests: int = DEFAULTS["CLIENT_REQUESTS"]  # requests of one client in progress at once
+    trust_proxy: bool = DEFAULTS["TRUST_PROXY"]
     connections: int = 8192  # connections open at once, clients and workers together (idle ones cost a few KB)
 
 
