@@ -180,3 +180,49 @@ test('a venue modelled with a setting this app does not know: told to update, no
   await expect.poll(() => spoken(page)).toContain(said);
   expect(posts()).toBe(0);
 });
+
+test('with the camera open, a press answers at once from the second kept before it', async ({ page }) => {
+  await page.addInitScript(() => {
+    // the moment of each press, on the page's clock
+    document.addEventListener(
+      'click',
+      (e) => {
+        if ((e.target as Element).id === 'where')
+          (window as unknown as { __pressed: number }).__pressed = performance.now();
+      },
+      true,
+    );
+    const speak = speechSynthesis.speak.bind(speechSynthesis);
+    (window as unknown as { __saidAt: number[] }).__saidAt = [];
+    speechSynthesis.speak = (u: SpeechSynthesisUtterance) => {
+      if (u.text.startsWith('You are')) (window as unknown as { __saidAt: number[] }).__saidAt.push(performance.now());
+      speak(u);
+    };
+  });
+  const posts = countLocates(page);
+  await page.goto(`${base()}/?venue=demo`);
+  await expect(page.locator('#venue-line')).toContainText('Ready');
+  const where = page.locator('#where');
+  await where.click(); // the camera opens: this press films its own second
+  await expect(page.locator('#debug-facts')).toContainText('filmed after the press');
+  await expect(where).toHaveText('Where am I?');
+  await page.waitForTimeout(1500); // the camera stays open: the last second is kept meanwhile
+  expect(posts(), 'standing by sends nothing').toBe(1);
+  await where.click();
+  await expect(page.locator('#debug-facts')).toContainText('kept before the press');
+  await expect(page.locator('#debug-facts')).toContainText(/Standing by.*the worker busy \d+ % of the time/);
+  const ms = await page.evaluate(() => {
+    const w = window as unknown as { __pressed: number; __saidAt: number[] };
+    return w.__saidAt[w.__saidAt.length - 1] - w.__pressed;
+  });
+  expect(ms, 'press to the first word, the camera open').toBeLessThanOrEqual(500);
+  expect(posts()).toBe(2);
+
+  // turned off in Settings: each press films its own second again
+  await page.getByRole('button', { name: 'Settings' }).click();
+  await page.getByLabel('Keep the last second ready').uncheck();
+  await page.getByRole('button', { name: 'Locate' }).click();
+  await page.waitForTimeout(1500);
+  await where.click();
+  await expect(page.locator('#debug-facts')).toContainText('filmed after the press');
+});

@@ -259,6 +259,7 @@ describe('the lens watch: when to check, what to say', () => {
     ring: null,
     look: { mean: 90, edge },
     ms: [20],
+    changed_px: 0,
   });
 
   it('says a correction of 2 px or more once, a smaller one never; stops on no ring, a cut ring, too far', () => {
@@ -472,6 +473,7 @@ describe("the session's lens check: when it runs, what is said, what is sent", (
     ring: null,
     look: { mean: 90, edge: 60 },
     ms: [25, 26, 24],
+    changed_px: verdict === 'corrected' ? Math.hypot(dx, dy) : 0,
   });
 
   function session(lenses: Record<string, unknown> = { donut }, [videoWidth, videoHeight] = [960, 720]) {
@@ -504,7 +506,8 @@ describe("the session's lens check: when it runs, what is said, what is sent", (
     expect(voice.say).toHaveBeenCalledWith(NOT_ATTACHED, 'error', true);
     await s.whereAmI();
     expect(checkLensOn).toHaveBeenCalledTimes(3); // checked again: it may have been clipped on since
-    expect(captureClip).not.toHaveBeenCalled();
+    // the second filmed beside each check was stopped when the check failed, and never sent
+    for (const c of vi.mocked(captureClip).mock.calls) expect(c[4]?.()).toBe(true);
     expect(locate).not.toHaveBeenCalled();
   });
 
@@ -536,8 +539,9 @@ describe("the session's lens check: when it runs, what is said, what is sent", (
     vi.mocked(checkLensOn).mockResolvedValue(checked('corrected', -4, 6));
     await s.whereAmI();
     expect(checkLensOn).toHaveBeenCalledTimes(2);
-    // four 1 s clips (the last press's twice), and each press films on while it is answered
-    expect(vi.mocked(captureClip).mock.calls.map((c) => c[2])).toEqual([10, 20, 10, 20, 10, 10, 20]);
+    // the first press filmed beside its check, and again through the corrected profile; the last
+    // press's clip was taken again after its check; each press films on while it is answered
+    expect(vi.mocked(captureClip).mock.calls.map((c) => c[2])).toEqual([10, 10, 20, 10, 20, 10, 10, 20]);
     expect(locate).toHaveBeenCalledTimes(3);
     expect(voice.say.mock.calls.filter((c) => c[0] === CORRECTED)).toHaveLength(2);
   });

@@ -77,6 +77,11 @@ export function clipFps(frames: number, startMs: number, endMs: number): number 
   return frames > 1 && span > 0 ? (frames - 1) / span : 10;
 }
 
+/** One frame grabbed from the camera now and extracted in the worker (the bitmap goes to it). */
+export function grabFrame(video: HTMLVideoElement, ext: ExtractorClient): Promise<FrameResult> {
+  return createImageBitmap(video).then((bm) => ext.extract(bm));
+}
+
 /**
  * Grab `n` frames `intervalMs` apart and extract each as it comes (extraction overlaps capture).
  * `follow`: a clip these frames continue, the first of them one interval after its last. `stop()`
@@ -104,7 +109,7 @@ export async function captureClip(
     if (stop()) break;
     times.push(performance.now());
     if (due !== null) due = Math.max(due, times[times.length - 1]) + intervalMs;
-    jobs.push(createImageBitmap(video).then((bm) => ext.extract(bm)));
+    jobs.push(grabFrame(video, ext));
   }
   const frames = await Promise.all(jobs);
   const [startMs, endMs] = [times[0] ?? performance.now(), times[times.length - 1] ?? performance.now()];

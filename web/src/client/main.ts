@@ -18,9 +18,13 @@ import { locateScreen } from './screens/locate';
 import { settingsScreen } from './screens/settings';
 import { Session } from './session';
 import { Speaker } from './speech';
+import { Posture } from './standby';
 import { ScreenLock } from './wakelock';
 
 const speaker = new Speaker(byId('live'), byId('alert'));
+const posture = new Posture();
+/** A screen that uses the camera is shown. */
+const cameraScreen = (): boolean => ['screen-locate', 'screen-goto'].some((id) => byId(id).hidden === false);
 const session = new Session({
   prefs: loadPrefs(),
   save: savePrefs,
@@ -31,6 +35,7 @@ const session = new Session({
   motion: new MotionFeed(),
   askMotion,
   guiding: (): boolean => guide.state === 'guiding', // (the guide is made next; asked only on a press)
+  standby: (): boolean => session.prefs.ready && !document.hidden && !posture.flat && cameraScreen(),
 });
 const guide = new Guide({
   voice: speaker,

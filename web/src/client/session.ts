@@ -29,7 +29,7 @@ import {
   venues as fetchVenues,
   type Venue,
 } from './api';
-import { CameraProblem, captureClip, joinClips, lensMismatch, openCamera, type Clip } from './camera';
+import { CameraProblem, captureClip, grabFrame, joinClips, lensMismatch, openCamera, type Clip } from './camera';
 import { SURE, describe, gist, type Answer } from './directions';
 import { ExtractorClient } from './bridge';
 import { LensWatch, checkLensOn, lensWords, phoneStorage } from './lenscheck';
@@ -40,6 +40,7 @@ import { encodeRecord, recordMismatch, unknownFeatureKeys } from '../shared/reco
 import type { Prefs } from './prefs';
 import { NO_FRAMES, NO_LENS, RecordMismatch, mapUpdated, problemText, staleOrNot } from './problems';
 import type { Cue } from './speech';
+import { Standby } from './standby';
 
 const CLIP_FRAMES = 10; // ~1 s at 10 fps: enough for the clip to outvote a single wrong frame
 /** Frames filmed after a first answer that was not sure: 3 s in all, sent as one clip. */
@@ -69,6 +70,11 @@ export const GUIDING_NOW =
 /** Said when Stop ends that filming: nothing is sent. */
 export const STOPPED = 'Stopped.';
 const RECHECK_MS = 500;
+/**
+ * A lens check beside the first second that moves the worker's profile by this much or more films
+ * that second again. Less is kept: the accuracy benchmarks perturb every query by a 2 px lens shift.
+ */
+const REFILM_PX = 1;
 /** How often a turn of "Keep telling me" looks again while a sentence is still being spoken. */
 const BUSY_POLL_MS = 500;
 /** The name the user's own lens profile is offered under, beside the venue's. */
@@ -102,6 +108,11 @@ export interface SessionOptions {
    * beside it would take the camera from it every other turn and talk over it.
    */
   guiding?: () => boolean;
+  /**
+   * The last second may be kept now (standby.ts: the screen, the page shown, the phone held up,
+   * the user's setting). Absent: never; every request films its own first second.
+   */
+  standby?: () => boolean;
 }
 
 /** A run of "Keep telling me": a new object per start, so that a stopped loop cannot revive. */
@@ -126,6 +137,10 @@ export interface Located {
   rttMs: number;
   /** The last lens check (a donut lens), in words, and its ring finding per frame. */
   lensCheck?: { message: string; ms: number };
+  /** Its first second was the one kept before the press (standby.ts), not filmed after it. */
+  kept: boolean;
+  /** The worker's share of the time while standing by (0-1), or null (no standby yet). */
+  duty: number | null;
 }
 
 export interface SessionEvents {
@@ -165,6 +180,12 @@ interface Ready {
   fresh: boolean;
   donut: boolean;
 }
+
+/**
+ * A named moment of a request on the page's performance timeline ("omninav: camera open"): what a
+ * press waits on, for the browser's profiler and bench/press.mjs.
+ */
+const mark = (what: string): void => void performance.mark(`omninav: ${what}`);
 
 const median = (v: number[]): number => v.slice().sort((a, b) => a - b)[v.length >> 1] ?? 0;
 
@@ -206,10 +227,34 @@ export class Session extends Emitter<SessionEvents> {
   private filming: { stopped: boolean } | null = null;
   /** The first second was not sure: that filming goes on for an answer (Stop would end it). */
   private askingMore = false;
+  /** The last second, kept while the camera is open and nothing films (null: not asked for). */
+  private readonly standby: Standby | null;
+  /** The lens in use is a donut's (its check comes before any frame is kept). */
+  private donut = false;
+  /** The first frames of the seconds taken from the standby (a clip joined to more keeps its first). */
+  private readonly keptFirsts = new WeakSet<object>();
 
   constructor(private readonly o: SessionOptions) {
     super();
     this.prefs = o.prefs;
+    const allowed = o.standby;
+    this.standby = allowed
+      ? new Standby({
+          size: CLIP_FRAMES,
+          intervalMs: CLIP_INTERVAL_MS,
+          // nothing is grabbed while a request films its own frames
+          grab: () => (this.busy || !this.ext || !this.cameraLive() ? null : grabFrame(o.video, this.ext)),
+          // a donut lens is checked before any frame of it is kept
+          allowed: () =>
+            allowed() && this.cameraLive() && !(this.donut && this.lensWatch.due(this.ext?.configured ?? null)),
+          key: () => this.ext?.configured ?? null,
+        })
+      : null;
+  }
+
+  /** The camera is open and gives frames. */
+  private cameraLive(): boolean {
+    return !!this.stream?.getVideoTracks().some((t) => t.readyState === 'live');
   }
 
   /** Set and keep one preference; a new venue is loaded at once. */
@@ -308,23 +353,50 @@ export class Session extends Emitter<SessionEvents> {
     let fresh = false;
     if (!this.stream) {
       this.stream = await openCamera(video, lens[1]);
+      mark('camera open');
       this.lensWatch.reset(); // a new session of the camera: the lens may sit elsewhere now
       fresh = true;
     }
     const bad = lensMismatch(video.videoWidth, video.videoHeight, lens[1], lens[0]);
     if (bad) throw new CameraProblem('lens', bad);
     await configured;
-    return { v, lens, ext, fresh, donut: lens[1].model === 'catadioptric' };
+    this.donut = lens[1].model === 'catadioptric';
+    this.standby?.start();
+    return { v, lens, ext, fresh, donut: this.donut };
   }
 
-  /** ~1 s of frames; a donut lens is checked first (a 360 camera has no ring), and again when the picture jumps. */
+  /**
+   * ~1 s of frames: the second kept before the press when there is one (standby.ts), else filmed
+   * now. A donut lens due a check (a camera just opened) is checked while the second is filmed: a
+   * check that changes the worker's profile films it again, through the new one. A picture that
+   * jumped since the last check is checked again, and filmed again. A 360 camera has no ring.
+   */
   private async firstClip(r: Ready): Promise<Clip> {
     const { ext, donut } = r;
-    if (donut && this.lensWatch.due(ext.configured)) await this.checkLens(ext, r.fresh);
-    const clip = await captureClip(this.o.video, ext, CLIP_FRAMES, CLIP_INTERVAL_MS);
+    const due = donut && this.lensWatch.due(ext.configured);
+    const kept = due ? null : (this.standby?.take() ?? null);
+    if (kept && !(donut && this.lensWatch.changed(kept.frames))) {
+      this.keptFirsts.add(kept.frames[0]);
+      return kept;
+    }
+    const film = (stop?: () => boolean) => captureClip(this.o.video, ext, CLIP_FRAMES, CLIP_INTERVAL_MS, stop);
+    if (due) {
+      const failed = { now: false };
+      const filming = film(() => failed.now);
+      filming.catch(() => undefined); // a failed check is the error said
+      const check = await this.checkLens(ext, r.fresh).catch((e: unknown) => {
+        failed.now = true;
+        throw e;
+      });
+      mark('lens checked');
+      const clip = await filming;
+      if (check.changed_px < REFILM_PX && !this.lensWatch.changed(clip.frames)) return clip;
+      return film();
+    }
+    const clip = await film();
     if (!donut || !this.lensWatch.changed(clip.frames)) return clip;
     await this.checkLens(ext);
-    return captureClip(this.o.video, ext, CLIP_FRAMES, CLIP_INTERVAL_MS);
+    return film();
   }
 
   /**
@@ -356,6 +428,8 @@ export class Session extends Emitter<SessionEvents> {
       rttMs,
       lensCheck:
         r.donut && this.lastCheck ? { message: this.lastCheck.message, ms: median(this.lastCheck.ms) } : undefined,
+      kept: clip.frames.length > 0 && this.keptFirsts.has(clip.frames[0]),
+      duty: this.standby?.duty() ?? null,
     };
   }
 
@@ -371,6 +445,7 @@ export class Session extends Emitter<SessionEvents> {
       return;
     }
     this.busy = true;
+    mark('press');
     this.emit('busy', true);
     try {
       try {
@@ -407,6 +482,7 @@ export class Session extends Emitter<SessionEvents> {
       const rest = captureClip(video, ext, MORE_FRAMES, CLIP_INTERVAL_MS, () => more.stopped, clip);
       rest.catch(() => undefined); // a failure matters only when the frames are used (filmMore)
       let t0 = performance.now();
+      mark('first second');
       let a = await locate(v.id, record, clip.fps, `web-${Date.now()}`).catch((e: unknown) => {
         throw staleOrNot(e, v.features.settings_id);
       });
@@ -422,6 +498,7 @@ export class Session extends Emitter<SessionEvents> {
         });
       }
       const rttMs = performance.now() - t0;
+      mark('answer');
       this.lastAnswer = a;
       this.emit('answer', this.located(a, r, clip, record.length, rttMs));
       this.tell(a, v, false);
@@ -533,7 +610,7 @@ export class Session extends Emitter<SessionEvents> {
    * The lens check (lenscheck.ts): the worker finds the ring and from now on extracts with the
    * corrected profile; no ring, a cut ring or one too far off stops here, before any request.
    */
-  private async checkLens(ext: ExtractorClient, fresh = false): Promise<void> {
+  private async checkLens(ext: ExtractorClient, fresh = false): Promise<LensCheck> {
     let c = await checkLensOn(this.o.video, ext);
     // a camera that has just started may still be finding its exposure: look once more before saying no
     if (fresh && lensWords(c)) {
@@ -545,6 +622,7 @@ export class Session extends Emitter<SessionEvents> {
     const said = this.lensWatch.record(c, ext.configured);
     if (said?.stop) throw new CameraProblem('lens', said.text);
     if (said) this.o.voice.say(said.text, null);
+    return c;
   }
 
   get continuous(): boolean {

@@ -28,6 +28,12 @@ export interface LensCheck {
   look: Look;
   /** Ring finding per frame, ms. */
   ms: number[];
+  /**
+   * How far the check moved the profile the worker extracts with, in pixels (the ring's centre or
+   * radii, whichever moved most; 0: unchanged): frames extracted before it (a clip filmed beside
+   * the check) were extracted through the old one.
+   */
+  changed_px: number;
 }
 
 export type ToWorker =

@@ -23,6 +23,13 @@ let base: { lens: Lens; settings: FeatureSettings } | null = null;
 let canvas: OffscreenCanvas | null = null;
 let ctx: OffscreenCanvasRenderingContext2D | null = null;
 
+/** How far profile `b` is from `a`, in pixels: the centre or a radius, whichever moved most (Infinity: another model). */
+function profileMoved(a: Lens, b: Lens): number {
+  if (a.model !== 'catadioptric' || b.model !== 'catadioptric') return a.model === b.model ? 0 : Infinity;
+  const centre = Math.hypot(a.center[0] - b.center[0], a.center[1] - b.center[1]);
+  return Math.max(centre, Math.abs(a.r_inner - b.r_inner), Math.abs(a.r_outer - b.r_outer));
+}
+
 function post(m: FromWorker, transfer: Transferable[] = []): void {
   self.postMessage(m, transfer);
 }
@@ -93,10 +100,11 @@ function lens(m: Extract<ToWorker, { type: 'lens' }>): void {
       ms.push(performance.now() - t0);
     }
     let check: Omit<LensCheck, 'look'>;
+    let changed_px = 0;
     if (profile?.model !== 'catadioptric') {
       // a 360 camera has no ring to find, and nothing a clip-on could move
       const message = 'An equirectangular camera has no lens ring to check';
-      check = { verdict: 'same', dx: 0, dy: 0, scale: 1, moved_px: 0, message, ring: null, ms };
+      check = { verdict: 'same', dx: 0, dy: 0, scale: 1, moved_px: 0, message, ring: null, ms, changed_px };
     } else {
       const ring = medianRing(rings);
       const { lens: corrected, ...fit } = fitLens(profile, ring);
@@ -104,10 +112,11 @@ function lens(m: Extract<ToWorker, { type: 'lens' }>): void {
       // ring that cannot be used leaves the extractor as it is (nothing is sent until it can)
       const want = fit.verdict === 'corrected' ? corrected : fit.verdict === 'same' ? profile : null;
       if (want && JSON.stringify(want) !== JSON.stringify(ext!.lens)) {
+        changed_px = profileMoved(ext!.lens, want);
         ext!.delete();
         ext = new Extractor(cv!, want, base!.settings);
       }
-      check = { ...fit, ring, ms };
+      check = { ...fit, ring, ms, changed_px };
     }
     const look = px ? lookOf(px, canvas!.width, canvas!.height, ext!.lens) : { mean: NaN, edge: NaN };
     post({ type: 'lens', id: m.id, check: { ...check, look } });

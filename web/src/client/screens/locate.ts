@@ -71,6 +71,10 @@ export function locateScreen(session: Session, speaker: Speaker): void {
       ['Camera', `${r.camera[0]} x ${r.camera[1]}, lens ${r.lens}, ${r.fps.toFixed(1)} frames/s`],
       ['Extraction', `${r.medianMs.toFixed(1)} ms per frame (median)`],
       ['Server round trip', `${r.rttMs.toFixed(0)} ms`],
+      ['First second', r.kept ? 'kept before the press' : 'filmed after the press'],
+      ...(r.duty === null
+        ? []
+        : [['Standing by', `the worker busy ${(r.duty * 100).toFixed(0)} % of the time`] as [string, string]]),
       ['Position', `x ${a.x.toFixed(2)} m, y ${a.y.toFixed(2)} m, heading ${a.heading_deg.toFixed(1)}°`],
       ['Confidence', a.confidence.toFixed(3)],
       ...lensRow,

@@ -64,6 +64,13 @@ export const SETTINGS: Setting<keyof Prefs>[] = [
     show: (c, v) => (c.checked = v),
   }),
   setting({ selector: '#interval', key: 'interval', event: 'change', read: num, show: showNum }),
+  setting({
+    selector: '#ready',
+    key: 'ready',
+    event: 'change',
+    read: (c) => c.checked === true,
+    show: (c, v) => (c.checked = v),
+  }),
 ];
 
 /** The controls that tune only the app's own voice: off while the screen reader reads instead. */
