@@ -8,6 +8,7 @@ import pytest
 from omninav.errors import OmninavError
 from omninav.extract import Extractor
 from omninav.heading import relative_heading
+from omninav.lens import direction_to_pixel
 from omninav.level import edge_lean, estimate_map, intensity, level_map, tilt_rotation, tilted_map
 from omninav.presets import TWO_BANDS, resolve, settings_id
 from omninav.synth import build_scene, donut_lens, equirect_lens
@@ -103,6 +104,37 @@ def test_directions_the_lens_does_not_see_read_what_they_read_upright():
     assert seen[upright.valid].all()
     same = (m.map_x == upright.map_x) & (m.map_y == upright.map_y)
     assert same[0].any() and not same[len(same) // 2].any()
+
+
+@pytest.mark.parametrize("make", [lambda: donut_lens(0.5), lambda: equirect_lens(1440)], ids=["donut", "360"])
+def test_the_tilted_map_is_direction_to_pixel_of_the_turned_directions(make):
+    # tilted_map takes a donut's pixel from the turned direction's horizontal components, without
+    # arctan2, cos and sin: the same float32 tables as the azimuth and elevation give
+    lens = make()
+    upright = Extractor(lens, resolve("default")).map
+    rows, cols = upright.map_x.shape
+    el = np.repeat(upright.elevations.astype(np.float64)[:, None], cols, 1)
+    az = np.repeat(((np.arange(cols) + 0.5) * 360.0 / cols)[None], rows, 0)
+    w = np.stack(
+        [
+            np.cos(np.radians(el)) * np.cos(np.radians(az)),
+            np.cos(np.radians(el)) * np.sin(np.radians(az)),
+            np.sin(np.radians(el)),
+        ],
+        -1,
+    )
+    for tilt, toward in [(2.0, 10.0), (6.0, 135.0), (12.0, 260.0)]:
+        rot = tilt_rotation(tilt, toward)
+        c = w @ rot
+        x, y = direction_to_pixel(
+            lens,
+            np.mod(np.degrees(np.arctan2(c[..., 1], c[..., 0])), 360.0),
+            np.degrees(np.arcsin(np.clip(c[..., 2], -1, 1))),
+        )
+        ok = np.isfinite(x) & np.isfinite(y)
+        m = tilted_map(lens, upright, rot)
+        assert np.abs(m.map_x[ok] - x[ok]).max() < 1e-3 and np.abs(m.map_y[ok] - y[ok]).max() < 1e-3
+        assert (m.map_x[~ok] == upright.map_x[~ok]).all()
 
 
 def test_a_360_camera_is_levelled_too():

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from omninav.curves import extract_curves, gray_world, normalise, soft_clip
+from omninav.curves import channel_images, circular_diff, extract_curves, gray_world, normalise, soft_clip
 from omninav.errors import OmninavError
 from omninav.extract import Extractor
 from omninav.heading import correlation, peak, relative_heading, wrap_deg
@@ -79,6 +79,29 @@ def test_gray_world_removes_a_colour_cast():
     rgb = rng.uniform(0.2, 0.8, (20, 50, 3)).astype(np.float32)
     cast = rgb * np.array([1.2, 0.9, 0.7], np.float32)
     assert np.allclose(gray_world(rgb), gray_world(cast), atol=1e-5)
+
+
+def test_the_gray_world_means_are_numpys_and_the_phones():
+    # one channel at a time in float64: a panorama's k / 255 values sum exactly in any order
+    rng = np.random.default_rng(2)
+    pano = rng.integers(0, 256, (51, 1440, 3)).astype(np.float32) * np.float32(1.0 / 255.0)
+    valid = rng.uniform(size=(51, 1440)) > 0.1
+    for v in (None, valid):
+        px = pano.reshape(-1, 3) if v is None else pano[v]
+        gain = (0.5 / np.maximum(px.mean(axis=0, dtype=np.float64).astype(np.float32), 1e-6)).astype(np.float32)
+        assert np.array_equal(gray_world(pano, v), pano * gain)
+
+
+def test_the_channel_images_are_the_plain_numpy_ones():
+    # intensity as (r + g) + b over 3 is rgb.mean(axis=-1) to the bit; gradients as np.roll has them
+    rng = np.random.default_rng(3)
+    rgb = rng.uniform(0.0, 1.0, (7, 40, 3)).astype(np.float32)
+    imgs = channel_images(rgb, ["I", "dI", "dO1"])
+    assert np.array_equal(imgs["I"], rgb.mean(axis=-1))
+    for ch, x in (("dI", rgb.mean(axis=-1)), ("dO1", (rgb[..., 0] - rgb[..., 1]) * 0.5)):
+        assert np.array_equal(imgs[ch], np.abs(np.roll(x, -1, axis=-1) - np.roll(x, 1, axis=-1)) * 0.5)
+    for n in (1, 2, 3):
+        assert np.array_equal(circular_diff(rgb[0, :n, 0]), np.roll(rgb[0, :n, 0], -1) - np.roll(rgb[0, :n, 0], 1))
 
 
 def test_soft_clip_bounds_outlying_columns_and_keeps_their_order():

@@ -48,21 +48,38 @@ def gray_world(rgb: np.ndarray, valid: np.ndarray | None = None) -> np.ndarray:
     """
     # Accumulate in float64: numpy sums an axis-0 float32 reduction sequentially, whose error (1e-5
     # relative) the opponent channels' cancellation amplifies; the phone's extractor sums in doubles.
-    if valid is None or valid.all():
-        mean = rgb.reshape(-1, 3).mean(axis=0, dtype=np.float64)
+    # One channel at a time (a strided column, six times faster than mean(axis=0) of the pixels):
+    # a panorama's float32 k / 255 values sum exactly in float64 in any order (below 2^20 pixels),
+    # so the means are the phone's to the last bit.
+    px = rgb.reshape(-1, 3) if valid is None or valid.all() else rgb[valid]
+    if len(px):
+        mean = np.array([np.add.reduce(px[:, c], dtype=np.float64) for c in range(3)]) / len(px)
     else:
-        mean = rgb[valid].mean(axis=0, dtype=np.float64) if valid.any() else np.ones(3)
+        mean = np.ones(3)
     out: np.ndarray = rgb * (0.5 / np.maximum(mean.astype(np.float32), _EPS)).astype(np.float32)
     return out
 
 
 def _hgrad(x: np.ndarray, circular_unit: bool = False) -> np.ndarray:
     """|d/dx| along the columns (azimuth), circular because the panorama wraps around."""
-    d = np.roll(x, -1, axis=-1) - np.roll(x, 1, axis=-1)
+    d = circular_diff(x)
     if circular_unit:  # hue is an angle in turns: 0.99 and 0.01 are close
         d = (d + 0.5) % 1.0 - 0.5
     out: np.ndarray = np.abs(d) * 0.5
     return out
+
+
+def circular_diff(x: np.ndarray) -> np.ndarray:
+    """x[..., j + 1] - x[..., j - 1] along the last axis, wrapping: np.roll's values, without its copies."""
+    d = np.empty_like(x)
+    n = x.shape[-1]
+    if n < 3:  # the two neighbours overlap: as np.roll has them
+        rolled: np.ndarray = np.roll(x, -1, axis=-1) - np.roll(x, 1, axis=-1)
+        return rolled
+    np.subtract(x[..., 2:], x[..., :-2], out=d[..., 1:-1])
+    np.subtract(x[..., 1], x[..., -1], out=d[..., 0])
+    np.subtract(x[..., 0], x[..., -2], out=d[..., -1])
+    return d
 
 
 def channel_images(rgb: np.ndarray, channels: list[str] | tuple[str, ...]) -> dict[str, np.ndarray]:
@@ -70,7 +87,9 @@ def channel_images(rgb: np.ndarray, channels: list[str] | tuple[str, ...]) -> di
     out: dict[str, np.ndarray] = {}
     need_hsi = any(c in ("H", "S", "I", "dH", "dS", "dI") for c in channels)
     if need_hsi and not any(c in ("H", "S", "dH", "dS") for c in channels):
-        base = {"I": rgb.mean(axis=-1)}  # intensity alone needs no hue
+        # intensity alone needs no hue; (r + g) + b, then / 3, is rgb.mean(axis=-1)'s float32 sum
+        # and quotient, bit for bit, without its slow three-element reduction
+        base = {"I": (rgb[..., 0] + rgb[..., 1] + rgb[..., 2]) / np.float32(3.0)}
     else:
         base = hsi(rgb) if need_hsi else {}
     r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
@@ -141,9 +160,11 @@ def extract_curves(
     out = np.empty((sum(len(c) for c in per), width), np.float32)
     k = 0
     for (lo, hi), chs in zip(conf["bands"], per, strict=True):
-        rows = (elevations >= lo - 1e-6) & (elevations <= hi + 1e-6)
+        rows = np.flatnonzero((elevations >= lo - 1e-6) & (elevations <= hi + 1e-6))
+        # the band's rows are consecutive (elevations descend): a view, not a copy, the same sums
+        band = slice(rows[0], rows[-1] + 1) if len(rows) and rows[-1] - rows[0] + 1 == len(rows) else rows
         for ch in chs:
-            col = imgs[ch][rows].mean(axis=0)
+            col = imgs[ch][band].mean(axis=0)
             out[k] = col.reshape(width, os_).mean(axis=1)
             k += 1
     out = normalise(out)

@@ -39,7 +39,8 @@ from typing import Any
 
 import numpy as np
 
-from .lens import Lens, direction_to_pixel
+from .curves import circular_diff
+from .lens import Catadioptric, Lens, direction_to_pixel
 from .unwarp import UnwarpMap, band_map, unwarp
 
 LEAN_PERCENTILE = 90.0  # the strongest tenth of the horizontal gradients: the edges whose lean counts
@@ -63,10 +64,14 @@ def edge_lean(gray: np.ndarray, elevations: np.ndarray, valid: np.ndarray) -> tu
         return 0.0, 0.0, 0
     daz = 360.0 / cols
     d_el = float(elevations[0] - elevations[1])
-    gx = (np.roll(gray, -1, axis=1) - np.roll(gray, 1, axis=1)) / (2.0 * daz)
+    gx = circular_diff(gray) / (2.0 * daz)
     gy = np.zeros_like(gray)
     gy[1:-1] = (gray[:-2] - gray[2:]) / (2.0 * d_el)  # d/d(elevation): the row above is higher
-    ok = valid & np.roll(valid, 1, axis=1) & np.roll(valid, -1, axis=1)
+    ok = valid.copy()  # and both neighbours along the row (it wraps)
+    ok[:, 1:] &= valid[:, :-1]
+    ok[:, :1] &= valid[:, -1:]
+    ok[:, :-1] &= valid[:, 1:]
+    ok[:, -1:] &= valid[:, :1]
     ok[0] = ok[-1] = False
     ok[1:-1] &= valid[:-2] & valid[2:]
     w = gx * gx
@@ -130,9 +135,7 @@ def tilted_map(lens: Lens, upright: UnwarpMap, rot: np.ndarray) -> UnwarpMap:
     c0 = w0 * rot[0, 0] + w1 * rot[1, 0] + w2 * rot[2, 0]
     c1 = w0 * rot[0, 1] + w1 * rot[1, 1] + w2 * rot[2, 1]
     c2 = w0 * rot[0, 2] + w1 * rot[1, 2] + w2 * rot[2, 2]
-    azc = np.mod(np.rad2deg(np.arctan2(c1, c0)), 360.0)
-    elc = np.rad2deg(np.arcsin(np.clip(c2, -1.0, 1.0)))
-    x, y = direction_to_pixel(lens, azc, elc)  # NaN where the donut does not see
+    x, y = _turned_pixels(lens, c0, c1, c2)  # NaN where the donut does not see
     ok = np.isfinite(x) & np.isfinite(y)
     return UnwarpMap(
         np.where(ok, x, upright.map_x).astype(np.float32),
@@ -141,6 +144,35 @@ def tilted_map(lens: Lens, upright: UnwarpMap, rot: np.ndarray) -> UnwarpMap:
         upright.valid,
         upright.border,
     )
+
+
+def _turned_pixels(lens: Lens, c0: np.ndarray, c1: np.ndarray, c2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels (x, y) that see the unit vectors (c0, c1, c2) of the camera's frame (forward, right,
+    up): direction_to_pixel of their azimuth and elevation.
+
+    Notes
+    -----
+    A donut's pixel is centre + r(el) (cos phi, sin phi) with phi = forward + sign * azimuth; the
+    azimuth's cosine and sine are c0 / h and c1 / h (h the horizontal length), so no arctan2, cos
+    or sin is taken per cell: the same point to a few units in the last place, and the phone's
+    worker (level.ts `tiltInto`) turns it term by term the same way. A 360 camera's column is
+    linear in the azimuth itself.
+    """
+    el = np.rad2deg(np.arcsin(np.clip(c2, -1.0, 1.0)))
+    if not isinstance(lens, Catadioptric):
+        return direction_to_pixel(lens, np.mod(np.rad2deg(np.arctan2(c1, c0)), 360.0), el)
+    r = lens.radius(el)
+    h = np.sqrt(c0 * c0 + c1 * c1)
+    up = h > 0  # not straight up or down: there the azimuth is 0, as arctan2(0, 0) says
+    if up.all():
+        ca, sa = c0 / h, c1 / h
+    else:
+        hh = np.where(up, h, 1.0)
+        ca, sa = np.where(up, c0 / hh, 1.0), np.where(up, c1 / hh, 0.0)
+    sign = -1.0 if lens.ccw else 1.0
+    f = math.radians(lens.forward_deg)
+    cf, sf = math.cos(f), math.sin(f)
+    return lens.center[0] + r * (cf * ca - sign * sf * sa), lens.center[1] + r * (sf * ca + sign * cf * sa)
 
 
 def level_map(

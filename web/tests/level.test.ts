@@ -1,7 +1,9 @@
 // Levelling's small parts (worker/level.ts); the whole of it is checked against the engine's
 // golden frames in golden.test.ts (the donut-tilted case).
 import { describe, expect, it } from 'vitest';
-import { addLean, leanTilt, percentile, tiltRotation } from '../src/worker/level';
+import { addLean, leanTilt, percentile, radiusAt, radiusTableOf, tiltedMap, tiltRotation } from '../src/worker/level';
+import { bandMap } from '../src/worker/unwarp';
+import { directionToPixel, radiusTable, type CatadioptricLens, type Lens } from '../src/shared/lens';
 
 /** numpy.percentile (linear) by sorting, as a reference. */
 function sorted(v: number[], q: number): number {
@@ -46,4 +48,80 @@ describe('levelling', () => {
     const big = addLean([0, 0], 1, 0); // 57 degrees: capped at 15
     expect(Math.hypot(...big)).toBeCloseTo(15, 12);
   });
+});
+
+describe('the radius lookup', () => {
+  const donut = (poly: number[]): CatadioptricLens => ({
+    model: 'catadioptric',
+    image_size: [960, 720],
+    center: [480, 360],
+    r_inner: 100,
+    r_outer: 340,
+    elevation_poly: poly,
+  });
+  // the golden donut's, one far from linear, one falling with the radius
+  for (const poly of [
+    [-72.98732458125852, 0.24373019465821674, 0.0002172928927116338],
+    [-90, 0.05, 0.0015, -1e-6],
+    [40, -0.3],
+  ])
+    it(`finds numpy.interp's value of the radius table, bucketed (degree ${poly.length - 1})`, () => {
+      const lens = donut(poly);
+      const want = radiusTable(lens);
+      const t = radiusTableOf(lens);
+      expect(t.start).not.toBeNull();
+      const n = t.r.length;
+      const xs: number[] = [t.e[0] - 1, t.e[n - 1] + 1, NaN];
+      for (let i = 0; i < n; i++) xs.push(t.e[i], (t.e[i] + (t.e[i + 1] ?? t.e[i])) / 2);
+      let seed = 9;
+      for (let i = 0; i < 20_000; i++)
+        xs.push(t.e[0] + ((seed = (seed * 16807) % 2147483647) / 2147483647) * (t.e[n - 1] - t.e[0]));
+      for (const x of xs)
+        expect(Object.is(radiusAt(t, x), want(x)) || radiusAt(t, x) === want(x), `at ${x}`).toBe(true);
+    });
+});
+
+describe('the tilted map', () => {
+  // tiltInto takes a donut's pixel from the turned direction's horizontal components, without
+  // atan2, cos and sin: the same tables as its azimuth and elevation give, through directionToPixel
+  const lenses: Lens[] = [
+    {
+      model: 'catadioptric',
+      image_size: [960, 720],
+      center: [487, 352],
+      r_inner: 105,
+      r_outer: 340,
+      elevation_poly: [-72.98732458125852, 0.24373019465821674, 0.0002172928927116338],
+      forward_deg: 90,
+      ccw: true,
+    },
+    { model: 'equirectangular', image_size: [1440, 720], forward_x: 360 },
+  ];
+  for (const lens of lenses)
+    it(`is directionToPixel of the turned directions (${lens.model})`, () => {
+      const upright = bandMap(lens, { bands: [[-30, 30]], row_step_deg: 1, pano_width: 360, oversample: 2 });
+      const radius = lens.model === 'catadioptric' ? radiusTable(lens) : null;
+      for (const [tilt, toward] of [
+        [2, 10],
+        [6, 135],
+        [12, 260],
+      ]) {
+        const rot = tiltRotation(tilt, toward);
+        const m = tiltedMap(lens, upright, rot);
+        let worst = 0;
+        for (let i = 0, k = 0; i < upright.rows; i++)
+          for (let j = 0; j < upright.cols; j++, k++) {
+            const el = (Math.fround(upright.elevations[i]) * Math.PI) / 180;
+            const az = ((((j + 0.5) * 360) / upright.cols) * Math.PI) / 180;
+            const w = [Math.cos(el) * Math.cos(az), Math.cos(el) * Math.sin(az), Math.sin(el)];
+            const c = [0, 1, 2].map((q) => w[0] * rot[q] + w[1] * rot[3 + q] + w[2] * rot[6 + q]);
+            const azc = ((Math.atan2(c[1], c[0]) * 180) / Math.PI + 360) % 360;
+            const [x, y] = directionToPixel(lens, radius, azc, (Math.asin(c[2]) * 180) / Math.PI);
+            if (Number.isFinite(x) && Number.isFinite(y))
+              worst = Math.max(worst, Math.abs(m.mapX[k] - x), Math.abs(m.mapY[k] - y));
+            else expect([m.mapX[k], m.mapY[k]]).toEqual([upright.mapX[k], upright.mapY[k]]);
+          }
+        expect(worst).toBeLessThan(1e-3);
+      }
+    });
 });

@@ -10,109 +10,150 @@ export const CHANNELS = ['H', 'S', 'I', 'dH', 'dS', 'dI', 'O1', 'O2', 'dO1', 'dO
 const EPS = 1e-6;
 const f32 = Math.fround;
 
-/** RGBA bytes -> three float32 planes in [0, 1] (the engine's `astype(float32) * (1 / 255)`). */
-export function toFloat(rgba: Uint8Array | Uint8ClampedArray, n: number): [Float32Array, Float32Array, Float32Array] {
-  const k = f32(1 / 255);
-  const r = new Float32Array(n);
-  const g = new Float32Array(n);
-  const b = new Float32Array(n);
-  for (let i = 0, p = 0; i < n; i++, p += 4) {
-    r[i] = rgba[p] * k;
-    g[i] = rgba[p + 1] * k;
-    b[i] = rgba[p + 2] * k;
-  }
-  return [r, g, b];
+/** What the channels of a set need: HSI (hue or saturation), intensity alone, opponent colours. */
+function needs(channels: readonly string[]): { hsi: boolean; i: boolean; o: boolean } {
+  for (const ch of channels)
+    if (!(CHANNELS as readonly string[]).includes(ch))
+      throw new Error(`unknown channel ${ch}; known: ${CHANNELS.join(', ')}`);
+  const hsi = channels.some((c) => ['H', 'S', 'dH', 'dS'].includes(c));
+  return { hsi, i: !hsi && channels.some((c) => c === 'I' || c === 'dI'), o: channels.some((c) => /O[12]$/.test(c)) };
 }
 
-/** Gray-world constancy: each channel times 0.5 / its mean over the pixels the lens sees. */
-export function grayWorld(rgb: Float32Array[], valid: Uint8Array): void {
+/**
+ * extractCurves' working arrays for one (panorama size, settings): a row of each channel, a column
+ * sum per curve, which rows each band sums. Made once per extractor and reused frame after frame.
+ */
+export interface CurveScratch {
+  rows: number;
+  cols: number;
+  /** per band, the panorama rows it sums */
+  inBand: number[][];
+  /** per band, its curves: the channel and the accumulator (band-major, the curves' order) */
+  curves: { ch: string; acc: Float64Array }[][];
+  /** per band, each channel it sums with its gradient's, if any: one pass over the row for both */
+  pairs: { base: string; plain: Float64Array | null; grad: Float64Array | null }[][];
+  row: Map<string, Float32Array>;
+  /** the frame's float32 value of each byte per colour (gray world's gain applied) */
+  lut: Float32Array[];
+}
+
+export function curveScratch(rows: number, cols: number, elevations: Float64Array, s: FeatureSettings): CurveScratch {
+  const per = bandChannels(s);
+  const union = [...new Set(per.flat())];
+  const need = needs(union);
+  const row = new Map<string, Float32Array>();
+  const names = ['R', 'G', 'B', ...union];
+  if (need.hsi) names.push('H', 'S', 'I');
+  if (need.i) names.push('I');
+  if (need.o) names.push('O1', 'O2');
+  for (const n of names) if (!row.has(n)) row.set(n, new Float32Array(cols));
+  const inBand = s.bands.map(([lo, hi]) => {
+    const rs: number[] = [];
+    for (let i = 0; i < rows; i++) if (elevations[i] >= lo - 1e-6 && elevations[i] <= hi + 1e-6) rs.push(i);
+    return rs;
+  });
+  const curves = per.map((chs) => chs.map((ch) => ({ ch, acc: new Float64Array(cols) })));
+  const pairs = curves.map((band) => {
+    const bases = [...new Set(band.map(({ ch }) => (ch[0] === 'd' ? ch.slice(1) : ch)))];
+    return bases.map((base) => ({
+      base,
+      plain: band.find((c) => c.ch === base)?.acc ?? null,
+      grad: band.find((c) => c.ch === `d${base}`)?.acc ?? null,
+    }));
+  });
+  return { rows, cols, inBand, curves, pairs, row, lut: [0, 1, 2].map(() => new Float32Array(256)) };
+}
+
+const K255 = f32(1 / 255);
+
+/** Each byte's float32 value per colour (the engine's `astype(float32) * (1 / 255)`), times gray
+ * world's gain: 0.5 / the colour's mean over the pixels the lens sees (sums in doubles). */
+function colourTables(
+  rgba: Uint8Array | Uint8ClampedArray,
+  n: number,
+  valid: Uint8Array,
+  grayWorld: boolean,
+  lut: Float32Array[],
+): void {
+  for (let v = 0; v < 256; v++) lut[0][v] = v * K255;
+  if (!grayWorld) {
+    lut[1].set(lut[0]);
+    lut[2].set(lut[0]);
+    return;
+  }
+  const base = lut[0];
   let count = 0;
-  const sums = [0, 0, 0];
-  for (let i = 0; i < valid.length; i++) {
+  let s0 = 0;
+  let s1 = 0;
+  let s2 = 0;
+  for (let i = 0, p = 0; i < n; i++, p += 4) {
     if (!valid[i]) continue;
     count++;
-    sums[0] += rgb[0][i];
-    sums[1] += rgb[1][i];
-    sums[2] += rgb[2][i];
+    s0 += base[rgba[p]];
+    s1 += base[rgba[p + 1]];
+    s2 += base[rgba[p + 2]];
   }
-  for (let c = 0; c < 3; c++) {
+  const sums = [s0, s1, s2];
+  for (let c = 2; c >= 0; c--) {
     const mean = count ? f32(sums[c] / count) : 1;
     const gain = f32(0.5 / Math.max(mean, EPS));
-    const plane = rgb[c];
-    for (let i = 0; i < plane.length; i++) plane[i] = plane[i] * gain;
+    for (let v = 0; v < 256; v++) lut[c][v] = base[v] * gain;
   }
 }
 
-/** Gonzalez & Woods HSI: hue in turns [0, 1), saturation, intensity. */
-function hsi(r: Float32Array, g: Float32Array, b: Float32Array): { H: Float32Array; S: Float32Array; I: Float32Array } {
-  const n = r.length;
-  const H = new Float32Array(n);
-  const S = new Float32Array(n);
-  const I = new Float32Array(n);
-  for (let i = 0; i < n; i++) {
-    const R = r[i],
-      G = g[i],
-      B = b[i];
+/** Gonzalez & Woods HSI of one row: hue in turns [0, 1), saturation, intensity. */
+function hsiRow(
+  r: Float32Array,
+  g: Float32Array,
+  b: Float32Array,
+  H: Float32Array,
+  S: Float32Array,
+  I: Float32Array,
+): void {
+  for (let j = 0; j < r.length; j++) {
+    const R = r[j],
+      G = g[j],
+      B = b[j];
     const s3 = R + G + B;
-    I[i] = s3 / 3;
-    S[i] = 1 - (3 * Math.min(R, G, B)) / Math.max(s3, EPS);
+    I[j] = s3 / 3;
+    S[j] = 1 - (3 * Math.min(R, G, B)) / Math.max(s3, EPS);
     const num = 0.5 * (R - G + (R - B));
     const den = Math.sqrt((R - G) ** 2 + (R - B) * (G - B)) + EPS;
     const theta = Math.acos(Math.min(1, Math.max(-1, num / den)));
-    H[i] = (B > G ? 2 * Math.PI - theta : theta) / (2 * Math.PI);
+    H[j] = (B > G ? 2 * Math.PI - theta : theta) / (2 * Math.PI);
   }
-  return { H, S, I };
 }
 
-/** |d/dx| along each row, circular (the panorama wraps); hue differences wrap at one turn. */
-function hgrad(x: Float32Array, rows: number, cols: number, circularUnit: boolean): Float32Array {
-  const out = new Float32Array(x.length);
-  for (let i = 0; i < rows; i++) {
-    const o = i * cols;
+/**
+ * plain += one row of a channel, grad += its |d/dx| (circular: the panorama wraps; hue differences
+ * wrap at one turn), in one pass; either may be null. The gradient is the engine's float32 `_hgrad`
+ * value, added without being stored.
+ */
+function addPair(x: Float32Array, plain: Float64Array | null, grad: Float64Array | null, hue: boolean): void {
+  const cols = x.length;
+  if (!grad) {
+    if (plain) for (let j = 0; j < cols; j++) plain[j] += x[j];
+    return;
+  }
+  if (hue || cols < 3) {
     for (let j = 0; j < cols; j++) {
-      let d = f32(x[o + (j + 1 === cols ? 0 : j + 1)] - x[o + (j === 0 ? cols - 1 : j - 1)]);
-      if (circularUnit) d = d + 0.5 - Math.floor(d + 0.5) - 0.5;
-      out[o + j] = Math.abs(d) * 0.5;
+      let d = f32(x[j + 1 === cols ? 0 : j + 1] - x[j === 0 ? cols - 1 : j - 1]);
+      if (hue) d = d + 0.5 - Math.floor(d + 0.5) - 0.5;
+      grad[j] += f32(Math.abs(d) * 0.5);
+      if (plain) plain[j] += x[j];
     }
+    return;
   }
-  return out;
-}
-
-/** The per-pixel channel images the curves average, (rows x cols) each. */
-export function channelImages(
-  rgb: Float32Array[],
-  rows: number,
-  cols: number,
-  channels: readonly string[],
-): Map<string, Float32Array> {
-  const [r, g, b] = rgb;
-  const n = r.length;
-  const base = new Map<string, Float32Array>();
-  if (channels.some((c) => ['H', 'S', 'dH', 'dS'].includes(c))) {
-    const { H, S, I } = hsi(r, g, b);
-    base.set('H', H).set('S', S).set('I', I);
-  } else if (channels.some((c) => c === 'I' || c === 'dI')) {
-    const I = new Float32Array(n);
-    for (let i = 0; i < n; i++) I[i] = (r[i] + g[i] + b[i]) / 3;
-    base.set('I', I);
-  }
-  if (channels.some((c) => c.endsWith('O1') || c.endsWith('O2'))) {
-    const o1 = new Float32Array(n);
-    const o2 = new Float32Array(n);
-    for (let i = 0; i < n; i++) {
-      o1[i] = f32(r[i] - g[i]) * 0.5;
-      o2[i] = f32(f32(r[i] + g[i]) - 2 * b[i]) * 0.25;
+  grad[0] += f32(Math.abs(f32(x[1] - x[cols - 1])) * 0.5);
+  grad[cols - 1] += f32(Math.abs(f32(x[0] - x[cols - 2])) * 0.5);
+  if (plain) {
+    plain[0] += x[0];
+    plain[cols - 1] += x[cols - 1];
+    for (let j = 1; j < cols - 1; j++) {
+      grad[j] += f32(Math.abs(f32(x[j + 1] - x[j - 1])) * 0.5);
+      plain[j] += x[j];
     }
-    base.set('O1', o1).set('O2', o2);
-  }
-  const out = new Map<string, Float32Array>();
-  for (const ch of channels) {
-    if (ch === 'H' || ch === 'S' || ch === 'I' || ch === 'O1' || ch === 'O2') out.set(ch, base.get(ch)!);
-    else if (ch.startsWith('d') && base.has(ch.slice(1)))
-      out.set(ch, hgrad(base.get(ch.slice(1))!, rows, cols, ch === 'dH'));
-    else throw new Error(`unknown channel ${ch}; known: ${CHANNELS.join(', ')}`);
-  }
-  return out;
+  } else for (let j = 1; j < cols - 1; j++) grad[j] += f32(Math.abs(f32(x[j + 1] - x[j - 1])) * 0.5);
 }
 
 /** Zero mean, unit (population) standard deviation per curve; a flat curve stays zero. */
@@ -139,7 +180,13 @@ export function softClip(curves: Float32Array, n: number, width: number, sd: num
 /**
  * Band panorama (RGBA, rows x cols*oversample) -> nCurves x pano_width normalised curves,
  * band-major, each band's channels in the settings' order (`channels`, or the band's own list:
- * `band_channels`).
+ * `band_channels`), into `out`.
+ *
+ * Notes
+ * -----
+ * One pass over the panorama's rows: each row's colours, channels and gradients, added to the
+ * column sums of the bands that hold the row. The per-pixel values are the engine's float32 ones
+ * (channel_images); the column sums are kept in doubles, row after row.
  */
 export function extractCurves(
   rgba: Uint8Array | Uint8ClampedArray,
@@ -148,31 +195,57 @@ export function extractCurves(
   elevations: Float64Array,
   valid: Uint8Array,
   s: FeatureSettings,
+  ws: CurveScratch = curveScratch(rows, cols, elevations, s),
+  out: Float32Array = new Float32Array(nCurves(s) * s.pano_width),
 ): Float32Array {
-  const rgb = toFloat(rgba, rows * cols);
-  if (s.gray_world) grayWorld(rgb, valid);
-  const per = bandChannels(s);
-  const imgs = channelImages(rgb, rows, cols, [...new Set(per.flat())]);
+  if (ws.rows !== rows || ws.cols !== cols) throw new Error('curve scratch made for another panorama size');
+  const { inBand, curves, pairs, row, lut } = ws;
+  colourTables(rgba, rows * cols, valid, s.gray_world, lut);
+  const [l0, l1, l2] = lut;
+  const r = row.get('R')!;
+  const g = row.get('G')!;
+  const b = row.get('B')!;
+  const hsi = row.has('H');
+  const I = row.get('I');
+  const O1 = row.get('O1');
+  const O2 = row.get('O2');
+  const bandsOf: number[][] = Array.from({ length: rows }, () => []);
+  inBand.forEach((rs, bi) => rs.forEach((i) => bandsOf[i].push(bi)));
+  for (const c of curves.flat()) c.acc.fill(0);
+  for (let i = 0; i < rows; i++) {
+    if (!bandsOf[i].length) continue;
+    if (hsi) {
+      for (let j = 0, p = 4 * i * cols; j < cols; j++, p += 4) {
+        r[j] = l0[rgba[p]];
+        g[j] = l1[rgba[p + 1]];
+        b[j] = l2[rgba[p + 2]];
+      }
+      hsiRow(r, g, b, row.get('H')!, row.get('S')!, I!);
+    }
+    // the colours, intensity and opponent colours of each pixel, in one pass over the row
+    for (let j = 0, p = 4 * i * cols; j < cols; j++, p += 4) {
+      const R = l0[rgba[p]];
+      const G = l1[rgba[p + 1]];
+      const B = l2[rgba[p + 2]];
+      if (I && !hsi) I[j] = (R + G + B) / 3;
+      if (O1 && O2) {
+        O1[j] = f32(R - G) * 0.5;
+        O2[j] = f32(f32(R + G) - 2 * B) * 0.25;
+      }
+    }
+    for (const bi of bandsOf[i])
+      for (const { base, plain, grad } of pairs[bi]) addPair(row.get(base)!, plain, grad, base === 'H');
+  }
   const width = s.pano_width;
   const os = Math.floor(cols / width);
-  const out = new Float32Array(nCurves(s) * width);
-  const col = new Float64Array(cols);
   let k = 0;
-  for (const [b, [lo, hi]] of s.bands.entries()) {
-    const inBand: number[] = [];
-    for (let i = 0; i < rows; i++) if (elevations[i] >= lo - 1e-6 && elevations[i] <= hi + 1e-6) inBand.push(i);
-    for (const ch of per[b]) {
-      const img = imgs.get(ch)!;
-      col.fill(0);
-      for (const i of inBand) {
-        const o = i * cols;
-        for (let j = 0; j < cols; j++) col[j] += img[o + j];
-      }
+  for (const [bi, band] of curves.entries()) {
+    for (const { acc } of band) {
       const o = k * width;
       for (let j = 0; j < width; j++) {
-        let acc = 0;
-        for (let q = 0; q < os; q++) acc += col[j * os + q];
-        out[o + j] = acc / (inBand.length * os);
+        let a = 0;
+        for (let q = 0; q < os; q++) a += acc[j * os + q];
+        out[o + j] = a / (inBand[bi].length * os);
       }
       k++;
     }

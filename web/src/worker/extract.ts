@@ -1,12 +1,28 @@
 /**
- * Frame -> features, composed: unwarp (Eq. 1, cv.remap), curves (Eq. 3), spectrum (cv.dft), the
- * quantised record. The same stages, order and arithmetic as the engine's extract.py, so a phone's
+ * Frame -> features, composed: unwarp (Eq. 1, the bilinear remap), curves (Eq. 3), spectrum (cv.dft),
+ * the quantised record. The same stages, order and arithmetic as the engine's extract.py, so a phone's
  * record matches what the server would compute from the same frame.
+ *
+ * Notes
+ * -----
+ * Everything a frame needs is made once per (lens, settings): the remap tables, the tables that turn
+ * them through a tilt, and every working array; a frame then reads the camera's pixels where they
+ * are (remapLinear, no copy into the WebAssembly heap) and allocates only what it hands back.
  */
-import { extractCurves } from './curves';
+import { curveScratch, extractCurves, type CurveScratch } from './curves';
 import type { Lens } from '../shared/lens';
-import { bandMap, type UnwarpMap } from './unwarp';
-import { addLean, edgeLean, intensity, vectorMap } from './level';
+import { bandMap, remapLinear, type UnwarpMap } from './unwarp';
+import {
+  addLean,
+  edgeLean,
+  intensity,
+  leanScratch,
+  tiltInto,
+  tilter,
+  vectorRotation,
+  type LeanScratch,
+  type Tilter,
+} from './level';
 import { nCurves, type FeatureSettings } from '../shared/settings';
 import type { FrameSpectrum } from '../shared/record';
 import { harmonics, quantise } from './spectrum';
@@ -41,19 +57,30 @@ export interface Extracted {
   curves?: Float32Array;
 }
 
+/** Levelling's per-lens state: the coarse map it estimates through and its working arrays. */
+interface Leveller {
+  coarse: UnwarpMap;
+  tiltCoarse: Tilter;
+  tiltBand: Tilter;
+  /** the coarse panorama (RGBA) and its intensity */
+  pano: Uint8Array;
+  gray: Float64Array;
+  lean: LeanScratch;
+  /** the coarse map and the band map through the tilt found so far */
+  cx: Float32Array;
+  cy: Float32Array;
+  bx: Float32Array;
+  by: Float32Array;
+}
+
 export class Extractor {
   readonly map: UnwarpMap;
-  private readonly mx: CvMat;
-  private readonly my: CvMat;
-  private readonly src: CvMat;
-  private readonly pano: CvMat;
+  readonly nCurves: number;
+  private readonly level: Leveller | null = null;
+  private readonly pano: Uint8Array;
+  private readonly curveWs: CurveScratch;
   private readonly curveMat: CvMat;
   private readonly dftMat: CvMat;
-  private readonly coarse: UnwarpMap | null = null;
-  private readonly cmx: CvMat | null = null;
-  private readonly cmy: CvMat | null = null;
-  private readonly cpano: CvMat | null = null;
-  readonly nCurves: number;
 
   constructor(
     private readonly cv: Cv,
@@ -62,103 +89,98 @@ export class Extractor {
   ) {
     this.map = bandMap(lens, settings);
     const { rows, cols } = this.map;
-    this.mx = cv.matFromArray(rows, cols, cv.CV_32FC1, this.map.mapX);
-    this.my = cv.matFromArray(rows, cols, cv.CV_32FC1, this.map.mapY);
+    this.pano = opaque(rows * cols);
     if (settings.level_iters) {
       // level.ts estimates the tilt on the band's rows at one column a degree (level.estimate_map)
-      this.coarse = bandMap(lens, { ...settings, oversample: 1 });
-      this.cmx = cv.matFromArray(this.coarse.rows, this.coarse.cols, cv.CV_32FC1, this.coarse.mapX);
-      this.cmy = cv.matFromArray(this.coarse.rows, this.coarse.cols, cv.CV_32FC1, this.coarse.mapY);
-      this.cpano = new cv.Mat();
+      const coarse = bandMap(lens, { ...settings, oversample: 1 });
+      const n = coarse.rows * coarse.cols;
+      this.level = {
+        coarse,
+        tiltCoarse: tilter(lens, coarse),
+        tiltBand: tilter(lens, this.map),
+        pano: opaque(n),
+        gray: new Float64Array(n),
+        lean: leanScratch(n),
+        cx: new Float32Array(n),
+        cy: new Float32Array(n),
+        bx: new Float32Array(rows * cols),
+        by: new Float32Array(rows * cols),
+      };
     }
-    const [w, h] = lens.image_size;
-    this.src = new cv.Mat(h, w, cv.CV_8UC4);
-    this.pano = new cv.Mat();
+    this.curveWs = curveScratch(rows, cols, this.map.elevations, settings);
     this.nCurves = nCurves(settings);
     this.curveMat = new cv.Mat(this.nCurves, settings.pano_width, cv.CV_32FC1);
     this.dftMat = new cv.Mat();
   }
 
-  /** The frame in `src` through `m` into `dst` (the band panorama unless given another). */
-  private remap(m: UnwarpMap, mx: CvMat, my: CvMat, dst: CvMat = this.pano): void {
-    const { cv } = this;
-    // bilinear, as the engine: the same fixed-point interpolation, so the same panorama bytes
-    cv.remap(
-      this.src,
-      dst,
-      mx,
-      my,
-      cv.INTER_LINEAR,
-      m.wrap ? cv.BORDER_WRAP : cv.BORDER_CONSTANT,
-      new cv.Scalar(0, 0, 0, 0),
-    );
-  }
-
-  /** The frame in `src` through a map made for this frame (its tables as opencv.js mats, then freed). */
-  private remapThrough(m: UnwarpMap, dst: CvMat = this.pano): void {
-    const { cv } = this;
-    const mx = cv.matFromArray(m.rows, m.cols, cv.CV_32FC1, m.mapX);
-    const my = cv.matFromArray(m.rows, m.cols, cv.CV_32FC1, m.mapY);
-    try {
-      this.remap(m, mx, my, dst);
-    } finally {
-      mx.delete();
-      my.delete();
-    }
-  }
-
   /**
-   * Levelling (level.ts; the engine's level_map): `level_iters` passes, each estimating the tilt
-   * left on the panorama the last estimate levels, read through the coarse map (one column a
-   * degree); then the band panorama through the tilt found. -> the map the band panorama was read
-   * through.
+   * Levelling (level.ts; the engine's level_map): `iters` passes, each estimating the tilt left on
+   * the panorama the last estimate levels, read through the coarse map (one column a degree); then
+   * the band map through the tilt found. -> the map the band panorama is read through.
    */
-  private level(iters: number): UnwarpMap {
-    const { map, lens } = this;
-    const coarse = this.coarse!;
-    let m = coarse;
+  private levelled(rgba: Uint8Array | Uint8ClampedArray, iters: number): UnwarpMap {
+    const L = this.level!;
+    const { coarse } = L;
+    const [w, h] = this.lens.image_size;
+    const n = coarse.rows * coarse.cols;
+    let m: UnwarpMap = coarse;
     let v: [number, number] = [0, 0];
     for (let k = 0; k < iters; k++) {
-      if (m === coarse) this.remap(coarse, this.cmx!, this.cmy!, this.cpano!);
-      else this.remapThrough(m, this.cpano!);
-      const px = intensity(this.cpano!.data, coarse.rows * coarse.cols);
-      const { a, b, n } = edgeLean(px, coarse.rows, coarse.cols, coarse.elevations, m.valid);
-      if (n === 0) break;
+      remapLinear(rgba, w, h, m, L.pano);
+      intensity(L.pano, n, L.gray);
+      const { a, b, n: edges } = edgeLean(L.gray, coarse.rows, coarse.cols, coarse.elevations, coarse.valid, L.lean);
+      if (edges === 0) break;
       v = addLean(v, a, b);
-      if (k + 1 < iters) m = vectorMap(lens, coarse, v);
+      if (k + 1 < iters) {
+        tiltInto(L.tiltCoarse, vectorRotation(v), L.cx, L.cy);
+        m = { ...coarse, mapX: L.cx, mapY: L.cy };
+      }
     }
-    if (v[0] === 0 && v[1] === 0) {
-      this.remap(map, this.mx, this.my);
-      return map;
-    }
-    const levelled = vectorMap(lens, map, v);
-    this.remapThrough(levelled);
-    return levelled;
+    if (v[0] === 0 && v[1] === 0) return this.map;
+    tiltInto(L.tiltBand, vectorRotation(v), L.bx, L.by);
+    return { ...this.map, mapX: L.bx, mapY: L.by };
   }
 
   /** RGBA pixels of one frame (the lens's image size) -> its quantised spectrum. */
   extract(rgba: Uint8Array | Uint8ClampedArray, keep = false): Extracted {
     const { cv, settings: s } = this;
-    this.src.data.set(rgba);
-    let map = this.map;
-    if (s.level_iters) map = this.level(s.level_iters);
-    else this.remap(map, this.mx, this.my);
-    const curves = extractCurves(this.pano.data, map.rows, map.cols, map.elevations, map.valid, s);
-    this.curveMat.data32F.set(curves);
+    const [w, h] = this.lens.image_size;
+    if (rgba.length !== w * h * 4)
+      throw new Error(`the frame has ${rgba.length} bytes, not the ${w}x${h} RGBA the lens profile is for`);
+    const map = s.level_iters ? this.levelled(rgba, s.level_iters) : this.map;
+    remapLinear(rgba, w, h, map, this.pano);
+    // the curves straight into the DFT's input (a fresh view: the heap may have grown)
+    const curves = extractCurves(
+      this.pano,
+      map.rows,
+      map.cols,
+      map.elevations,
+      map.valid,
+      s,
+      this.curveWs,
+      this.curveMat.data32F,
+    );
     cv.dft(this.curveMat, this.dftMat, cv.DFT_ROWS | cv.DFT_COMPLEX_OUTPUT, 0);
     const { re, im } = harmonics(this.dftMat.data32F, this.nCurves, s.pano_width, s.n_harmonics);
     const out: Extracted = { spectrum: quantise(re, im) };
     if (keep) {
-      out.pano = this.pano.data.slice();
-      out.curves = curves;
+      out.pano = this.pano.slice();
+      out.curves = curves.slice();
     }
     return out;
   }
 
   delete(): void {
-    for (const m of [this.mx, this.my, this.src, this.pano, this.curveMat, this.dftMat]) m.delete();
-    for (const m of [this.cmx, this.cmy, this.cpano]) m?.delete();
+    this.curveMat.delete();
+    this.dftMat.delete();
   }
+}
+
+/** An RGBA buffer of n pixels, opaque: the remap writes R, G and B, and nothing reads alpha. */
+function opaque(n: number): Uint8Array {
+  const out = new Uint8Array(4 * n);
+  for (let i = 3; i < out.length; i += 4) out[i] = 255;
+  return out;
 }
 
 /** opencv.js loads as a promise (5.x) or as a module that calls onRuntimeInitialized (4.x). */

@@ -5,7 +5,7 @@
  * depends on the phone, the clip-on and the browser; the picture's door frames and corners say
  * the tilt by themselves.
  */
-import { directionToPixel, radiusTable, type Lens } from '../shared/lens';
+import { directionToPixel, linspace, polyval, type CatadioptricLens, type Lens } from '../shared/lens';
 import type { UnwarpMap } from './unwarp';
 
 /** The strongest tenth of the horizontal gradients are the edges whose lean counts. */
@@ -24,8 +24,11 @@ const DEG = 180 / Math.PI;
 const f32 = Math.fround;
 
 /** RGBA panorama bytes -> the mean of R, G and B per pixel. */
-export function intensity(rgba: Uint8Array | Uint8ClampedArray, n: number): Float64Array {
-  const out = new Float64Array(n);
+export function intensity(
+  rgba: Uint8Array | Uint8ClampedArray,
+  n: number,
+  out: Float64Array = new Float64Array(n),
+): Float64Array {
   for (let i = 0; i < n; i++) out[i] = (rgba[4 * i] + rgba[4 * i + 1] + rgba[4 * i + 2]) / 3;
   return out;
 }
@@ -72,6 +75,18 @@ export function percentile(v: Float64Array, q: number): number {
   return t >= 0.5 ? b - d * (1 - t) : a + d * t;
 }
 
+/** edgeLean's working arrays for a panorama of n cells, made once and reused frame after frame. */
+export interface LeanScratch {
+  gx: Float64Array;
+  gy: Float64Array;
+  ok: Uint8Array;
+  w: Float64Array;
+}
+
+export function leanScratch(n: number): LeanScratch {
+  return { gx: new Float64Array(n), gy: new Float64Array(n), ok: new Uint8Array(n), w: new Float64Array(n) };
+}
+
 /** The upright edges' lean fit as (a sin az + b cos az) / cos^2 el, from n edge pixels (0: no fit). */
 export function edgeLean(
   gray: Float64Array,
@@ -79,30 +94,30 @@ export function edgeLean(
   cols: number,
   elevations: Float64Array | Float32Array,
   valid: Uint8Array,
+  ws: LeanScratch = leanScratch(rows * cols),
 ): { a: number; b: number; n: number } {
   const none = { a: 0, b: 0, n: 0 };
   if (rows < 3) return none;
   const daz = 360 / cols;
   const dEl = f32(f32(elevations[0]) - f32(elevations[1]));
-  const gx = new Float64Array(rows * cols);
-  const gy = new Float64Array(rows * cols);
-  const ok = new Uint8Array(rows * cols);
+  const { gx, gy, ok } = ws;
+  ok.fill(0, 0, cols);
+  ok.fill(0, (rows - 1) * cols, rows * cols);
   let nOk = 0;
   for (let i = 1; i < rows - 1; i++) {
     for (let j = 0; j < cols; j++) {
       const k = i * cols + j;
-      const l = i * cols + ((j + cols - 1) % cols);
-      const r = i * cols + ((j + 1) % cols);
+      const l = j === 0 ? k + cols - 1 : k - 1;
+      const r = j === cols - 1 ? k - cols + 1 : k + 1;
       gx[k] = (gray[r] - gray[l]) / (2 * daz);
       gy[k] = (gray[k - cols] - gray[k + cols]) / (2 * dEl);
-      if (valid[k] && valid[l] && valid[r] && valid[k - cols] && valid[k + cols]) {
-        ok[k] = 1;
-        nOk++;
-      }
+      const good = valid[k] && valid[l] && valid[r] && valid[k - cols] && valid[k + cols] ? 1 : 0;
+      ok[k] = good;
+      nOk += good;
     }
   }
   if (nOk < MIN_EDGES) return none;
-  const w = new Float64Array(nOk);
+  const w = ws.w.subarray(0, nOk);
   for (let k = 0, m = 0; k < rows * cols; k++) if (ok[k]) w[m++] = gx[k] * gx[k];
   const thr = percentile(w, LEAN_PERCENTILE);
   let n = 0;
@@ -162,52 +177,188 @@ export function tiltRotation(tiltDeg: number, towardDeg: number): number[] {
   ];
 }
 
-const trig = new Map<number, { cosA: Float64Array; sinA: Float64Array }>();
-/** cos and sin of each column's azimuth ((j + 0.5) * 360 / cols), once per width. */
-function columnTrig(cols: number): { cosA: Float64Array; sinA: Float64Array } {
-  let t = trig.get(cols);
-  if (!t) {
-    const cosA = new Float64Array(cols);
-    const sinA = new Float64Array(cols);
-    for (let j = 0; j < cols; j++) {
-      const a = (((j + 0.5) * 360) / cols) * RAD;
-      cosA[j] = Math.cos(a);
-      sinA[j] = Math.sin(a);
-    }
-    t = { cosA, sinA };
-    trig.set(cols, t);
-  }
-  return t;
+/** The lens's radius table (radiusTable: elevations ascending, their radii) with each segment's
+ * slope and a bucket index into it, for `radiusAt`. */
+export interface RadiusTable {
+  /** the elevations, then +Infinity twice: the two steps past a bucket's start never read past it */
+  e: Float64Array;
+  r: Float64Array;
+  slope: Float64Array;
+  /** null where the segments differ too much in length for buckets: bisection then */
+  start: Int32Array | null;
+  scale: number;
 }
 
-/** The band remap through a tilt; where the tilted direction is not seen, the upright cell. */
-export function tiltedMap(lens: Lens, upright: UnwarpMap, rot: number[]): UnwarpMap {
-  const { rows, cols } = upright;
-  const mapX = new Float32Array(rows * cols);
-  const mapY = new Float32Array(rows * cols);
-  const radius = lens.model === 'catadioptric' ? radiusTable(lens) : null;
-  const { cosA, sinA } = columnTrig(cols);
-  for (let i = 0; i < rows; i++) {
-    const e = f32(upright.elevations[i]) * RAD;
-    const ce = Math.cos(e);
-    const w2 = Math.sin(e);
-    for (let j = 0; j < cols; j++) {
-      const w0 = ce * cosA[j];
-      const w1 = ce * sinA[j];
-      // the row vector times rot: rot's transpose applied, the tilt undone
-      const c0 = w0 * rot[0] + w1 * rot[3] + w2 * rot[6];
-      const c1 = w0 * rot[1] + w1 * rot[4] + w2 * rot[7];
-      const c2 = w0 * rot[2] + w1 * rot[5] + w2 * rot[8];
-      let azc = Math.atan2(c1, c0) * DEG;
-      azc = azc - Math.floor(azc / 360) * 360; // numpy.mod
-      const elc = Math.asin(Math.min(1, Math.max(-1, c2))) * DEG;
-      const [x, y] = directionToPixel(lens, radius, azc, elc);
-      const k = i * cols + j;
-      const ok = Number.isFinite(x) && Number.isFinite(y);
-      mapX[k] = ok ? x : upright.mapX[k];
-      mapY[k] = ok ? y : upright.mapY[k];
+export function radiusTableOf(lens: CatadioptricLens): RadiusTable {
+  const n = 4097;
+  let r = linspace(lens.r_inner, lens.r_outer, n);
+  let e = r.map((v) => polyval(v, lens.elevation_poly));
+  if (e[0] > e[n - 1]) {
+    r = r.slice().reverse();
+    e = e.slice().reverse();
+  }
+  const ep = new Float64Array(n + 2).fill(Infinity);
+  ep.set(e);
+  const slope = new Float64Array(n - 1);
+  for (let i = 0; i < n - 1; i++) slope[i] = (r[i + 1] - r[i]) / (e[i + 1] - e[i]);
+  // buckets half as wide as the narrowest segment is long: a bucket holds at most one segment's
+  // end, so its start (one segment back, for rounding) is at most two segments short
+  let narrowest = Infinity;
+  for (let i = 0; i < n - 1; i++) narrowest = Math.min(narrowest, e[i + 1] - e[i]);
+  const nb = Math.ceil((2 * (e[n - 1] - e[0])) / narrowest);
+  const scale = nb / (e[n - 1] - e[0]);
+  if (!(nb > 0 && nb <= 1 << 20)) return { e: ep, r, slope, start: null, scale };
+  const start = new Int32Array(nb);
+  for (let b = 0, i = 0; b < nb; b++) {
+    const edge = e[0] + b / scale;
+    while (i + 1 < n - 1 && e[i + 1] <= edge) i++;
+    start[b] = Math.max(0, i - 1);
+  }
+  return { e: ep, r, slope, start, scale };
+}
+
+/** numpy.interp(el, e, r, NaN, NaN) over the table: the segment found from the bucket index
+ * rather than by bisection, then the same slope and sum, so the same value. */
+export function radiusAt(t: RadiusTable, el: number): number {
+  const { e, r } = t;
+  const last = r.length - 1;
+  if (!(el >= e[0] && el <= e[last])) return NaN;
+  if (el === e[last]) return r[last];
+  let lo = 0;
+  if (t.start) {
+    lo = t.start[Math.min(t.start.length - 1, Math.floor((el - e[0]) * t.scale))];
+    lo += +(e[lo + 1] <= el) + +(e[lo + 2] <= el); // two steps at most, without branches
+  } else {
+    let hi = last;
+    while (hi - lo > 1) {
+      const mid = (lo + hi) >> 1;
+      if (e[mid] <= el) lo = mid;
+      else hi = mid;
     }
   }
+  return t.slope[lo] * (el - e[lo]) + r[lo];
+}
+
+/** What turning one map through any tilt needs, made once per map: its rows' and columns' trig,
+ * and the lens's radius lookup. */
+export interface Tilter {
+  lens: Lens;
+  upright: UnwarpMap;
+  cosE: Float64Array;
+  sinE: Float64Array;
+  cosA: Float64Array;
+  sinA: Float64Array;
+  radius: RadiusTable | null;
+}
+
+export function tilter(lens: Lens, upright: UnwarpMap): Tilter {
+  const { rows, cols } = upright;
+  const cosE = new Float64Array(rows);
+  const sinE = new Float64Array(rows);
+  for (let i = 0; i < rows; i++) {
+    const e = f32(upright.elevations[i]) * RAD;
+    cosE[i] = Math.cos(e);
+    sinE[i] = Math.sin(e);
+  }
+  const cosA = new Float64Array(cols);
+  const sinA = new Float64Array(cols);
+  for (let j = 0; j < cols; j++) {
+    const a = (((j + 0.5) * 360) / cols) * RAD;
+    cosA[j] = Math.cos(a);
+    sinA[j] = Math.sin(a);
+  }
+  const radius = lens.model === 'catadioptric' ? radiusTableOf(lens) : null;
+  return { lens, upright, cosE, sinE, cosA, sinA, radius };
+}
+
+/**
+ * The upright map through a tilt, into mapX and mapY (rows x cols); where the tilted direction is
+ * not seen, the upright cell.
+ *
+ * Notes
+ * -----
+ * Each cell's direction times rot (rot's transpose applied: the tilt undone) is (c0, c1, c2); its
+ * elevation is asin(c2). A donut's pixel is then centre + r(el) (cos phi, sin phi) with phi =
+ * forward + sign * azimuth, and the azimuth's cosine and sine are c0 / h and c1 / h (h the
+ * horizontal length): no atan2, cos or sin per cell, the same point to a few units in the last
+ * place (level.py turns it the same way). A 360 camera's column is linear in the azimuth: atan2.
+ */
+export function tiltInto(t: Tilter, rot: number[], mapX: Float32Array, mapY: Float32Array): void {
+  const { lens, upright, cosE, sinE, cosA, sinA, radius } = t;
+  const { rows, cols } = upright;
+  const ux = upright.mapX;
+  const uy = upright.mapY;
+  const [r0, r1, r2, r3, r4, r5, r6, r7, r8] = rot;
+  if (lens.model !== 'catadioptric' || !radius) {
+    for (let i = 0, k = 0; i < rows; i++)
+      for (let j = 0; j < cols; j++, k++) {
+        const w0 = cosE[i] * cosA[j];
+        const w1 = cosE[i] * sinA[j];
+        const w2 = sinE[i];
+        const c0 = w0 * r0 + w1 * r3 + w2 * r6;
+        const c1 = w0 * r1 + w1 * r4 + w2 * r7;
+        const c2 = w0 * r2 + w1 * r5 + w2 * r8;
+        const elc = Math.asin(Math.min(1, Math.max(-1, c2))) * DEG;
+        let azc = Math.atan2(c1, c0) * DEG;
+        azc = azc - Math.floor(azc / 360) * 360; // numpy.mod
+        const [x, y] = directionToPixel(lens, null, azc, elc);
+        const ok = Number.isFinite(x) && Number.isFinite(y);
+        mapX[k] = ok ? x : ux[k];
+        mapY[k] = ok ? y : uy[k];
+      }
+    return;
+  }
+  const sign = (lens.ccw ?? true) ? -1 : 1;
+  const fwd = (lens.forward_deg ?? 0) * RAD;
+  const cF = Math.cos(fwd);
+  const sF = Math.sin(fwd);
+  const [cx, cy] = lens.center;
+  // radiusAt, inlined: this loop is levelling's largest cost
+  const { e, r: rr, slope, start, scale } = radius;
+  const e0 = e[0];
+  const last = rr.length - 1;
+  const eLast = e[last];
+  const nb = start ? start.length - 1 : 0;
+  for (let i = 0, k = 0; i < rows; i++) {
+    const ce = cosE[i];
+    const w2 = sinE[i];
+    for (let j = 0; j < cols; j++, k++) {
+      const w0 = ce * cosA[j];
+      const w1 = ce * sinA[j];
+      const c0 = w0 * r0 + w1 * r3 + w2 * r6;
+      const c1 = w0 * r1 + w1 * r4 + w2 * r7;
+      const c2 = w0 * r2 + w1 * r5 + w2 * r8;
+      const elc = Math.asin(Math.min(1, Math.max(-1, c2))) * DEG;
+      let r: number;
+      if (!(elc >= e0 && elc <= eLast)) r = NaN;
+      else if (elc === eLast) r = rr[last];
+      else if (start) {
+        let lo = start[Math.min(nb, Math.floor((elc - e0) * scale))];
+        lo += +(e[lo + 1] <= elc) + +(e[lo + 2] <= elc); // two steps at most, without branches
+        r = slope[lo] * (elc - e[lo]) + rr[lo];
+      } else r = radiusAt(radius, elc);
+      if (r !== r) {
+        mapX[k] = ux[k]; // not seen: the upright cell
+        mapY[k] = uy[k];
+        continue;
+      }
+      const hh = Math.sqrt(c0 * c0 + c1 * c1);
+      const ca = hh > 0 ? c0 / hh : 1; // straight up or down: azimuth 0, as atan2(0, 0) says
+      const sa = hh > 0 ? c1 / hh : 0;
+      const x = cx + r * (cF * ca - sign * sF * sa);
+      const y = cy + r * (sF * ca + sign * cF * sa);
+      const ok = Number.isFinite(x) && Number.isFinite(y);
+      mapX[k] = ok ? x : ux[k];
+      mapY[k] = ok ? y : uy[k];
+    }
+  }
+}
+
+/** The band remap through a tilt (a new map; tiltInto writes into given tables). */
+export function tiltedMap(lens: Lens, upright: UnwarpMap, rot: number[]): UnwarpMap {
+  const mapX = new Float32Array(upright.rows * upright.cols);
+  const mapY = new Float32Array(upright.rows * upright.cols);
+  tiltInto(tilter(lens, upright), rot, mapX, mapY);
   return { ...upright, mapX, mapY };
 }
 
@@ -222,7 +373,12 @@ export function addLean(v: [number, number], a: number, b: number): [number, num
   return [vx, vy];
 }
 
-/** The remap that levels a tilt vector (level_map: the angle as atan2 gives it, not wrapped). */
+/** The rotation of a tilt vector (level.py _rotation: the angle as atan2 gives it, not wrapped). */
+export function vectorRotation(v: [number, number]): number[] {
+  return tiltRotation(Math.hypot(v[0], v[1]), Math.atan2(v[1], v[0]) * DEG);
+}
+
+/** The remap that levels a tilt vector. */
 export function vectorMap(lens: Lens, upright: UnwarpMap, v: [number, number]): UnwarpMap {
-  return tiltedMap(lens, upright, tiltRotation(Math.hypot(v[0], v[1]), Math.atan2(v[1], v[0]) * DEG));
+  return tiltedMap(lens, upright, vectorRotation(v));
 }
