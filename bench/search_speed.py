@@ -14,7 +14,14 @@ in the same run on the same data, and prints the machine it ran on. Venue spectr
 (a smooth random walk in the Fourier domain), which costs the same to search as real ones.
 
     python bench/search_speed.py [--sizes 1000,8000] [--device cpu|gpu] [--repeat 30] [--curves 12,14]
-                                 [--shortlists 16,32]
+                                 [--shortlists 16,32] [--threads 1] [--baseline REV]
+
+`--threads`: the BLAS threads (default 1, as a server worker runs; 0: the library's default).
+`--baseline REV`: also times git revision REV's index and aggregation (imported from a worktree
+beside this one) on the same data, each repeat of the two interleaved, and checks that they give
+the same candidates (ids equal where the stage-1 scores do not tie, scores within float32
+rounding): `shared` and `locate` rows of the baseline printed as `base`. And `scan ms`: one pass
+that sums the first pass's keys, what the memory bandwidth allows stage 1 at that size.
 
 `--curves`: curves a frame (each with the default's 16 harmonics), one table row per size and
 count in the same run; by default the default preset's (14 since the five bands of intensity).
@@ -28,13 +35,52 @@ import argparse
 import os
 import platform
 import statistics
+import sys
 import time
+from typing import Any
 
 import numpy as np
 
 from omninav.aggregate import sequence
 from omninav.index import Index, sequential_search
 from omninav.presets import n_curves, resolve
+
+
+def pin_threads(n: int) -> str:
+    """Sets the BLAS (and OpenMP) pools of this process to n threads, after NumPy has loaded its
+    BLAS (a limit set before that finds nothing to limit) -> what was set, for the report. One
+    thread is what a server worker runs with (server/serve.py): with the default pool, another
+    process busy on one of two cores made a small search 4x slower (its threads wait for each
+    other)."""
+    from threadpoolctl import threadpool_info, threadpool_limits  # type: ignore[import-untyped]
+
+    threadpool_limits(n)
+    pools = [f"{p['internal_api']} {p['num_threads']}" for p in threadpool_info()]
+    return ", ".join(pools) or "no thread pools"
+
+
+def baseline_package(rev: str, name: str = "omninav_base") -> Any:
+    """The omninav package of git revision `rev`, imported beside the working tree's as `name`
+    (from a detached worktree in the temp folder, made once): the same run times both."""
+    import importlib.util
+    import subprocess
+    import tempfile
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parent.parent
+    sha = subprocess.run(["git", "rev-parse", rev], cwd=repo, check=True, capture_output=True, text=True).stdout.strip()
+    tree = Path(tempfile.gettempdir()) / f"omninav-base-{sha[:10]}"
+    if not tree.exists():
+        subprocess.run(
+            ["git", "worktree", "add", "--detach", str(tree), sha], cwd=repo, check=True, capture_output=True
+        )
+    pkg = tree / "backend" / "omninav"
+    spec = importlib.util.spec_from_file_location(name, pkg / "__init__.py", submodule_search_locations=[str(pkg)])
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    spec.loader.exec_module(mod)
+    return mod
 
 
 def machine() -> str:
@@ -83,13 +129,24 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=30)
     ap.add_argument("--curves", help="curves a frame, comma-separated (default: the default preset's)")
     ap.add_argument("--shortlists", help="stage 1's shortlists a frame, comma-separated (default: the preset's)")
+    ap.add_argument("--threads", type=int, default=1, help="BLAS threads (0: the library's default)")
+    ap.add_argument("--baseline", help="git revision to time beside the working tree, in the same run")
     a = ap.parse_args()
+    pools = pin_threads(a.threads) if a.threads > 0 else "library default threads"
+    global BASE
+    if a.baseline:
+        import importlib
+
+        baseline_package(a.baseline)
+        BASE = (importlib.import_module("omninav_base.index"), importlib.import_module("omninav_base.aggregate"))
     conf = resolve("default")
     curves = [int(c) for c in a.curves.split(",")] if a.curves else [n_curves(conf)]
     shortlists = [int(s) for s in a.shortlists.split(",")] if a.shortlists else [conf["shortlist"]]
-    print(f"machine: {machine()}; device {a.device}")
+    print(f"machine: {machine()}; device {a.device}; BLAS: {pools}; baseline: {a.baseline or 'none'}")
     cols = ["batched ms", "p90", "shared ms", "p90", "union", "worst ms", "locate ms", "p90", "loop ms", "speed-up"]
     widths = [11, 7, 10, 7, 6, 9, 10, 7, 9, 9]
+    if a.baseline:
+        cols, widths = [*cols, "base shared", "base locate", "scan ms", "same"], [*widths, 11, 11, 8, 6]
     head = f"{'frames':>9} {'curves':>6} {'dims':>5} {'list':>4} "
     print(head + " ".join(f"{c:>{w}}" for c, w in zip(cols, widths, strict=True)))
     for n in [int(s) for s in a.sizes.split(",")]:
@@ -116,10 +173,37 @@ def bench_size(n: int, device: str, repeat: int, conf: dict, curves: int, shortl
     k = conf["candidates"]
     rep = repeat if n <= 100_000 else max(5, repeat // 6)
     b50, b90 = timeit(lambda: ix.search(q, k), rep, sync)
-    s50, s90 = timeit(lambda: ix.search(q, k, groups=one, shortlist=shortlist), rep, sync)
+    extra = ""
+    if BASE is not None:  # the baseline's shared search and locate, interleaved with this tree's
+        old_index, old_aggregate = BASE
+        arrays = {"keys": ix.keys, "keys_t": ix.keys_t, **({"basis": ix.basis} if ix.basis is not None else {})}
+        old = old_index.Index(spec, heads, device=device, key_dims=dims, arrays=arrays)
+        pair = [
+            lambda: ix.search(q, k, groups=one, shortlist=shortlist),
+            lambda: old.search(q, k, groups=one, shortlist=shortlist),
+        ]
+        (s50, s90), (o50, _) = timeit_ab(pair, rep, sync)
+        pair = [
+            lambda: sequence(ix.search(q, k, groups=one, shortlist=shortlist), xy, times, conf),
+            lambda: old_aggregate.sequence(old.search(q, k, groups=one, shortlist=shortlist), xy, times, conf),
+        ]
+        (l50, l90), (ol50, _) = timeit_ab(pair, rep, sync)
+        keys_t = ix.keys_t
+        scan, _ = timeit(lambda: keys_t.sum(axis=0), max(3, rep // 3), sync)
+        same = all(
+            same_matches(
+                ix.search(x, k, groups=one, shortlist=shortlist), old.search(x, k, groups=one, shortlist=shortlist)
+            )
+            for x in (q, apart)
+        )
+        extra = f" {o50:11.3f} {ol50:11.3f} {scan:8.2f} {'yes' if same else 'NO':>6}"
+    else:
+        s50, s90 = timeit(lambda: ix.search(q, k, groups=one, shortlist=shortlist), rep, sync)
+        l50, l90 = timeit(
+            lambda: sequence(ix.search(q, k, groups=one, shortlist=shortlist), xy, times, conf), rep, sync
+        )
     union = len(np.unique(ix.shortlisted(q, k, shortlist)[0]))
     w50, _ = timeit(lambda: ix.search(apart, k, groups=one, shortlist=shortlist), rep, sync)
-    l50, l90 = timeit(lambda: sequence(ix.search(q, k, groups=one, shortlist=shortlist), xy, times, conf), rep, sync)
     if n <= 8000:
         lp, _ = timeit(lambda: sequential_search(q, spec), 1)
         loop = f"{lp:9.1f} {lp / l50:8.0f}x"
@@ -127,7 +211,45 @@ def bench_size(n: int, device: str, repeat: int, conf: dict, curves: int, shortl
         loop = f"{'-':>9} {'-':>9}"
     size = f"{n:>9} {curves:>6} {dims or spec.shape[1] * spec.shape[2]:>5} {shortlist:>4}"
     shared = f"{s50:10.3f} {s90:7.3f} {union:6d} {w50:9.3f}"
-    return f"{size} {b50:11.3f} {b90:7.3f} {shared} {l50:10.3f} {l90:7.3f} {loop}"
+    return f"{size} {b50:11.3f} {b90:7.3f} {shared} {l50:10.3f} {l90:7.3f} {loop}{extra}"
+
+
+BASE: Any = None  # (index, aggregate) modules of --baseline's revision
+
+
+def timeit_ab(fns: list, repeat: int, sync=lambda: None) -> list[tuple[float, float]]:
+    """timeit() of several functions, each repeat running all of them in turn (the machine's load
+    falls on all alike) -> (median, p90) ms of each."""
+    for fn in fns:
+        fn()
+    sync()
+    ts: list[list[float]] = [[] for _ in fns]
+    for _ in range(repeat):
+        for fn, t in zip(fns, ts, strict=True):
+            t0 = time.perf_counter()
+            fn()
+            sync()
+            t.append(time.perf_counter() - t0)
+    out = []
+    for t in ts:
+        t.sort()
+        out.append((statistics.median(t) * 1e3, t[int(0.9 * (len(t) - 1))] * 1e3))
+    return out
+
+
+def same_matches(a: Any, b: Any, tol: float = 1e-5) -> bool:
+    """Whether two searches' matches agree: scores, stage-1 scores and headings within float32
+    rounding where the ids agree, and where they differ, a tie (the baseline's score there
+    equals this one's within tol: two candidates that tie may trade places)."""
+    same = a.index == b.index
+    dh = np.abs((a.heading - b.heading + 180.0) % 360.0 - 180.0)
+    close = np.allclose(a.score[same], b.score[same], atol=tol) and np.allclose(
+        a.coarse[same], b.coarse[same], atol=tol
+    )
+    ties = np.allclose(a.score[~same], b.score[~same], atol=tol) or np.allclose(
+        np.sort(a.coarse[~same]), np.sort(b.coarse[~same]), atol=tol
+    )
+    return bool(close and (dh[same] < 1e-3).all() and ties)
 
 
 if __name__ == "__main__":

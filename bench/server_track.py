@@ -27,7 +27,10 @@ walk of 0.25 m steps far from the real frames, random spectra) so that the filte
 graph of ~2,000 more nodes, as a large building's: what a tracked update costs grows with the
 graph, not with the clip.
 
-    python bench/server_track.py [--root data/bench-venue-0] [--clips 40] [--pad 8000]
+    python bench/server_track.py [--root data/bench-venue-0] [--clips 40] [--pad 8000] [--threads 1]
+
+`--threads`: BLAS threads of this process (default 1, what `omninav serve` gives each worker;
+0: the library's default).
 """
 
 from __future__ import annotations
@@ -53,6 +56,7 @@ from omninav.spectrum import encode_binary  # noqa: E402
 from omninav.store import FRAME_DTYPE, Generation, Store  # noqa: E402
 from omninav.track import load_track  # noqa: E402
 from omninav.video import VideoInfo, iter_video  # noqa: E402
+from search_speed import machine, pin_threads  # noqa: E402
 from search_speed import venue as random_spectra  # noqa: E402
 
 TOKEN = "bench-token"
@@ -120,7 +124,10 @@ def main() -> None:
     ap.add_argument("--root", type=Path, default=Path("data") / "bench-venue-0")
     ap.add_argument("--clips", type=int, default=40)
     ap.add_argument("--pad", type=int, default=8000)
+    ap.add_argument("--threads", type=int, default=1, help="BLAS threads (0: the library's default)")
     a = ap.parse_args()
+    pools = pin_threads(a.threads) if a.threads > 0 else "library default threads"
+    print(f"machine: {machine()}; BLAS: {pools}")
     root = dataset(a.root, 0)
     st, src = venue_store(root)
     tmp = Path(tempfile.mkdtemp(prefix="omninav-track-bench-"))

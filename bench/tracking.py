@@ -21,7 +21,7 @@ time of an update, on the families and on made-up venues of up to 20,000 frames.
 walks only (started afresh, every 1 s and 2.5 s, with and without IMU), then judges it on both.
 
     python bench/tracking.py [--families all] [--seeds 0,1] [--walks query,stops] [--fit]
-                             [--set track_beta=20] [--json OUT]
+                             [--set track_beta=20] [--json OUT] [--threads 1]
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ from omninav.walkgraph import WalkGraph, from_frames
 
 sys.path.insert(0, str(Path(__file__).parent))
 from families import CONFIDENCE_KEYS, SEARCH_KEYS, dataset, family_names, settings, venue  # noqa: E402
-from search_speed import machine  # noqa: E402
+from search_speed import machine, pin_threads  # noqa: E402
 
 SKIP_S = 5.0  # the figures count the seconds after the first 5 of a walk
 
@@ -425,9 +425,11 @@ def main() -> None:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=JSON", help="a tracking setting (tuning)")
     ap.add_argument("--json", type=Path, help="every answer, here")
     ap.add_argument("--fit", action="store_true", help="fit the confidence on the tuning families, then judge it")
+    ap.add_argument("--threads", type=int, default=1, help="BLAS threads, as a server worker's (0: the default)")
     a = ap.parse_args()
     over = settings(a.set)
-    print(f"machine: {machine()}")
+    pools = pin_threads(a.threads) if a.threads > 0 else "library default threads"
+    print(f"machine: {machine()}; BLAS: {pools}")
     if a.fit:
         fit_confidence(over)
         return

@@ -75,11 +75,15 @@ def sequence(m: Matches, xy: np.ndarray, times: np.ndarray, conf: dict[str, Any]
     # hypotheses: the matches of the last SPAN_S, pairs h0.. (all of them, in a clip of a second)
     h0 = int(np.searchsorted(t, t_last - SPAN_S - 1e-6))
     hyp = slice(h0, None)
-    # hypotheses a x pairs p, float32: 25k-650k entries, so memory traffic is the cost
+    # hypotheses a x pairs p, float32: 25k-650k entries, so memory traffic is the cost. The
+    # hypotheses are whole frames' matches (h0 is a multiple of k), so what depends on time only
+    # (reach, gate) is made per pair of frames and broadcast: (A/k, 1, Q, 1) against (A/k, k, Q, k)
+    qa = q - h0 // k
     p32 = pos.astype(np.float32)
-    d2 = (p32[hyp, None, 0] - p32[None, :, 0]) ** 2 + (p32[hyp, None, 1] - p32[None, :, 1]) ** 2
-    t32 = t.astype(np.float32)
-    dt = np.abs(t32[hyp, None] - t32[None, :])
+    x, y = p32[:, 0], p32[:, 1]
+    d2 = ((x[hyp, None] - x[None, :]) ** 2 + (y[hyp, None] - y[None, :]) ** 2).reshape(qa, k, q, k)
+    t32 = times.astype(np.float32)
+    dt = np.abs(t32[q - qa :, None] - t32[None, :])[:, None, :, None]
     reach = reach_m(dt, conf)
     # heading gate as a dot product of unit vectors: cos(ha - hp) >= cos(gate), no modulo
     hr = np.deg2rad(hd).astype(np.float32)
@@ -88,8 +92,9 @@ def sequence(m: Matches, xy: np.ndarray, times: np.ndarray, conf: dict[str, Any]
     cos_gate: np.ndarray | float = np.cos(np.deg2rad(conf["heading_gate_deg"]))
     if span > SPAN_S:  # a gate per pair; within a second one number, as it always was
         cos_gate = np.cos(np.deg2rad(gate_deg(dt, conf))).astype(np.float32)
-    ok = (d2 <= reach * reach) & (u[hyp, None] * u[None, :] + v[hyp, None] * v[None, :] >= cos_gate)
-    sup = np.where(ok, sc.astype(np.float32)[None, :], np.float32(0)).reshape(len(sc) - h0, q, k)
+    facing = (u[hyp, None] * u[None, :] + v[hyp, None] * v[None, :]).reshape(qa, k, q, k)
+    ok = (d2 <= reach * reach) & (facing >= cos_gate)
+    sup = np.where(ok, sc.astype(np.float32).reshape(q, k), np.float32(0)).reshape(len(sc) - h0, q, k)
     best_k = sup.argmax(axis=2)  # (A, Q): each frame's best supporter of each hypothesis
     best_v = np.take_along_axis(sup, best_k[..., None], axis=2)[..., 0]
     total = best_v.sum(axis=1) / q

@@ -40,21 +40,23 @@ def cross_correlation(x: Any, n_shifts: int = 256) -> Any:
         raise ValueError(f"n_shifts must be at least {2 * k + 2} for {k} harmonics")
     real = x.real.dtype
     basis = _shift_basis(xp, k, n_shifts, real)
-    return xp.concatenate([x.real, x.imag], axis=-1) @ basis
+    # the harmonics' real and imaginary parts as they lie in memory (re, im, re, im, ...): no copy
+    return xp.ascontiguousarray(x).view(real) @ basis
 
 
 _BASES: dict[tuple[str, int, int, str], Any] = {}  # (two threads may build one at once: harmless)
 
 
 def _shift_basis(xp: Any, k: int, n: int, dtype: Any) -> Any:
-    """(2K, n): cos and sin of 2 pi k m / n for k = 1..K (rows) and shifts m (columns), kept per
+    """(2K, n): cos and sin of 2 pi k m / n for k = 1..K and shifts m (columns), rows interleaved
+    (cos k=1, sin k=1, cos k=2, ...) as a complex array's real and imaginary parts are; kept per
     array module, size and precision (a few KB each)."""
     # (a CuPy basis lives on one device: each device its own)
     key = (xp.__name__ if xp is np else f"{xp.__name__}:{xp.cuda.Device().id}", k, n, str(dtype))
     b = _BASES.get(key)
     if b is None:
         theta = 2.0 * np.pi * np.outer(np.arange(1, k + 1), np.arange(n)) / n
-        b = _BASES[key] = xp.asarray(np.concatenate([np.cos(theta), np.sin(theta)]).astype(dtype))
+        b = _BASES[key] = xp.asarray(np.stack([np.cos(theta), np.sin(theta)], axis=1).reshape(2 * k, n).astype(dtype))
     return b
 
 

@@ -94,24 +94,11 @@ def top_k(scores: Any, k: int, ordered: bool = True) -> tuple[Any, Any]:
     k = min(k, n)
     if n >= 65536 and k <= 256:
         step = n // 16384
-        samp = scores[:, ::step]
-        m = samp.shape[1]
-        r = min(m - 1, max(8, (8 * k * m) // n))  # expect ~8k survivors per row
-        thr = -xp.partition(-samp, r, axis=1)[:, r]
+        thr = sample_threshold(scores[:, ::step], k, n)
         rows, cols = xp.nonzero(scores >= thr[:, None])
-        counts = xp.bincount(rows, minlength=q)
-        if int(counts.min()) >= k:
-            width = int(counts.max())
-            starts = xp.concatenate([xp.zeros(1, counts.dtype), xp.cumsum(counts)[:-1]])
-            pos = xp.arange(rows.shape[0]) - starts[rows]
-            cand = xp.full((q, width), -1, dtype=cols.dtype)
-            cand[rows, pos] = cols
-            vals = xp.where(cand >= 0, xp.take_along_axis(scores, xp.maximum(cand, 0), axis=1), -xp.inf)
-            part_c = xp.argpartition(-vals, k - 1, axis=1)[:, :k]
-            part = xp.take_along_axis(cand, part_c, axis=1)
-            vals = xp.take_along_axis(vals, part_c, axis=1)
-            order = xp.argsort(-vals, axis=1)
-            return xp.take_along_axis(part, order, axis=1), xp.take_along_axis(vals, order, axis=1)
+        got = select(rows, cols, scores[rows, cols], q, k, ordered)
+        if got is not None:
+            return got
     if k < n:
         part = xp.argpartition(scores, n - k, axis=1)[:, n - k :]
     else:
@@ -123,7 +110,89 @@ def top_k(scores: Any, k: int, ordered: bool = True) -> tuple[Any, Any]:
     return xp.take_along_axis(part, order, axis=1), xp.take_along_axis(vals, order, axis=1)
 
 
+def sample_threshold(sample: Any, k: int, n: int) -> Any:
+    """(Q, m) scores of a strided sample of rows of n -> (Q,) a score that at least k of each
+    row's n exceed, but not many more: the cut of a comparison pass that keeps a row's k best.
+
+    A row's k best are about k m / n of the sample; the cut is that many plus six standard
+    deviations (at least 8) from the top, so that a row left with fewer than k is never seen.
+    """
+    xp = namespace_of(sample)
+    m = sample.shape[1]
+    mean = k * m / n
+    r = min(m - 1, max(8, int(np.ceil(mean + 6.0 * np.sqrt(mean)))))
+    return -xp.partition(-sample, r, axis=1)[:, r]
+
+
+def select(
+    rows: Any, cols: Any, vals: Any, q: int, k: int, ordered: bool = True, by_row: bool = True
+) -> tuple[Any, Any] | None:
+    """The survivors of a threshold, (row, column, score) triples (`by_row`: in row order, as
+    nonzero() gives them; else in any) -> each row's k best (top_k's), or None when a row has
+    fewer than k (the threshold was too high)."""
+    xp = namespace_of(vals)
+    counts = xp.bincount(rows, minlength=q)
+    if int(counts.min()) < k:
+        return None
+    if not by_row:
+        order = xp.argsort(rows, kind="stable")
+        rows, cols, vals = rows[order], cols[order], vals[order]
+    width = int(counts.max())
+    starts = xp.cumsum(counts) - counts
+    pos = xp.arange(rows.shape[0]) - starts[rows]
+    cand = xp.zeros((q, width), dtype=cols.dtype)
+    v = xp.full((q, width), -xp.inf, dtype=vals.dtype)
+    cand[rows, pos] = cols
+    v[rows, pos] = vals
+    part, val = top_k(v, k, ordered)
+    return xp.take_along_axis(cand, part, axis=1), val
+
+
+def scan_top(qk: Any, keys_t: Any, k: int, sample_t: Any | None = None, chunk: int | None = None) -> tuple[Any, Any]:
+    """(Q, d) query keys, (d, N) venue keys -> each query's k best venue frames by inner product
+    and their scores ((Q, k), in any order): stage 1's first pass, top_k(qk @ keys_t, k) fused.
+
+    The product is made `chunk` venue frames at a time, each chunk's scores compared at once
+    with a threshold from `sample_t` (d, m), a strided sample of keys_t's columns, so that the
+    (Q, N) score matrix is never written out: at a million frames it is 40 MB, written and read
+    again, against the keys' 128 MB read once. Rows that the threshold leaves with fewer than k
+    survivors (never seen: the threshold keeps about eight times k) are scored again in full.
+    """
+    xp = namespace_of(keys_t)
+    q, n = qk.shape[0], keys_t.shape[1]
+    k = min(k, n)
+    if sample_t is None:
+        return top_k(qk @ keys_t, k, ordered=False)
+    thr = sample_threshold(qk @ sample_t, k, n)[:, None]
+    chunk = chunk or n
+    rows, cols, vals = [], [], []
+    for a in range(0, n, chunk):
+        sc = qk @ keys_t[:, a : a + chunk]
+        w = sc.shape[1]
+        at = xp.flatnonzero(sc >= thr)
+        r = at // w
+        rows.append(r)
+        cols.append(at - r * w + a)
+        vals.append(sc.reshape(-1)[at])
+    if len(rows) == 1:
+        got = select(rows[0], cols[0], vals[0], q, k, ordered=False)
+    else:  # (each chunk's in row order, not all of them)
+        r, c, v = (xp.concatenate(x) for x in (rows, cols, vals))
+        got = select(r, c, v, q, k, ordered=False, by_row=False)
+    return got if got is not None else top_k(qk @ keys_t, k, ordered=False)
+
+
 PREFILTER = 8  # shortlist factor of the projected first pass
+SAMPLE = 16384  # at most this many venue frames sampled for stage 1's threshold (scan_top) ...
+SCAN_ABOVE = 65536  # ... on venues of this many frames or more (below, a partition of each row is cheaper)
+SCAN_CHUNK = 32768  # venue frames a CPU scores at a time in stage 1 (10 query frames: 1.3 MB of scores)
+
+
+def _best_first(idx: Any, val: Any) -> tuple[Any, Any]:
+    """(Q, k) candidates and scores in any order -> sorted best first."""
+    xp = namespace_of(val)
+    order = xp.argsort(-val, axis=1)
+    return xp.take_along_axis(idx, order, axis=1), xp.take_along_axis(val, order, axis=1)
 
 
 def index_arrays(spectra: Any, key_dims: int = 0) -> dict[str, Any]:
@@ -167,11 +236,16 @@ class Index:
         self.keys_t = self.xp.asarray(arrays["keys_t"])
         self.heading = self.xp.asarray(np.asarray(headings, np.float32))
         self.n = int(spectra.shape[0])
+        # stage 1's scan (scan_top): a strided sample of the first pass's keys for its threshold,
+        # and on a CPU chunks whose scores stay in the cache (a GPU scores the venue in one pass)
+        step = max(1, self.n // max(SAMPLE // 4, min(SAMPLE, self.n // 16)))
+        self.sample_t = self.xp.ascontiguousarray(self.keys_t[:, ::step]) if self.n >= SCAN_ABOVE else None
+        self.chunk = SCAN_CHUNK if self.xp is np else None
 
     def coarse(
         self, q_spec: Any, k: int, exclude: tuple[Any, Any] | None = None, prefilter: int | None = None
     ) -> tuple[Any, Any]:
-        """Stage 1: (Q, C, K) -> (Q, k) candidate rows and magnitude scores, on the device.
+        """Stage 1: (Q, C, K) -> (Q, k) candidate rows and magnitude scores, best first, on the device.
 
         With projected keys, the projection shortlists PREFILTER*k frames per query frame
         (`prefilter` where given, at least k) and the full magnitude inner product re-ranks them: the
@@ -179,16 +253,24 @@ class Index:
         [lo, hi) of venue rows it may not match ((Q,) arrays; leave-one-out, quality.py); such a
         row comes back only if nothing else is left, with score -inf.
         """
-        kq = magnitude_keys(self.xp.asarray(q_spec))
+        xp = self.xp
+        kq = magnitude_keys(xp.asarray(q_spec))
+        first_q = kq if self.basis is None else kq @ self.basis
+        s = k if self.basis is None else max(k, prefilter or PREFILTER * k)
+        if exclude is None:
+            short, first_v = scan_top(first_q, self.keys_t, s, self.sample_t, self.chunk)
+        else:
+            short, first_v = top_k(self._masked(first_q @ self.keys_t, exclude), s, ordered=False)
         if self.basis is None:
-            return top_k(self._masked(kq @ self.keys_t, exclude), k)
-        first = self._masked((kq @ self.basis) @ self.keys_t, exclude)
-        short, first_v = top_k(first, max(k, prefilter or PREFILTER * k), ordered=False)
-        exact = (self.keys[short] @ kq[:, :, None])[..., 0]  # (Q, s, D) @ (Q, D, 1): batched GEMV
+            return _best_first(short, first_v)
+        # the exact scores of the shortlists: every frame's against the clip's union of them in one
+        # product (a clip's frames shortlist much the same venue frames)
+        u, inv = xp.unique(short, return_inverse=True)
+        exact = (self.keys[u] @ kq.T)[inv.reshape(short.shape), xp.arange(short.shape[0])[:, None]]
         if exclude is not None:
-            exact = self.xp.where(self.xp.isfinite(first_v), exact, -self.xp.inf)
+            exact = xp.where(xp.isfinite(first_v), exact, -xp.inf)
         best, val = top_k(exact, k)
-        return self.xp.take_along_axis(short, best, axis=1), val
+        return xp.take_along_axis(short, best, axis=1), val
 
     def _masked(self, scores: Any, exclude: tuple[Any, Any] | None) -> Any:
         """Scores (Q, N), fresh from a product: the excluded ranges set to -inf, in place (they
@@ -220,46 +302,58 @@ class Index:
         xp = self.xp
         q = xp.asarray(q_spec)
         v = self.spec[rows]  # (U, C, K)
-        x = xp.matmul(q.transpose(2, 0, 1), xp.conj(v).transpose(2, 1, 0)).transpose(1, 2, 0)  # (G, U, K)
+        x = xp.matmul(q.transpose(2, 0, 1), xp.conj(v).transpose(2, 1, 0))  # (K, G, U)
         n = max(64, 8 * int(q.shape[-1]))
-        rel, score = peak(cross_correlation(x, n))
+        rel, score = peak(cross_correlation(x.transpose(1, 2, 0), n))
         return score, (self.heading[rows][None, :] + rel) % 360.0
 
     def shared(
-        self, q_spec: Any, idx: Any, groups: np.ndarray, k: int, exclude: tuple[Any, Any] | None, own: bool = False
+        self,
+        q_spec: Any,
+        idx: Any,
+        groups: np.ndarray,
+        k: int,
+        exclude: tuple[Any, Any] | None,
+        own: bool = False,
+        own_coarse: Any | None = None,
     ) -> tuple[Matches, Matches | None]:
         """Stage 2 with shared candidates: each frame verified against every stage-1 candidate of
         its group (`groups` (Q,) labels); (Q, s) idx from coarse(), best first, s >= k (the
         shortlist: search's `shortlist`).
         -> (each frame's k best of them, best first; its own k best stage-1 candidates as
-        verified, for search_shared, which excludes nothing)."""
+        verified, for search_shared, which excludes nothing). `own_coarse`: coarse()'s scores of
+        idx, where the caller has them (else they are scored again)."""
         xp = self.xp
         q = xp.asarray(q_spec)
         qn = q.shape[0]
         k = min(int(k), int(idx.shape[1]))  # coarse() keeps min(shortlist, venue frames)
         mine = idx[:, :k]  # a frame's own candidates: its k best by stage 1, however long the shortlist
-        out_i = xp.zeros((qn, k), dtype=idx.dtype)
-        out_s = xp.zeros((qn, k), dtype=xp.float32)
-        out_h = xp.zeros((qn, k), dtype=xp.float32)
-        own_s = xp.zeros(mine.shape, dtype=xp.float32)
-        own_h = xp.zeros(mine.shape, dtype=xp.float32)
         groups = np.asarray(groups)
-        for g in np.unique(groups):
-            rows = np.flatnonzero(groups == g)
-            r = xp.asarray(rows)
+        labels = np.unique(groups)
+        parts = []
+        for g in labels:
+            # (one group, a clip of a second, as every locate has: its frames as they are)
+            r = xp.asarray(np.flatnonzero(groups == g)) if len(labels) > 1 else slice(None)
             u = xp.unique(idx[r].ravel())  # at least k: each frame's own candidates are distinct rows
             score, heading = self.verify_all(q[r], u)
+            ar = xp.arange(score.shape[0])[:, None]
+            got = []
             if own:  # the frame's own candidates among them (u is sorted)
                 at = xp.searchsorted(u, mine[r])
-                own_s[r] = xp.take_along_axis(score, at, axis=1)
-                own_h[r] = xp.take_along_axis(heading, at, axis=1)
+                got = [score[ar, at], heading[ar, at]]
             if exclude is not None:  # a row a frame may not match never wins over one it may
                 lo, hi = (xp.asarray(e)[r][:, None] for e in exclude)
                 score = xp.where((u[None, :] >= lo) & (u[None, :] < hi), -xp.inf, score)
             best, val = top_k(score, k)
-            out_i[r] = u[best]
-            out_s[r] = val
-            out_h[r] = xp.take_along_axis(heading, best, axis=1)
+            parts.append((r, [u[best], val, heading[ar, best], *got]))
+        if len(parts) == 1:
+            out = parts[0][1]
+        else:
+            out = [xp.zeros((qn, k), dtype=a.dtype) for a in parts[0][1]]
+            for r, arrays in parts:
+                for o, a in zip(out, arrays, strict=True):
+                    o[r] = a
+        out_i, out_s, out_h = out[:3]
         # the magnitude bound of each kept pair (Matches.coarse): cheap for k rows a frame
         kq = magnitude_keys(q)
         coarse = (self.keys[out_i] @ kq[:, :, None])[..., 0]
@@ -270,8 +364,8 @@ class Index:
         best_m = Matches(to_numpy(out_i), to_numpy(coarse), to_numpy(out_s), to_numpy(out_h))
         if not own:  # (a plain search's: the tracker's own columns are not made for nothing)
             return best_m, None
-        own_c = (self.keys[mine] @ kq[:, :, None])[..., 0]
-        return best_m, Matches(to_numpy(mine), to_numpy(own_c), to_numpy(own_s), to_numpy(own_h))
+        own_c = (self.keys[mine] @ kq[:, :, None])[..., 0] if own_coarse is None else own_coarse[:, :k]
+        return best_m, Matches(to_numpy(mine), to_numpy(own_c), to_numpy(out[3]), to_numpy(out[4]))
 
     def shortlisted(
         self, q_spec: Any, k: int, shortlist: int | None, exclude: tuple[Any, Any] | None = None
@@ -287,8 +381,8 @@ class Index:
     ) -> tuple[Matches, Matches]:
         """search() with `groups`, and each frame's own k best stage-1 candidates as verified
         beside its shared best (what the tracker reads: tracking.Tracker.emission)."""
-        idx, _ = self.shortlisted(q_spec, k, shortlist)
-        best, own = self.shared(q_spec, idx, groups, k, None, own=True)
+        idx, val = self.shortlisted(q_spec, k, shortlist)
+        best, own = self.shared(q_spec, idx, groups, k, None, own=True, own_coarse=val)
         assert own is not None
         return best, own
 

@@ -647,6 +647,9 @@ class Tracker:
         # the entry of the edge the other way (distances are symmetric, so every edge has one)
         # (entries are in (row, col) order; the k-th in (col, row) order is the k-th one reversed)
         self.t_rev = np.lexsort((self.t_row, self.t_col))
+        self.t_count = np.diff(self.t_indptr)  # entries a node (at least its own, distance 0)
+        if self.t_count.min() < 1:  # (graph.distances gives every node itself: never seen)
+            raise ValueError("a walk graph node without an entry of its own in the transition")
         self.alike_a, self.alike_b, self.alike_cost, self.alike_starts = self._alikes(alike)
 
     def _alikes(self, alike: Matches | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -692,7 +695,9 @@ class Tracker:
         """(N,) log-likelihoods -> each node's raised to its look-alikes' less their cost."""
         if len(self.alike_a) == 0:
             return log_lik
-        best = np.maximum.reduceat(log_lik[self.alike_a] - self.alike_cost, self.alike_starts)
+        floor = np.take(log_lik, self.alike_a)
+        floor -= self.alike_cost
+        best = np.maximum.reduceat(floor, self.alike_starts)
         out = log_lik.copy()
         nodes = self.alike_b[self.alike_starts]
         out[nodes] = np.maximum(out[nodes], best)
@@ -754,17 +759,17 @@ class Tracker:
             k = flat * (trust * np.exp(-0.5 * ((d - walked) / sig) ** 2) + (1 - trust))
         k = np.where(d < 0, float(setting(self.conf, "track_floor_change")), np.maximum(k, 1e-12))
         rowsum = np.add.reduceat(k, self.t_indptr[:-1])
-        k = k / rowsum[self.t_row]
+        k /= np.repeat(rowsum, self.t_count)  # (entries in row order: a row's sum repeated, not gathered)
         kk = k
         if facing is not None:  # the clip's facing, at the end of the walk
             h = np.deg2rad(facing)
-            fs, fc = np.sin(h), np.cos(h)
-            fwd = self.t_dx * fs[self.t_col] - self.t_dy * fc[self.t_col]
+            fs, fc = np.take(np.sin(h), self.t_col), np.take(np.cos(h), self.t_col)
+            fwd = self.t_dx * fs - self.t_dy * fc
             back = float(setting(self.conf, "track_backward")) ** (parts == 1)
             kk = np.where(fwd < -1.0 * parts, k * back, k)  # NaN facing: fwd is NaN, no change
             if turn is not None:
                 b = np.deg2rad(turn[0] + turn[1])
-                cos_off = fc[self.t_col] * np.cos(b)[self.t_row] + fs[self.t_col] * np.sin(b)[self.t_row]
+                cos_off = fc * np.repeat(np.cos(b), self.t_count) + fs * np.repeat(np.sin(b), self.t_count)
                 gate = float(setting(self.conf, "track_turn_gate_deg"))
                 bad = np.flatnonzero(cos_off < np.cos(np.deg2rad(gate)))  # NaN: no change
                 off = np.degrees(np.arccos(np.clip(cos_off[bad], -1.0, 1.0)))
@@ -774,10 +779,19 @@ class Tracker:
         start = p
         for i in range(parts):
             start = p
-            w = kk if i == parts - 1 else k
-            tmat = scipy.sparse.csr_matrix((w, self.t_col, self.t_indptr), shape=(self.n, self.n))
-            p = np.asarray(tmat.T @ p)
+            p = self._walk(kk if i == parts - 1 else k, p)
         return p, kk, start
+
+    def _walk(self, w: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """One step of the transition: edge weights w (E,) (row i -> column j, in (row, col)
+        order) and belief p (N,) or (N, B) -> sum_i w[i -> j] p[i] (the transition matrix's
+        transpose times p), summed per end node without building the sparse matrix a step."""
+        # the flow along each entry read in column order: t_rev[m] is the m-th entry in (col, row)
+        # order, the m-th in (row, col) order reversed, so its row is t_col[m] and the column's
+        # entries lie where the row's do (every node has an entry of its own, distance 0: none empty)
+        w_in = np.take(w, self.t_rev)
+        flow = w_in * np.take(p, self.t_col) if p.ndim == 1 else w_in[:, None] * np.take(p, self.t_col, axis=0)
+        return np.add.reduceat(flow, self.t_indptr[:-1], axis=0)
 
     def _predicted(
         self, nodes: np.ndarray, kk: np.ndarray, start: np.ndarray, turn: tuple[np.ndarray, float]

@@ -312,6 +312,13 @@ def _run_jobs(conf: dict[str, Any]) -> None:
     than the workers (a modelling job must not slow the answers: measured in docs/benchmarks.md)."""
     _die_with_parent()
     os.nice(10)
+    # one BLAS thread, as in the app workers (_Gunicorn.load): the runner shares the cores with
+    # them, and a pool of threads that wait for each other is slowest exactly when a worker is
+    # busy on one of the cores (a 10-frame search against 8,000 frames: 8.0 ms with the default
+    # two threads beside one busy process, 1.8 ms with one)
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
     db = Db(database_url(conf))
     jobs = Jobs(Catalog(db, Path(conf["DATA"])), stale_s=conf["JOB_STALE_S"], device=conf["DEVICE"] or None)
     # SIGTERM (the server stopping) ends the process at once: a job it was running wrote nothing
