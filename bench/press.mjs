@@ -62,7 +62,7 @@ const srv = await startServer(resolve(WORK, 'server'), {
   env: { OMNINAV_ADMIN_TOKEN: 'bench-token-0123456789' },
 });
 const spinner = busy ? spawn(process.execPath, ['-e', 'for(;;){}'], { stdio: 'ignore' }) : null;
-const results = builds.map(() => ({ first: [], word: [], answer: [], said: [], marks: [] }));
+const results = builds.map(() => ({ first: [], word: [], answer: [], said: [], marks: [], duty: [], extract: [] }));
 try {
   await waitModelled(srv.url, 'demo');
   const browser = await chromium.launch({
@@ -125,6 +125,13 @@ try {
           performance.getEntriesByType('mark').map((m) => [m.name.replace('omninav: ', ''), m.startTime]),
         );
         const r = results[b];
+        if (i === presses - 1) {
+          const facts = (await page.locator('#debug-facts').textContent()) ?? '';
+          const duty = /the worker busy (\d+) %/.exec(facts);
+          if (duty) r.duty.push(Number(duty[1]));
+          const ext = /([\d.]+) ms per frame \(median\)/.exec(facts);
+          if (ext) r.extract.push(Number(ext[1]));
+        }
         if (!i) r.marks.push(marks.map(([name, t]) => `${name} ${((t - t0) / 1000).toFixed(2)}`).join(', '));
         (i ? r.word : r.first).push(list[0].t - t0);
         if (i) r.answer.push(answer.t - t0);
@@ -153,6 +160,10 @@ for (const [b, build] of builds.entries()) {
   const r = results[b];
   const s = (x) => `${(x / 1000).toFixed(2)} s`;
   for (const m of r.marks) console.error(`${build.name}, a first press: ${m || '(no marks)'}`);
+  if (r.duty.length)
+    console.error(
+      `${build.name}: standing by, the worker busy ${r.duty.join(', ')} % of the time; extraction ${r.extract.join(', ')} ms a frame (median)`,
+    );
   console.log(
     `| ${build.name} | ${r.first.map(s).join(', ')} | ${s(median(r.word))} (${s(Math.min(...r.word))}-${s(Math.max(...r.word))}) | ${s(median(r.answer))} |`,
   );

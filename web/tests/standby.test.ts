@@ -213,6 +213,31 @@ describe('the session answers at the press from the kept second', () => {
     expect(api.locate.mock.calls.map(frames)).toEqual([10, 20]);
   });
 
+  it('Keep telling me: a turn every interval + 1 s as ever, each answered from its kept second first', async () => {
+    const { s } = session({ standby: () => true });
+    await s.whereAmI(); // the camera opens
+    await vi.advanceTimersByTimeAsync(1500);
+    // filming takes its time from here on: 100 ms a frame
+    cam.captureClip.mockImplementation(
+      (_v, _e, n: number) => new Promise((r) => setTimeout(() => r(clip(n, performance.now())), 100 * n)),
+    );
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0); // the first turn: the kept second, answered at once
+    expect(api.locate).toHaveBeenCalledTimes(2);
+    // the second turn 4 s later (the default interval, 3 s, + 1 s): the kept second + 1 s filmed
+    // after it, asked at 5 s; the third turn at 8 s, asked at 9 s: a turn every 4 s, as ever
+    await vi.advanceTimersByTimeAsync(4999);
+    expect(api.locate).toHaveBeenCalledTimes(2);
+    await vi.advanceTimersByTimeAsync(1);
+    expect(api.locate).toHaveBeenCalledTimes(3);
+    await vi.advanceTimersByTimeAsync(3999);
+    expect(api.locate).toHaveBeenCalledTimes(3);
+    await vi.advanceTimersByTimeAsync(1);
+    expect(api.locate).toHaveBeenCalledTimes(4);
+    expect(api.locate.mock.calls.map(frames)).toEqual([10, 10, 20, 20]);
+    s.stopContinuous();
+  });
+
   it('without standby asked for (tests, other pages) nothing is grabbed', async () => {
     const { s } = session();
     await s.whereAmI();

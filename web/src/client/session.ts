@@ -673,15 +673,17 @@ export class Session extends Emitter<SessionEvents> {
    * counts a reading as sent only once its request was answered). Said only when it changed;
    * nothing once the loop was stopped meanwhile ("Stopped telling you." stays the last word; a stop
    * while filming sends nothing). The camera taken by a press: the next turn. -> the seconds it
-   * filmed: `seconds` once its clip was filmed and the motion asked, else 1 (the camera taken, a
-   * failure before or while filming: the next turn waits the whole interval).
+   * filmed: `seconds` once its clip was filmed and the motion asked, less the second kept before
+   * it (standby.ts) when it was answered from one, else 1 (the camera taken, a failure before or
+   * while filming: the next turn waits the whole interval). A turn thus comes every `interval` + 1
+   * s with or without a kept second: the kept second brings its answer sooner, not more often.
    */
   private async tellTracked(loop: Loop): Promise<number> {
     const feed = this.o.motion;
-    const read: { reading?: MotionReading; filmed?: boolean } = {};
+    const read: { reading?: MotionReading; filmed?: boolean; kept?: boolean } = {};
     const seconds = loop.answered ? KEEP_SECONDS : 1;
     // what it filmed: `seconds` once the clip was (the motion is asked then), else nothing to shorten
-    const filmed = () => (read.filmed ? seconds : 1);
+    const filmed = () => (read.filmed ? seconds - (read.kept ? 1 : 0) : 1);
     try {
       let r: Located | null;
       this.inTurn = !this.busy; // busy: track() skips this turn at once
@@ -701,6 +703,7 @@ export class Session extends Emitter<SessionEvents> {
         return filmed(); // null: the camera was taken (nothing filmed), or the loop stopped
       }
       loop.answered = true;
+      read.kept = r.kept;
       if (read.reading) feed?.commit(read.reading);
       const pressed = this.pressedInTurn;
       this.pressedInTurn = false;
