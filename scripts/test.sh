@@ -11,7 +11,11 @@ npx prettier --check --log-level warn web/src web/tests web/*.ts web/compress.mj
 npx tsc -p web --noEmit
 npx tsc -p e2e --noEmit
 npm test -w web --silent
-.venv/bin/python -m pytest "$@"
-OMNINAV_TEST_DB=postgres .venv/bin/python -m pytest tests/test_server.py tests/test_jobs.py tests/test_admin_api.py tests/test_tracking_api.py tests/test_model_anew.py  # again on a real PostgreSQL
+# pytest on both cores (pytest-xdist): a test module stays on one process, so that its fixtures
+# (rendered venues, started servers) are made once; many tests wait on servers and subprocesses,
+# and two at a time fill the cores that one leaves idle (OMNINAV_TEST_JOBS=1: one at a time)
+jobs="${OMNINAV_TEST_JOBS:-2}"
+.venv/bin/python -m pytest -n "$jobs" --dist loadfile "$@"
+OMNINAV_TEST_DB=postgres .venv/bin/python -m pytest -n "$jobs" --dist loadfile tests/test_server.py tests/test_jobs.py tests/test_admin_api.py tests/test_tracking_api.py tests/test_model_anew.py  # again on a real PostgreSQL
 bash scripts/chromium.sh
 npx playwright test -c e2e/playwright.config.ts
