@@ -6,7 +6,9 @@ then runs the real CLI on it (decoding every frame, extracting features at the p
 a decode-only pass as the floor any modelling run sits on, and, in the same run, `omninav serve`
 (as `npm start` runs it) with the video uploaded in 8 MiB pieces and modelled by a job. Also in
 the same run: the video modelled in this process with the default preset and with it unlevelled
-(`level_iters` off: what levelling, level.py, costs a modelled frame).
+(`level_iters` off: what levelling, level.py, costs a modelled frame), and with the default preset
+while another process keeps one core busy (a server's other worker: modelling extracts on one
+thread a core, video.extract_threads).
 
     python bench/model_speed.py [--seconds 40] [--no-api]
 """
@@ -38,9 +40,11 @@ from omninav.synth.walks import (
     write_video,
 )
 from omninav.track import load_track
+from omninav.video import extract_threads
 
 sys.path.insert(0, str(Path(__file__).parent))
 from search_speed import machine  # noqa: E402
+from server_load import one_core_busy  # noqa: E402
 
 
 def render(root: Path, seconds: float) -> None:
@@ -113,9 +117,13 @@ def main() -> None:
             t = time.perf_counter()
             model_video(st, tag.split()[0], video, track, lens, settings=resolve("default", over))
             took[tag] = time.perf_counter() - t
+        with one_core_busy():
+            t = time.perf_counter()
+            model_video(st, "busy", video, track, lens, settings=resolve("default"))
+            took["default, one core busy"] = time.perf_counter() - t
         extra = 1000 * (took["default (levelled)"] - took["unlevelled"]) / out["frames_added"]
         each = ", ".join(f"{k} {v:.2f} s = {dur / v:.1f}x real time" for k, v in took.items())
-        print(f"in process: {each}; levelling adds {extra:.1f} ms a frame")
+        print(f"in process ({extract_threads()} extraction threads): {each}; levelling adds {extra:.1f} ms a frame")
     if not a.no_api:
         api = through_api(a.root, video, omninav)
         print(

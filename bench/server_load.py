@@ -9,11 +9,14 @@ that falls behind is charged for the queue it causes (no coordinated omission).
   1. `GET /api/health` and `POST /api/venues/bench8k/locate` (a real 10-frame clip's binary
      record, 7.7 kB) at 200 requests/s: p50, p90, p99, max.
   2. The highest rate each sustains with p99 under 50 ms (rates stepped up until it breaks).
+  3. (first, or alone with --video-only) the same 10 frames sent as an MP4 video body (video/mp4,
+     at 10 frames/s, so the server extracts all ten): one request at a time, median and p90, on
+     the idle machine and with one core kept busy by another process (a server's other worker).
 
 The per-client rate limit is switched off (OMNINAV_LOCATE_RATE=0): the load comes from one
 address. The client runs on the same machine and takes some of its cores.
 
-    python bench/server_load.py [--seconds 20] [--rate 200] [--workers N]
+    python bench/server_load.py [--seconds 20] [--rate 200] [--workers N] [--video-only]
 """
 
 from __future__ import annotations
@@ -21,9 +24,14 @@ from __future__ import annotations
 import argparse
 import http.client
 import json
+import multiprocessing
 import sys
+import tempfile
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from multiprocessing.synchronize import Event
 from pathlib import Path
 
 import numpy as np
@@ -83,9 +91,70 @@ def query_spectra(data: Path, n_frames: int = 10) -> tuple[np.ndarray, dict]:
                 [*g.videos, "synthetic"],
             ),
         )
-    info = VideoInfo(src / "query.mp4")
-    frames = [f for i, f in iter_video(info, start=300) if i < 300 + n_frames]
-    return Extractor(load_lens(src / "lens.json"), conf).spectra(frames[:n_frames]), conf
+    return Extractor(load_lens(src / "lens.json"), conf).spectra(query_frames(n_frames)), conf
+
+
+def query_frames(n_frames: int = 10) -> list[np.ndarray]:
+    """`n_frames` BGR frames of the demo's query walk from its frame 300: the bench's clip."""
+    info = VideoInfo(REPO / "data" / "demo-src" / "query.mp4")
+    return [f for i, f in iter_video(info, start=300) if i < 300 + n_frames]
+
+
+def video_body(n_frames: int = 10) -> bytes:
+    """The bench's clip as an MP4 at 10 frames/s, what a client without WebAssembly sends: the
+    venue's modelling rate is 10 frames/s, so the server extracts every one of its frames."""
+    from omninav.synth.walks import write_video
+
+    frames = query_frames(n_frames)
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "clip.mp4"
+        write_video(p, iter(frames), 10.0, (frames[0].shape[1], frames[0].shape[0]))
+        return p.read_bytes()
+
+
+def one_at_a_time(port: int, path: str, body: bytes, content_type: str, n: int = 20, warm: int = 8) -> dict:
+    """`n` requests sent one after another (after `warm` that reach every worker): latency p50, p90,
+    p99, max (ms)."""
+    c = http.client.HTTPConnection("127.0.0.1", port, timeout=60)
+    lat = []
+    for i in range(n + warm):
+        t = time.perf_counter()
+        c.request("POST", path, body=body, headers={"Content-Type": content_type})
+        r = c.getresponse()
+        r.read()
+        if r.status != 200:
+            raise SystemExit(f"POST {path} ({content_type}): {r.status}")
+        if i >= warm:
+            lat.append(time.perf_counter() - t)
+    c.close()
+    return summary(np.array(lat) * 1e3)
+
+
+def _spin(stop: Event) -> None:
+    while not stop.is_set():
+        pass
+
+
+@contextmanager
+def one_core_busy() -> Iterator[None]:
+    """A process spinning on one core for the duration: what a server's other busy worker takes."""
+    stop = multiprocessing.Event()
+    p = multiprocessing.Process(target=_spin, args=(stop,), daemon=True)
+    p.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        p.join()
+
+
+def video_rows(port: int, path: str, n: int = 20) -> dict[str, dict]:
+    """The 10-frame video body's latency, one request at a time: idle, then with one core busy."""
+    body = video_body()
+    out = {"idle": one_at_a_time(port, path, body, "video/mp4", n)}
+    with one_core_busy():
+        out["one core busy"] = one_at_a_time(port, path, body, "video/mp4", n)
+    return out
 
 
 def load(port: int, method: str, path: str, body: bytes | None, rate: float, seconds: float, conns: int = 16):
@@ -166,6 +235,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=None, help="server worker processes (default: as npm start)")
     ap.add_argument("--threads", type=int, default=None, help="threads per worker (default: as npm start)")
     ap.add_argument("--no-max", action="store_true", help="skip the search for the highest rate")
+    ap.add_argument("--video-only", action="store_true", help="only the video body's rows (3)")
     a = ap.parse_args()
     data = REPO / "data" / "bench-server"
     record = build(data)
@@ -181,6 +251,12 @@ def main() -> None:
             f"venue: 8,000 frames; query: 10 frames, {len(record)} bytes; answer: x {ans['x']} y {ans['y']} "
             f"confidence {ans['confidence']}"
         )
+        video = video_rows(port, loc)
+        print(f"POST locate, the same 10 frames as an MP4 body ({len(video_body())} bytes), one at a time (ms):")
+        for name, r in video.items():
+            print(f"  {name:14s} p50 {r['p50']:7.2f}  p90 {r['p90']:7.2f}  p99 {r['p99']:7.2f}  max {r['max']:7.2f}")
+        if a.video_only:
+            return
         load(port, "POST", loc, record, 100, 3)  # warm every worker
         h = load(port, "GET", "/api/health", None, a.rate, a.seconds)
         lo = load(port, "POST", loc, record, a.rate, a.seconds)

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,9 +26,10 @@ from .lens import Lens
 from .presets import resolve
 from .store import FRAME_DTYPE, Generation, Store
 from .track import Track
-from .video import VideoInfo, iter_video
+from .video import VideoInfo, extract_threads, in_order, iter_video, on_pool
 
 log = logging.getLogger("omninav.calib")
+POSE_BLOCK = 1024  # sampled frames whose poses are looked up in one call
 
 # frames done, frames expected, seconds elapsed; it may raise to stop the run (nothing is written)
 Progress = Callable[[int, int, float], None]
@@ -86,26 +88,38 @@ def _plan(src: VideoSource, settings: dict[str, Any]) -> _Plan:
     return _Plan(src, info, vfps, stride, first, last, expected)
 
 
-def _extract(p: _Plan, settings: dict[str, Any], tick: Callable[[], None]) -> tuple[np.ndarray, np.ndarray]:
-    """One video's sampled frames -> (rows FRAME_DTYPE without `video`, spectra)."""
+def _extract(
+    p: _Plan, settings: dict[str, Any], tick: Callable[[], None], pool: Executor, ahead: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """One video's sampled frames -> (rows FRAME_DTYPE without `video`, spectra).
+
+    Each frame is decoded once (on the reader thread, up to the track's last frame) and extracted
+    on `pool`, at most `ahead` frames in flight; the spectra come back in frame order."""
     # the lens as it sat in this video: a walk filmed after the lens was clipped on again is
     # extracted through the profile moved to its ring, as every query clip is (calib/correct.py)
-    clip = ClipLens(p.src.lens, Extractors(settings, size=2).spectrum)
+    clip = ClipLens(p.src.lens, on_pool(pool, Extractors(settings, size=2).spectrum))
     rows, specs = [], []
-    track = p.src.track
     seen = -1
-    for i, frame in iter_video(p.info, stride=p.stride, start=p.first):
-        if i > p.last:
-            break
-        seen = i
-        t = i / p.vfps
-        xy, hd, ok = track.pose_at(np.array([t]))
-        if not ok[0]:
-            continue
-        specs.extend(clip.feed(frame))
-        rows.append((xy[0, 0], xy[0, 1], hd[0], t, i))
+
+    def posed() -> Iterator[tuple[tuple[float, float, float, float, int], np.ndarray]]:
+        """The sampled frames that the track covers, each with its row (x, y, heading, t, frame);
+        the poses are looked up POSE_BLOCK sampled frames a call, not frame by frame."""
+        nonlocal seen
+        at = -POSE_BLOCK  # the first sampled frame (counted from p.first) of the block looked up
+        for i, frame in iter_video(p.info, stride=p.stride, start=p.first, last=p.last):
+            seen = i
+            k = (i - p.first) // p.stride
+            if not at <= k < at + POSE_BLOCK:
+                at = k
+                t = (p.first + p.stride * np.arange(at, at + POSE_BLOCK)) / p.vfps
+                xy, hd, ok = p.src.track.pose_at(t)
+            if ok[k - at]:
+                yield (xy[k - at, 0], xy[k - at, 1], hd[k - at], t[k - at], i), frame
+
+    for row, spec in in_order(clip, posed(), ahead):
+        rows.append(row)
+        specs.append(spec)
         tick()
-    specs.extend(clip.flush())
     if (w := clip.warning(p.src.video.name)) is not None:
         log.warning(w)
     _check_complete(p, seen)
@@ -175,10 +189,12 @@ def model_videos(
             progress(done, expected, time.perf_counter() - t0)
 
     extracted = []
-    for p in plans:
-        ts = time.perf_counter()
-        rows, specs = _extract(p, settings, tick)
-        extracted.append((p, rows, specs, time.perf_counter() - ts))
+    workers = extract_threads()
+    with ThreadPoolExecutor(workers, thread_name_prefix="omninav-extract") as pool:
+        for p in plans:
+            ts = time.perf_counter()
+            rows, specs = _extract(p, settings, tick, pool, ahead=2 * workers)
+            extracted.append((p, rows, specs, time.perf_counter() - ts))
     with store.lock(venue_id):  # read the live generation and commit the next as one step
         return _merge_commit(store, venue_id, settings, sources[-1].lens, extracted, before_commit, anew)
 

@@ -1,20 +1,29 @@
-"""Decoding: modelling videos and query clips (a video file or a directory of frame images).
+"""Decoding: modelling videos and query clips (a video file or a directory of frame images), and
+their frames' features extracted on several threads in the order they were decoded.
 
 OpenCV's FFmpeg backend reads every common container and codec. Frames we do not need are
-`grab`bed (demuxed and decoded, never converted), which is what keeps modelling fast.
+`grab`bed (demuxed and decoded, never converted), and none past the last one wanted is decoded.
 """
 
 from __future__ import annotations
 
+import os
 import threading
-from collections.abc import Iterator
+from collections import deque
+from collections.abc import Callable, Generator, Iterable, Iterator
+from concurrent.futures import Executor, Future
 from pathlib import Path
 from queue import Queue
+from typing import Any, TypeVar, cast
 
 import cv2
 import numpy as np
 
+from .calib.correct import ClipLens
 from .errors import OmninavError
+from .lens import Lens
+
+T = TypeVar("T")
 
 IMAGE_EXT = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"}
 
@@ -40,39 +49,77 @@ class VideoInfo:
             raise OmninavError(f"{label}: not a readable video (no decodable frames)")
 
 
-def iter_video(info: VideoInfo, stride: int = 1, start: int = 0) -> Iterator[tuple[int, np.ndarray]]:
-    """Yield (frame index, BGR frame) for every `stride`-th frame, decoding on a second thread.
+def iter_video(
+    info: VideoInfo, stride: int = 1, start: int = 0, last: int | None = None
+) -> Iterator[tuple[int, np.ndarray]]:
+    """Yield (frame index, BGR frame) for every `stride`-th frame from `start`, up to frame `last`
+    (None: to the end), decoding on a second thread.
 
     Takes a VideoInfo, so the video has been checked (once) before the thread starts. The reader
-    thread overlaps decoding with the caller's feature extraction (OpenCV releases the GIL), so
-    the two cores both work.
+    thread overlaps decoding with the caller's feature extraction (OpenCV releases the GIL), and
+    stops at `last` rather than decoding a queue's worth of frames the caller would throw away.
     """
-    path = info.path
-    q: Queue[tuple[int, np.ndarray] | None] = Queue(maxsize=32)
+    return read_ahead(_frames(info.path, stride, start, last), 32)
+
+
+def _frames(path: Path, stride: int, start: int, last: int | None) -> Iterator[tuple[int, np.ndarray]]:
+    """(index, BGR frame) of every `stride`-th frame from `start` to `last`; the others are only
+    `grab`bed. FFmpeg decodes on this one thread: the extraction threads keep the cores busy, and
+    its frame threads would only add hand-offs (measured: bench/model_speed.py, docs/decisions.md)."""
+    cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG, [cv2.CAP_PROP_N_THREADS, 1])
+    try:
+        i = 0
+        while last is None or i <= last:
+            if i >= start and (i - start) % stride == 0:
+                ok, f = cap.read()
+                if not ok:
+                    return
+                yield i, f
+            elif not cap.grab():
+                return
+            i += 1
+    finally:
+        cap.release()
+
+
+_END = object()
+
+
+def read_ahead(items: Iterator[T], size: int) -> Generator[T, None, None]:
+    """`items` pulled on a thread of their own, at most `size` ahead of the caller: decoding
+    (OpenCV releases the GIL) overlaps whatever the caller does with each item.
+
+    An error on that thread is raised here. When the caller stops early, the thread stops after
+    the item it is on and closes `items` (a generator's `finally` releases its decoder there).
+    """
+    q: Queue[tuple[Any, BaseException | None]] = Queue(maxsize=size)
     stop = threading.Event()
 
     def reader() -> None:
-        cap = cv2.VideoCapture(str(path))
-        i = 0
+        err: BaseException | None = None
         try:
-            while not stop.is_set():
-                if i >= start and (i - start) % stride == 0:
-                    ok, f = cap.read()
-                    if not ok:
-                        break
-                    q.put((i, f))
-                elif not cap.grab():
+            for x in items:
+                if stop.is_set():
                     break
-                i += 1
+                q.put((x, None))
+        except Exception as e:  # noqa: BLE001 - handed to the caller, who raises it
+            err = e
         finally:
-            cap.release()
-            q.put(None)
+            close = getattr(items, "close", None)
+            if close is not None:
+                close()
+            q.put((_END, err))
 
     th = threading.Thread(target=reader, daemon=True)
     th.start()
     try:
-        while (item := q.get()) is not None:
-            yield item
+        while True:
+            x, err = q.get()
+            if x is _END:
+                if err is not None:
+                    raise err
+                return
+            yield x
     finally:
         stop.set()
         while th.is_alive():  # drain so the reader can finish its put and exit
@@ -80,6 +127,52 @@ def iter_video(info: VideoInfo, stride: int = 1, start: int = 0) -> Iterator[tup
                 q.get(timeout=0.05)
             except Exception:  # noqa: BLE001 - queue.Empty: nothing left to drain
                 pass
+
+
+def extract_threads() -> int:
+    """Threads that extract a video's frames: one a core this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+def on_pool(
+    pool: Executor, extract: Callable[[Lens], Callable[[np.ndarray], np.ndarray]]
+) -> Callable[[Lens], Callable[[np.ndarray], np.ndarray]]:
+    """A ClipLens `extract` that hands each frame to `pool` rather than extracting it: the clip's
+    spectra come out as futures, in frame order, for `in_order` to collect.
+
+    ClipLens passes what its per-frame function returns through untouched, so the frames held
+    while the ring is measured are extracted in parallel too. The cast says so to the types.
+    """
+
+    def submitting(lens: Lens) -> Callable[[np.ndarray], Future[np.ndarray]]:
+        fn = extract(lens)
+        return lambda frame: pool.submit(fn, frame)
+
+    return cast(Callable[[Lens], Callable[[np.ndarray], np.ndarray]], submitting)
+
+
+def in_order(clip: ClipLens, frames: Iterable[tuple[T, np.ndarray]], ahead: int) -> Iterator[tuple[T, np.ndarray]]:
+    """(tag, frame) pairs -> (tag, spectrum) pairs in the same order, through `clip` built with
+    `on_pool`: at most `ahead` frames are submitted and not yet collected (each holds its decoded
+    frame). When the caller stops early, or `frames` or an extraction raises, what is pending is
+    cancelled and `frames` closed (a decoder on a read_ahead thread stops there and then)."""
+    tags: deque[T] = deque()  # the frames fed and not handed out yet, oldest first
+    pending: deque[Future[np.ndarray]] = deque()
+    try:
+        for tag, frame in frames:
+            tags.append(tag)
+            pending.extend(cast(list[Any], clip.feed(frame)))
+            while len(pending) > ahead:
+                yield tags.popleft(), pending.popleft().result()
+        pending.extend(cast(list[Any], clip.flush()))
+        while pending:
+            yield tags.popleft(), pending.popleft().result()
+    finally:
+        for f in pending:
+            f.cancel()
+        close = getattr(frames, "close", None)
+        if close is not None:
+            close()
 
 
 def read_clip(path: Path, max_frames: int = 600) -> tuple[list[np.ndarray], float | None]:
