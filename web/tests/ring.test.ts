@@ -507,6 +507,7 @@ describe("the session's lens check: when it runs, what is said, what is sent", (
     await s.whereAmI();
     expect(checkLensOn).toHaveBeenCalledTimes(3); // checked again: it may have been clipped on since
     // the second filmed beside each check was stopped when the check failed, and never sent
+    expect(captureClip).toHaveBeenCalledTimes(2);
     for (const c of vi.mocked(captureClip).mock.calls) expect(c[4]?.()).toBe(true);
     expect(locate).not.toHaveBeenCalled();
   });
@@ -544,6 +545,26 @@ describe("the session's lens check: when it runs, what is said, what is sent", (
     expect(vi.mocked(captureClip).mock.calls.map((c) => c[2])).toEqual([10, 10, 20, 10, 20, 10, 10, 20]);
     expect(locate).toHaveBeenCalledTimes(3);
     expect(voice.say.mock.calls.filter((c) => c[0] === CORRECTED)).toHaveLength(2);
+  });
+
+  it('a check that moves the profile films the second anew at once, not after the one beside it', async () => {
+    const { s } = session();
+    vi.mocked(checkLensOn).mockResolvedValue(checked('corrected', 5, -3.3));
+    // the filming beside the check never ends by itself: only its stop does, and it is not awaited
+    vi.mocked(captureClip).mockReturnValueOnce(new Promise(() => undefined));
+    await s.whereAmI();
+    expect(vi.mocked(captureClip).mock.calls[0][4]?.()).toBe(true);
+    expect(locate).toHaveBeenCalledTimes(1);
+  });
+
+  it('a fresh camera looked at twice: the second that passed is filmed anew, the one beside dropped', async () => {
+    const { s } = session();
+    vi.mocked(checkLensOn).mockResolvedValueOnce(checked('no_ring')).mockResolvedValue(checked('same'));
+    await s.whereAmI();
+    expect(checkLensOn).toHaveBeenCalledTimes(2);
+    expect(vi.mocked(captureClip).mock.calls.map((c) => c[2])).toEqual([10, 10, 20]);
+    expect(vi.mocked(captureClip).mock.calls[0][4]?.()).toBe(true);
+    expect(locate).toHaveBeenCalledTimes(1);
   });
 
   it('under 1 px: corrected silently', async () => {

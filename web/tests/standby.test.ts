@@ -106,6 +106,33 @@ describe('Standby', () => {
     sb.stop();
   });
 
+  it('the camera gone: it stops, and grabs again only once started again', async () => {
+    let gone = false;
+    let now = 0;
+    const grabs = vi.fn(() => Promise.resolve(frame()));
+    const sb = new Standby({
+      size: 10,
+      intervalMs: 100,
+      grab: grabs,
+      allowed: () => true,
+      key: () => 'k',
+      gone: () => gone,
+      now: () => now,
+    });
+    sb.start();
+    await vi.advanceTimersByTimeAsync(500);
+    gone = true;
+    now += 500;
+    await vi.advanceTimersByTimeAsync(200);
+    const n = grabs.mock.calls.length;
+    expect(vi.getTimerCount()).toBe(0); // no timer left polling
+    gone = false;
+    sb.start();
+    await vi.advanceTimersByTimeAsync(300);
+    expect(grabs.mock.calls.length).toBeGreaterThan(n);
+    sb.stop();
+  });
+
   it('nothing to grab (a press films its own frames): nothing grabbed, nothing counted', async () => {
     const { sb, run } = standby(() => true);
     const none = new Standby({ size: 10, intervalMs: 100, grab: () => null, allowed: () => true, key: () => 'k' });
@@ -114,6 +141,7 @@ describe('Standby', () => {
     await run(1500);
     expect(none.kept).toBe(0);
     expect(none.duty()).toBeNull();
+    expect(sb.kept).toBe(10); // beside it, one with frames to grab keeps them
     none.stop();
     sb.stop();
   });
@@ -235,6 +263,21 @@ describe('the session answers at the press from the kept second', () => {
     await vi.advanceTimersByTimeAsync(1);
     expect(api.locate).toHaveBeenCalledTimes(4);
     expect(api.locate.mock.calls.map(frames)).toEqual([10, 10, 20, 20]);
+    s.stopContinuous();
+  });
+
+  it('Keep telling me: a turn from a kept second that the server refused still waits interval + 1 s', async () => {
+    const { s } = session({ standby: () => true });
+    await s.whereAmI();
+    await vi.advanceTimersByTimeAsync(1500);
+    api.locate.mockRejectedValueOnce(new Error('the server failed'));
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0); // the kept second, refused at once
+    expect(api.locate).toHaveBeenCalledTimes(2);
+    await vi.advanceTimersByTimeAsync(3999);
+    expect(api.locate).toHaveBeenCalledTimes(2);
+    await vi.advanceTimersByTimeAsync(1);
+    expect(api.locate).toHaveBeenCalledTimes(3);
     s.stopContinuous();
   });
 

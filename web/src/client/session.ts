@@ -231,6 +231,8 @@ export class Session extends Emitter<SessionEvents> {
   private readonly standby: Standby | null;
   /** The lens in use is a donut's (its check comes before any frame is kept). */
   private donut = false;
+  /** The last first second filmed was the kept one (read by "Keep telling me" once it is filmed). */
+  private lastKept = false;
   /** The first frames of the seconds taken from the standby (a clip joined to more keeps its first). */
   private readonly keptFirsts = new WeakSet<object>();
 
@@ -248,6 +250,8 @@ export class Session extends Emitter<SessionEvents> {
           allowed: () =>
             allowed() && this.cameraLive() && !(this.donut && this.lensWatch.due(this.ext?.configured ?? null)),
           key: () => this.ext?.configured ?? null,
+          // the camera ended (the phone locked, another app took it): the next request starts it again
+          gone: () => !this.cameraLive(),
         })
       : null;
   }
@@ -375,23 +379,29 @@ export class Session extends Emitter<SessionEvents> {
     const { ext, donut } = r;
     const due = donut && this.lensWatch.due(ext.configured);
     const kept = due ? null : (this.standby?.take() ?? null);
-    if (kept && !(donut && this.lensWatch.changed(kept.frames))) {
+    this.lastKept = !!kept && !(donut && this.lensWatch.changed(kept.frames));
+    if (kept && this.lastKept) {
       this.keptFirsts.add(kept.frames[0]);
       return kept;
     }
     const film = (stop?: () => boolean) => captureClip(this.o.video, ext, CLIP_FRAMES, CLIP_INTERVAL_MS, stop);
     if (due) {
-      const failed = { now: false };
-      const filming = film(() => failed.now);
+      const stopped = { now: false };
+      const filming = film(() => stopped.now);
       filming.catch(() => undefined); // a failed check is the error said
-      const check = await this.checkLens(ext, r.fresh).catch((e: unknown) => {
-        failed.now = true;
+      const { check, again } = await this.checkLens(ext, r.fresh).catch((e: unknown) => {
+        stopped.now = true;
         throw e;
       });
       mark('lens checked');
+      // the frames beside it are not the lens's now (the profile moved), or not the picture the
+      // check passed (it had to look again: the camera was still settling): film the second anew
+      if (again || check.changed_px >= REFILM_PX) {
+        stopped.now = true;
+        return film();
+      }
       const clip = await filming;
-      if (check.changed_px < REFILM_PX && !this.lensWatch.changed(clip.frames)) return clip;
-      return film();
+      return this.lensWatch.changed(clip.frames) ? film() : clip;
     }
     const clip = await film();
     if (!donut || !this.lensWatch.changed(clip.frames)) return clip;
@@ -610,10 +620,11 @@ export class Session extends Emitter<SessionEvents> {
    * The lens check (lenscheck.ts): the worker finds the ring and from now on extracts with the
    * corrected profile; no ring, a cut ring or one too far off stops here, before any request.
    */
-  private async checkLens(ext: ExtractorClient, fresh = false): Promise<LensCheck> {
+  private async checkLens(ext: ExtractorClient, fresh = false): Promise<{ check: LensCheck; again: boolean }> {
     let c = await checkLensOn(this.o.video, ext);
     // a camera that has just started may still be finding its exposure: look once more before saying no
-    if (fresh && lensWords(c)) {
+    const again = fresh && !!lensWords(c);
+    if (again) {
       await new Promise((r) => setTimeout(r, RECHECK_MS));
       c = await checkLensOn(this.o.video, ext);
     }
@@ -622,7 +633,7 @@ export class Session extends Emitter<SessionEvents> {
     const said = this.lensWatch.record(c, ext.configured);
     if (said?.stop) throw new CameraProblem('lens', said.text);
     if (said) this.o.voice.say(said.text, null);
-    return c;
+    return { check: c, again };
   }
 
   get continuous(): boolean {
@@ -690,6 +701,7 @@ export class Session extends Emitter<SessionEvents> {
       try {
         const motion = () => {
           read.filmed = true;
+          read.kept = this.lastKept;
           const m = feed?.peek();
           read.reading = m;
           return { steps: m?.steps ?? null, turn_deg: m?.turn_deg ?? null };
@@ -703,7 +715,6 @@ export class Session extends Emitter<SessionEvents> {
         return filmed(); // null: the camera was taken (nothing filmed), or the loop stopped
       }
       loop.answered = true;
-      read.kept = r.kept;
       if (read.reading) feed?.commit(read.reading);
       const pressed = this.pressedInTurn;
       this.pressedInTurn = false;

@@ -65,6 +65,8 @@ export interface StandbyOptions {
   allowed: () => boolean;
   /** The worker's configuration now (bridge.ts's `configured`). */
   key: () => string | null;
+  /** There is nothing to stand by for any more (the camera ended): it stops until started again. */
+  gone?: () => boolean;
   now?: () => number;
 }
 
@@ -123,6 +125,10 @@ export class Standby {
   }
 
   private tick(): void {
+    if (this.o.gone?.()) {
+      this.stop();
+      return;
+    }
     const now = this.now();
     if (!this.o.allowed()) {
       if (this.ring.length) this.clear();
