@@ -68,10 +68,16 @@ def create_app(overrides: dict[str, Any] | None = None) -> Flask:
         """A body refused before it was read (a record too long for its frames: 413) is read and
         dropped before the answer goes: closing on unread bytes resets the connection, and nginx
         answers 502 for the app's 413. The body is within MAX_CONTENT_LENGTH (nginx saw to that)
-        and waits whole on nginx's side; a video upload is streamed, so it is left alone."""
+        and waits whole on nginx's side. A video upload is streamed through nginx: it is read only
+        when refused (a second upload of a video being uploaded: 409) and within that bound, else
+        left alone; its client may stall, and then the read ends with nginx's deadline."""
         n = request.content_length
-        if n and n <= conf["MAX_CONTENT_LENGTH"] and request.endpoint != "admin.upload_content":
-            while request.stream.read(1 << 16):
+        upload = request.endpoint == "admin.upload_content"
+        if n and n <= conf["MAX_CONTENT_LENGTH"] and (not upload or resp.status_code >= 400):
+            try:
+                while request.stream.read(1 << 16):
+                    pass
+            except OSError:  # the client went away: nothing left to keep the connection for
                 pass
         return resp
 
