@@ -61,8 +61,8 @@ export function interp(x: number, xp: Float64Array, fp: Float64Array): number {
   return slope * (x - xp[lo]) + fp[lo];
 }
 
-/** The radius (px) at which a donut lens sees each elevation; NaN outside its ring. */
-export function radiusTable(lens: CatadioptricLens): (elevDeg: number) => number {
+/** 4097 radii across a donut's ring and the elevation each sees, elevations ascending (lens.py's table). */
+export function elevationSamples(lens: CatadioptricLens): { r: Float64Array; e: Float64Array } {
   const n = 4097;
   let r = linspace(lens.r_inner, lens.r_outer, n);
   let e = r.map((v) => polyval(v, lens.elevation_poly));
@@ -70,6 +70,12 @@ export function radiusTable(lens: CatadioptricLens): (elevDeg: number) => number
     r = r.slice().reverse();
     e = e.slice().reverse();
   }
+  return { r, e };
+}
+
+/** The radius (px) at which a donut lens sees each elevation; NaN outside its ring. */
+export function radiusTable(lens: CatadioptricLens): (elevDeg: number) => number {
+  const { r, e } = elevationSamples(lens);
   return (el) => interp(el, e, r);
 }
 

@@ -5,7 +5,7 @@
  * depends on the phone, the clip-on and the browser; the picture's door frames and corners say
  * the tilt by themselves.
  */
-import { directionToPixel, linspace, polyval, type CatadioptricLens, type Lens } from '../shared/lens';
+import { directionToPixel, elevationSamples, type CatadioptricLens, type Lens } from '../shared/lens';
 import type { UnwarpMap } from './unwarp';
 
 /** The strongest tenth of the horizontal gradients are the edges whose lean counts. */
@@ -190,13 +190,8 @@ export interface RadiusTable {
 }
 
 export function radiusTableOf(lens: CatadioptricLens): RadiusTable {
-  const n = 4097;
-  let r = linspace(lens.r_inner, lens.r_outer, n);
-  let e = r.map((v) => polyval(v, lens.elevation_poly));
-  if (e[0] > e[n - 1]) {
-    r = r.slice().reverse();
-    e = e.slice().reverse();
-  }
+  const { r, e } = elevationSamples(lens);
+  const n = r.length;
   const ep = new Float64Array(n + 2).fill(Infinity);
   ep.set(e);
   const slope = new Float64Array(n - 1);
