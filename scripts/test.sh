@@ -14,8 +14,11 @@ npm test -w web --silent
 # pytest on both cores (pytest-xdist): a test module stays on one process, so that its fixtures
 # (rendered venues, started servers) are made once; many tests wait on servers and subprocesses,
 # and two at a time fill the cores that one leaves idle (OMNINAV_TEST_JOBS=1: one at a time)
+# (the API fuzzing runs on its own: schemathesis makes its cases as the test runs, one item per
+# operation, and xdist's module-by-module scheduling runs that item without its cases)
 jobs="${OMNINAV_TEST_JOBS:-2}"
-.venv/bin/python -m pytest -n "$jobs" --dist loadfile "$@"
+.venv/bin/python -m pytest -n "$jobs" --dist loadfile --ignore=tests/test_fuzz_api.py "$@"
+.venv/bin/python -m pytest tests/test_fuzz_api.py
 OMNINAV_TEST_DB=postgres .venv/bin/python -m pytest -n "$jobs" --dist loadfile tests/test_server.py tests/test_jobs.py tests/test_admin_api.py tests/test_tracking_api.py tests/test_model_anew.py  # again on a real PostgreSQL
 bash scripts/chromium.sh
 npx playwright test -c e2e/playwright.config.ts
