@@ -183,9 +183,15 @@ interface Ready {
 
 /**
  * A named moment of a request on the page's performance timeline ("omninav: camera open"): what a
- * press waits on, for the browser's profiler and bench/press.mjs.
+ * press waits on, for the browser's profiler and bench/press.mjs; each press clears the last one's.
  */
-const mark = (what: string): void => void performance.mark(`omninav: ${what}`);
+function mark(what: string): void {
+  // a press starts the timeline afresh: marks would otherwise pile up for as long as the page lives
+  if (what === 'press')
+    for (const m of performance.getEntriesByType('mark'))
+      if (m.name.startsWith('omninav: ')) performance.clearMarks(m.name);
+  performance.mark(`omninav: ${what}`);
+}
 
 const median = (v: number[]): number => v.slice().sort((a, b) => a - b)[v.length >> 1] ?? 0;
 

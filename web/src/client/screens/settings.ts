@@ -48,6 +48,16 @@ const radios = <K extends 'style' | 'readBy'>(name: string, key: K) =>
     show: (c, v) => (c.checked = c.value === v),
   });
 
+/** A checkbox: checked is the preference. */
+const checkbox = <K extends 'vibrate' | 'ready'>(selector: string, key: K) =>
+  setting<K>({
+    selector,
+    key,
+    event: 'change',
+    read: (c) => (c.checked === true) as Prefs[K],
+    show: (c, v) => (c.checked = v),
+  });
+
 export const SETTINGS: Setting<keyof Prefs>[] = [
   // venue, lens and voice lists are filled by the session and the speech engine, their choice with them
   setting({ selector: '#venue', key: 'venue', event: 'change', read: text }),
@@ -56,21 +66,9 @@ export const SETTINGS: Setting<keyof Prefs>[] = [
   radios('read-by', 'readBy'),
   setting({ selector: '#rate', key: 'rate', event: 'input', read: num, show: showNum }),
   setting({ selector: '#voice', key: 'voice', event: 'change', read: text }),
-  setting({
-    selector: '#vibrate',
-    key: 'vibrate',
-    event: 'change',
-    read: (c) => c.checked === true,
-    show: (c, v) => (c.checked = v),
-  }),
+  checkbox('#vibrate', 'vibrate'),
   setting({ selector: '#interval', key: 'interval', event: 'change', read: num, show: showNum }),
-  setting({
-    selector: '#ready',
-    key: 'ready',
-    event: 'change',
-    read: (c) => c.checked === true,
-    show: (c, v) => (c.checked = v),
-  }),
+  checkbox('#ready', 'ready'),
 ];
 
 /** The controls that tune only the app's own voice: off while the screen reader reads instead. */
