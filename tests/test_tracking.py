@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 
 from conftest import cli_model, run_cli
 from omninav.aggregate import sequence
@@ -30,6 +32,7 @@ from omninav.synth.scene import TWIN_RING, twin_routes
 from omninav.synth.walks import imu_for, track_for
 from omninav.track import parse_track
 from omninav.tracking import (
+    FIT_M,
     MAX_STORED,
     STEPS_WORK_S,
     ClipAnswer,
@@ -678,12 +681,12 @@ def test_a_longer_clip_is_walked_second_by_second_so_its_first_second_counts(cor
     # a state too old to go on from: the belief starts over, and the phone's reading (of the walk
     # before it) is not shared among the clip's seconds as if walked in them
     seen: list[Motion | None] = []
-    update = corridor.tracker.update
+    step = corridor.tracker._step
     try:
-        corridor.tracker.update = lambda *a: seen.append(a[4]) or update(*a)  # type: ignore[method-assign]
+        corridor.tracker._step = lambda *a: seen.append(a[4]) or step(*a)  # type: ignore[method-assign]
         _, old = corridor.tracker.update_clip(state, m, t + 500.0, float(t[-1] + 500.0), Motion(400, 90.0), answer)
     finally:
-        del corridor.tracker.update
+        del corridor.tracker._step
     assert old.restarted and seen == [Motion(), Motion()]
 
 
@@ -1223,8 +1226,8 @@ def test_locator_track_feeds_the_clip_estimate_and_the_filter(walk_spec, monkeyp
     loc, (spec, t, xy, hd, idx) = walk_spec
     w = slice(30, 40)
     fed: list[ClipAnswer | None] = []
-    update = loc.tracker.update
-    monkeypatch.setattr(loc.tracker, "update", lambda *a: fed.append(a[5]) or update(*a))
+    step = loc.tracker._step
+    monkeypatch.setattr(loc.tracker, "_step", lambda *a: fed.append(a[5]) or step(*a))
     state, pose, est = loc.track(loc.tracker, spec[w], t[w], None, 100.0)
     monkeypatch.undo()
     same = loc.estimate(spec[w], t[w])
@@ -1356,3 +1359,40 @@ def test_the_rules_read_the_clips_confidence_with_the_model_they_were_chosen_wit
     assert (clip.x, clip.y, clip.row) == (1.0, 2.0, 7)
     older = {k: v for k, v in conf.items() if not k.startswith("track_clip_")}
     assert ClipAnswer.of(e, older).confidence == clip.confidence
+
+
+@settings(max_examples=100, deadline=None)
+@example(seed=916084442, k=8, frames=6, node=67)  # a hypothesis beyond FIT_M, supported from within it, wins
+@given(seed=st.integers(0, 2**31 - 1), k=st.integers(1, 40), frames=st.integers(1, 12), node=st.integers(0, 200))
+def test_the_fit_reads_only_the_matches_that_can_matter_and_answers_the_same(
+    corridor: Venue, seed: int, k: int, frames: int, node: int
+) -> None:
+    """Tracker._fit drops the matches too far from the answer's node to support or be supported
+    (_compact): on any matches, its answer is aggregate.sequence's on all of the clip's last second
+    with those further than FIT_M set to 0, bit for bit (ties between equal scores included)."""
+    rng = np.random.default_rng(seed)
+    tr = corridor.tracker
+    node %= tr.n
+    # most matches within a few metres of the node: where the ones that can matter and the ones
+    # that cannot meet
+    around = np.flatnonzero(np.hypot(*(corridor.xy - tr.xy[node]).T) <= 6.0)
+    idx = np.where(
+        rng.random((frames, k)) < 0.8, rng.choice(around, (frames, k)), rng.integers(0, len(corridor.xy), (frames, k))
+    )
+    score = np.round(rng.uniform(-0.2, 1.0, (frames, k)), 1).astype(np.float32)  # ties, often
+    head = rng.choice(np.float32([10.0, 100.0, 190.0, 280.0]), (frames, k))  # a few ways, so that some agree
+    m = Matches(idx, score, score, head)
+    times = 5.0 + np.arange(frames) / 10.0
+    got = tr._fit(node, m, times, float(times[-1]), None)
+    near = np.hypot(*(corridor.xy[idx] - tr.xy[node]).transpose(2, 0, 1)) <= FIT_M
+    if not (near & (score > 0))[times > times[-1] - 1.0 - 1e-6].any():
+        return  # (the node and no heading: not a fit)
+    last = times > times[-1] - 1.0 - 1e-6  # (the fit reads the clip's last second)
+    masked = Matches(idx[last], score[last], np.where(near, score, 0.0).astype(np.float32)[last], head[last])
+    e = sequence(masked, corridor.xy, times[last], tr.conf)
+    x, y = e.x, e.y
+    nx, ny = tr.xy[node]
+    dd = float(np.hypot(x - nx, y - ny))
+    if dd > FIT_M:
+        x, y = nx + (x - nx) * FIT_M / dd, ny + (y - ny) * FIT_M / dd
+    assert got == (float(x), float(y), float(e.heading % 360.0), True)

@@ -130,6 +130,7 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
 
 from __future__ import annotations
 
+import functools
 import struct
 import zlib
 from collections.abc import Callable, Mapping
@@ -140,7 +141,7 @@ import numpy as np
 import scipy.sparse  # type: ignore[import-untyped]
 from scipy.spatial import cKDTree  # type: ignore[import-untyped]
 
-from .aggregate import SPAN_S, SURE, Estimate, confidence, confidence_inputs, field_of, logistic, sequence
+from .aggregate import SPAN_S, SURE, Estimate, confidence, confidence_inputs, field_of, logistic, reach_m, sequence
 from .heading import wrap_deg
 from .index import Matches
 from .presets import setting
@@ -524,6 +525,52 @@ def _pairs_within(a: np.ndarray, b: np.ndarray, r: float) -> tuple[np.ndarray, n
     return m.row.astype(np.int64), m.col.astype(np.int64), m.data.astype(np.float64)
 
 
+def _spans(indptr: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The positions of rows' entries in a CSR layout (`indptr`), row after row in their order,
+    and how many each row has."""
+    lo = indptr[rows]
+    count = indptr[rows + 1] - lo
+    return np.arange(int(count.sum())) + np.repeat(lo - (np.cumsum(count) - count), count), count
+
+
+def _rows_of(m: scipy.sparse.csr_matrix, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The entries of some rows of a CSR matrix, as m[rows] holds them: each entry's position in
+    `rows`, its column and its value (a gather by the matrix's own arrays: SciPy's row indexing
+    builds a matrix, at 10x the cost, for the three arrays read from it)."""
+    at, count = _spans(m.indptr, rows)
+    return np.repeat(np.arange(len(rows)), count), m.indices[at], m.data[at]
+
+
+def _none() -> None:
+    return None
+
+
+def _turned(heading: float | None | Callable[[], float | None], turn: float | None) -> tuple[float, bool] | None:
+    """The last answer's heading (or what makes it) plus the gyroscope's turn since, and whether
+    the turn was known; None without a heading."""
+    h = heading() if callable(heading) else heading
+    return None if h is None else ((h + float(turn or 0.0)) % 360.0, turn is not None)
+
+
+def _heading_of(pose: Callable[[], TrackPose]) -> float | None:
+    """The heading a state keeps of its pose (None: the pose did not know it)."""
+    p = pose()
+    return p.heading if p.heading_known else None
+
+
+def _compact(m: Matches, use: np.ndarray, pad: int) -> tuple[Matches, np.ndarray]:
+    """(Q, k) matches and which to keep -> each frame's kept ones first, in their order, as
+    (Q, k') matches (k': the most a frame keeps), the rest padding (venue row `pad`, score 0);
+    and the (Q, k') columns they came from."""
+    width = max(1, int(use.sum(axis=1).max()))
+    at = np.argsort(~use, axis=1, kind="stable")[:, :width]
+    kept = np.take_along_axis(use, at, axis=1)
+    out = [np.take_along_axis(np.asarray(getattr(m, f.name)), at, axis=1) for f in fields(m)]
+    out[0] = np.where(kept, out[0], pad)
+    out[2] = np.where(kept, out[2], 0).astype(out[2].dtype)
+    return Matches(*out), at
+
+
 def node_frames(graph: WalkGraph, venue_xy: np.ndarray, venue_floor: np.ndarray) -> np.ndarray:
     """(N,) int64: each node's nearest venue frame on its floor (any floor's, if its has none)."""
     return nearest_on_floor(graph.xy, graph.floor, venue_xy, venue_floor)
@@ -744,10 +791,13 @@ class Tracker:
         walked = None if steps is None else max(0, steps) * step_m / parts
         d = self.t_dist
         reach = vmax * dt / parts + slack
-        flat = np.exp(-0.5 * np.maximum(d - reach, 0.0) ** 2)  # 1 within reach, falling off beyond
-        if walked is None:
-            k = flat
-        else:  # the distance walked is about known (a stride varies ~10 %, a step is missed or
+        # (the E-long arrays are made in place: each temporary of them costs as much as the arithmetic)
+        k = np.subtract(d, reach)
+        np.maximum(k, 0.0, out=k)
+        k *= k
+        k *= -0.5
+        np.exp(k, out=k)  # 1 within reach, falling off beyond
+        if walked is not None:  # the distance walked is about known (a stride varies ~10 %, a step is missed or
             # added now and then): a move of about that length counts up to 1 / (1 - trust) times as
             # much as any other within reach. The steps sharpen, never forbid: a phone that counts
             # none while its user walks (held steady, a slow walker, a wheelchair, a stalled sensor
@@ -756,31 +806,55 @@ class Tracker:
             # by up to 1 / track_outlier, more than the steps' 1 / (1 - trust))
             sig = 0.12 * walked + float(setting(self.conf, "track_step_sigma_m"))
             trust = float(setting(self.conf, "track_step_trust"))
-            k = flat * (trust * np.exp(-0.5 * ((d - walked) / sig) ** 2) + (1 - trust))
-        k = np.where(d < 0, float(setting(self.conf, "track_floor_change")), np.maximum(k, 1e-12))
+            g = np.subtract(d, walked)
+            g /= sig
+            g *= g
+            g *= -0.5
+            np.exp(g, out=g)
+            g *= trust
+            g += 1 - trust
+            k *= g
+        np.maximum(k, 1e-12, out=k)
+        k[self._via] = float(setting(self.conf, "track_floor_change"))
         rowsum = np.add.reduceat(k, self.t_indptr[:-1])
         k /= np.repeat(rowsum, self.t_count)  # (entries in row order: a row's sum repeated, not gathered)
         kk = k
-        if facing is not None:  # the clip's facing, at the end of the walk
+        # the clip's facing, at the end of the walk, where it says one: the entries into the nodes
+        # that have one (a few hundred of the tens of thousands)
+        e = np.zeros(0, np.int64) if facing is None else self._into(np.flatnonzero(np.isfinite(facing)))
+        if facing is not None and len(e):
             h = np.deg2rad(facing)
-            fs, fc = np.take(np.sin(h), self.t_col), np.take(np.cos(h), self.t_col)
-            fwd = self.t_dx * fs - self.t_dy * fc
+            fs, fc = np.sin(h)[self.t_col[e]], np.cos(h)[self.t_col[e]]
+            fwd = self.t_dx[e] * fs - self.t_dy[e] * fc
             back = float(setting(self.conf, "track_backward")) ** (parts == 1)
-            kk = np.where(fwd < -1.0 * parts, k * back, k)  # NaN facing: fwd is NaN, no change
+            kk = k.copy()
+            sel = e[fwd < -1.0 * parts]
+            kk[sel] = k[sel] * back
             if turn is not None:
                 b = np.deg2rad(turn[0] + turn[1])
-                cos_off = fc * np.repeat(np.cos(b), self.t_count) + fs * np.repeat(np.sin(b), self.t_count)
+                rows = self.t_row[e]
+                cos_off = fc * np.cos(b)[rows] + fs * np.sin(b)[rows]
                 gate = float(setting(self.conf, "track_turn_gate_deg"))
                 bad = np.flatnonzero(cos_off < np.cos(np.deg2rad(gate)))  # NaN: no change
                 off = np.degrees(np.arccos(np.clip(cos_off[bad], -1.0, 1.0)))
-                kk = kk.copy()
-                kk[bad] *= np.maximum(np.exp(-0.5 * ((off - gate) / 20.0) ** 2), 0.1)  # soft, floored
+                kk[e[bad]] *= np.maximum(np.exp(-0.5 * ((off - gate) / 20.0) ** 2), 0.1)  # soft, floored
         p = belief
         start = p
         for i in range(parts):
             start = p
             p = self._walk(kk if i == parts - 1 else k, p)
         return p, kk, start
+
+    @functools.cached_property
+    def _via(self) -> np.ndarray:
+        """The entries of lifts and stairs (distance -1): walked with track_floor_change."""
+        return np.flatnonzero(self.t_dist < 0)
+
+    def _into(self, nodes: np.ndarray) -> np.ndarray:
+        """The entries (in (row, col) order) whose column is one of `nodes`: the reversed entries
+        of their rows (t_rev), as _walk reads them."""
+        into: np.ndarray = self.t_rev[_spans(self.t_indptr, nodes)[0]]
+        return into
 
     def _walk(self, w: np.ndarray, p: np.ndarray) -> np.ndarray:
         """One step of the transition: edge weights w (E,) (row i -> column j, in (row, col)
@@ -789,9 +863,11 @@ class Tracker:
         # the flow along each entry read in column order: t_rev[m] is the m-th entry in (col, row)
         # order, the m-th in (row, col) order reversed, so its row is t_col[m] and the column's
         # entries lie where the row's do (every node has an entry of its own, distance 0: none empty)
+        # (B beliefs as B rows: a product broadcast over a 2-wide last axis costs 10x one over E)
         w_in = np.take(w, self.t_rev)
-        flow = w_in * np.take(p, self.t_col) if p.ndim == 1 else w_in[:, None] * np.take(p, self.t_col, axis=0)
-        return np.add.reduceat(flow, self.t_indptr[:-1], axis=0)
+        flow = np.take(np.ascontiguousarray(p.T), self.t_col, axis=-1)
+        flow *= w_in
+        return np.add.reduceat(flow, self.t_indptr[:-1], axis=-1).T
 
     def _predicted(
         self, nodes: np.ndarray, kk: np.ndarray, start: np.ndarray, turn: tuple[np.ndarray, float]
@@ -820,17 +896,16 @@ class Tracker:
         q, k = idx.shape
         bg = sc.min(axis=1)  # a node that none of a frame's candidates is near: as its worst kept
         b = np.repeat(bg[:, None], self.n, axis=1)
-        sub = self.f2n[idx.ravel()]
-        r = np.repeat(np.arange(q * k), np.diff(sub.indptr))
+        r, nodes, dist = _rows_of(self.f2n, idx.ravel())
         # a match counts for a node less the further it is from it: the emission peaks where it is
-        val = sc.ravel()[r] - float(setting(self.conf, "track_dist_penalty")) * (sub.data - 1.0)
-        np.maximum.at(b, (r // k, sub.indices), val)
+        val = sc.ravel()[r] - float(setting(self.conf, "track_dist_penalty")) * (dist - 1.0)
+        np.maximum.at(b, (r // k, nodes), val)
         # the facing: the best-scoring match near each node among the latest frames
         facing = np.full(self.n, np.nan)
         # (only matches about as good as the frame's best: a poor one near a node says little)
         late = (times[keep][r // k] > t_now - FACING_S - 1e-6) & (val >= sc.max(axis=1)[r // k] - FACING_MARGIN)
         if late.any():
-            col, v, h = sub.indices[late], val[late], hd.ravel()[r[late]]
+            col, v, h = nodes[late], val[late], hd.ravel()[r[late]]
             order = np.lexsort((v, col))
             last = np.r_[col[order][1:] != col[order][:-1], True]
             facing[col[order][last]] = h[order][last]
@@ -859,6 +934,25 @@ class Tracker:
         `clip`: what the clip answers alone (its confidence, aggregate.confidence, and place), for
         the rules of the clip's own answer (None: they do not apply to this update, and the recent
         clips' mean starts over)."""
+        state, answer = self._step(state, matches, times, t_now, motion, clip)
+        pose = answer()
+        return replace(state, heading=_heading_of(answer)), pose
+
+    def _step(
+        self,
+        state: TrackState | None,
+        matches: Matches,
+        times: np.ndarray,
+        t_now: float,
+        motion: Motion | None = None,
+        clip: ClipAnswer | None = None,
+        heading: Callable[[], float | None] | None = None,
+    ) -> tuple[TrackState, Callable[[], TrackPose]]:
+        """update(), the answer left to be made: the new state (its `heading` not set) and what
+        makes the pose, once, when called. A part of a clip that is not its last (update_clip)
+        needs no answer of its own: the next part reads only its heading, and only where no match
+        of its own is near its answer (_fit). `heading`: the state's heading, where it was left to
+        be made (else state.heading)."""
         motion = motion or Motion()
         times = _clip_times(matches, times)
         fresh = state is None or not self.goes_on(state, t_now)
@@ -869,8 +963,9 @@ class Tracker:
         best: int | None = int(np.argmax(e)) if float(e.max() - e.min()) > 1e-9 else None
         gyro = None
         # the last answer's heading plus the gyroscope's turn since (True), or alone (False: a
-        # stand-in, not a heading the answer may be sure of)
-        last: tuple[float, bool] | None = None
+        # stand-in, not a heading the answer may be sure of); made when the answer reads it
+        last: Callable[[], tuple[float, bool] | None] = _none
+
         # the cautious belief runs beside the belief (where the venue has look-alikes, or the
         # clips' evidence is tempered by how well they match)
         twin = len(self.alike_a) > 0 or self.beta_ref is not None
@@ -897,9 +992,7 @@ class Tracker:
             updates = state.updates
             if turn is not None:  # where the phone faces now, by the gyroscope, per hypothesis
                 gyro = (kk, start, turn)
-            if state.heading is not None:
-                turned = motion.turn_deg is not None
-                last = ((state.heading + float(motion.turn_deg or 0.0)) % 360.0, turned)
+            last = functools.partial(_turned, state.heading if heading is None else heading, motion.turn_deg)
         # one clip can be an outlier (people in the way, a turn, a look-alike): it moves the odds
         # between two places by at most 1 / track_outlier
         rho = float(setting(self.conf, "track_outlier"))
@@ -927,34 +1020,58 @@ class Tracker:
                 cautious = self.with_alikes(cautious)
             post_a = prior_a * ((1 - rho) * np.exp(cautious) + rho)
             post_a /= post_a.sum()
-        pose = self.pose(post, matches, times, t_now, gyro, updates + 1, last, post_a)
         # (an update without the clip's confidence, or with one that is no number, leaves the
         # rule out and starts the mean over at the next: a mean carried across it would be stale)
         recent = None
         if clip is not None and np.isfinite(clip.confidence):
-            before, dt = (None, 0.0) if fresh or state is None else (state.recent, t_now - state.t)
-            recent = self.recent(before, float(clip.confidence), dt)
-            doubt = self.recent_min is not None and recent < self.recent_min
-            split = clip.confidence >= SURE and self.elsewhere(pose, clip)
-            # where the walk is itself split between the two places, its small differences between
-            # look-alikes are the weaker evidence, and the sure clip of the moment decides
-            if split:
-                node = self.tie_node(post, pose.node, clip)
-                if node is not None:
-                    pose = self.pose(post, matches, times, t_now, gyro, updates + 1, last, post_a, node)
-            if doubt or split:  # two calibrated sources disagree: not sure, wherever the answer is
-                pose = replace(pose, confidence=min(pose.confidence, self.doubt_cap))
-            if held:  # no surer than the clip alone, as a locate says it
-                pose = replace(pose, confidence=min(pose.confidence, float(clip.said)))
-        pose = replace(pose, restarted=bool(fresh))
-        heading = pose.heading if pose.heading_known else None
+            ago, dt = (None, 0.0) if fresh or state is None else (state.recent, t_now - state.t)
+            recent = self.recent(ago, float(clip.confidence), dt)
+        made: list[TrackPose] = []
+
+        def answer() -> TrackPose:
+            if not made:
+                pose = self._answer(post, matches, times, t_now, gyro, updates + 1, last, post_a, clip, recent, held)
+                made.append(replace(pose, restarted=bool(fresh)))
+            return made[0]
+
         stepped = None if fresh or state is None else state.stepped
         if (motion.steps or 0) >= STEPS_WORK_N:
             stepped = float(t_now)
-        state = TrackState(
-            float(t_now), post, self.graph.key, updates + 1, heading, facing, post_a, recent, best, stepped
-        )
-        return state, pose
+        state = TrackState(float(t_now), post, self.graph.key, updates + 1, None, facing, post_a, recent, best, stepped)
+        return state, answer
+
+    def _answer(
+        self,
+        post: np.ndarray,
+        matches: Matches,
+        times: np.ndarray,
+        t_now: float,
+        gyro: tuple[np.ndarray, np.ndarray, tuple[np.ndarray, float]] | None,
+        updates: int,
+        last: Callable[[], tuple[float, bool] | None],
+        post_a: np.ndarray | None,
+        clip: ClipAnswer | None,
+        recent: float | None,
+        held: bool,
+    ) -> TrackPose:
+        """The pose of an update's beliefs, and the rules of the clip's own answer (`recent`: the
+        recent clips' mean confidence after it; `held`: the phone held still)."""
+        pose = self.pose(post, matches, times, t_now, gyro, updates, last, post_a)
+        if recent is None or clip is None:
+            return pose
+        doubt = self.recent_min is not None and recent < self.recent_min
+        split = clip.confidence >= SURE and self.elsewhere(pose, clip)
+        # where the walk is itself split between the two places, its small differences between
+        # look-alikes are the weaker evidence, and the sure clip of the moment decides
+        if split:
+            node = self.tie_node(post, pose.node, clip)
+            if node is not None:
+                pose = self.pose(post, matches, times, t_now, gyro, updates, last, post_a, node)
+        if doubt or split:  # two calibrated sources disagree: not sure, wherever the answer is
+            pose = replace(pose, confidence=min(pose.confidence, self.doubt_cap))
+        if held:  # no surer than the clip alone, as a locate says it
+            pose = replace(pose, confidence=min(pose.confidence, float(clip.said)))
+        return pose
 
     def goes_on(self, state: TrackState, t_now: float) -> bool:
         """Whether a belief can go on from `state` at t_now (else it starts over): a state of this
@@ -989,15 +1106,20 @@ class Tracker:
             moves = share(motion or Motion(), list(np.diff(np.r_[state.t, ends])))
         else:  # the belief starts over: the phone's reading is of the walk before, not of these seconds
             moves = [Motion()] * len(cut)
-        pose, restarted = None, False
-        for c, end, mv in zip(cut, ends, moves, strict=True):
+        pose, restarted, heading = None, False, None
+        for i, (c, end, mv) in enumerate(zip(cut, ends, moves, strict=True)):
             m = matches.rows(c)
             # each part's own answer: the rules of the clip's own answer were chosen on 1 s clips'
             # (the whole clip's, surer for being longer, was tried: it did no better on the
             # held-out families; docs/benchmarks.md, "Filming throughout")
             own = None if answer is None else answer(m, times[c])
-            state, pose = self.update(state, m, times[c], end, mv, own)
-            restarted = restarted or pose.restarted
+            restarted = restarted or state is None or not self.goes_on(state, end)
+            state, made = self._step(state, m, times[c], end, mv, own, heading)
+            if i < len(cut) - 1:  # a part's pose is made only if the next part reads its heading
+                heading = functools.partial(_heading_of, made)
+            else:
+                pose = made()
+                state = replace(state, heading=pose.heading if pose.heading_known else None)
         assert state is not None and pose is not None
         # started over, the parts were given no motion (it was of the walk before); that the
         # counter counted is still news: it works
@@ -1084,7 +1206,7 @@ class Tracker:
         t_now: float,
         gyro: tuple[np.ndarray, np.ndarray, tuple[np.ndarray, float]] | None = None,
         updates: int = 1,
-        last: tuple[float, bool] | None = None,
+        last: Callable[[], tuple[float, bool] | None] = _none,
         alike: np.ndarray | None = None,
         node: int | None = None,
     ) -> TrackPose:
@@ -1126,6 +1248,12 @@ class Tracker:
             c = min(c, AMBIGUOUS_CAP)
         return replace(pose, confidence=c)
 
+    @functools.cached_property
+    def _xy_pad(self) -> np.ndarray:
+        """venue_xy and a row of NaN after it: the place of _compact's padding (no pair with it is
+        within reach or facing, so it supports nothing and nothing supports it)."""
+        return np.vstack([self.venue_xy, np.full((1, 2), np.nan)])
+
     def _fit(
         self,
         node: int,
@@ -1133,7 +1261,7 @@ class Tracker:
         times: np.ndarray,
         t_now: float,
         predicted: float | None,
-        last: tuple[float, bool] | None = None,
+        last: Callable[[], tuple[float, bool] | None] = _none,
     ) -> tuple[float, float, float, bool]:
         """Position and heading at t_now, and whether the heading is known: aggregate.sequence on
         the clip's matches within FIT_M of `node` only (those facing within the gate of the
@@ -1146,16 +1274,26 @@ class Tracker:
         keep = np.flatnonzero(times > t_now - SPAN_S - 1e-6)
         m = matches.rows(keep)
         pos = self.venue_xy[m.index]  # (Q, k, 2)
-        near = np.hypot(pos[..., 0] - nx, pos[..., 1] - ny) <= FIT_M
+        dist = np.hypot(pos[..., 0] - nx, pos[..., 1] - ny)
+        near = dist <= FIT_M
         if not (near & (m.score > 0)).any():
             if predicted is not None:
                 return float(nx), float(ny), float(predicted % 360.0), True
-            h, known = last if last is not None else (0.0, False)
+            got = last()
+            h, known = got if got is not None else (0.0, False)
             return float(nx), float(ny), float(h % 360.0), known
+        # Only the matches near the node support (the others' scores are set to 0), so a match
+        # further than FIT_M + the clip's reach from it is a hypothesis that nothing supports: it
+        # never wins, and the fit is the same without it (a metre's margin on the reach). Each
+        # frame's other matches, in their order, are what aggregate.sequence reads: a quarter of
+        # its work where half a frame's matches are elsewhere (look-alikes).
+        span = float(np.ptp(times[keep]))
+        m, at = _compact(m, dist <= FIT_M + float(reach_m(np.array(span), self.conf)) + 1.0, len(self.venue_xy))
+        near = np.take_along_axis(near, at, axis=1) & (m.index < len(self.venue_xy))
 
         def fit(use: np.ndarray) -> Estimate:
             masked = Matches(m.index, m.coarse, np.where(use, m.score, 0.0).astype(np.float32), m.heading)
-            return sequence(masked, self.venue_xy, times[keep], self.conf)
+            return sequence(masked, self._xy_pad, times[keep], self.conf)
 
         e = fit(near)
         if predicted is not None:  # facing away from the gyroscope's heading: its matches, if any
