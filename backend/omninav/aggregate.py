@@ -195,6 +195,18 @@ CONFIDENCE_INPUTS: dict[str, Callable[[Estimate | Mapping[str, Any]], float]] = 
 }
 
 
+# What the tracking filter's confidence model may read from a pose (tracking.TrackPose, or a row
+# of bench/tracking.py with its fields); here, beside the clip's, so that checking a venue's
+# settings (presets.py) does not load the filter
+TRACK_CONFIDENCE_INPUTS: dict[str, Callable[[Any], float]] = {
+    "mass": lambda p: field_of(p, "mass"),
+    "far": lambda p: field_of(p, "far"),
+    "spread": lambda p: min(field_of(p, "spread_m"), 20.0) / 10.0,
+    # a belief of one or two clips is as sure as those clips: a young track is less reliable
+    "young": lambda p: 1.0 / max(1.0, field_of(p, "updates")),
+}
+
+
 def confidence_inputs(e: Estimate | Mapping[str, Any], names: list[str]) -> list[float]:
     return [CONFIDENCE_INPUTS[n](e) for n in names]
 

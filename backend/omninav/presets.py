@@ -111,7 +111,7 @@ DEFAULTS: dict[str, Any] = {
     # second (cautious) belief, whose confidence caps the answer's (tracking.py); None: off
     "track_alike_cost": 10.0,
     # logistic(w0 + w . inputs) -> P(filtered pose within 2 m), inputs named in
-    # tracking.TRACK_CONFIDENCE_INPUTS; fit by bench/tracking.py on the tuning families' walks
+    # aggregate.TRACK_CONFIDENCE_INPUTS; fit by bench/tracking.py on the tuning families' walks
     "track_confidence_features": ["mass", "far", "young"],
     "track_confidence_coef": [-0.436, 5.367, -2.68, 1.883],
     # the answer is not "sure" (confidence held at track_doubt_cap) while the clips' own
@@ -304,8 +304,7 @@ def _check_band_channels(conf: dict[str, Any]) -> None:
 
 def _check_confidence(conf: dict[str, Any]) -> None:
     """A confidence model that could not be evaluated would fail every locate: refuse it here."""
-    from .aggregate import CONFIDENCE_INPUTS
-    from .tracking import TRACK_CONFIDENCE_INPUTS
+    from .aggregate import CONFIDENCE_INPUTS, TRACK_CONFIDENCE_INPUTS
 
     _check_model(conf, "confidence", CONFIDENCE_INPUTS, "confidence inputs")
     _check_model(conf, "track_confidence", TRACK_CONFIDENCE_INPUTS, "tracking confidence inputs")

@@ -141,7 +141,17 @@ import numpy as np
 import scipy.sparse  # type: ignore[import-untyped]
 from scipy.spatial import cKDTree  # type: ignore[import-untyped]
 
-from .aggregate import SPAN_S, SURE, Estimate, confidence, confidence_inputs, field_of, logistic, reach_m, sequence
+from .aggregate import (
+    SPAN_S,
+    SURE,
+    TRACK_CONFIDENCE_INPUTS,
+    Estimate,
+    confidence,
+    confidence_inputs,
+    logistic,
+    reach_m,
+    sequence,
+)
 from .heading import wrap_deg
 from .index import Matches
 from .presets import setting
@@ -498,16 +508,6 @@ class TrackPose:
     alike_mass: float | None = None
     alike_far: float | None = None
     restarted: bool = False  # the belief started over in this update (no state, or one it cannot go on from)
-
-
-# What the confidence model may read from a pose (or a row of bench/tracking.py with its fields)
-TRACK_CONFIDENCE_INPUTS: dict[str, Callable[[Any], float]] = {
-    "mass": lambda p: field_of(p, "mass"),
-    "far": lambda p: field_of(p, "far"),
-    "spread": lambda p: min(field_of(p, "spread_m"), 20.0) / 10.0,
-    # a belief of one or two clips is as sure as those clips: a young track is less reliable
-    "young": lambda p: 1.0 / max(1.0, field_of(p, "updates")),
-}
 
 
 def track_confidence(pose: Any, conf: Mapping[str, Any]) -> float:
