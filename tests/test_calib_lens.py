@@ -131,12 +131,19 @@ def test_calib_lens_end_to_end(name: str, rendered: dict[str, tuple[object, Path
     assert json.loads(out.read_text())["ring"]["r_outer"] == pytest.approx(lens.r_outer, abs=1.0)
 
 
-def test_calib_lens_stills(rendered: dict[str, tuple[object, Path]], tmp_path: Path) -> None:
-    """Still images, in filming order, instead of a video."""
+@pytest.mark.parametrize("fmt", ["png", "pgm"])
+def test_calib_lens_stills(rendered: dict[str, tuple[object, Path]], tmp_path: Path, fmt: str) -> None:
+    """Still images, in filming order, instead of a video; also as grey PGM, as many calibration
+    sets come."""
     cs, _ = rendered["wide1280"]
     keep = [0, 1, 2, 3, 6, 9, 12, 15, 18, 21]  # the three held straight ahead, then round the ring
     few = SimpleNamespace(frames=[cs.frames[i] for i in keep])  # type: ignore[attr-defined]
     paths = save_stills(tmp_path / "stills", few)  # type: ignore[arg-type]
+    if fmt == "pgm":
+        for i, p in enumerate(paths):
+            paths[i] = p.with_suffix(".pgm")
+            assert cv2.imwrite(str(paths[i]), cv2.imread(str(p), cv2.IMREAD_GRAYSCALE))
+            p.unlink()
     p = run_cli("calib", "lens", *map(str, paths), "--board", SPEC, "-o", str(tmp_path / "l.json"))
     assert p.returncode == 0, p.stderr
     prof = load_lens(tmp_path / "l.json")

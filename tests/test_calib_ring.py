@@ -286,6 +286,51 @@ def test_cli_ring_refuses_in_one_line(media, tmp_path):
     assert p.returncode == 2 and "too small" in p.stderr
 
 
+@pytest.mark.parametrize(
+    ("ext", "grey", "deep"),
+    [
+        (".pgm", True, False),
+        (".pgm", True, True),
+        (".ppm", False, False),
+        (".bmp", False, False),
+        (".tif", False, True),
+    ],
+)
+def test_frames_in_the_formats_calibration_sets_come_in(media, tmp_path, ext, grey, deep):
+    """PGM (8 and 16 bits), PPM, BMP and TIFF stills read as their pixels (grey ones as BGR, 16-bit
+    ones scaled to 8), and the ring found in them as in the PNGs."""
+    from omninav.calib.cli_ring import read_frames
+
+    d, true = media
+    pngs = sorted((d / "png").iterdir())
+    paths, want = [], []
+    for i, png in enumerate(pngs):
+        img = cv2.imread(str(png), cv2.IMREAD_COLOR)
+        if grey:
+            img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+        out = (img.astype(np.uint16) * 257) if deep else img  # 16 bits: each level v as v * 257
+        paths.append(tmp_path / f"{i}{ext}")
+        assert cv2.imwrite(str(paths[-1]), out)
+        want.append(cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) if grey else img)
+    got = read_frames(paths)
+    assert all(np.array_equal(g, w) for g, w in zip(got, want, strict=True))
+    p = run_cli("calib", "ring", *map(str, paths))
+    assert p.returncode == 0, p.stderr
+    assert "the ring showed in 3 of 3" in p.stdout and f"centre   {true.center[0]:.1f}" in p.stdout
+
+
+def test_formats_calibration_does_not_read_are_refused_by_name(tmp_path):
+    """A GIF or a WebP still (formats OpenCV or Pillow would read) is refused in one line that
+    names the formats read."""
+    from PIL import Image
+
+    for name in ("a.gif", "a.webp"):
+        Image.new("RGB", (320, 240)).save(tmp_path / name)
+        p = run_cli("calib", "ring", str(tmp_path / name))
+        assert p.returncode == 2 and p.stderr.count("\n") == 1, p.stderr
+        assert "PNG, JPEG, PGM/PPM/PBM, BMP or TIFF" in p.stderr
+
+
 def test_cli_check_with_a_lens_file(media):
     d, _ = media
     p = run_cli("calib", "check", str(d / "lens.json"), str(d / "shifted.mp4"), "--json")

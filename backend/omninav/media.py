@@ -6,12 +6,14 @@ So what a public request sends is read in two steps: the header says the format,
 for a video, the length, and the caller refuses what it did not expect; only then are pixels
 decoded, one frame at a time, each turned into what the caller keeps before the next.
 
-Only PNG and JPEG images and MP4/QuickTime videos are read: they are what phones and browsers
-make, their headers are simple to read here without a decoder, and every other format that
-OpenCV or FFmpeg would try is one more parser exposed to the public. The image sizes come from
-Pillow's own PNG and JPEG header readers; the MP4 box walk (track size, frame count, duration) is
-written here, a few dozen lines, because the library alternative (PyAV) reads a file by opening it
-with FFmpeg's demuxer and stream probe, the very exposure this step must come before.
+A public request may send only PNG and JPEG images and MP4/QuickTime videos (`WEB_IMAGES`): they
+are what phones and browsers make, and every other format that OpenCV or FFmpeg would try is one
+more parser exposed to the public. The admin's own files on the command line (a lens calibration
+set) may also be PGM, PPM or PBM, BMP or TIFF (`STILL_IMAGES`), the formats calibration sets come
+in. The image sizes come from Pillow's own header readers of each format; the MP4 box walk
+(track size, frame count, duration) is written here, a few dozen lines, because the library
+alternative (PyAV) reads a file by opening it with FFmpeg's demuxer and stream probe, the very
+exposure this step must come before.
 """
 
 from __future__ import annotations
@@ -24,48 +26,62 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from PIL import ImageFile, JpegImagePlugin, PngImagePlugin
+from PIL import BmpImagePlugin, ImageFile, JpegImagePlugin, PngImagePlugin, PpmImagePlugin, TiffImagePlugin
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 JPEG_MAGIC = b"\xff\xd8\xff"
+# Each still format read: its names in messages, the magic bytes that open it, Pillow's header reader
+_STILLS: dict[str, tuple[str, tuple[bytes, ...], type[ImageFile.ImageFile]]] = {
+    "PNG": ("PNG", (PNG_MAGIC,), PngImagePlugin.PngImageFile),
+    "JPEG": ("JPEG", (JPEG_MAGIC,), JpegImagePlugin.JpegImageFile),
+    "PPM": ("PGM/PPM/PBM", (b"P1", b"P2", b"P3", b"P4", b"P5", b"P6"), PpmImagePlugin.PpmImageFile),
+    "BMP": ("BMP", (b"BM",), BmpImagePlugin.BmpImageFile),
+    "TIFF": ("TIFF", (b"II*\x00", b"MM\x00*"), TiffImagePlugin.TiffImageFile),
+}
+WEB_IMAGES = ("PNG", "JPEG")  # what a public request may send
+STILL_IMAGES = ("PNG", "JPEG", "PPM", "BMP", "TIFF")  # what the command line reads from the admin's files
 # Boxes that may open an MP4/QuickTime file (old QuickTime files have no 'ftyp')
 MP4_FIRST_BOXES = {b"ftyp", b"moov", b"mdat", b"free", b"skip", b"wide", b"pnot"}
 
 
 @dataclass(frozen=True)
 class ImageHeader:
-    format: str  # "PNG" or "JPEG"
+    format: str  # one of STILL_IMAGES
     width: int
     height: int
 
 
-def probe_image(data: bytes) -> ImageHeader | None:
-    """The format and size that a PNG or JPEG says it has, from its header alone; None for any
-    other format or a header that does not parse.
+def image_formats(formats: tuple[str, ...] = WEB_IMAGES) -> str:
+    """The formats, as a message names them ("PNG or JPEG")."""
+    names = [_STILLS[f][0] for f in formats]
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} or {names[-1]}"
+
+
+def probe_image(data: bytes, formats: tuple[str, ...] = WEB_IMAGES) -> ImageHeader | None:
+    """The format and size that an image of one of `formats` says it has, from its header alone;
+    None for any other format or a header that does not parse.
 
     Pillow's image classes read the header when constructed and decode nothing until asked; they
     are used directly rather than through `Image.open`, whose decompression-bomb check raises
     before the size can be reported and warns (a process-wide filter) below that.
     """
-    cls: type[ImageFile.ImageFile]
-    if data.startswith(PNG_MAGIC):
-        cls = PngImagePlugin.PngImageFile
-    elif data.startswith(JPEG_MAGIC):
-        cls = JpegImagePlugin.JpegImageFile
-    else:
+    fmt = next((f for f in formats if data.startswith(_STILLS[f][1])), None)
+    if fmt is None:
         return None
+    cls = _STILLS[fmt][2]
     try:
         with cls(io.BytesIO(data)) as im:
             w, h = im.size
     except Exception:  # noqa: BLE001 - whatever a hostile header breaks, it is not a readable image
         return None
-    return ImageHeader(cls.format, int(w), int(h))
+    return ImageHeader(fmt, int(w), int(h))
 
 
-def decode_image(data: bytes) -> np.ndarray | None:
-    """(H, W, 3) uint8 BGR pixels of a PNG or JPEG whose header has been checked; None if they do
-    not decode. OpenCV applies a JPEG's EXIF orientation, so width and height may come swapped."""
-    if probe_image(data) is None:  # never hand OpenCV a format other than these two
+def decode_image(data: bytes, formats: tuple[str, ...] = WEB_IMAGES) -> np.ndarray | None:
+    """(H, W, 3) uint8 BGR pixels of an image of one of `formats` whose header has been checked
+    (a grey or 16-bit one made 8-bit BGR); None if they do not decode. OpenCV applies a JPEG's
+    EXIF orientation, so width and height may come swapped."""
+    if probe_image(data, formats) is None:  # never hand OpenCV a format other than these
         return None
     img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
     return img if img is not None and img.ndim == 3 else None

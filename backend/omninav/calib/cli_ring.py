@@ -1,5 +1,6 @@
 """`omninav calib ring` (where is the donut ring?) and `omninav calib check` (does a video fit a
-lens profile?), on a video (MP4/QuickTime) or a set of still images (PNG/JPEG).
+lens profile?), on a video (MP4/QuickTime) or a set of still images (PNG, JPEG, PGM/PPM/PBM,
+BMP or TIFF: media.STILL_IMAGES, the formats calibration sets come in).
 
 Inputs are read as media.py reads untrusted files: the header's size and length are checked before
 a pixel is decoded, a video's frames are sampled evenly over it, one at a time.
@@ -80,8 +81,11 @@ def _check_size(w: int, h: int, what: str) -> None:
 
 def read_frames(paths: list[Path], max_frames: int = 40) -> list[np.ndarray]:
     """BGR frames of one video (up to `max_frames`, spread evenly over it) or of still images
-    (PNG/JPEG, all of one size). Every header is checked before any pixel is decoded."""
-    from ..media import decode_image, probe_image
+    (media.STILL_IMAGES, all of one size; grey ones made BGR). Every header is checked before any
+    pixel is decoded."""
+    from ..media import STILL_IMAGES, decode_image, image_formats, probe_image
+
+    stills = image_formats(STILL_IMAGES)
 
     if not paths:
         raise OmninavError("give a video or some images")
@@ -91,12 +95,11 @@ def read_frames(paths: list[Path], max_frames: int = 40) -> list[np.ndarray]:
     if not 1 <= max_frames <= MAX_FRAMES:
         raise OmninavError(f"--max-frames must be 1 to {MAX_FRAMES}")
     with paths[0].open("rb") as fh:
-        magic = fh.read(8)
-    is_image = magic.startswith(b"\x89PNG\r\n\x1a\n") or magic.startswith(b"\xff\xd8\xff")
+        is_image = probe_image(fh.read(1 << 16), STILL_IMAGES) is not None
     if len(paths) == 1 and not is_image:
         head = _video_header(paths[0])
         if head is None:
-            raise OmninavError(f"{paths[0]}: not an MP4/QuickTime video nor a PNG/JPEG image")
+            raise OmninavError(f"{paths[0]}: not an MP4/QuickTime video nor an image of these formats: {stills}")
         w, h, n = head
         _check_size(w, h, str(paths[0]))
         _check_pixels(w * h * min(max_frames, n or max_frames))
@@ -110,9 +113,9 @@ def read_frames(paths: list[Path], max_frames: int = 40) -> list[np.ndarray]:
     for p in paths:
         if p.stat().st_size > MAX_IMAGE_BYTES:
             raise OmninavError(f"{p}: over {MAX_IMAGE_BYTES // 2**20} MB; not a frame of a phone video")
-        im = probe_image(p.read_bytes())
+        im = probe_image(p.read_bytes(), STILL_IMAGES)
         if im is None:
-            raise OmninavError(f"{p}: not a readable PNG or JPEG image (give one video, or images)")
+            raise OmninavError(f"{p}: not a readable image of these formats: {stills} (give one video, or images)")
         _check_size(im.width, im.height, str(p))
         if size is not None and (im.width, im.height) != size:
             raise OmninavError(
@@ -124,9 +127,9 @@ def read_frames(paths: list[Path], max_frames: int = 40) -> list[np.ndarray]:
     _check_pixels(size[0] * size[1] * len(paths))
     out = []
     for p in paths:
-        img = decode_image(p.read_bytes())
+        img = decode_image(p.read_bytes(), STILL_IMAGES)
         if img is None:
-            raise OmninavError(f"{p}: not a readable PNG or JPEG image")
+            raise OmninavError(f"{p}: not a readable image of these formats: {stills}")
         out.append(img)
     return out
 
