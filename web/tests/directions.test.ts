@@ -79,6 +79,15 @@ group('the gist', () => {
     expect(gist(answer({ low_confidence: true }), 'clock')).toBe('unsure');
   });
 
+  it('outside every area with nothing near: a new nearest place is news, its distance and way are not', () => {
+    const far = (name: string, distance_m: number, bearing_deg: number) =>
+      gist(answer({ area: null, facing: null, nearest: { name, distance_m, bearing_deg } }), 'clock');
+    const a = far('the lifts', 31, 90);
+    expect([far('the lifts', 24, 150), far('the lifts', 18.5, -20)]).toEqual([a, a]);
+    expect(far('Room 102', 22, 90)).not.toBe(a);
+    expect(far('the lifts', 9, 90)).not.toBe(a); // near now: said with its way
+  });
+
   it('standing at a place (under a metre): the same gist whichever way the noise points, until the user leaves it', () => {
     const at = (distance_m: number, bearing_deg: number) =>
       gist(answer({ nearest: { name: 'the entrance', distance_m, bearing_deg } }), 'clock');

@@ -122,6 +122,22 @@ describe('continuous mode', () => {
     expect(voice.cue).not.toHaveBeenCalled();
   });
 
+  it('stops, saying so, when another screen is shown (its sentences would talk over it); Locate itself leaves it on', async () => {
+    const { s, said } = session();
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0);
+    s.screenShown('locate');
+    expect(s.continuous).toBe(true);
+    s.screenShown('goto');
+    expect(s.continuous).toBe(false);
+    expect(said.at(-1)).toBe(STOPPED_TELLING);
+    const asked = api.locate.mock.calls.length;
+    await vi.advanceTimersByTimeAsync(30_000);
+    expect(api.locate).toHaveBeenCalledTimes(asked);
+    s.screenShown('settings'); // nothing running: nothing said
+    expect(said.filter((t) => t === STOPPED_TELLING)).toHaveLength(1);
+  });
+
   it('each turn is tracked in one session with the clip clock increasing; a stop and a start begin a new session', async () => {
     const { s } = session();
     s.toggleContinuous();

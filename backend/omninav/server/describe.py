@@ -112,7 +112,9 @@ def metres(d: float) -> str:
 
 def sentence(answer: Mapping[str, Any], style: Style = DEFAULT_STYLE, floor_name: str | None = None) -> str:
     """The sentence to speak for an answer (its area, nearest, facing, floor, low_confidence and
-    confidence: under SURE it is "You are probably ...")."""
+    confidence: under SURE it is "You are probably ..."). Outside every area with no place within
+    NEAR_M, the floor and how far the nearest place is, and which way: "on the floor" alone is
+    nothing a blind user can act on."""
     if answer["low_confidence"]:
         return UNSURE
     n = answer["nearest"]
@@ -124,10 +126,15 @@ def sentence(answer: Mapping[str, Any], style: Style = DEFAULT_STYLE, floor_name
         parts.append(f"at {near['name']}")
     elif near:
         parts.append(f"near {near['name']} {direction(near['bearing_deg'], style)}, {metres(near['distance_m'])}")
-    if not parts:
+    far = None
+    if not parts:  # never the floor alone where the floor has a place: how far the nearest is, and where
         parts.append(f"on {floor_name if floor_name is not None else 'floor ' + answer['floor']}")
+        if n:
+            far = n
+            parts.append(f"{metres(n['distance_m'])} from {n['name']} {direction(n['bearing_deg'], style)}")
     facing = answer["facing"]
-    if facing and not (near and facing == near["name"]):
+    named = near or far
+    if facing and not (named and facing == named["name"]):
         parts.append(f"facing {facing}")
     probably = "" if answer["confidence"] >= SURE else "probably "  # (NaN: probably)
     return f"You are {probably}{', '.join(parts)}."

@@ -115,7 +115,9 @@ export type Said = Pick<Answer, 'floor' | 'area' | 'nearest' | 'facing' | 'low_c
 
 /**
  * The sentence to speak and show for an answer: "You are in the North corridor, near the lifts at
- * 3 o'clock, 4 metres, facing Room 102." The floor's name comes from the venue.
+ * 3 o'clock, 4 metres, facing Room 102." The floor's name comes from the venue. Outside every area
+ * with no place within NEAR_M: the floor, and how far the nearest place is and which way ("You are
+ * on Floor 1, 25 metres from the lifts at 3 o'clock."), never the floor alone.
  */
 export function describe(a: Said, style: Style, floorName?: string | null): string {
   if (a.low_confidence) return UNSURE;
@@ -124,8 +126,17 @@ export function describe(a: Said, style: Style, floorName?: string | null): stri
   if (a.area) parts.push(`in ${withArticle(a.area)}`);
   if (near && near.distance_m < AT_M) parts.push(`at ${near.name}`);
   else if (near) parts.push(`near ${near.name} ${direction(near.bearing_deg, style)}, ${metres(near.distance_m)}`);
-  if (parts.length === 0) parts.push(`on ${floorName ?? `floor ${a.floor}`}`);
-  if (a.facing && !(near && a.facing === near.name)) parts.push(`facing ${a.facing}`);
+  // never the floor alone where the floor has a place: how far the nearest is, and where
+  let far: Answer['nearest'] = null;
+  if (parts.length === 0) {
+    parts.push(`on ${floorName ?? `floor ${a.floor}`}`);
+    if (a.nearest) {
+      far = a.nearest;
+      parts.push(`${metres(far.distance_m)} from ${far.name} ${direction(far.bearing_deg, style)}`);
+    }
+  }
+  const named = near ?? far;
+  if (a.facing && !(named && a.facing === named.name)) parts.push(`facing ${a.facing}`);
   return `You are ${isSure(a) ? '' : 'probably '}${parts.join(', ')}.`;
 }
 
@@ -150,7 +161,10 @@ export function gist(a: Said, style: Style, last = ''): string {
   const [, , lastName, lastWay] = lastRest;
   const atM = n && lastWay === 'at' && lastName === n.name ? AT_LEAVE_M : AT_M;
   const way = !n ? '' : n.distance_m < atM ? 'at' : direction(n.bearing_deg, style);
-  const rest = [a.floor, a.area, n?.name, way, a.facing].join('|');
+  // outside every area with nothing near, the nearest place however far is said (describe): a new
+  // one is news, its distance and way at every step are not
+  const far = !a.area && !n && a.nearest ? `far:${a.nearest.name}` : '';
+  const rest = [a.floor, a.area, n?.name, way, a.facing, far].join('|');
   const stay = lastSure === 'sure' && lastRest.join('|') === rest && a.confidence >= SURE_LEAVE;
   return [stay || isSure(a) ? 'sure' : 'probably', rest].join('|');
 }

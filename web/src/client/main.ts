@@ -68,7 +68,7 @@ document.addEventListener('pointerdown', firstGesture, { once: true, capture: tr
 document.addEventListener('keydown', firstGesture, { once: true, capture: true });
 locateScreen(session, speaker);
 gotoScreen(session, speaker, guide);
-routeTabs();
+routeTabs((name) => session.screenShown(name));
 onShake(() => void session.whereAmI());
 onTwoFingerDoubleTap(document.body, () => void session.whereAmI());
 settingsScreen(session, speaker);

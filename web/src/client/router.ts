@@ -13,9 +13,15 @@ export function showScreen(name: string): void {
   document.querySelector<HTMLElement>(`#screen-${name} h2`)?.focus();
 }
 
-/** Each tab (`.tab[data-screen]`) shows its screen; the screens' headings can take the focus. */
-export function routeTabs(): void {
+/**
+ * Each tab (`.tab[data-screen]`) shows its screen; the screens' headings can take the focus.
+ * `shown`: told each screen a tab shows.
+ */
+export function routeTabs(shown?: (name: string) => void): void {
   for (const b of document.querySelectorAll<HTMLButtonElement>('.tab'))
-    b.addEventListener('click', () => showScreen(b.dataset.screen!));
+    b.addEventListener('click', () => {
+      showScreen(b.dataset.screen!);
+      shown?.(b.dataset.screen!);
+    });
   for (const h of document.querySelectorAll<HTMLElement>('.screen h2')) h.tabIndex = -1;
 }

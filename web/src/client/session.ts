@@ -64,6 +64,9 @@ export const KEEP_TURNING = 'Not sure yet. Keep turning slowly.';
  * telling me").
  */
 export const KEEP_SECONDS = 2;
+/** Said when "Keep telling me" stops: pressed again, or another screen shown. */
+export const STOPPED_TELLING = 'Stopped telling you.';
+
 /** Said, and nothing started, when "Keep telling me" is pressed while a guided walk is on. */
 export const GUIDING_NOW =
   'You are being guided, and guidance tells you as you walk. To hear where you are instead, stop guidance on the Go to screen.';
@@ -653,7 +656,7 @@ export class Session extends Emitter<SessionEvents> {
   toggleContinuous(): void {
     if (this.loop) {
       this.stopContinuous();
-      this.o.voice.say('Stopped telling you.', null);
+      this.o.voice.say(STOPPED_TELLING, null);
       return;
     }
     if (this.o.guiding?.()) {
@@ -731,6 +734,16 @@ export class Session extends Emitter<SessionEvents> {
       this.pressedInTurn = false;
     }
     return filmed();
+  }
+
+  /**
+   * A tab showed screen `name`: "Keep telling me" lives on the Locate screen, and stops (saying so)
+   * when another is shown, where its sentences would talk over what the user is reading.
+   */
+  screenShown(name: string): void {
+    if (name === 'locate' || !this.loop) return;
+    this.stopContinuous();
+    this.o.voice.say(STOPPED_TELLING, null);
   }
 
   stopContinuous(): void {
