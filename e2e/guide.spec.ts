@@ -291,6 +291,7 @@ test('the wrong way, keyboard only: "off the route", then a new instruction; Wha
     await page.keyboard.press('Enter');
     await expect.poll(() => said(page)).toContain('Stopped guidance.');
     await expect(page.locator('#goto-state')).toHaveText('Guidance stopped.');
+    await expect(page.locator('#goto-facts')).not.toContainText('Now'); // no instruction left standing
     await page.waitForTimeout(5000); // two turns of the loop
     log = await timeline(page, 'wrong-way');
     const late = (await page.evaluate(() => window.__walk.sent)).filter((t) => t > stopped + 1500);

@@ -13,7 +13,19 @@ test('settings and about screens: reachable by role and name, no axe violation',
   await expect(page.getByLabel('Venue')).toHaveValue('demo');
   await expect(page.getByLabel('Lens profile', { exact: true })).toHaveValue('donut');
   await expect(page.getByLabel(/Speech rate/)).toBeVisible();
+  // the rate is said by its slider, not by a status region at every step
+  const rate = page.getByRole('slider', { name: 'Speech rate' });
+  await rate.fill('1.5');
+  await expect(rate).toHaveAttribute('aria-valuetext', '1.5 times');
+  await expect(page.locator('#screen-settings').getByRole('status')).toHaveCount(0);
+  await rate.fill('1');
   await expectNoAxeViolations(page, 'the settings screen');
+  // on a phone's width every radio and checkbox keeps its size beside a long label
+  await page.setViewportSize({ width: 360, height: 740 });
+  for (const box of await page
+    .locator('#screen-settings input[type=radio], #screen-settings input[type=checkbox]')
+    .all())
+    expect((await box.boundingBox())?.width, (await box.getAttribute('value')) ?? 'a box').toBeGreaterThanOrEqual(23);
   await page.getByRole('button', { name: 'About' }).click();
   await expect(page.getByRole('heading', { name: 'About omninav' })).toBeVisible();
   await expectNoAxeViolations(page, 'the about screen');
@@ -88,9 +100,21 @@ test('the Go to screen: places by floor, a filter, reachable by role and name, n
   await expect(places).toHaveCount(0);
   await page.getByLabel('Find a place').fill('');
   await expect(places).not.toHaveCount(0);
+  // Enter in the filter: of several places, the first takes the focus; the one listed is chosen
+  await page.getByLabel('Find a place').press('Enter');
+  await expect(places.first()).toBeFocused();
+  // a name the filter lists alone (the list re-renders as each value is typed)
+  let name = '';
+  for (const n of await places.allTextContents()) {
+    await page.getByLabel('Find a place').fill(n);
+    if ((await places.count()) === 1) {
+      name = n;
+      break;
+    }
+  }
+  expect(name, 'a place whose name lists it alone').not.toBe('');
   // a place chosen: the route panel (the preview, Start, What next?, Stop guidance) passes axe too
-  const name = (await places.first().textContent()) ?? '';
-  await places.first().click();
+  await page.getByLabel('Find a place').press('Enter');
   await expect(page.getByRole('heading', { name: `Route to ${name}` })).toBeFocused();
   await expect(page.locator('#goto-state')).toHaveText('Press Start when you are ready to walk.', { timeout: 30_000 });
   await expect(page.getByRole('button', { name: 'Start' })).toBeEnabled();

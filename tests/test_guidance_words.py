@@ -18,18 +18,19 @@ CASES = [(c, style) for c in TABLE["cases"] for style in c["say"]]
 def test_the_thresholds_and_words_are_the_tables():
     assert words.STRAIGHT_DEG == TABLE["straight_deg"] and words.GUIDE_UNSURE == TABLE["unsure"]
     assert words.GUIDE_NOT_HERE == TABLE["not_here"]
-    assert list(words.SECTOR_DEG) == TABLE["sector_deg"]
+    assert list(words.SECTOR_DEG) == TABLE["sector_deg"] and words.AROUND_DEG == TABLE["around_deg"]
 
 
 @pytest.mark.parametrize("style", ["clock", "sides", "degrees"])
 def test_turns_and_directions_share_the_sectors(style: words.Style):
     """One sector function words both a turn and a place's direction: no turn exactly where a place
-    is "straight ahead", and in the sides style the same sector for both."""
+    is "straight ahead", and in the sides style the same sector for both, but that a turn beyond
+    AROUND_DEG is "Turn around"."""
     for b in [x / 2 for x in range(-360, 361)]:
         k = words.sector(b)
         assert (words.turn_phrase(b, style) is None) == (k == 0), b
         if style == "sides":
-            turn = ["", "Bear", "Turn", "Turn sharp", "Turn around"][k]
+            turn = "Turn around" if abs(b) > words.AROUND_DEG else ["", "Bear", "Turn", "Turn sharp", "Turn around"][k]
             place = ["straight ahead", "ahead on your", "to your", "behind you on your", "behind you"][k]
             assert (words.turn_phrase(b, style) or "").startswith(turn) and words.direction(b, style).startswith(place)
 
@@ -61,7 +62,7 @@ def test_every_kind_style_and_boundary_is_covered():
     }
     assert all(set(c["say"]) == {"clock", "sides", "degrees"} for c in cases)
     bearings = {c["guidance"]["bearing_deg"] for c in cases}
-    assert {15.0, -15.0, 60.0, 120.0, 165.0, 180.0} <= bearings
+    assert {15.0, -15.0, 60.0, 120.0, 150.0, -161.0, 180.0} <= bearings
     assert {p["preview"]["turns"] for p in TABLE["previews"]} >= {0, 1, 2}
     # a turn said before its corner: metres to it, under half a metre (the turn is now), none
     in_m = [c["guidance"].get("in_m") for c in cases]

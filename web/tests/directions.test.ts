@@ -11,7 +11,7 @@ import {
   withArticle,
   type Answer,
 } from '../src/client/directions';
-import { planLabel } from '../src/client/views/plan';
+import { planLabel, planWay } from '../src/client/views/plan';
 
 const answer = (over: Partial<Answer> = {}): Answer => ({
   clip: 'clip',
@@ -140,11 +140,21 @@ group("the plan's text alternative", () => {
   it('says "probably" where the sentence does, and no position where it is not sure', () => {
     const a = answer({ area: 'Corridor 1', nearest: { name: 'Room 1', distance_m: 3.2, bearing_deg: 88 } });
     expect(planLabel('Floor 1', a)).toBe(
-      'Floor plan of Floor 1: you are in Corridor 1, within about 2 m, heading 250 degrees on the plan; nearest place Room 1, 3 m away.',
+      'Floor plan of Floor 1: you are in Corridor 1, within about 2 m, facing the left of the plan; nearest place Room 1, 3 m away.',
     );
     const p = answer({ confidence: SURE - 0.01 });
     expect(planLabel('Floor 1', p)).toMatch(/^Floor plan of Floor 1: you are probably in Corridor 1, /);
     expect(describe(p, 'clock')).toMatch(/^You are probably in Corridor 1, /);
+    expect([0, 22.4, 22.5, 90, 181, 300, 337.6, -10].map(planWay)).toEqual([
+      'the top',
+      'the top',
+      'the top right',
+      'the right',
+      'the bottom',
+      'the top left',
+      'the top',
+      'the top',
+    ]);
     expect(planLabel('Floor 1', answer({ low_confidence: true }))).toBe(
       'Floor plan of Floor 1: no position shown, the last answer was not sure.',
     );

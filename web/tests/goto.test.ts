@@ -11,6 +11,7 @@ import {
   heardLine,
   matches,
   normalise,
+  onlyPlace,
   pickHeard,
   recognitionClass,
 } from '../src/client/screens/goto';
@@ -91,6 +92,14 @@ describe('the destinations list', () => {
     expect(matches(lift, 'lift')).toBe(true);
     expect(matches(D.floors[0].places[2], 'oom')).toBe(false);
     expect(normalise('Room 1.02 (Café)')).toBe('room 1 02 cafe');
+  });
+
+  it('Enter chooses the one place listed, and only when there is one', () => {
+    expect(onlyPlace(D, 'room 102')?.id).toBe('p4');
+    expect(onlyPlace(D, 'exit')?.id).toBe('p8');
+    expect(onlyPlace(D, 'lifts')).toBeNull(); // one on each floor
+    expect(onlyPlace(D, 'no such place')).toBeNull();
+    expect(onlyPlace(D, '')).toBeNull();
   });
 
   it('the status line counts what is listed', () => {

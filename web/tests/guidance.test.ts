@@ -10,6 +10,7 @@ import {
   GUIDE_UNSURE,
   SECTOR_DEG,
   STRAIGHT_DEG,
+  AROUND_DEG,
   direction,
   guidanceSentence,
   previewSentence,
@@ -35,6 +36,7 @@ interface Preview {
 
 const table = JSON.parse(readFileSync(resolve(ROOT, 'tests/data/guidance.json'), 'utf8')) as {
   straight_deg: number;
+  around_deg: number;
   sector_deg: number[];
   unsure: string;
   not_here: string;
@@ -45,6 +47,7 @@ const table = JSON.parse(readFileSync(resolve(ROOT, 'tests/data/guidance.json'),
 group('the guidance table', () => {
   it('holds the threshold and the words the app uses', () => {
     expect(STRAIGHT_DEG).toBe(table.straight_deg);
+    expect(AROUND_DEG).toBe(table.around_deg);
     expect([...SECTOR_DEG]).toEqual(table.sector_deg);
     expect(GUIDE_UNSURE).toBe(table.unsure);
     expect(GUIDE_NOT_HERE).toBe(table.not_here);
@@ -54,9 +57,9 @@ group('the guidance table', () => {
       const k = sector(b);
       expect(turnPhrase(b, style) === null, String(b)).toBe(k === 0);
       if (style === 'sides') {
-        expect(turnPhrase(b, style) ?? '').toMatch(
-          new RegExp(`^${['', 'Bear', 'Turn', 'Turn sharp', 'Turn around'][k]}`),
-        );
+        // (a turn beyond AROUND_DEG is around, though a place there is behind on a side)
+        const turn = Math.abs(b) > AROUND_DEG ? 'Turn around' : ['', 'Bear', 'Turn', 'Turn sharp', 'Turn around'][k];
+        expect(turnPhrase(b, style) ?? '').toMatch(new RegExp(`^${turn}`));
         expect(direction(b, style)).toMatch(
           new RegExp(`^${['straight ahead', 'ahead on your', 'to your', 'behind you on your', 'behind you'][k]}`),
         );

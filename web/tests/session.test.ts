@@ -122,6 +122,30 @@ describe('continuous mode', () => {
     expect(voice.cue).not.toHaveBeenCalled();
   });
 
+  it('an answer not said again (about what was said) shows the sentence that was said, not its own words', async () => {
+    const at = (distance_m: number): Answer => ({
+      ...trackedAnswer(false),
+      nearest: { name: 'the entrance', distance_m, bearing_deg: 180 },
+    });
+    api.locate.mockResolvedValueOnce(at(0.6)).mockResolvedValueOnce(at(1.2)).mockResolvedValue(at(1.3));
+    const { s, said } = session();
+    const shown: string[] = [];
+    s.on('said', (t) => shown.push(t));
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0);
+    await vi.advanceTimersByTimeAsync(3000);
+    await vi.advanceTimersByTimeAsync(4000);
+    s.stopContinuous();
+    // 1.2 and 1.3 m are still "at the entrance" for a user who was at it (AT_LEAVE_M): not said,
+    // and shown as said, where describe() alone words them "near the entrance at 6 o'clock, 1 metre"
+    const first = s.sentence(at(0.6), VENUE);
+    expect(first).toContain('at the entrance');
+    expect(s.sentence(at(1.2), VENUE)).toContain('near the entrance');
+    expect(said).toEqual([first]);
+    expect(shown.length).toBeGreaterThanOrEqual(3);
+    expect(new Set(shown)).toEqual(new Set([first]));
+  });
+
   it('stops, saying so, when another screen is shown (its sentences would talk over it); Locate itself leaves it on', async () => {
     const { s, said } = session();
     s.toggleContinuous();

@@ -192,6 +192,7 @@ def describe(
 # Pinned with the app's directions.ts by one table, tests/data/guidance.json.
 
 STRAIGHT_DEG = SECTOR_DEG[0]  # a bearing within this of straight ahead is "straight ahead": no turn
+AROUND_DEG = 150.0  # the sides style's turn beyond this is "Turn around", not "Turn sharp left" at 161
 GUIDE_UNSURE = "Not sure where you are yet; keep walking slowly."
 GUIDE_NOT_HERE = "You may be outside the mapped area; keep walking slowly, or stop guidance."
 
@@ -208,6 +209,8 @@ def turn_phrase(bearing: float, style: Style) -> str | None:
     if style == "degrees":
         d = _round(abs(b))
         return "Turn around" if d >= 180 else f"Turn {d} degrees {side}"
+    if abs(b) > AROUND_DEG:  # a turn this near round is "around", though a place there is "behind you on a side"
+        return "Turn around"
     return (f"Bear {side}", f"Turn {side}", f"Turn sharp {side}", "Turn around")[k - 1]
 
 

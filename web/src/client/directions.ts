@@ -174,6 +174,8 @@ export function gist(a: Said, style: Style, last = ''): string {
 
 /** A bearing within this of straight ahead is "straight ahead": no turn. */
 export const STRAIGHT_DEG = SECTOR_DEG[0];
+/** The sides style's turn beyond this is "Turn around", not "Turn sharp left" at 161 degrees. */
+export const AROUND_DEG = 150;
 export const GUIDE_UNSURE = 'Not sure where you are yet; keep walking slowly.';
 export const GUIDE_NOT_HERE = 'You may be outside the mapped area; keep walking slowly, or stop guidance.';
 
@@ -194,6 +196,7 @@ export function turnPhrase(bearing: number, style: Style): string | null {
     const d = round(Math.abs(b));
     return d >= 180 ? 'Turn around' : `Turn ${d} degrees ${side}`;
   }
+  if (Math.abs(b) > AROUND_DEG) return 'Turn around'; // though a place there is "behind you on a side"
   return [`Bear ${side}`, `Turn ${side}`, `Turn sharp ${side}`, 'Turn around'][k - 1];
 }
 

@@ -158,6 +158,12 @@ export interface SessionEvents {
   /** A "Where am I?" started (true) or ended (false). */
   busy: boolean;
   answer: Located;
+  /**
+   * The sentence the last answer stands for, as said: in "Keep telling me" an answer about what was
+   * said already ("at the lifts", kept until half a metre past the metre) is not said again, and
+   * shows the sentence that was said, not its own slightly other words.
+   */
+  said: string;
   /** "Keep telling me" is on or off. */
   continuous: boolean;
   /** The first second was not sure: filming more (true), until that ends or is stopped (false). */
@@ -224,6 +230,8 @@ export class Session extends Emitter<SessionEvents> {
   private readonly lensWatch = new LensWatch(phoneStorage());
   private lastCheck: LensCheck | null = null;
   private busy = false;
+  /** The sentence of the answer last said (Located's `said`). */
+  private lastSaid = '';
   /** What was last said (or would have been): continuous mode speaks only when it changes. */
   private lastGist = '';
   /** The running continuous loop. */
@@ -531,7 +539,11 @@ export class Session extends Emitter<SessionEvents> {
   private tell(a: Answer, v: Venue, quiet: boolean): void {
     const g = gist(a, this.prefs.style, this.lastGist);
     const say = !quiet || g !== this.lastGist;
-    if (say) this.o.voice.say(this.sentence(a, v), a.low_confidence ? 'unsure' : 'ok');
+    if (say) {
+      this.lastSaid = this.sentence(a, v);
+      this.o.voice.say(this.lastSaid, a.low_confidence ? 'unsure' : 'ok');
+    }
+    this.emit('said', this.lastSaid);
     // what was said is what the next answer is compared with: its own gist, without the margins
     // that kept the last one ("probably" said at 0.75 after a sure answer is remembered as said)
     this.lastGist = say ? gist(a, this.prefs.style) : g;

@@ -64,6 +64,12 @@ export function groups(d: Destinations, query = ''): Group[] {
     .filter((g) => g.places.length > 0);
 }
 
+/** The one place the filter lists, or null when it lists none or several (Enter in the filter chooses it). */
+export function onlyPlace(d: Destinations, query: string): Destination | null {
+  const found = groups(d, query).flatMap((g) => g.places);
+  return found.length === 1 ? found[0] : null;
+}
+
 const count = (gs: Group[]): number => gs.reduce((n, g) => n + g.places.length, 0);
 const placesWord = (n: number): string => (n === 1 ? '1 place' : `${n} places`);
 
@@ -265,6 +271,8 @@ export function gotoScreen(session: Session, speaker: Speaker, guide: Guide): vo
     enable(next, c.next, routeTitle);
     enable(stop, c.stop, start.disabled ? routeTitle : start);
     stateLine.textContent = STATE_LINES[state];
+    // stopped: no "Now" left standing of a walk that is no longer guided
+    if (state === 'stopped' || state === 'idle') routeFacts.replaceChildren();
     route.classList.toggle('guiding', state === 'guiding');
     render();
   }
@@ -282,6 +290,14 @@ export function gotoScreen(session: Session, speaker: Speaker, guide: Guide): vo
     render();
     typing = false;
   });
+  // Enter: the one place listed is chosen; of several, the first takes the focus
+  filter.addEventListener('keydown', (e) => {
+    if (e.key !== 'Enter' || !dests) return;
+    e.preventDefault();
+    const one = onlyPlace(dests, filter.value);
+    if (one) choose(one);
+    else list.querySelector<HTMLButtonElement>('button.dest')?.focus();
+  });
 
   guide.on('state', showState);
   guide.on('problem', (text) => {
@@ -289,6 +305,7 @@ export function gotoScreen(session: Session, speaker: Speaker, guide: Guide): vo
     else showState(guide.state);
   });
   guide.on('guidance', ({ guidance: g, answer: a }) => {
+    if (guide.state === 'stopped' || guide.state === 'idle') return; // an answer still on its way
     const v = session.venue;
     preview.textContent = guide.previewText || (g.kind === 'unsure' ? 'Not sure where you are yet.' : '');
     const rows: [string, string][] = [['Now', g.kind === 'unsure' ? 'Not sure where you are yet.' : guide.words(g)]];

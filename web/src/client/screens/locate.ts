@@ -59,6 +59,7 @@ export function locateScreen(session: Session, speaker: Speaker): void {
   session.on('busy', (busy) => label((busyNow = busy), session.asking));
   session.on('asking', (asking) => label(busyNow, asking));
   session.on('continuous', (on) => continuous.setAttribute('aria-pressed', String(on)));
+  session.on('said', (text) => (answerText.textContent = text));
   session.on('answer', (r) => {
     show(r.answer, r.venue);
     const a = r.answer;

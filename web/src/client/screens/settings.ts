@@ -101,7 +101,10 @@ export function settingsScreen(session: Session, speaker: Speaker): void {
   const venue = byId<HTMLSelectElement>('venue');
   const lens = byId<HTMLSelectElement>('lens');
   const voice = byId<HTMLSelectElement>('voice');
-  const rateValue = byId<HTMLOutputElement>('rate-value');
+  // the rate shown beside its label, and said by the slider itself: an <output> is a status
+  // region, which a screen reader announced at every step of the slider, over the slider's own value
+  const rateValue = byId('rate-value');
+  const rate = byId<HTMLInputElement>('rate');
   const controls: Controls = {
     querySelectorAll: (sel) => document.querySelectorAll<HTMLInputElement | HTMLSelectElement>(sel),
   };
@@ -116,6 +119,7 @@ export function settingsScreen(session: Session, speaker: Speaker): void {
     showControls();
     showAppVoiceControls(controls, prefs);
     rateValue.textContent = prefs.rate.toFixed(1);
+    rate.setAttribute('aria-valuetext', `${prefs.rate.toFixed(1)} times`);
   }
 
   function fillVoices(): void {

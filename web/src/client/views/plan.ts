@@ -103,7 +103,27 @@ export function planLabel(floorName: string | undefined, a: PlanPose | null): st
   const near = a.nearest ? `; nearest place ${a.nearest.name}, ${a.nearest.distance_m.toFixed(0)} m away` : '';
   const acc = a.accuracy_m ? `, within about ${a.accuracy_m} m` : '';
   const probably = isSure(a) ? '' : 'probably ';
-  return `Floor plan of ${fname}: you are ${probably}${where}${acc}, heading ${Math.round(a.heading_deg)} degrees on the plan${near}.`;
+  return `Floor plan of ${fname}: you are ${probably}${where}${acc}, facing ${planWay(a.heading_deg)} of the plan${near}.`;
+}
+
+const PLAN_WAYS = [
+  'the top',
+  'the top right',
+  'the right',
+  'the bottom right',
+  'the bottom',
+  'the bottom left',
+  'the left',
+  'the top left',
+];
+
+/**
+ * A plan heading (degrees clockwise from the plan's top) as the part of the plan it points to, for
+ * whoever looks at the plan with the user: "the top right" (a number of degrees says nothing there).
+ */
+export function planWay(headingDeg: number): string {
+  const h = ((headingDeg % 360) + 360) % 360;
+  return PLAN_WAYS[Math.floor((h + 22.5) / 45) % 8];
 }
 
 /** The words for a route on the plan: how far to go, and how far walked. */
