@@ -105,9 +105,35 @@ export const uploadBar = (page: Page, name: string) => page.getByRole('progressb
 
 /** Wait until the videos screen says `name` is uploaded and its turns and stops are found. */
 export async function waitUploadedAndSuggested(page: Page, name: string, timeout = 120_000): Promise<void> {
+  // what the status region says, as it says it (a later message replaces it)
+  await page.evaluate(() => {
+    const w = window as unknown as { __said?: string[] };
+    if (w.__said) return;
+    const said: string[] = (w.__said = []);
+    const status = document.getElementById('status')!;
+    new MutationObserver(() => status.textContent && said.push(status.textContent)).observe(status, {
+      childList: true,
+      characterData: true,
+      subtree: true,
+    });
+  });
   const row = page.locator(`li.upload[data-name="${name}"]`);
   await expect(row.locator('.upload-status')).toHaveText(/uploaded/, { timeout });
   await expect(row).toContainText('suggested waypoints', { timeout });
+  // the count said is the count the table shows (it was said before the suggestions were loaded: 0)
+  const cell = page.locator(`#video-table tr[data-name="${name}"]`);
+  await expect(cell).toContainText(/\d+ suggested waypoints/, { timeout });
+  const shown = Number((await cell.textContent())!.match(/(\d+) suggested waypoints/)![1]);
+  const found = new RegExp(`(\\d+) turns and stops found in ${name.replace('.', '\\.')}`);
+  await expect
+    .poll(async () =>
+      (await page.evaluate(() => (window as unknown as { __said: string[] }).__said)).find((t) => found.test(t)),
+    )
+    .toBeTruthy();
+  const said = (await page.evaluate(() => (window as unknown as { __said: string[] }).__said)).find((t) =>
+    found.test(t),
+  )!;
+  expect(Number(said.match(found)![1]), said).toBe(shown);
 }
 
 /** Where a truth track has the walker at `t` (linear between waypoints, clamped to its ends). */

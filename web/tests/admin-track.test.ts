@@ -6,6 +6,7 @@ import {
   corridorLines,
   fromTrack,
   nextUntagged,
+  addAt,
   positionAt,
   putPoint,
   snapToLines,
@@ -184,5 +185,30 @@ describe('waypoints', () => {
     expect(walkColumn(90)).toBe(0.25);
     expect(walkColumn(-90)).toBe(0.75);
     expect(walkColumn(270)).toBe(0.75);
+  });
+});
+
+describe('a waypoint added at the current time', () => {
+  const pts = [
+    { t: 2, x: 0, y: 0 },
+    { t: 6, x: 4, y: 0 },
+  ];
+  it('between two: on the line between them, and the words say so', () => {
+    const a = addAt(pts, 3);
+    expect(a.points).toEqual([pts[0], { t: 3, x: 1, y: 0 }, pts[1]]);
+    expect(a.said).toMatch(/on the straight line between its neighbours/);
+    expect(a.at).toBe(3);
+  });
+  it("after the last: at that waypoint's place, and the words ask for where the walker was", () => {
+    const a = addAt(pts, 9);
+    expect(a.points.at(-1)).toEqual({ t: 9, x: 4, y: 0 });
+    expect(a.said).toMatch(/at the place of the waypoint at 0:06\.0: type where the walker was/);
+  });
+  it('again at the same moment: nothing changes, and it says where that waypoint is', () => {
+    const once = addAt(pts, 3).points;
+    const again = addAt(once, 3.02);
+    expect(again.points).toEqual(once);
+    expect(again.said).toBe('A waypoint is already at 0:03.0: its x and y are in the table.');
+    expect(again.at).toBe(3);
   });
 });

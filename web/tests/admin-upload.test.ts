@@ -1,6 +1,7 @@
 // The arithmetic of the admin page's resumable upload and of its speed and time left.
-import { describe, expect, it } from 'vitest';
+import { describe, expect, it, vi } from 'vitest';
 import { formatBytes, formatDuration, formatTime } from '../src/admin/format';
+import type { Video } from '../src/admin/types';
 import { videoDoc } from './admin-video';
 import {
   MAX_PIECE,
@@ -159,5 +160,44 @@ describe('words', () => {
     );
     expect(lensMismatch({ width: 960, height: 960 }, [960, 960], 'donut')).toBeNull();
     expect(lensMismatch(null, [960, 960], 'donut')).toBeNull();
+  });
+});
+
+describe('finding the turns and stops after an upload', () => {
+  it('tells a finished job only with the video that carries what it found (never "0 found" before it)', async () => {
+    vi.stubGlobal('addEventListener', () => undefined); // (the page's uploads listen for `online`)
+    const { Upload } = await import('../src/admin/uploader');
+    const found = { suggestions: [{ t: 1 }, { t: 2 }, { t: 3 }] } as unknown as Video['suggestions'];
+    const job = (state: string) => ({ id: 'j1', kind: 'suggest', state, frames_done: 5, frames_total: 5 });
+    const api = {
+      post: async () => job('running'),
+      get: async (path: string) => (path.startsWith('/api/admin/jobs/') ? job('done') : video({ suggestions: found })),
+      stream: async (_path: string, on: (e: { event: string; data: string }) => void) =>
+        on({ event: 'job', data: JSON.stringify(job('done')) }),
+    };
+    const seen: [string | undefined, number | undefined][] = [];
+    const u = new Upload(
+      new File([new Uint8Array(10)], 'walk.mp4'),
+      { venue: 'v', floor: '1', lens: 'donut', role: 'model' } as never,
+      api as never,
+      (x) => seen.push([x.suggest?.state, x.video?.suggestions?.suggestions.length]),
+    );
+    await u.findTurns();
+    expect(seen.filter(([state]) => state === 'done')).toEqual([['done', 3]]);
+  });
+});
+
+describe("a video's state in the table", () => {
+  it('an evaluation walk is never "not modelled yet": it is scored, not modelled', async () => {
+    vi.stubGlobal('addEventListener', () => undefined);
+    const { videoStatus } = await import('../src/admin/screens/videos');
+    const ready = { status: 'ready', received: 1000, width: 960, height: 720, duration_s: 20 } as const;
+    expect(videoStatus(video({ ...ready, role: 'model' }))).toBe('uploaded, not modelled yet; 960x720, 0:20.0 long');
+    expect(videoStatus(video({ ...ready, role: 'evaluation' }))).toBe(
+      'uploaded, to score the venue with (evaluation walks are not modelled); 960x720, 0:20.0 long',
+    );
+    expect(videoStatus(video({ ...ready, role: 'model', status: 'modelled', frames: 200 }))).toMatch(
+      /^modelled \(200 frames\)/,
+    );
   });
 });

@@ -40,6 +40,37 @@ export function putPoint(points: readonly Point[], p: Point): Point[] {
   return [...rest, p].sort((a, b) => a.t - b.t);
 }
 
+/**
+ * "Add a waypoint at the current time": -> the new points (the same where one is already at that
+ * moment), what to say, and the moment of the waypoint whose x the focus goes to. Between two
+ * waypoints the new one is where a steady walk between them puts it; before the first or after
+ * the last it starts at that waypoint's place, and the words say so: its x and y are for the
+ * admin to type (or a click on the plan puts it there).
+ */
+export function addAt(points: readonly Point[], t: number): { points: Point[]; said: string; at: number } {
+  const there = points.find((q) => Math.abs(q.t - t) < SAME_MOMENT_S);
+  if (there)
+    return {
+      points: [...points],
+      said: `A waypoint is already at ${formatTime(there.t)}: its x and y are in the table.`,
+      at: there.t,
+    };
+  const between = positionAt(points, t);
+  if (between)
+    return {
+      points: putPoint(points, { t, ...between }),
+      said: `Waypoint added at ${formatTime(t)}, on the straight line between its neighbours; correct its x and y in the table if the walk turned.`,
+      at: t,
+    };
+  const near = points.length ? (t < points[0].t ? points[0] : points[points.length - 1]) : null;
+  const from = near ? `at the place of the waypoint at ${formatTime(near.t)}` : 'at 0, 0';
+  return {
+    points: putPoint(points, { t, x: near?.x ?? 0, y: near?.y ?? 0 }),
+    said: `Waypoint added at ${formatTime(t)} ${from}: type where the walker was (its x and y), or click the plan there.`,
+    at: t,
+  };
+}
+
 /** What is wrong with the points as a track, in words, or null when it can be saved. */
 export function trackProblem(points: readonly Point[], duration: number | null): string | null {
   if (points.length < 2) return 'A track needs at least two waypoints: where the walk starts and where it ends.';

@@ -210,11 +210,12 @@ export class Upload {
       this.suggest = job;
       this.changed(this);
       job = await followJob(this.api, job, (j) => {
+        if (j.state === 'done') return; // told once the video's document carries what it found
         this.suggest = j;
         this.changed(this);
       });
-      this.suggest = job;
       if (job.state === 'done') this.video = await this.api.get<Video>(base);
+      this.suggest = job;
       this.changed(this);
     } catch (e) {
       this.suggestError = e instanceof Error ? e.message : String(e);

@@ -16,6 +16,7 @@ import '../media.css';
 import type { PlanMap } from '../planmap';
 import {
   acceptSuggestion,
+  addAt,
   corridorLines,
   fromTrack,
   isTagged,
@@ -207,10 +208,10 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     const addHere = button(
       'Add a waypoint at the current time',
       () => {
-        const at = positionAt(points, t) ?? points[points.length - 1] ?? { x: 0, y: 0 };
-        points = putPoint(points, { t, x: at.x, y: at.y });
-        changed(`Waypoint added at ${formatTime(t)}; type its x and y in the table.`);
-        wpBody.querySelector<HTMLInputElement>(`tr[data-t="${t.toFixed(3)}"] input.wp-x`)?.focus();
+        const added = addAt(points, t);
+        points = added.points;
+        changed(added.said);
+        wpBody.querySelector<HTMLInputElement>(`tr[data-t="${added.at.toFixed(3)}"] input.wp-x`)?.focus();
       },
       'secondary',
     );

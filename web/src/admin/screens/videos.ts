@@ -372,21 +372,6 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   };
 
   // ---- the server's videos -------------------------------------------------------------------
-  const statusText = (v: Video): string => {
-    if (v.status === 'uploading') {
-      // a refused file is gone from the server (received is 0 again): say why, not "0 B received"
-      if (v.error && v.received === 0) return `refused: ${v.error}`;
-      return `uploading: ${formatBytes(v.received)} of ${formatBytes(v.size)} received`;
-    }
-    const facts = [
-      v.width && v.height ? `${v.width}x${v.height}` : '',
-      v.duration_s ? `${formatTime(v.duration_s)} long` : '',
-    ].filter(Boolean);
-    const what = v.status === 'modelled' ? `modelled (${v.frames} frames)` : 'uploaded, not modelled yet';
-    const lens = lensText(v.suggestions?.lens_check);
-    return [facts.length ? `${what}; ${facts.join(', ')}` : what, lens].filter(Boolean).join('. ');
-  };
-
   const drawTable = () => {
     tableBody.replaceChildren(
       ...videos.map((v) => {
@@ -435,7 +420,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
           el('th', { scope: 'row', textContent: v.name }),
           el('td', { textContent: `floor ${v.floor}, lens ${v.lens}` }),
           el('td', { textContent: ROLE_TEXT[v.role] ?? v.role }),
-          el('td', { className: 'video-status', textContent: statusText(v) }),
+          el('td', { className: 'video-status', textContent: videoStatus(v) }),
           el('td', { textContent: v.status === 'uploading' ? '–' : track }),
           actions,
         );
@@ -508,6 +493,31 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     abort.abort();
     unlisten();
   };
+}
+
+/**
+ * A video's state in words, for the table: what was received while it uploads; then its size and
+ * length, and for a modelling walk whether it is modelled (an evaluation walk is scored, never
+ * modelled); whether it fits its lens.
+ */
+export function videoStatus(v: Video): string {
+  if (v.status === 'uploading') {
+    // a refused file is gone from the server (received is 0 again): say why, not "0 B received"
+    if (v.error && v.received === 0) return `refused: ${v.error}`;
+    return `uploading: ${formatBytes(v.received)} of ${formatBytes(v.size)} received`;
+  }
+  const facts = [
+    v.width && v.height ? `${v.width}x${v.height}` : '',
+    v.duration_s ? `${formatTime(v.duration_s)} long` : '',
+  ].filter(Boolean);
+  const what =
+    v.role === 'evaluation'
+      ? 'uploaded, to score the venue with (evaluation walks are not modelled)'
+      : v.status === 'modelled'
+        ? `modelled (${v.frames} frames)`
+        : 'uploaded, not modelled yet';
+  const lens = lensText(v.suggestions?.lens_check);
+  return [facts.length ? `${what}; ${facts.join(', ')}` : what, lens].filter(Boolean).join('. ');
 }
 
 /** Does the video fit its lens (the server's check on its first frames)? Words for the table. */
