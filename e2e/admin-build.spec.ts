@@ -131,6 +131,8 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     await a.fill(page.getByLabel('Name', { exact: true }), NAME);
     await a.click(page.getByRole('button', { name: 'Create the venue' }));
     await expect(page.getByRole('heading', { name: NAME, level: 1 })).toBeVisible();
+    // the header says what the venue still lacks for the phone to say more than the floor
+    await expect(page.locator('#venue-gaps')).toContainText('No places yet: the phone can only say the floor');
   });
 
   await test.step('the plan, and its scale by two clicks and a distance', async () => {
@@ -172,6 +174,7 @@ test('an admin builds a venue entirely through the page; the phone app answers t
 
   await test.step('the lens profile', async () => {
     await a.click(nav(page, 'Lenses'));
+    await expect(page.locator('#venue-gaps')).toHaveCount(0); // (the venue read again: places, areas)
     a.ops++;
     await page.getByLabel('Lens profile file (lens.json)').setInputFiles(adminFile('lens.json'));
     await a.fill(page.getByLabel('Profile name'), 'donut');
@@ -240,9 +243,14 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     await a.waiting(() => expect(page.getByRole('progressbar', { name: 'Quality map progress' })).toBeVisible());
     const sentence = page.locator('#quality-sentence');
     await a.waiting(() => expect(sentence).toBeVisible({ timeout: 300_000 }));
-    const q = await adminApi<{ summary: { share_green: number }; sentence: string }>(
+    const q = await adminApi<{ summary: { share_green: number; ambiguous: number; wrong: number }; sentence: string }>(
       'GET',
       `/api/admin/venues/${VENUE}/quality`,
+    );
+    // the stretches listed are the stretches the summary counts (one floor walked)
+    const listed = q.summary.ambiguous + q.summary.wrong;
+    await expect(page.locator('#quality-problems-title')).toHaveText(
+      listed ? `Stretches to check (${listed})` : 'No red or amber stretch',
     );
     shareGreen = q.summary.share_green;
     await expect(sentence).toHaveText(q.sentence);

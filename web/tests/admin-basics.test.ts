@@ -14,7 +14,7 @@ import {
   scaleFromPoints,
   toMap,
 } from '../src/admin/geometry';
-import { checkPlace, exportPlaces, parsePlaces } from '../src/admin/places-io';
+import { checkPlace, exportPlaces, parsePlaces, placeGaps } from '../src/admin/places-io';
 import { parseRoute } from '../src/admin/routes';
 
 describe('metres and the map', () => {
@@ -161,5 +161,14 @@ describe('routes', () => {
 
   it('venue paths are escaped', () => {
     expect(venuePath('a b', '/places')).toBe('/api/admin/venues/a%20b/places');
+  });
+});
+
+describe("what a venue's places leave the phone unable to say", () => {
+  it('no place: only the floor; places without an area: never the corridor; an area: nothing to say', () => {
+    expect(placeGaps([])).toMatch(/^No places yet: the phone can only say the floor/);
+    const lifts = { id: 'p1', name: 'the lifts', floor: '1', x: 1, y: 1 };
+    expect(placeGaps([lifts])).toMatch(/^No place has an area: .*never the corridor/);
+    expect(placeGaps([lifts, { ...lifts, id: 'p2', name: 'Corridor 1', area: [0, 0, 10, 2] }])).toBeNull();
   });
 });

@@ -16,6 +16,7 @@ import {
   corridorText,
   directionsText,
   mapLabel,
+  outsideAreas,
   problemStretches,
   stretchReason,
   stretchTitle,
@@ -115,6 +116,48 @@ describe('quality map in words', () => {
     expect(mapLabel(q, '1')).toBe(
       'Quality map of floor 1: 1 green, 2 amber and 1 red stretches; not covered: the stairwell. The lists below say the same.',
     );
+  });
+});
+
+describe('seconds in no drawn area', () => {
+  it('are counted, on the floor shown, by their middle point', () => {
+    const q = quality(
+      [
+        seg(),
+        seg({ t0: 13, points: [[40, 9]] }),
+        seg({ t0: 14, points: [[41, 9]] }),
+        seg({ floor: '2', points: [[40, 9]] }),
+      ],
+      [corridor()],
+    );
+    expect(outsideAreas(q, '1')).toEqual({ outside: 2, all: 3 });
+  });
+});
+
+describe('stretches to check', () => {
+  it('a run of red or amber seconds of one video is one stretch, as the summary counts them', () => {
+    const walk = [
+      seg({ t0: 0, t1: 1, verdict: 'amber', margin: 0.05 }),
+      seg({ t0: 1, t1: 2, verdict: 'amber', margin: 0.01, match: { video: 'model.mp4', t: 30, x: 40, y: 2 } }),
+      seg({ t0: 2, t1: 3, verdict: 'amber', margin: 0.03 }),
+      seg({ t0: 3, t1: 4 }),
+      seg({ t0: 4, t1: 5, verdict: 'red', error_m: 6 }),
+      seg({ t0: 5, t1: 6, verdict: 'red', error_m: 12 }),
+      seg({ t0: 6, t1: 7, verdict: 'amber' }),
+      seg({ video: 'other.mp4', t0: 7, t1: 8, verdict: 'amber' }),
+    ];
+    const got = problemStretches(quality(walk, [corridor()]), '1');
+    expect(got.map((s) => [s.video, s.verdict, s.t0, s.t1])).toEqual([
+      ['model.mp4', 'red', 4, 6],
+      ['model.mp4', 'amber', 0, 3],
+      ['model.mp4', 'amber', 6, 7],
+      ['other.mp4', 'amber', 7, 8],
+    ]);
+    // explained by its worst second: the closest look-alike, the furthest wrong answer
+    expect(got[1].margin).toBe(0.01);
+    expect(got[1].match.t).toBe(30);
+    expect(got[1].points).toHaveLength(9);
+    expect(got[0].error_m).toBe(12);
   });
 });
 

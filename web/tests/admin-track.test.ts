@@ -5,11 +5,13 @@ import {
   acceptSuggestion,
   corridorLines,
   fromTrack,
+  landmarkLine,
   nextUntagged,
   addAt,
   positionAt,
   putPoint,
   snapToLines,
+  snapWords,
   suggestionLabel,
   suggestionText,
   toTrack,
@@ -51,6 +53,15 @@ describe('corridor lines', () => {
     const lines = corridorLines(places, '1');
     expect(snapToLines({ x: 19.2, y: 3 }, lines)).toEqual({ x: 20, y: 2, line: 'Corridor 2 × Corridor 1' }); // the nearer line first
   });
+  it('past the end of an area, only across the line: a corner is not pulled back to the area end, and the words say how far', () => {
+    const one = corridorLines([places[0]], '1'); // Corridor 1 alone: its line ends at x = 21.5
+    const click = { x: 23.3, y: 2.4 };
+    const got = snapToLines(click, one);
+    expect(got.x).toBeCloseTo(23.3, 9);
+    expect(got.y).toBeCloseTo(2, 9);
+    expect(snapWords(click, got)).toBe(' (on Corridor 1, moved 0.4 m)');
+    expect(snapWords(click, { ...click, line: null })).toBe('');
+  });
   it('parallel corridors side by side: the nearer one', () => {
     const two: Place[] = [
       { id: 'a', floor: '1', name: 'A', x: 0, y: 0, area: [0, 0, 20, 2] },
@@ -60,6 +71,16 @@ describe('corridor lines', () => {
   });
   it('within a custom distance only', () => {
     expect(snapToLines({ x: 8, y: 3.1 }, corridorLines(places, '1'), 1).line).toBeNull();
+  });
+});
+
+describe('the landmarks beside the track', () => {
+  it("the floor's named places in words, or where to add them", () => {
+    const desk: Place = { id: 'l', floor: '1', name: 'the desk', x: 3, y: 2.04 };
+    expect(landmarkLine([...places, desk, { ...desk, id: 'm', floor: '2' }], '1')).toBe(
+      'Places on this floor: the lifts at (20.0, 2.0) m; the desk at (3.0, 2.0) m.',
+    );
+    expect(landmarkLine(places, '2')).toMatch(/^No named place on this floor/);
   });
 });
 

@@ -10,6 +10,7 @@ import type { Floor, Venue } from '../shared/api-types';
 import { AdminApi, AdminError, venuePath } from './api';
 import type { AdminContext, Mount } from './context';
 import { el } from './dom';
+import { placeGaps } from './places-io';
 import { PlanMap } from './planmap';
 import * as evaluation from './screens/evaluation';
 import * as floorScreen from './screens/floor';
@@ -197,6 +198,8 @@ function drawHead(): void {
     el('h1', { id: 'venue-title', textContent: v.name }),
     el('p', { className: 'venue-facts', textContent: `Venue ${v.id} · revision ${v.revision} · ${model}` }),
   );
+  const gaps = placeGaps(v.places);
+  if (gaps) head.append(el('p', { className: 'hint', id: 'venue-gaps', textContent: gaps }));
   if (v.floors.length > 1)
     head.append(
       el(

@@ -23,6 +23,11 @@ export interface MarkerOptions {
   onMove?: (m: Metres) => void;
   /** Called on click or Enter/Space on the focused marker. */
   onSelect?: () => void;
+  /**
+   * Only to be seen (a landmark drawn beside what is edited): not focusable, not clickable, and
+   * hidden from screen readers, for whom the screen says the same in text.
+   */
+  passive?: boolean;
 }
 
 /** Draws the scale bar: Leaflet's own control measures the earth, which a CRS.Simple plan is not. */
@@ -206,13 +211,15 @@ export class PlanMap {
       icon,
       title: opts.label,
       alt: opts.label,
-      draggable: !!opts.draggable,
-      keyboard: true,
-      riseOnHover: true,
+      draggable: !!opts.draggable && !opts.passive,
+      keyboard: !opts.passive,
+      interactive: !opts.passive,
+      riseOnHover: !opts.passive,
     });
     m.on('add', () => {
       const el = m.getElement();
-      if (el) {
+      if (el && opts.passive) el.setAttribute('aria-hidden', 'true');
+      else if (el) {
         el.setAttribute('aria-label', opts.label);
         el.setAttribute('role', 'button');
         if (opts.onSelect) {

@@ -81,9 +81,44 @@ export function corridorText(c: QualityCorridor): string {
 /** The stretches an admin should look at (red first, then amber, each in walk order) on a floor. */
 export function problemStretches(q: Quality, floor: string): QualitySegment[] {
   const rank = (s: QualitySegment) => (s.verdict === 'red' ? 0 : 1);
-  return q.segments
+  return stretches(q.segments)
     .filter((s) => s.floor === floor && s.verdict !== 'green')
     .sort((a, b) => rank(a) - rank(b) || a.video.localeCompare(b.video) || a.t0 - b.t0);
+}
+
+/**
+ * The segments (a second of walk each) as stretches: each run of consecutive red or amber segments
+ * of one video is one stretch, as the summary counts them (quality.py `_runs`), from its first
+ * segment's start to its last's end, named and explained by its worst second (the furthest wrong
+ * answer, or the closest look-alike).
+ */
+export function stretches(segments: readonly QualitySegment[]): QualitySegment[] {
+  const out: QualitySegment[] = [];
+  let run: QualitySegment | null = null;
+  for (const s of segments) {
+    if (s.verdict !== 'green' && run && s.video === run.video && s.floor === run.floor && s.verdict === run.verdict) {
+      const worse: boolean =
+        s.verdict === 'red' ? (s.error_m ?? 0) > (run.error_m ?? 0) : (s.margin ?? 1) < (run.margin ?? 1);
+      run = { ...(worse ? s : run), t0: run.t0, t1: s.t1, points: [...run.points, ...s.points] };
+      out[out.length - 1] = run;
+      continue;
+    }
+    run = s.verdict === 'green' ? null : s;
+    out.push(s);
+  }
+  return out;
+}
+
+/**
+ * How many of a floor's seconds of walk lie in no drawn area (their middle point): they are judged
+ * second by second, but no corridor verdict counts them, and the page says so.
+ */
+export function outsideAreas(q: Quality, floor: string): { outside: number; all: number } {
+  const areas = q.corridors.filter((c) => c.floor === floor).map((c) => c.area);
+  const segs = q.segments.filter((s) => s.floor === floor);
+  const inside = ([x, y]: [number, number]) =>
+    areas.some(([x0, y0, x1, y1]) => x >= x0 && x <= x1 && y >= y0 && y <= y1);
+  return { outside: segs.filter((s) => !inside(middle(s))).length, all: segs.length };
 }
 
 /** How many stretches of each verdict are on a floor. */

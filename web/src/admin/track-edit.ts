@@ -175,7 +175,28 @@ export function snapToLines(
     }
   }
   if (best) return { x: best.x, y: best.y, line: best.line };
-  return { x: near[0].n.x, y: near[0].n.y, line: near[0].l.place };
+  // onto one line: only across it. Past the end of its area (a corner whose other corridor has no
+  // area) the click keeps how far along it is: pulled to the line's end, a corner moved 2 m back
+  const { l } = near[0];
+  const across = nearestOn(
+    { ...l, x0: 2 * l.x0 - l.x1, y0: 2 * l.y0 - l.y1, x1: 2 * l.x1 - l.x0, y1: 2 * l.y1 - l.y0 },
+    p.x,
+    p.y,
+  );
+  return { x: across.x, y: across.y, line: l.place };
+}
+
+/** How far a snap moved a click, in words for the status: "", or " (on Corridor 1, moved 0.4 m)". */
+export function snapWords(click: { x: number; y: number }, s: { x: number; y: number; line: string | null }): string {
+  if (!s.line) return '';
+  return ` (on ${s.line}, moved ${Math.hypot(s.x - click.x, s.y - click.y).toFixed(1)} m)`;
+}
+
+/** The floor's named places (not areas) in words, beside the track's plan: what to tag the walk by. */
+export function landmarkLine(places: readonly Place[], floor: string): string {
+  const named = places.filter((p) => p.floor === floor && !p.area);
+  if (!named.length) return 'No named place on this floor to tag the walk by: add them on the Places screen.';
+  return `Places on this floor: ${named.map((p) => `${p.name} at (${p.x.toFixed(1)}, ${p.y.toFixed(1)}) m`).join('; ')}.`;
 }
 
 // ---- suggestions ----------------------------------------------------------------------------------

@@ -17,6 +17,7 @@ import {
   clock,
   corridorText,
   mapLabel,
+  outsideAreas,
   percent,
   problemStretches,
   stretchReason,
@@ -122,6 +123,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       list,
       el('h3', { textContent: 'Corridors' }),
       q.corridors.length ? corridors : el('p', { textContent: 'No place has an area: draw the corridors as areas.' }),
+      ...outsideLine(q, floor),
       all,
     );
 
@@ -221,7 +223,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
             textContent:
               live === null
                 ? 'No quality map yet: model the venue first (Modelling), then compute it here.'
-                : 'No quality map yet: compute it (it takes about as long as modelling).',
+                : 'No quality map yet: compute it (a few seconds for a walk of a few minutes).',
           }),
         );
         return;
@@ -271,4 +273,16 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     dropMap();
     for (const u of urls) URL.revokeObjectURL(u);
   };
+}
+
+/** The line that says which seconds of walk no corridor verdict counts (none: no line). */
+function outsideLine(q: Quality, floor: string): HTMLElement[] {
+  const { outside, all } = outsideAreas(q, floor);
+  if (!outside || !q.corridors.length) return [];
+  return [
+    el('p', {
+      id: 'quality-outside',
+      textContent: `${outside} of the walk's ${all} seconds on this floor are in no drawn area, so no corridor's verdict counts them: draw the corridors there as areas on the Places screen.`,
+    }),
+  ];
 }

@@ -20,10 +20,12 @@ import {
   corridorLines,
   fromTrack,
   isTagged,
+  landmarkLine,
   nextUntagged,
   positionAt,
   putPoint,
   snapToLines,
+  snapWords,
   suggestionText,
   toTrack,
   trackProblem,
@@ -131,6 +133,8 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     /** The suggestion a plan click accepts (the video stands at its time). */
     let current = -1;
     const lines = corridorLines(ctx.venue().places, video.floor);
+    // the admin's own landmarks, to tag the walk by: named on the plan, and listed in words
+    const landmarks = ctx.venue().places.filter((p) => p.floor === video.floor && !p.area);
 
     // the frame views
     const rawImg = el('img', { alt: 'Camera frame', width: 480, height: 480 });
@@ -250,7 +254,17 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       el(
         'div',
         { className: 'work' },
-        el('div', {}, planEl, snapField),
+        el(
+          'div',
+          {},
+          planEl,
+          snapField,
+          el('p', {
+            className: 'hint',
+            id: 'track-landmarks',
+            textContent: landmarkLine(ctx.venue().places, video.floor),
+          }),
+        ),
         el(
           'div',
           { className: 'panel' },
@@ -409,6 +423,15 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
               { color: '#005a00', weight: 1, dashArray: '6 6', interactive: false },
             ),
           );
+      for (const lm of landmarks)
+        drawn.push(
+          map.addMarker(lm.x, lm.y, {
+            label: `Place: ${lm.name}`,
+            className: 'pm-landmark',
+            text: lm.name,
+            passive: true,
+          }),
+        );
       if (points.length > 1)
         drawn.push(
           map.addPolyline(
@@ -425,9 +448,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
           onMove: (to) => {
             const s = place(to);
             points = points.map((q) => (q === p ? { ...q, x: s.x, y: s.y } : q));
-            changed(
-              `Waypoint ${i + 1} moved to x ${s.x.toFixed(2)}, y ${s.y.toFixed(2)} m${s.line ? ` (on ${s.line})` : ''}.`,
-            );
+            changed(`Waypoint ${i + 1} moved to x ${s.x.toFixed(2)}, y ${s.y.toFixed(2)} m${snapWords(to, s)}.`);
           },
           onSelect: () => seek(p.t, true),
         });
@@ -454,7 +475,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     cleanup.push(
       map.onClick((m) => {
         const s = place(m);
-        const where = `x ${s.x.toFixed(2)}, y ${s.y.toFixed(2)} m${s.line ? ` (on ${s.line})` : ''}`;
+        const where = `x ${s.x.toFixed(2)}, y ${s.y.toFixed(2)} m${snapWords(m, s)}`;
         if (current >= 0 && Math.abs(suggestions[current].t - t) <= step / 2) {
           const sg = suggestions[current];
           points = acceptSuggestion(points, sg, s);
