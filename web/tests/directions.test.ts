@@ -4,6 +4,7 @@ import { describe as group, expect, it } from 'vitest';
 import {
   SURE,
   SURE_LEAVE,
+  change,
   clockHour,
   describe,
   direction,
@@ -65,23 +66,62 @@ group('directions', () => {
   });
 });
 
+group('what Keep telling me says when there is news', () => {
+  const corridor = answer({
+    area: 'Corridor 1',
+    facing: null,
+    nearest: { name: 'Room 1', distance_m: 3.0, bearing_deg: 86 },
+  });
+  it('in the same area: only the place near or reached, not the area again', () => {
+    const next = answer({
+      area: 'Corridor 1',
+      facing: null,
+      nearest: { name: 'Room 2', distance_m: 2.2, bearing_deg: -90 },
+    });
+    expect(change(corridor, next, 'clock')).toBe("Near Room 2 at 9 o'clock, 2 metres.");
+    const at = answer({
+      area: 'Corridor 1',
+      facing: null,
+      nearest: { name: 'Room 2', distance_m: 0.4, bearing_deg: 0 },
+    });
+    expect(change(next, at, 'sides')).toBe('At Room 2.');
+    expect(change(next, { ...at, confidence: 0.7 }, 'clock')).toBe('Probably at Room 2.');
+    // what the phone faces, when that changed too
+    expect(change(corridor, { ...next, facing: 'the lifts' }, 'clock')).toBe(
+      "Near Room 2 at 9 o'clock, 2 metres, facing the lifts.",
+    );
+  });
+  it('another area or floor, a first answer, an unsure one, nothing near: the whole sentence', () => {
+    const other = answer({
+      area: 'Corridor 2',
+      facing: null,
+      nearest: { name: 'Room 5', distance_m: 2, bearing_deg: 0 },
+    });
+    expect(change(corridor, other, 'clock')).toBe(describe(other, 'clock'));
+    expect(change(null, corridor, 'clock')).toBe(describe(corridor, 'clock'));
+    expect(change(answer({ low_confidence: true }), corridor, 'clock')).toBe(describe(corridor, 'clock'));
+    const open = answer({ area: 'Corridor 1', facing: null, nearest: null });
+    expect(change(corridor, open, 'clock')).toBe('You are in Corridor 1.');
+  });
+});
+
 group('the gist', () => {
-  it('changes with what would be said, not with small moves', () => {
-    const a = gist(answer(), 'clock');
+  it('changes with the news (another area, another place near, a place reached), not with each step or glance', () => {
+    const a = gist(answer());
     expect(
-      gist(
-        answer({ x: 14.4, heading_deg: 252, nearest: { name: 'Room 1', distance_m: 3.0, bearing_deg: 86 } }),
-        'clock',
-      ),
+      gist(answer({ x: 14.4, heading_deg: 252, nearest: { name: 'Room 1', distance_m: 3.0, bearing_deg: 86 } })),
     ).toBe(a);
-    expect(gist(answer({ nearest: { name: 'Room 1', distance_m: 3.0, bearing_deg: 170 } }), 'clock')).not.toBe(a);
-    expect(gist(answer({ area: 'Corridor 2' }), 'clock')).not.toBe(a);
-    expect(gist(answer({ low_confidence: true }), 'clock')).toBe('unsure');
+    // walked past it (now behind), or turned to face something else: not news
+    expect(gist(answer({ nearest: { name: 'Room 1', distance_m: 3.0, bearing_deg: 170 } }))).toBe(a);
+    expect(gist(answer({ facing: 'the lifts' }))).toBe(a);
+    expect(gist(answer({ nearest: { name: 'Room 2', distance_m: 3.0, bearing_deg: 86 } }))).not.toBe(a);
+    expect(gist(answer({ area: 'Corridor 2' }))).not.toBe(a);
+    expect(gist(answer({ low_confidence: true }))).toBe('unsure');
   });
 
   it('outside every area with nothing near: a new nearest place is news, its distance and way are not', () => {
     const far = (name: string, distance_m: number, bearing_deg: number) =>
-      gist(answer({ area: null, facing: null, nearest: { name, distance_m, bearing_deg } }), 'clock');
+      gist(answer({ area: null, facing: null, nearest: { name, distance_m, bearing_deg } }));
     const a = far('the lifts', 31, 90);
     expect([far('the lifts', 24, 150), far('the lifts', 18.5, -20)]).toEqual([a, a]);
     expect(far('Room 102', 22, 90)).not.toBe(a);
@@ -90,7 +130,7 @@ group('the gist', () => {
 
   it('standing at a place (under a metre): the same gist whichever way the noise points, until the user leaves it', () => {
     const at = (distance_m: number, bearing_deg: number) =>
-      gist(answer({ nearest: { name: 'the entrance', distance_m, bearing_deg } }), 'clock');
+      gist(answer({ nearest: { name: 'the entrance', distance_m, bearing_deg } }));
     const here = at(0.3, 90);
     expect([at(0.6, 0), at(0.1, 180), at(0.9, -90)]).toEqual([here, here, here]);
     expect(at(1.4, 90)).not.toBe(here);
@@ -98,19 +138,19 @@ group('the gist', () => {
 
   it('once at a place, stays at it until half a metre past the metre: no flip-flop about 1 m', () => {
     const g = (distance_m: number, last = '') =>
-      gist(answer({ nearest: { name: 'the lifts', distance_m, bearing_deg: 90 } }), 'clock', last);
+      gist(answer({ nearest: { name: 'the lifts', distance_m, bearing_deg: 90 } }), last);
     const at = g(0.8);
     const near = g(1.1);
     expect(near).not.toBe(at); // from afar, "at" begins under a metre
     expect([g(1.1, at), g(1.45, at)]).toEqual([at, at]);
     expect(g(1.6, at)).toBe(near); // left it: "near the lifts at 3 o'clock" again
     // another place's "at" is no reason to stay: the rule is per place
-    const elsewhere = gist(answer({ nearest: { name: 'Room 1', distance_m: 0.5, bearing_deg: 0 } }), 'clock');
+    const elsewhere = gist(answer({ nearest: { name: 'Room 1', distance_m: 0.5, bearing_deg: 0 } }));
     expect(g(1.1, elsewhere)).toBe(near);
   });
 
   it('"probably" firming up to sure is said again; a wobble about the sure line is not', () => {
-    const g = (confidence: number, last = '') => gist(answer({ confidence }), 'clock', last);
+    const g = (confidence: number, last = '') => gist(answer({ confidence }), last);
     const probably = g(SURE - 0.05);
     const sure = g(SURE);
     expect(sure).not.toBe(probably); // "You are probably in ..." then "You are in ..."
@@ -124,14 +164,14 @@ group('the gist', () => {
   });
 
   it('the margin holds at the same place only: another place is said as describe says it', () => {
-    const at = (confidence: number, area: string, last = '') => gist(answer({ confidence, area }), 'clock', last);
+    const at = (confidence: number, area: string, last = '') => gist(answer({ confidence, area }), last);
     const sureA = at(0.9, 'Corridor 1');
     const b = at(0.75, 'Corridor 2', sureA); // "You are probably in the Corridor 2 ..." is what is said
     expect(b).toBe(at(0.75, 'Corridor 2'));
     expect(b.startsWith('probably|')).toBe(true);
     expect(at(0.85, 'Corridor 2', b)).not.toBe(b); // firming up there is said
     // without `last`, the gist of the sentence said (what the session keeps after speaking)
-    expect(gist(answer({ confidence: 0.75 }), 'clock').startsWith('probably|')).toBe(true);
+    expect(gist(answer({ confidence: 0.75 })).startsWith('probably|')).toBe(true);
     expect(describe(answer({ confidence: 0.75 }), 'clock')).toMatch(/^You are probably /);
   });
 });

@@ -146,6 +146,24 @@ describe('continuous mode', () => {
     expect(new Set(shown)).toEqual(new Set([first]));
   });
 
+  it('says only the news while walking: a place passed is not said again, a new one without the area', async () => {
+    const near = (name: string, bearing_deg: number): Answer => ({
+      ...trackedAnswer(false),
+      nearest: { name, distance_m: 3, bearing_deg },
+    });
+    api.locate
+      .mockResolvedValueOnce(near('Room 1', 60))
+      .mockResolvedValueOnce(near('Room 1', 150)) // walked past it: not news
+      .mockResolvedValue(near('Room 2', -60));
+    const { s, said } = session();
+    s.toggleContinuous();
+    await vi.advanceTimersByTimeAsync(0);
+    await vi.advanceTimersByTimeAsync(3000);
+    await vi.advanceTimersByTimeAsync(4000);
+    s.stopContinuous();
+    expect(said).toEqual([s.sentence(near('Room 1', 60), VENUE), "Near Room 2 at 10 o'clock, 3 metres."]);
+  });
+
   it('stops, saying so, when another screen is shown (its sentences would talk over it); Locate itself leaves it on', async () => {
     const { s, said } = session();
     s.toggleContinuous();

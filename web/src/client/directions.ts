@@ -154,19 +154,43 @@ export const AT_LEAVE_M = AT_M + 0.5;
  * SURE_LEAVE's margin at the same place only: "You are probably at the lifts" is followed by "You
  * are at the lifts" once the answer firms up, and another place is said as `describe` says it.
  */
-export function gist(a: Said, style: Style, last = ''): string {
+export function gist(a: Said, last = ''): string {
   if (a.low_confidence) return 'unsure';
   const n = nearOf(a);
   const [lastSure, ...lastRest] = last.split('|');
   const [, , lastName, lastWay] = lastRest;
   const atM = n && lastWay === 'at' && lastName === n.name ? AT_LEAVE_M : AT_M;
-  const way = !n ? '' : n.distance_m < atM ? 'at' : direction(n.bearing_deg, style);
+  // what is news to a walker: another floor or area, another place near, a place reached. Which
+  // way a place is, and what the phone faces, change at every step and every glance: said with
+  // the news, never news themselves (a sentence every answer talked over the walk)
+  const way = !n ? '' : n.distance_m < atM ? 'at' : 'near';
   // outside every area with nothing near, the nearest place however far is said (describe): a new
   // one is news, its distance and way at every step are not
   const far = !a.area && !n && a.nearest ? `far:${a.nearest.name}` : '';
-  const rest = [a.floor, a.area, n?.name, way, a.facing, far].join('|');
+  const rest = [a.floor, a.area, n?.name, way, far].join('|');
   const stay = lastSure === 'sure' && lastRest.join('|') === rest && a.confidence >= SURE_LEAVE;
   return [stay || isSure(a) ? 'sure' : 'probably', rest].join('|');
+}
+
+/**
+ * What "Keep telling me" says when an answer is news (its gist changed) after `last`, the answer it
+ * last said: the whole sentence (describe) for another floor or area, a first answer, or one that
+ * is or was unsure; within the same area only the place that is new or reached, "Near the lifts at
+ * 3 o'clock, 4 metres." / "At the lifts.", and what the phone faces if that changed. The area the
+ * user is still in is not said again at every place passed.
+ */
+export function change(last: Said | null, a: Said, style: Style, floorName?: string | null): string {
+  const near = nearOf(a);
+  if (!last || last.low_confidence || a.low_confidence || a.floor !== last.floor || a.area !== last.area || !near)
+    return describe(a, style, floorName);
+  const parts = [
+    near.distance_m < AT_M
+      ? `at ${near.name}`
+      : `near ${near.name} ${direction(near.bearing_deg, style)}, ${metres(near.distance_m)}`,
+  ];
+  if (a.facing && a.facing !== near.name && a.facing !== last.facing) parts.push(`facing ${a.facing}`);
+  const said = `${isSure(a) ? '' : 'probably '}${parts.join(', ')}.`;
+  return said[0].toUpperCase() + said.slice(1);
 }
 
 // --- route guidance: the words of backend/omninav/server/describe.py's guidance_sentence and

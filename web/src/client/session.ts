@@ -30,7 +30,7 @@ import {
   type Venue,
 } from './api';
 import { CameraProblem, captureClip, grabFrame, joinClips, lensMismatch, openCamera, type Clip } from './camera';
-import { SURE, describe, gist, type Answer } from './directions';
+import { SURE, change, describe, gist, type Answer } from './directions';
 import { ExtractorClient } from './bridge';
 import { LensWatch, checkLensOn, lensWords, phoneStorage } from './lenscheck';
 import type { Motion, MotionFeed, MotionReading } from './motion';
@@ -230,8 +230,9 @@ export class Session extends Emitter<SessionEvents> {
   private readonly lensWatch = new LensWatch(phoneStorage());
   private lastCheck: LensCheck | null = null;
   private busy = false;
-  /** The sentence of the answer last said (Located's `said`). */
+  /** The sentence of the answer last said (Located's `said`), and that answer. */
   private lastSaid = '';
+  private lastTold: Answer | null = null;
   /** What was last said (or would have been): continuous mode speaks only when it changes. */
   private lastGist = '';
   /** The running continuous loop. */
@@ -537,16 +538,19 @@ export class Session extends Emitter<SessionEvents> {
 
   /** Say an answer; `quiet` (continuous mode): only when what it is about changed since the last said. */
   private tell(a: Answer, v: Venue, quiet: boolean): void {
-    const g = gist(a, this.prefs.style, this.lastGist);
+    const g = gist(a, this.lastGist);
     const say = !quiet || g !== this.lastGist;
     if (say) {
-      this.lastSaid = this.sentence(a, v);
+      // in "Keep telling me", the news only: the area the user is still in is not said again
+      const floor = v.floors.find((f) => f.id === a.floor)?.name;
+      this.lastSaid = quiet ? change(this.lastTold, a, this.prefs.style, floor) : this.sentence(a, v);
+      this.lastTold = a;
       this.o.voice.say(this.lastSaid, a.low_confidence ? 'unsure' : 'ok');
     }
     this.emit('said', this.lastSaid);
     // what was said is what the next answer is compared with: its own gist, without the margins
     // that kept the last one ("probably" said at 0.75 after a sure answer is remembered as said)
-    this.lastGist = say ? gist(a, this.prefs.style) : g;
+    this.lastGist = say ? gist(a) : g;
   }
 
   /** Say a problem (`quiet`: not again while it lasts); a camera gone ends "Keep telling me". */
@@ -680,6 +684,7 @@ export class Session extends Emitter<SessionEvents> {
     this.loop = loop;
     this.emit('continuous', true);
     this.lastGist = '';
+    this.lastTold = null;
     // denied or no sensors: the feed reads "unknown", and the filter goes on from the pictures alone
     void asked.finally(() => {
       if (this.loop === loop) this.o.motion?.start();
