@@ -228,9 +228,11 @@ def test_walking_a_known_route_hears_the_expected_sentences(ring: wg.WalkGraph):
     gs, _ = follow(ring, ROOM_102, walk([(15.0, 23.0), (27.0, 23.0), (27.0, 3.0), (39.0, 3.0)]))
     assert spoken(gs) == [
         ("start", "Walk straight ahead 12 metres, to the stairs."),
-        ("turn", "In 3 metres, turn to 9 o'clock and walk 20 metres, to the lifts."),
-        ("reassure", "Keep going, 11 metres to the lifts."),
-        ("turn", "In 2 metres, turn to 3 o'clock and walk 12 metres, to Room 102."),
+        # each turn said at the walker's pace (3 m every 2.5 s) early enough to be heard before it
+        ("turn", "In 9 metres, turn to 9 o'clock and walk 20 metres, to the lifts."),
+        ("reassure", "Keep going, 17 metres to the lifts."),
+        ("turn", "In 11 metres, turn to 3 o'clock and walk 12 metres, to Room 102."),
+        ("reassure", "Keep going, 11 metres to Room 102."),  # round the corner, 10 m and 6 s after the turn
         ("arrived", "You have arrived at Room 102; it is at 12 o'clock, 2 metres. The door is on your left."),
     ]
     first, last = gs[0], gs[-1]
@@ -268,7 +270,7 @@ def test_a_wrong_turn_is_off_the_route_then_a_new_instruction(ring: wg.WalkGraph
     gone, state = follow(ring, ROOM_102, walk([(15.0, 23.0), (27.0, 23.0), (33.0, 23.0)]))
     assert spoken(gone) == [
         ("start", "Walk straight ahead 12 metres, to the stairs."),
-        ("turn", "In 3 metres, turn to 9 o'clock and walk 20 metres, to the lifts."),
+        ("turn", "In 9 metres, turn to 9 o'clock and walk 20 metres, to the lifts."),
         ("off_route", "You are off the route; turn to 6 o'clock."),
     ]
     off = gone[-1]
@@ -338,11 +340,12 @@ def test_a_wrong_turn_that_finds_another_way_says_the_new_way_not_another_warnin
     gs, state = follow(ring, ROOM_102, walk([(15.0, 23.0), (27.0, 23.0), (51.0, 23.0)]))
     assert [(g["kind"], g["sentence"], g["urgent"], g["on_route"]) for g in gs if g["speak"]] == [
         ("start", "Walk straight ahead 12 metres, to the stairs.", False, True),
-        ("turn", "In 3 metres, turn to 9 o'clock and walk 20 metres, to the lifts.", False, True),
+        # a turn before its corner cuts in (urgent): it must be heard before the corner
+        ("turn", "In 9 metres, turn to 9 o'clock and walk 20 metres, to the lifts.", True, True),
         ("off_route", "You are off the route; turn to 6 o'clock.", True, False),
         ("turn", "Turn to 6 o'clock and walk 6 metres, to the stairs.", False, True),
         ("turn", "Walk straight ahead 12 metres, to the toilets.", False, False),  # off again, another way
-        ("turn", "In 3 metres, turn to 9 o'clock and walk 20 metres, to the café.", False, True),
+        ("turn", "In 6 metres, turn to 9 o'clock and walk 20 metres, to the café.", True, True),
     ]
     assert state is not None and state["off"] is None  # on the new route since: the spell is over
 
@@ -440,7 +443,7 @@ def test_not_sure_is_said_after_two_low_answers_and_then_the_instruction_again(r
         ("unsure", False),
         ("turn", True),  # a new leg: said at once
     ]
-    assert gs[1]["sentence"] == "Walk straight ahead 9 metres, to the stairs."
+    assert gs[1]["sentence"] == "In 9 metres, turn to 9 o'clock and walk 20 metres, to the lifts."
     assert gs[2]["sentence"] == "Not sure where you are yet; keep walking slowly."
     assert gs[2]["bearing_deg"] is None and gs[2]["walk_m"] is None and gs[2]["remaining_m"] == 44.0
     assert gs[-1]["sentence"] == "In 3 metres, turn to 9 o'clock and walk 20 metres, to the lifts."
@@ -455,9 +458,10 @@ def test_a_confidence_hovering_about_the_threshold_says_a_handful_of_sentences(r
     assert len(gs) == 23
     assert spoken(gs) == [
         ("start", "Walk straight ahead 12 metres, to the stairs."),
-        ("turn", "In 2 metres, turn to 9 o'clock and walk 20 metres, to the lifts."),
-        ("reassure", "Keep going, 10 metres to the lifts."),
-        ("turn", "In 2 metres, turn to 3 o'clock and walk 12 metres, to Room 102."),
+        ("turn", "In 10 metres, turn to 9 o'clock and walk 20 metres, to the lifts."),
+        ("reassure", "Keep going, 18 metres to the lifts."),
+        ("turn", "In 10 metres, turn to 3 o'clock and walk 12 metres, to Room 102."),
+        ("reassure", "Keep going, 10 metres to Room 102."),
         # half the answers of the last 30 s were low: a track that has not settled arrives "probably"
         ("probably_arrived", "You are probably at Room 102; it is at 12 o'clock, 2 metres. The door is on your left."),
     ]
@@ -466,7 +470,7 @@ def test_a_confidence_hovering_about_the_threshold_says_a_handful_of_sentences(r
     # the next sure answer
     other = [replace(p, confidence=0.4 if i % 2 else 0.9) for i, p in enumerate(poses)]
     gs, _ = follow(ring, ROOM_102, other, dt=2.0)
-    assert len(spoken(gs)) == 5 and "unsure" not in {g["kind"] for g in gs}
+    assert len(spoken(gs)) == 6 and "unsure" not in {g["kind"] for g in gs}
     # a single low pose off the route decides nothing: not off the route, nothing said
     poses = [Pose(15.0, 23.0, "1", 90.0), Pose(20.0, 30.0, "1", 90.0, confidence=0.45), Pose(18.0, 23.0, "1", 90.0)]
     gs, _ = follow(ring, ROOM_102, poses)
@@ -519,7 +523,7 @@ def test_standing_still_with_a_jittering_pose_is_not_off_the_route(ring: wg.Walk
     xs = [20.0, 18.8, 17.6, 18.9, 20.1, 18.7, 17.5, 19.0]
     poses = [Pose(x, 23.0, "1", 90.0 + (25.0 if k % 2 else -25.0 if k else 0.0)) for k, x in enumerate(xs)]
     gs, _ = follow(ring, ROOM_102, poses)
-    assert spoken(gs) == [("start", "Walk straight ahead 7 metres, to the stairs.")]
+    assert spoken(gs) == [("start", "In 7 metres, turn to 9 o'clock and walk 20 metres, to the lifts.")]
     assert all(g["on_route"] and g["kind"] in ("start", "continue") for g in gs)
 
 
@@ -717,3 +721,24 @@ def test_leaving_the_place_a_guidance_started_at_gives_a_route_again(ring: wg.Wa
     assert [g["kind"] for g in gs] == ["arrived", "start", "continue"]
     assert gs[1]["sentence"] == "Turn to 6 o'clock and walk 10 metres, to Room 102." and not gs[1]["arrived"]
     assert gs[1]["remaining_m"] == 10.0 and gs[1]["urgent"] is False
+
+
+@pytest.mark.parametrize("phase", [0.0, 0.6, 1.2, 1.8, 2.4])
+def test_a_turn_is_said_in_time_to_be_heard_before_its_corner(ring: wg.WalkGraph, phase: float):
+    """At 1.2 m/s with an answer every 2.5 s (the app's guided pace), whichever way the answers fall
+    the turn's sentence (SPEAK_S long, said LATENCY_S after its clip) ends at least 2 m before
+    the corner, and the turn cuts in; a walker standing still is told it no earlier than 3 m."""
+    pace, dt = 1.2, 2.5
+    poses = walk([(15.0 - phase, 23.0), (27.0, 23.0), (27.0, 3.0)], step=pace * dt)
+    gs, _ = follow(ring, ROOM_102, poses, dt=dt)
+    first = next(i for i, g in enumerate(gs) if g["speak"] and g["kind"] in ("start", "turn") and g["in_m"])
+    corner_m = 27.0 - poses[first].x
+    ends_m = corner_m - pace * (rt.LATENCY_S + rt.SPEAK_S)
+    assert ends_m >= 2.0, (first, corner_m)
+    assert gs[first]["urgent"] and gs[first]["in_m"] == round(corner_m, 1)
+    # a slow walker (0.2 m/s): told 3-4.5 m before it, not 11 (never under TURN_AHEAD_M)
+    slow = walk([(15.0, 23.0), (27.0, 23.0)], step=0.5)
+    gs, _ = follow(ring, ROOM_102, slow, dt=dt)
+    told = next(g for g in gs if g["speak"] and g["in_m"])
+    assert rt.TURN_AHEAD_M <= told["in_m"] <= 4.5, told["sentence"]
+    assert rt.turn_ahead_m(0.0) == rt.TURN_AHEAD_M and rt.turn_ahead_m(1.2) == pytest.approx(11.4)

@@ -16,9 +16,12 @@ the issue's, chosen for a walker who cannot see: off the route beyond OFF_ROUTE_
 a corridor's half width plus the filter's error) or walking back along it for two answers (more
 than AWAY_M behind the furthest point reached, facing more than AWAY_DEG from the leg's way: a
 pose that jitters while the user stands is not walking back); arrived within ARRIVE_M (2 m, the
-filter's accuracy target); a turn announced TURN_AHEAD_M before its corner, with the metres still
-to the corner (`in_m`: the phone answers every 2-3 s, 2-4 m of walking, so one answer falls before
-the corner, and a user told to turn while the corner is ahead would turn into the wall);
+filter's accuracy target); a turn announced before its corner, with the metres still to the
+corner (`in_m`: a user told to turn while the corner is ahead would turn into the wall), early
+enough at the walker's pace (measured along the route from answer to answer) that the sentence
+ends CLEAR_M before the corner though the next answer may be 2.5 s away and saying it takes 4 s
+(turn_ahead_m: 11.4 m at 1.2 m/s), never under TURN_AHEAD_M, and cutting in (urgent) rather than
+waiting behind another sentence; a lift or stairs TURN_AHEAD_M before them;
 reassurance every REASSURE_M of walking but never within QUIET_S of the last sentence (a sentence
 takes ~3 s to say, and a listener needs a pause); a sentence just said is not said again (`speak`
 false).
@@ -94,7 +97,16 @@ AWAY_M = 1.0  # more than this behind the furthest point reached on the route (a
 AWAY_ANSWERS = 2
 AWAY_DEG = 90.0  # and facing more than this from the leg's way
 ARRIVE_M = 2.0
-TURN_AHEAD_M = 3.0
+TURN_AHEAD_M = 3.0  # a turn is said at least this far before its corner ...
+# ... and, at the walker's pace, early enough that its sentence ends CLEAR_M before the corner: the
+# next answer may come an ANSWER_S later (the app films 2 s every 2.5 s while guiding), it reaches
+# the phone LATENCY_S after its clip ended, and it takes SPEAK_S to say
+SPEAK_S = 4.0
+ANSWER_S = 2.5
+LATENCY_S = 0.5
+CLEAR_M = 3.0  # (2 m asked; a metre more for the error of a pace measured from two or three answers)
+PACE_MPS = 1.0  # the pace assumed before two answers on the route measure it
+MAX_PACE_MPS = 2.0  # a faster move between two answers is the pose jumping, not walking
 REASSURE_M = 10.0
 QUIET_S = 6.0
 OFF_AGAIN_S = 15.0  # "off the route" again, in one spell, no sooner than this after the last
@@ -375,6 +387,27 @@ def _ahead(route: Route, floors: np.ndarray, w: _Where, fl: str) -> list[list[fl
     return [[round(float(x), 2), round(float(y), 2)] for x, y in p]
 
 
+def turn_ahead_m(pace: float | None) -> float:
+    """How far before its corner a turn is said, at a walker's pace (m/s; None: not measured yet):
+    the walk of the wait for the next answer, its latency and its sentence, plus CLEAR_M, and never
+    under TURN_AHEAD_M. At 1.2 m/s, 11.4 m: the sentence ends 3-6 m before the corner."""
+    v = PACE_MPS if pace is None else pace
+    return max(TURN_AHEAD_M, v * (ANSWER_S + LATENCY_S + SPEAK_S) + CLEAR_M)
+
+
+def _pace(st: Mapping[str, Any], s: float, t: float, replanned: bool) -> float | None:
+    """The walker's pace after an answer at `s` metres along the route at `t`: the last one's (a
+    state written before it: none), halfway to the pace since the last answer (metres along the
+    route over seconds, forward only, at most MAX_PACE_MPS); unchanged across a new route or a
+    pause of more than PAUSE_S (the walk then is not this one's)."""
+    pace = st.get("pace")
+    ts = st.get("ts")
+    if ts is None or replanned or not 0.0 < t - float(ts) <= PAUSE_S:
+        return None if pace is None else float(pace)
+    v = min(MAX_PACE_MPS, max(0.0, s - float(st["s"])) / (t - float(ts)))
+    return v if pace is None else 0.5 * float(pace) + 0.5 * v
+
+
 def new_state(graph: WalkGraph, place: Mapping[str, Any]) -> dict[str, Any]:
     """The guide's memory before its first answer (JSON-able; the server stores it as it is)."""
     return {
@@ -396,6 +429,8 @@ def new_state(graph: WalkGraph, place: Mapping[str, Any]) -> dict[str, Any]:
         "recent": [],  # the answers of the last NOT_HERE_S (after the first): [t, 1 if low else 0]
         "t0": None,  # when this guidance's first answer came
         "lost": False,  # "not here" was said, and the answers have not settled since
+        "pace": None,  # the walker's pace along the route (m/s, smoothed), None before it is measured
+        "ts": None,  # when the pose was at "s"
     }
 
 
@@ -463,7 +498,8 @@ def guide(
             "to": to,
             "kind": kind,
             "speak": speak,
-            "urgent": kind in ("off_route", "arrived", "probably_arrived"),
+            "urgent": kind in ("off_route", "arrived", "probably_arrived")
+            or (kind == "turn" and kw.get("in_m") is not None),
             "bearing_deg": None,
             "walk_m": None,
             "until": None,
@@ -588,14 +624,21 @@ def guide(
         w = _Where(0.0, 0.0, 0)
     s = w.along
     if not hold:
-        st["s"], st["far"] = s, max(float(st["far"]), s)
+        st["pace"] = _pace(st, s, float(t_now), off)
+        st["s"], st["far"], st["ts"] = s, max(float(st["far"]), s), float(t_now)
         if not off and st["far"] >= REJOIN_M:  # back on a route: the next departure is news again
             st["off"] = None
     remaining = max(0.0, cur.length_m - s)
 
     # the instruction: the leg being walked, or the next one when its corner is near
     li = _leg_at(cur, s, fl)
-    near_end = _leg_span(cur, li)[1] - s <= TURN_AHEAD_M
+    # a turn is said in time at the walker's pace; a lift or stairs when there (the sentence does
+    # not say how far, and a walker told to take the lift 9 m early looks for it here)
+    lift_next = li + 1 < len(cur.legs) and cur.legs[li + 1].via is not None
+    ahead_m = TURN_AHEAD_M if lift_next else turn_ahead_m(st.get("pace"))
+    # (off the route, the way back onto it first: "turn to 9 o'clock" for the corner after it would
+    # turn a walker who overshot the corner into the wall)
+    near_end = _leg_span(cur, li)[1] - s <= (TURN_AHEAD_M if off else ahead_m)
     ci = li + 1 if cur.legs[li].via is None and li + 1 < len(cur.legs) and near_end else li
     leg = cur.legs[ci]
     a, b = _leg_span(cur, ci)
@@ -646,7 +689,9 @@ def guide(
     if said is not None and leg.via is None:
         walked = s - float(said.get("s", 0.0))
         quiet = float(t_now) - float(said.get("t", -math.inf))
-        if walked >= REASSURE_M and quiet >= QUIET_S and common["walk_m"] > TURN_AHEAD_M:
+        # (no reassurance where a turn is about to be said; before the destination, to its last metres)
+        before = ahead_m if ci + 1 < len(cur.legs) else TURN_AHEAD_M
+        if walked >= REASSURE_M and quiet >= QUIET_S and common["walk_m"] > before:
             return answer("reassure", key=f"reassure:{ci}:{_round(common['walk_m'])}", **common)
     # nothing new: not spoken, but the sentence is there for "What next?"
     return answer("continue" if leg.via is None else kind, key=f"continue:{ci}", speak=False, **common)
