@@ -514,9 +514,20 @@ export class Session extends Emitter<SessionEvents> {
       let a = await locate(v.id, record, clip.fps, `web-${Date.now()}`).catch((e: unknown) => {
         throw staleOrNot(e, v.features.settings_id);
       });
+      // a place, though not sure of it ("probably"), is said at once while the phone films on, and
+      // the longer clip's answer only if it is news (another place, or now sure); "not sure" asks
+      // the user to keep turning (a first answer of 0.57-0.66, right, was "not sure yet" before)
+      let probable = false;
       if (trusted(a)) more.stopped = true;
       else {
-        const longer = await this.filmMore(clip, rest, more);
+        probable = !a.low_confidence;
+        if (probable) {
+          mark('answer');
+          this.lastAnswer = a;
+          this.emit('answer', this.located(a, r, clip, record.length, performance.now() - t0));
+          this.tell(a, v, false);
+        }
+        const longer = await this.filmMore(clip, rest, more, !probable);
         if (!longer) return; // stopped: nothing sent, nothing more said
         clip = longer;
         record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id);
@@ -526,24 +537,27 @@ export class Session extends Emitter<SessionEvents> {
         });
       }
       const rttMs = performance.now() - t0;
-      mark('answer');
+      if (!probable) mark('answer');
       this.lastAnswer = a;
       this.emit('answer', this.located(a, r, clip, record.length, rttMs));
-      this.tell(a, v, false);
+      this.tell(a, v, probable, false);
     } finally {
       if (filming) filming.stopped = true;
       if (this.filming === filming) this.filming = null;
     }
   }
 
-  /** Say an answer; `quiet` (continuous mode): only when what it is about changed since the last said. */
-  private tell(a: Answer, v: Venue, quiet: boolean): void {
+  /**
+   * Say an answer; `quiet`: only when what it is about changed since the last said (continuous
+   * mode, a press's longer clip after a "probably"); `news` (continuous mode): then only what
+   * changed, not the area the user is still in.
+   */
+  private tell(a: Answer, v: Venue, quiet: boolean, news = quiet): void {
     const g = gist(a, this.lastGist);
     const say = !quiet || g !== this.lastGist;
     if (say) {
-      // in "Keep telling me", the news only: the area the user is still in is not said again
       const floor = v.floors.find((f) => f.id === a.floor)?.name;
-      this.lastSaid = quiet ? change(this.lastTold, a, this.prefs.style, floor) : this.sentence(a, v);
+      this.lastSaid = news ? change(this.lastTold, a, this.prefs.style, floor) : this.sentence(a, v);
       this.lastTold = a;
       this.o.voice.say(this.lastSaid, a.low_confidence ? 'unsure' : 'ok');
     }
@@ -613,11 +627,16 @@ export class Session extends Emitter<SessionEvents> {
   }
 
   /**
-   * The first second was not sure: say so, wait for the MORE_FRAMES filmed on and -> the whole
-   * clip, or null when stopped.
+   * The first second was not sure: say so (`keepTurning`; a "probably" was said instead), wait for
+   * the MORE_FRAMES filmed on and -> the whole clip, or null when stopped.
    */
-  private async filmMore(first: Clip, rest: Promise<Clip>, more: { stopped: boolean }): Promise<Clip | null> {
-    this.o.voice.say(KEEP_TURNING, null, false, false);
+  private async filmMore(
+    first: Clip,
+    rest: Promise<Clip>,
+    more: { stopped: boolean },
+    keepTurning = true,
+  ): Promise<Clip | null> {
+    if (keepTurning) this.o.voice.say(KEEP_TURNING, null, false, false);
     this.askingMore = true;
     this.emit('asking', true);
     try {
