@@ -116,9 +116,10 @@ def evaluate(
     aggregate: str | None = None,
     clip_s: float = 1.0,
     progress: Progress | None = None,
+    tail: bool = False,
 ) -> Evaluation:
     spec, t, xy, hd, idx = query_spectra(loc, video, track, lens, progress)
-    return evaluate_spectra(loc, spec, t, xy, hd, idx, aggregate, clip_s)
+    return evaluate_spectra(loc, spec, t, xy, hd, idx, aggregate, clip_s, tail)
 
 
 def evaluate_spectra(
@@ -130,13 +131,19 @@ def evaluate_spectra(
     idx: np.ndarray,
     aggregate: str | None = None,
     clip_s: float = 1.0,
+    tail: bool = False,
 ) -> Evaluation:
     """evaluate() on a walk's spectra already extracted (query_spectra's output): consecutive
     clips of `clip_s`, each answered at its last frame. Several clip lengths or aggregations of one
-    walk then cost one extraction."""
+    walk then cost one extraction. `tail`: the frames after the last whole clip are scored too, as
+    a clip ending at the walk's last frame (it overlaps the one before): every second of an
+    admin's evaluation walk is scored (the benchmarks' clips stay as they were measured)."""
     n = max(1, int(round(clip_s * loc.conf["model_fps"])))
     ev = Evaluation()
-    for s in range(0, len(t) - n + 1, n):
+    starts = list(range(0, len(t) - n + 1, n))
+    if tail and starts and starts[-1] + n < len(t):
+        starts.append(len(t) - n)
+    for s in starts:
         w = slice(s, s + n)
         e = loc.estimate(spec[w], t[w], aggregate)
         tx, ty = xy[s + n - 1]
@@ -176,11 +183,12 @@ def evaluate_walk(
 ) -> dict[str, Any]:
     """An evaluation walk for the admin page: every 1 s clip's truth and answer, and the summary.
 
-    A clip's truth and answer are at its last frame; `heading_error_deg` is absolute, in [0, 180].
+    A clip's truth and answer are at its last frame (where the track puts the walker then), and the
+    walk's last part-second is a clip too (`tail`); `heading_error_deg` is absolute, in [0, 180].
     Each answer also carries `margin` ((support - rival) / support, as the quality map's), and the
     summary `share_green`: the share of clips within 2 m with a margin of at least
     AMBIGUOUS_MARGIN, the quality map's green measured on an independent walk."""
-    return walk_result(evaluate(loc, video, track, lens, progress=progress), low_confidence)
+    return walk_result(evaluate(loc, video, track, lens, progress=progress, tail=True), low_confidence)
 
 
 def walk_result(ev: Evaluation, low_confidence: float = LOW_CONFIDENCE) -> dict[str, Any]:

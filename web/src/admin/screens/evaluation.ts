@@ -36,7 +36,10 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     textContent:
       'Film a second walk, upload it on the Videos screen as an evaluation walk and tag a few of its ' +
       'waypoints on the Track screen; here the venue locates each second of it, as a phone would, and ' +
-      'the plan shows each answer as an arrow from where the walker was to where the venue said.',
+      'the plan shows each answer as an arrow from where the walker was to where the venue said. ' +
+      'Each second of the walk is one clip, scored against where the track puts the walker at the ' +
+      "clip's last frame: tag a waypoint at each turn and stop, and at the walk's start and end, so " +
+      'that the track is where the walker was at every moment (the last part-second is scored too).',
   });
   const pick = el('select', { id: 'evaluation-video' });
   const pickLabel = el('label', { htmlFor: 'evaluation-video', textContent: 'Evaluation video' });
