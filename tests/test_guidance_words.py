@@ -54,6 +54,7 @@ def test_every_kind_style_and_boundary_is_covered():
         "continue",
         "reassure",
         "off_route",
+        "back_on_route",
         "arrived",
         "probably_arrived",
         "floor_change",

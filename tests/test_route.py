@@ -328,6 +328,7 @@ def test_back_on_the_new_route_a_new_departure_is_said_at_once():
         (0.0, "start"),
         (3.0, "off_route"),
         (4.5, "turn"),
+        (7.5, "back_on_route"),  # 3 m along the new route: the walker hears that they turned back right
         (12.0, "off_route"),
         (13.5, "turn"),
     ]
@@ -345,6 +346,7 @@ def test_a_wrong_turn_that_finds_another_way_says_the_new_way_not_another_warnin
         ("off_route", "You are off the route; turn to 6 o'clock.", True, False),
         ("turn", "Turn to 6 o'clock and walk 6 metres, to the stairs.", False, True),
         ("turn", "Walk straight ahead 12 metres, to the toilets.", False, False),  # off again, another way
+        ("back_on_route", "You are on the route again; keep going, 9 metres to the toilets.", False, True),
         ("turn", "In 6 metres, turn to 9 o'clock and walk 20 metres, to the café.", True, True),
     ]
     assert state is not None and state["off"] is None  # on the new route since: the spell is over

@@ -490,6 +490,7 @@ def guide(
     to = cur.to if cur else target(place, str(graph.floor[place_node]))
 
     hold = False  # a single low answer: nothing decided on it (below)
+    rejoined = False  # this answer ends a spell off the route (said, when nothing else is)
 
     def answer(
         kind: str, key: str | None = None, speak: bool = True, **kw: Any
@@ -627,6 +628,7 @@ def guide(
         st["pace"] = _pace(st, s, float(t_now), off)
         st["s"], st["far"], st["ts"] = s, max(float(st["far"]), s), float(t_now)
         if not off and st["far"] >= REJOIN_M:  # back on a route: the next departure is news again
+            rejoined = st["off"] is not None
             st["off"] = None
     remaining = max(0.0, cur.length_m - s)
 
@@ -686,6 +688,8 @@ def guide(
     if ci > st["leg"] or said_kind == "off_route" or again:
         st["leg"] = max(ci, int(st["leg"]))
         return answer(kind, key=f"{kind}:{ci}:{cur.nodes[-1]}", **common)
+    if rejoined and leg.via is None:  # the walker turned back as told: said, not left to guess
+        return answer("back_on_route", key=f"back_on_route:{ci}:{float(t_now)}", **common)
     if said is not None and leg.via is None:
         walked = s - float(said.get("s", 0.0))
         quiet = float(t_now) - float(said.get("t", -math.inf))

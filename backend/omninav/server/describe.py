@@ -254,6 +254,9 @@ def guidance_sentence(g: Mapping[str, Any], style: Style = DEFAULT_STYLE) -> str
     if kind == "reassure":
         tail = f" to {g['until']}" if g["until"] else ""
         return f"Keep going, {metres(g['walk_m'])}{tail}."
+    if kind == "back_on_route":
+        tail = f" to {g['until']}" if g["until"] else ""
+        return f"You are on the route again; keep going, {metres(g['walk_m'])}{tail}."
     return instruction(b, g["walk_m"], g["until"], style, g.get("in_m"))
 
 

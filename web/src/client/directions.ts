@@ -262,6 +262,8 @@ export function guidanceSentence(g: Guided, style: Style): string {
   }
   if (g.floor_change) return `Take the ${g.floor_change.via} to ${g.floor_change.to_floor_name}.`;
   if (g.kind === 'reassure') return `Keep going, ${metres(walk)}${g.until ? ` to ${g.until}` : ''}.`;
+  if (g.kind === 'back_on_route')
+    return `You are on the route again; keep going, ${metres(walk)}${g.until ? ` to ${g.until}` : ''}.`;
   return instruction(b, walk, g.until, style, g.in_m ?? null);
 }
 

@@ -138,6 +138,7 @@ export interface Guidance {
     | 'off_route'
     | 'arrived'
     | 'probably_arrived'
+    | 'back_on_route'
     | 'floor_change'
     | 'unsure'
     | 'not_here';
