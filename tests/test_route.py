@@ -295,10 +295,10 @@ def test_walking_on_the_wrong_way_hears_off_the_route_once_per_spell_not_at_ever
     assert [(t * 2.5, g["kind"], g["sentence"]) for t, g in enumerate(gs) if g["speak"]] == [
         (0.0, "start", "Walk straight ahead 25 metres, to the end."),
         (5.0, "off_route", "You are off the route; turn to 6 o'clock."),
-        (7.5, "turn", "Turn to 6 o'clock and walk 31 metres, to the end."),  # the new route, as ever
+        (7.5, "turn", "Turn to 6 o'clock and walk 34 metres, to the end."),  # the new route, as ever
         # each answer leaves the new route again (10, 15 s): planned anew, the same way, nothing said
         (20.0, "off_route", "You are off the route; turn to 6 o'clock."),  # OFF_AGAIN_S since the last
-        (22.5, "turn", "Turn to 6 o'clock and walk 49 metres, to the end."),
+        (22.5, "turn", "Turn to 6 o'clock and walk 52 metres, to the end."),
     ]
     assert [g["urgent"] for g in gs if g["speak"]] == [False, True, False, True, False]
     # the departures in between are planned anew all the same: the route and the bearing follow
@@ -344,7 +344,8 @@ def test_a_wrong_turn_that_finds_another_way_says_the_new_way_not_another_warnin
         # a turn before its corner cuts in (urgent): it must be heard before the corner
         ("turn", "In 9 metres, turn to 9 o'clock and walk 20 metres, to the lifts.", True, True),
         ("off_route", "You are off the route; turn to 6 o'clock.", True, False),
-        ("turn", "Turn to 6 o'clock and walk 6 metres, to the stairs.", False, True),
+        # from where the walker is, past the start of the route planned when they left the last
+        ("turn", "Turn to 6 o'clock and walk 9 metres, to the stairs.", False, True),
         ("turn", "Walk straight ahead 12 metres, to the toilets.", False, False),  # off again, another way
         ("back_on_route", "You are on the route again; keep going, 9 metres to the toilets.", False, True),
         ("turn", "In 6 metres, turn to 9 o'clock and walk 20 metres, to the café.", True, True),

@@ -657,6 +657,8 @@ def guide(
         common.update(next_turn_m=common["walk_m"], floor_change=floor_change(leg, names))
     else:
         walk = b - max(s, a)  # an instruction about the next leg, before its corner: all of it
+        if ci == 0 and s <= 0.0 and w.off > 1.0:  # the walker is past the route's start (a route
+            walk += w.off  # planned from where they left the last one): the way to it too
         # the next turn: the corner ahead, else the end of this leg (none on the last)
         nxt = in_m if in_m is not None else walk if ci + 1 < len(cur.legs) else None
         common.update(walk_m=walk, until=leg.until, in_m=in_m, next_turn_m=nxt)
