@@ -164,6 +164,9 @@ test('an admin builds a venue entirely through the page; the phone app answers t
         await a.click(page.getByRole('button', { name: 'Add a place on the plan' }));
         await a.clickPlan('.planmap', p.x!, p.y!);
       }
+      // the click's hint gives way to the next step, and the new place shows before it is saved
+      await expect(say(page)).toContainText(`${p.area ? 'Area' : 'Place'} marked at`);
+      await expect(page.locator('.planmap .pm-pending').first()).toBeAttached();
       await a.fill(page.getByLabel('Place name'), p.name);
       await a.click(page.getByRole('button', { name: 'Add the place' }));
       await expect(say(page)).toContainText(`Added ${p.name}`);

@@ -299,6 +299,23 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     };
     x.addEventListener('input', preview);
     y.addEventListener('input', preview);
+    if (!p) {
+      // a new place shows on the plan before it is saved (dashed: not yet a place), and the
+      // status says the next step instead of the click it asked for
+      draw();
+      if (a0) map.addRectangle(a0, { dashArray: '5 5', interactive: false, className: 'pm-pending' });
+      if (at || a0) {
+        const c = at ?? { x: (a0![0] + a0![2]) / 2, y: (a0![1] + a0![3]) / 2 };
+        map.addMarker(c.x, c.y, {
+          label: 'The new place, not saved yet',
+          className: 'pm-place pm-pending',
+          passive: true,
+        });
+        ctx.announce(
+          `${a0 ? 'Area' : 'Place'} marked at ${where({ x: c.x, y: c.y })}: name it, then press Add the place (or Cancel).`,
+        );
+      }
+    }
     editor.replaceChildren(heading, form);
     if (focus) (p ? heading : name).focus();
   }
