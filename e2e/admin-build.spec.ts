@@ -133,6 +133,10 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     await expect(page.getByRole('heading', { name: NAME, level: 1 })).toBeVisible();
     // the header says what the venue still lacks for the phone to say more than the floor
     await expect(page.locator('#venue-gaps')).toContainText('No places yet: the phone can only say the floor');
+    // the checklist: what the venue still lacks, each a link to its screen
+    const steps = page.getByRole('list', { name: 'Still to do for this venue' }).getByRole('link');
+    await expect(steps).toHaveCount(6);
+    await expect(steps.filter({ hasText: 'Draw the walked corridors as areas' })).toHaveAttribute('href', /\/places$/);
   });
 
   await test.step('the plan, and its scale by two clicks and a distance', async () => {
@@ -178,6 +182,10 @@ test('an admin builds a venue entirely through the page; the phone app answers t
   await test.step('the lens profile', async () => {
     await a.click(nav(page, 'Lenses'));
     await expect(page.locator('#venue-gaps')).toHaveCount(0); // (the venue read again: places, areas)
+    await expect(page.getByRole('list', { name: 'Still to do for this venue' }).getByRole('link')).toHaveText([
+      'Add the lens profile of the modelling camera',
+      'Upload a modelling walk, tag its track and model it',
+    ]);
     a.ops++;
     await page.getByLabel('Lens profile file (lens.json)').setInputFiles(adminFile('lens.json'));
     await a.fill(page.getByLabel('Profile name'), 'donut');

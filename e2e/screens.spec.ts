@@ -193,6 +193,12 @@ test('a venue without modelled frames: spoken, with what to do; once modelled, i
   await page.getByRole('button', { name: 'Where am I?' }).click();
   await expect(page.locator('#live')).toContainText('You are on Hall.');
   await expect(page.locator('#venue-line')).toContainText('Ready');
+  // a place, but no area drawn: the answer says how far it is and which way, not the floor alone
+  await admin('/venues/empty/places', 'PUT', [{ name: 'the far door', floor: '1', x: 400, y: 400 }]);
+  await page.getByRole('button', { name: 'Where am I?' }).click();
+  await expect(page.locator('#live')).toContainText(
+    /^You are (probably )?on Hall, \d+ metres from the far door at \d+ o’?'?clock\./,
+  );
 });
 
 test('the wrong lens: the camera picture does not fit the chosen profile', async ({ page }) => {

@@ -14,6 +14,7 @@ import {
   scaleFromPoints,
   toMap,
 } from '../src/admin/geometry';
+import { stepsLeft } from '../src/admin/checklist';
 import { checkPlace, exportPlaces, parsePlaces, placeGaps } from '../src/admin/places-io';
 import { parseRoute } from '../src/admin/routes';
 
@@ -170,5 +171,37 @@ describe("what a venue's places leave the phone unable to say", () => {
     const lifts = { id: 'p1', name: 'the lifts', floor: '1', x: 1, y: 1 };
     expect(placeGaps([lifts])).toMatch(/^No place has an area: .*never the corridor/);
     expect(placeGaps([lifts, { ...lifts, id: 'p2', name: 'Corridor 1', area: [0, 0, 10, 2] }])).toBeNull();
+  });
+});
+
+describe("a venue's first-run checklist", () => {
+  it('lists what is left, in order, each with its screen; nothing once the venue has it all', () => {
+    const floor = { id: '1', name: 'Ground', plan_url: null, plan_size_px: null, px_per_m: null };
+    const bare = {
+      id: 'v',
+      name: 'V',
+      revision: 1,
+      modelled: false,
+      frames: 0,
+      floors: [floor],
+      places: [],
+      lenses: {},
+    };
+    const v = bare as unknown as Parameters<typeof stepsLeft>[0];
+    expect(stepsLeft(v).map((s) => s.screen)).toEqual(['floor', 'floor', 'places', 'places', 'lenses', 'videos']);
+    const point = { id: 'p', name: 'the lifts', floor: '1', x: 1, y: 1 };
+    const ready = {
+      ...bare,
+      modelled: true,
+      floors: [{ ...floor, plan_url: '/plan.png', px_per_m: 10 }],
+      places: [point],
+      lenses: { donut: {} },
+    } as unknown as Parameters<typeof stepsLeft>[0];
+    // walked, but no corridor drawn as an area: the one step left
+    expect(stepsLeft(ready)).toEqual([
+      { screen: 'places', text: 'Draw the walked corridors as areas (the phone then says which one the user is in)' },
+    ]);
+    const all = { ...ready, places: [point, { ...point, id: 'c', name: 'Corridor 1', area: [0, 0, 9, 2] }] };
+    expect(stepsLeft(all as typeof ready)).toEqual([]);
   });
 });

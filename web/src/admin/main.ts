@@ -10,6 +10,7 @@ import type { Floor, Venue } from '../shared/api-types';
 import { AdminApi, AdminError, venuePath } from './api';
 import type { AdminContext, Mount } from './context';
 import { el } from './dom';
+import { stepsLeft } from './checklist';
 import { placeGaps } from './places-io';
 import { PlanMap } from './planmap';
 import * as evaluation from './screens/evaluation';
@@ -172,6 +173,9 @@ function setVenue(v: Venue): void {
   drawHead();
 }
 
+/** The venue and count of the checklist last drawn (announced when it changes). */
+let lastSteps = '';
+
 function drawHead(): void {
   if (!venue || route.kind !== 'venue') {
     head.hidden = true;
@@ -200,6 +204,27 @@ function drawHead(): void {
   );
   const gaps = placeGaps(v.places);
   if (gaps) head.append(el('p', { className: 'hint', id: 'venue-gaps', textContent: gaps }));
+  // what the venue still lacks, each a link to the screen that does it; said when it changes
+  const left = stepsLeft(v);
+  if (left.length) {
+    const list = el(
+      'ul',
+      { id: 'venue-checklist' },
+      ...left.map((st) =>
+        el('li', {}, el('a', { href: `#/v/${encodeURIComponent(v.id)}/${st.screen}`, textContent: st.text })),
+      ),
+    );
+    list.setAttribute('aria-label', 'Still to do for this venue');
+    head.append(el('p', { className: 'hint', id: 'venue-checklist-title', textContent: 'Still to do:' }), list);
+  }
+  const key = `${v.id}:${left.length}`;
+  if (lastSteps && lastSteps !== key && lastSteps.startsWith(`${v.id}:`))
+    announce(
+      left.length
+        ? `${left.length} step${left.length === 1 ? '' : 's'} left for this venue: ${left[0].text}.`
+        : 'This venue has everything the phone needs.',
+    );
+  lastSteps = key;
   if (v.floors.length > 1)
     head.append(
       el(

@@ -1,0 +1,31 @@
+/**
+ * The venue's first-run checklist: what it still lacks for the phone to be useful, each step with
+ * the screen that does it, from the venue document alone (so the header can show it at once).
+ */
+import type { Venue } from '../shared/api-types';
+import type { ScreenId } from './routes';
+
+export interface Step {
+  screen: ScreenId;
+  /** What is missing, as the link says it. */
+  text: string;
+}
+
+/** The steps still to do, in the order a new admin does them (none: the venue is ready). */
+export function stepsLeft(v: Venue): Step[] {
+  const steps: [boolean, Step][] = [
+    [v.floors.every((f) => f.plan_url), { screen: 'floor', text: 'Upload the floor plan' }],
+    [v.floors.every((f) => f.px_per_m), { screen: 'floor', text: 'Set the plan’s scale (two clicks and a distance)' }],
+    [
+      v.places.some((p) => !p.area),
+      { screen: 'places', text: 'Add the places people go to (rooms, lifts, entrances)' },
+    ],
+    [
+      v.places.some((p) => p.area),
+      { screen: 'places', text: 'Draw the walked corridors as areas (the phone then says which one the user is in)' },
+    ],
+    [Object.keys(v.lenses).length > 0, { screen: 'lenses', text: 'Add the lens profile of the modelling camera' }],
+    [v.modelled, { screen: 'videos', text: 'Upload a modelling walk, tag its track and model it' }],
+  ];
+  return steps.filter(([done]) => !done).map(([, s]) => s);
+}
