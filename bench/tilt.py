@@ -99,7 +99,7 @@ def family_scores(
             if tilt in CORRECTED:
                 add(f"tilted {tilt:g} deg, corrected", through(tilted_map(lens, ext.map, rot)).spectrum(frame))
         add("0.2 m higher", ext.spectrum(shot(xy[0, 0], xy[0, 1], hd, h=1.55)))
-        h = np.deg2rad(hd)  # heading h walks along (sin h, -cos h) (CONVENTIONS.md): its right is (cos h, sin h)
+        h = np.deg2rad(hd)  # heading h walks along (sin h, -cos h) (docs/formats.md): its right is (cos h, sin h)
         add("0.3 m to the side", ext.spectrum(shot(xy[0, 0] + 0.3 * np.cos(h), xy[0, 1] + 0.3 * np.sin(h), hd)))
         for j, d in enumerate(ALONG_M, 1):
             add(f"{d:g} m along", ext.spectrum(shot(xy[j, 0], xy[j, 1], hd)))

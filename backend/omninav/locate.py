@@ -262,7 +262,7 @@ class Locator:
         return own
 
     def track_answer(self, pose: TrackPose, clip: str, t: float | None = None) -> dict[str, Any]:
-        """A filtered pose -> the answer (CONVENTIONS.md fields, `t`, and `ambiguous`)."""
+        """A filtered pose -> the answer (docs/formats.md's fields, `t`, and `ambiguous`)."""
         on = self._frame_floor is None or self._frame_floor == pose.floor  # the pose's floor's frames
         row = int(np.argmin(np.where(on, np.hypot(self.xy[:, 0] - pose.x, self.xy[:, 1] - pose.y), np.inf)))
         floor = self.floor if self._frame_floor is None else pose.floor
