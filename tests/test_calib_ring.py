@@ -319,6 +319,21 @@ def test_frames_in_the_formats_calibration_sets_come_in(media, tmp_path, ext, gr
     assert "the ring showed in 3 of 3" in p.stdout and f"centre   {true.center[0]:.1f}" in p.stdout
 
 
+def test_one_tiff_whose_header_lies_at_its_end_is_read_as_an_image(media, tmp_path):
+    """OpenCV and libtiff write a TIFF's directory after its pixels: a single such file is an
+    image (told by its first bytes), not refused as no video."""
+    d, true = media
+    one = tmp_path / "one.tif"
+    frame = cv2.imread(str(sorted((d / "png").iterdir())[0]), cv2.IMREAD_COLOR)
+    assert cv2.imwrite(str(one), frame)
+    assert one.read_bytes().find(b"\x00\x01", 8) != -1  # (a file, not a stub)
+    p = run_cli("calib", "ring", str(one))
+    assert p.returncode == 0, p.stderr
+    assert "the ring showed in 1 of 1" in p.stdout
+    cx = float(p.stdout.split("centre")[1].split(",")[0])
+    assert cx == pytest.approx(true.center[0], abs=0.5)
+
+
 def test_formats_calibration_does_not_read_are_refused_by_name(tmp_path):
     """A GIF or a WebP still (formats OpenCV or Pillow would read) is refused in one line that
     names the formats read."""

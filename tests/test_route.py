@@ -745,3 +745,22 @@ def test_a_turn_is_said_in_time_to_be_heard_before_its_corner(ring: wg.WalkGraph
     told = next(g for g in gs if g["speak"] and g["in_m"])
     assert rt.TURN_AHEAD_M <= told["in_m"] <= 4.5, told["sentence"]
     assert rt.turn_ahead_m(0.0) == rt.TURN_AHEAD_M and rt.turn_ahead_m(1.2) == pytest.approx(11.4)
+
+
+@pytest.mark.parametrize("pace", [1.4, 1.6])
+@pytest.mark.parametrize("phase", [0.0, 1.0, 2.5])
+def test_no_keep_going_between_a_turn_said_and_its_corner(ring: wg.WalkGraph, pace: float, phase: float):
+    """A turn is said 11-17 m before its corner at a brisk pace: a "Keep going" after it and before
+    the corner would send the walker past the corner."""
+    route = [(15.0 - phase, 23.0), (27.0, 23.0), (27.0, 3.0), (39.0, 3.0)]
+    gs, _ = follow(ring, ROOM_102, walk(route, step=pace * 2.5), dt=2.5)
+    corners = [(27.0, 23.0), (27.0, 3.0)]
+    pending, reassured = False, 0
+    for g in gs:
+        if g["speak"] and g["kind"] in ("turn", "start") and g["in_m"]:
+            pending = True
+        elif g["in_m"] is None and g["bearing_deg"] == 0.0:
+            pending = False  # round the corner: the new leg straight ahead
+        assert not (pending and g["speak"] and g["kind"] == "reassure"), (g["sentence"], corners)
+        reassured += g["speak"] and g["kind"] == "reassure"
+    assert reassured >= 1  # (round the corners it still reassures)

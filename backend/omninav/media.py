@@ -57,6 +57,12 @@ def image_formats(formats: tuple[str, ...] = WEB_IMAGES) -> str:
     return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} or {names[-1]}"
 
 
+def still_format(head: bytes, formats: tuple[str, ...] = WEB_IMAGES) -> str | None:
+    """Which of `formats` a file that begins with `head` (its first bytes) says it is, by its magic
+    bytes alone; None: none of them. (A TIFF's header may lie at its end: probe_image reads all.)"""
+    return next((f for f in formats if head.startswith(_STILLS[f][1])), None)
+
+
 def probe_image(data: bytes, formats: tuple[str, ...] = WEB_IMAGES) -> ImageHeader | None:
     """The format and size that an image of one of `formats` says it has, from its header alone;
     None for any other format or a header that does not parse.
@@ -65,7 +71,7 @@ def probe_image(data: bytes, formats: tuple[str, ...] = WEB_IMAGES) -> ImageHead
     are used directly rather than through `Image.open`, whose decompression-bomb check raises
     before the size can be reported and warns (a process-wide filter) below that.
     """
-    fmt = next((f for f in formats if data.startswith(_STILLS[f][1])), None)
+    fmt = still_format(data, formats)
     if fmt is None:
         return None
     cls = _STILLS[fmt][2]

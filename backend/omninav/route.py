@@ -499,8 +499,7 @@ def guide(
             "to": to,
             "kind": kind,
             "speak": speak,
-            "urgent": kind in ("off_route", "arrived", "probably_arrived")
-            or (kind == "turn" and kw.get("in_m") is not None),
+            "urgent": kind in ("off_route", "arrived", "probably_arrived"),
             "bearing_deg": None,
             "walk_m": None,
             "until": None,
@@ -520,6 +519,8 @@ def guide(
                 g[f] = round(float(g[f]), 1)
         if g["in_m"] == 0.0:  # at the corner: the turn is now
             g["in_m"] = None
+        if kind == "turn" and g["in_m"] is not None:  # before its corner: heard before it, cutting in
+            g["urgent"] = True
         g["sentence"] = guidance_sentence(g, style)  # type: ignore[arg-type]
         key = key or kind
         if said is not None and said.get("key") == key:  # nothing said again that was just said
@@ -695,9 +696,11 @@ def guide(
     if said is not None and leg.via is None:
         walked = s - float(said.get("s", 0.0))
         quiet = float(t_now) - float(said.get("t", -math.inf))
-        # (no reassurance where a turn is about to be said; before the destination, to its last metres)
+        # no reassurance while a turn is pending (said, its corner still ahead: "keep going" there
+        # would send the walker past it), nor where one is about to be said; before the
+        # destination, to its last metres
         before = ahead_m if ci + 1 < len(cur.legs) else TURN_AHEAD_M
-        if walked >= REASSURE_M and quiet >= QUIET_S and common["walk_m"] > before:
+        if ci == li and walked >= REASSURE_M and quiet >= QUIET_S and common["walk_m"] > before:
             return answer("reassure", key=f"reassure:{ci}:{_round(common['walk_m'])}", **common)
     # nothing new: not spoken, but the sentence is there for "What next?"
     return answer("continue" if leg.via is None else kind, key=f"continue:{ci}", speak=False, **common)

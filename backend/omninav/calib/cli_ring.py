@@ -83,7 +83,7 @@ def read_frames(paths: list[Path], max_frames: int = 40) -> list[np.ndarray]:
     """BGR frames of one video (up to `max_frames`, spread evenly over it) or of still images
     (media.STILL_IMAGES, all of one size; grey ones made BGR). Every header is checked before any
     pixel is decoded."""
-    from ..media import STILL_IMAGES, decode_image, image_formats, probe_image
+    from ..media import STILL_IMAGES, decode_image, image_formats, probe_image, still_format
 
     stills = image_formats(STILL_IMAGES)
 
@@ -94,8 +94,8 @@ def read_frames(paths: list[Path], max_frames: int = 40) -> list[np.ndarray]:
             raise OmninavError(f"{p}: not found" if not p.exists() else f"{p}: not a file")
     if not 1 <= max_frames <= MAX_FRAMES:
         raise OmninavError(f"--max-frames must be 1 to {MAX_FRAMES}")
-    with paths[0].open("rb") as fh:
-        is_image = probe_image(fh.read(1 << 16), STILL_IMAGES) is not None
+    with paths[0].open("rb") as fh:  # (by its magic bytes: the whole file's header is read below)
+        is_image = still_format(fh.read(16), STILL_IMAGES) is not None
     if len(paths) == 1 and not is_image:
         head = _video_header(paths[0])
         if head is None:
