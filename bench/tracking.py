@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from omninav.aggregate import SURE, confidence, sequence
+from omninav.aggregate import SURE, TRACK_CONFIDENCE_INPUTS, confidence, sequence
 from omninav.evaluate import query_spectra
 from omninav.heading import wrap_deg
 from omninav.index import Matches
@@ -51,7 +51,6 @@ from omninav.synth.walks import imu_for, poses_from_track, render_frames, with_s
 from omninav.track import load_track
 from omninav.tracking import (
     ALIKE_K,
-    TRACK_CONFIDENCE_INPUTS,
     Imu,
     Motion,
     Tracker,

@@ -114,7 +114,7 @@ describe('quality map in words', () => {
     ]);
     expect(verdictCounts(q, '1')).toEqual({ green: 1, amber: 2, red: 1 });
     expect(mapLabel(q, '1')).toBe(
-      'Quality map of floor 1: 1 green, 2 amber and 1 red stretches; not covered: the stairwell. The lists below say the same.',
+      'Quality map of floor 1: 1 of 4 seconds walked green; 2 amber and 1 red stretches; not covered: the stairwell. The lists below say the same.',
     );
   });
 });
@@ -158,6 +158,10 @@ describe('stretches to check', () => {
     expect(got[1].match.t).toBe(30);
     expect(got[1].points).toHaveLength(9);
     expect(got[0].error_m).toBe(12);
+    // the plan's text alternative counts them as the list does
+    expect(mapLabel(quality(walk, [corridor()]), '1')).toMatch(
+      /: 1 of 8 seconds walked green; 3 amber and 1 red stretches/,
+    );
   });
 });
 

@@ -1,5 +1,5 @@
 // The arithmetic of the admin page's resumable upload and of its speed and time left.
-import { describe, expect, it, vi } from 'vitest';
+import { afterEach, describe, expect, it, vi } from 'vitest';
 import { formatBytes, formatDuration, formatTime } from '../src/admin/format';
 import type { Video } from '../src/admin/types';
 import { videoDoc } from './admin-video';
@@ -164,6 +164,7 @@ describe('words', () => {
 });
 
 describe('finding the turns and stops after an upload', () => {
+  afterEach(() => vi.unstubAllGlobals());
   it('tells a finished job only with the video that carries what it found (never "0 found" before it)', async () => {
     vi.stubGlobal('addEventListener', () => undefined); // (the page's uploads listen for `online`)
     const { Upload } = await import('../src/admin/uploader');
@@ -188,6 +189,7 @@ describe('finding the turns and stops after an upload', () => {
 });
 
 describe("a video's state in the table", () => {
+  afterEach(() => vi.unstubAllGlobals());
   it('an evaluation walk is never "not modelled yet": it is scored, not modelled', async () => {
     vi.stubGlobal('addEventListener', () => undefined);
     const { videoStatus } = await import('../src/admin/screens/videos');

@@ -131,10 +131,15 @@ export function verdictCounts(q: Quality, floor: string): Record<Verdict, number
 /** The plan's accessible name: the summary and the counts, then where the full lists are. */
 export function mapLabel(q: Quality, floor: string): string {
   const n = verdictCounts(q, floor);
+  const all = n.green + n.amber + n.red;
+  // red and amber as the list below counts them (runs of seconds), green as seconds walked
+  const runs = stretches(q.segments).filter((s) => s.floor === floor);
+  const amber = runs.filter((s) => s.verdict === 'amber').length;
+  const red = runs.filter((s) => s.verdict === 'red').length;
   const corridors = q.corridors.filter((c) => c.floor === floor);
   const grey = corridors.filter((c) => c.verdict === 'grey').map((c) => c.place);
   return (
-    `Quality map of floor ${floor}: ${n.green} green, ${n.amber} amber and ${n.red} red stretches` +
+    `Quality map of floor ${floor}: ${n.green} of ${all} seconds walked green; ${amber} amber and ${red} red stretches` +
     (grey.length ? `; not covered: ${grey.join(', ')}` : '') +
     '. The lists below say the same.'
   );

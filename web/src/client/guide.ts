@@ -8,7 +8,7 @@
  * unseen second of walking is evidence lost; on the venue families it was never tuned on, more of
  * the walk filmed is right more often: docs/benchmarks.md, "Filming throughout");
  * the server's filter and guide decide what is new, and this loop speaks only what it marks
- * `speak`. Off the route and arrival cut in (urgent); "not sure" is said once per spell; arrival
+ * `speak`. Off the route, arrival and a turn before its corner cut in (urgent); "not sure" is said once per spell; arrival
  * ends the loop, and only a sure one does: "You are probably at ..." (`probably_arrived`, a pose
  * under 0.8 or a track that has not settled) cuts in too, but the loop goes on until the server is
  * sure or guides on elsewhere. The screen is kept on while guiding (wakelock.ts) and the motion sensors run

@@ -572,6 +572,7 @@ export class Session extends Emitter<SessionEvents> {
     const text = problemText(e);
     if (!quiet || this.lastGist !== text) this.o.voice.say(text, 'error', true);
     this.lastGist = text;
+    this.lastTold = null; // the next answer said whole: a place alone would hang on nothing
     if (e instanceof CameraProblem && e.kind !== 'lens') this.stopContinuous();
   }
 
