@@ -18,7 +18,7 @@ const SAID = {
   preview: /^The stairs: \d+ metres?, 1 turn, after \d+ metres?\.$/,
   // standing at the start facing the right way: straight ahead (or nearly) to the corner
   first: /^(In \d+ metres?, )?(walk straight ahead|turn to (1|11|12) o'clock and walk) \d+ metres?, to the lifts\.$/i,
-  reassure: /^Keep going, \d+ metres? to the lifts\.$/,
+  reassure: /^Keep going, \d+ metres? to the (lifts|stairs)\.$/,
   // the corner: the turn right, said before it ("In 2 metres, turn to 3 o'clock ..."; or, said late,
   // already round it: straight on)
   turn: /^(In \d+ metres?, )?(turn to [234] o'clock and walk|walk straight ahead) \d+ metres?, to the stairs\.$/i,
@@ -181,7 +181,7 @@ async function attach(page: Page, w: Walk): Promise<void> {
 
 test.describe.configure({ timeout: 240_000 });
 
-test('walking to the stairs: the preview, the first instruction, "keep going", the turn, arrival', async ({
+test('walking to the stairs: the preview, the first instruction, the turn in time, "keep going", arrival', async ({
   playwright,
 }) => {
   const { browser, page } = await open(playwright, 'to-stairs', staleVenue);
@@ -202,17 +202,23 @@ test('walking to the stairs: the preview, the first instruction, "keep going", t
       [
         ['the route’s preview', SAID.preview],
         ['the first instruction', SAID.first],
-        ['a reassurance', SAID.reassure],
         ['the turn at the lifts', SAID.turn],
+        ['a reassurance round the corner', SAID.reassure],
         ['arrival', SAID.arrived],
       ],
       log,
     );
-    // the answers agree: a turn was announced, and arrival was the last word
-    const kinds = await page.evaluate(() =>
-      window.__walk.answers.map((x) => (x.a.guidance as { kind: string; speak: boolean } | undefined)?.kind),
+    // the answers agree: a turn was announced, early enough at this walk's 1 m/s to be heard
+    // before the corner (route.py turn_ahead_m), and arrival was the last word
+    const guided = await page.evaluate(() =>
+      window.__walk.answers.map(
+        (x) => x.a.guidance as { kind: string; speak: boolean; in_m: number | null } | undefined,
+      ),
     );
+    const kinds = guided.map((g) => g?.kind);
     expect(kinds, log).toContain('turn');
+    const turn = guided.find((g) => g?.kind === 'turn' && g.speak);
+    expect(turn?.in_m ?? 0, log).toBeGreaterThanOrEqual(5);
     expect(kinds.at(-1), log).toBe('arrived');
     // Start's request filmed 1 s, each after it 2 s, which the server's filter walked second by
     // second (two updates a request): no second of the walk unseen but the answers' time

@@ -304,8 +304,9 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       // status says the next step instead of the click it asked for
       draw();
       if (a0) map.addRectangle(a0, { dashArray: '5 5', interactive: false, className: 'pm-pending' });
-      if (at || a0) {
-        const c = at ?? { x: (a0![0] + a0![2]) / 2, y: (a0![1] + a0![3]) / 2 };
+      // ("New place by typing" has no point yet: NaN, nothing to show)
+      const c = a0 ? { x: (a0[0] + a0[2]) / 2, y: (a0[1] + a0[3]) / 2 } : at;
+      if (c && Number.isFinite(c.x) && Number.isFinite(c.y)) {
         map.addMarker(c.x, c.y, {
           label: 'The new place, not saved yet',
           className: 'pm-place pm-pending',
