@@ -764,3 +764,19 @@ def test_no_keep_going_between_a_turn_said_and_its_corner(ring: wg.WalkGraph, pa
         assert not (pending and g["speak"] and g["kind"] == "reassure"), (g["sentence"], corners)
         reassured += g["speak"] and g["kind"] == "reassure"
     assert reassured >= 1  # (round the corners it still reassures)
+
+
+def test_standing_on_the_route_facing_away_hears_the_way_again():
+    """Issue 44: standing facing away from the way on said nothing. After FACE_AWAY_S facing away
+    (and QUIET_S since the last sentence) the instruction is said again from the way the walker
+    faces now; turned back the right way, nothing more."""
+    graph, end = corridor()
+    right = Pose(30.0, 0.0, "1", 90.0)
+    away = Pose(30.2, 0.0, "1", 270.0)
+    gs, _ = follow(graph, end, [right, away, away, away, away, right, right], dt=2.5)
+    said = [(t * 2.5, g["kind"], g["sentence"]) for t, g in enumerate(gs) if g["speak"]]
+    assert said == [
+        (0.0, "start", "Walk straight ahead 25 metres, to the end."),
+        (10.0, "turn", "Turn to 6 o'clock and walk 25 metres, to the end."),  # facing away from 2.5 s on
+    ]
+    assert all(g["on_route"] for g in gs)

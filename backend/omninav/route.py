@@ -22,6 +22,7 @@ enough at the walker's pace (measured along the route from answer to answer) tha
 ends CLEAR_M before the corner though the next answer may be 2.5 s away and saying it takes 4 s
 (turn_ahead_m: 11.4 m at 1.2 m/s), never under TURN_AHEAD_M, and cutting in (urgent) rather than
 waiting behind another sentence; a lift or stairs TURN_AHEAD_M before them;
+the instruction again when the walker, on the route, has faced away from the way on for FACE_AWAY_S;
 reassurance every REASSURE_M of walking but never within QUIET_S of the last sentence (a sentence
 takes ~3 s to say, and a listener needs a pause); a sentence just said is not said again (`speak`
 false).
@@ -109,6 +110,7 @@ PACE_MPS = 1.0  # the pace assumed before two answers on the route measure it
 MAX_PACE_MPS = 2.0  # a faster move between two answers is the pose jumping, not walking
 REASSURE_M = 10.0
 QUIET_S = 6.0
+FACE_AWAY_S = 6.0  # facing away from the way on this long (and QUIET_S since the last sentence): said
 OFF_AGAIN_S = 15.0  # "off the route" again, in one spell, no sooner than this after the last
 TURNED_DEG = 45.0  # in a spell off the route, a new way this far from the last one said is news
 REJOIN_M = 3.0  # metres walked along a new route that end a spell off the route (one answer's walk)
@@ -611,9 +613,12 @@ def guide(
             off = True
         else:  # walking back: behind the furthest point reached, facing away from the leg's way
             way = cur.legs[_leg_at(cur, w.along, fl)].heading_deg
-            back = w.along < float(st["far"]) - AWAY_M and abs(_signed(pose.heading - way)) > AWAY_DEG
+            facing_away = abs(_signed(pose.heading - way)) > AWAY_DEG
+            back = w.along < float(st["far"]) - AWAY_M and facing_away
             st["away"] = st["away"] + 1 if back else 0
             off = st["away"] >= AWAY_ANSWERS
+            # since when the walker faces away from the way on (standing, or turned round in place)
+            st["facing_away"] = (st.get("facing_away") or float(t_now)) if facing_away and not off else None
     if off:  # a new route from where the user is
         new = plan(graph, graph.nearest(pose.x, pose.y, fl), place, place_node, places)
         if new is None:
@@ -691,6 +696,14 @@ def guide(
     if ci > st["leg"] or said_kind == "off_route" or again:
         st["leg"] = max(ci, int(st["leg"]))
         return answer(kind, key=f"{kind}:{ci}:{cur.nodes[-1]}", **common)
+    told_t = float(said.get("t", -math.inf)) if said is not None else -math.inf
+    away_since = st.get("facing_away")
+    facing_long = away_since is not None and float(t_now) - float(away_since) >= FACE_AWAY_S
+    if facing_long and st["off"] is None and float(t_now) - told_t >= QUIET_S:
+        # on the route, facing away from the way on for a while: the instruction again, from where
+        # the walker faces now ("Turn to 6 o'clock and walk ..."). (Off the route the spell's own
+        # rules speak: "off the route" every OFF_AGAIN_S, a new way when it is news.)
+        return answer(kind, key=f"{kind}:{ci}:away:{float(t_now)}", **common)
     if rejoined and leg.via is None:  # the walker turned back as told: said, not left to guess
         return answer("back_on_route", key=f"back_on_route:{ci}:{float(t_now)}", **common)
     if said is not None and leg.via is None:
