@@ -100,7 +100,7 @@ class Locator:
         """The extractor of a lens (default: the venue's), from a small shared cache."""
         return self._extractors.get(lens or self.gen.lens)
 
-    def clip_lens(self, lens: Lens | None, check: Callable[[np.ndarray], None] | None = None) -> ClipLens:
+    def clip_lens(self, lens: Lens | None, check: Callable[[np.ndarray], None] | None = None) -> ClipLens[np.ndarray]:
         """A clip's frames -> spectra through `lens` (default: the venue's) corrected for where the
         ring sits in this clip (calib/correct.py)."""
         return ClipLens(lens or self.gen.lens, self._extractors.spectrum, check)

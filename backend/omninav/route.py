@@ -708,7 +708,7 @@ def guide(
         return answer("back_on_route", key=f"back_on_route:{ci}:{float(t_now)}", **common)
     if said is not None and leg.via is None:
         walked = s - float(said.get("s", 0.0))
-        quiet = float(t_now) - float(said.get("t", -math.inf))
+        quiet = float(t_now) - told_t
         # no reassurance while a turn is pending (said, its corner still ahead: "keep going" there
         # would send the walker past it), nor where one is about to be said; before the
         # destination, to its last metres

@@ -1119,7 +1119,7 @@ class Tracker:
                 heading = functools.partial(_heading_of, made)
             else:
                 pose = made()
-                state = replace(state, heading=pose.heading if pose.heading_known else None)
+                state = replace(state, heading=_heading_of(made))
         assert state is not None and pose is not None
         # started over, the parts were given no motion (it was of the walk before); that the
         # counter counted is still news: it works

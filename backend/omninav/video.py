@@ -14,7 +14,7 @@ from collections.abc import Callable, Generator, Iterable, Iterator
 from concurrent.futures import Executor, Future
 from pathlib import Path
 from queue import Queue
-from typing import Any, TypeVar, cast
+from typing import Any, TypeVar
 
 import cv2
 import numpy as np
@@ -136,22 +136,21 @@ def extract_threads() -> int:
 
 def on_pool(
     pool: Executor, extract: Callable[[Lens], Callable[[np.ndarray], np.ndarray]]
-) -> Callable[[Lens], Callable[[np.ndarray], np.ndarray]]:
+) -> Callable[[Lens], Callable[[np.ndarray], Future[np.ndarray]]]:
     """A ClipLens `extract` that hands each frame to `pool` rather than extracting it: the clip's
-    spectra come out as futures, in frame order, for `in_order` to collect.
-
-    ClipLens passes what its per-frame function returns through untouched, so the frames held
-    while the ring is measured are extracted in parallel too. The cast says so to the types.
-    """
+    spectra come out as futures, in frame order, for `in_order` to collect (the frames held while
+    the ring is measured are extracted in parallel too)."""
 
     def submitting(lens: Lens) -> Callable[[np.ndarray], Future[np.ndarray]]:
         fn = extract(lens)
         return lambda frame: pool.submit(fn, frame)
 
-    return cast(Callable[[Lens], Callable[[np.ndarray], np.ndarray]], submitting)
+    return submitting
 
 
-def in_order(clip: ClipLens, frames: Iterable[tuple[T, np.ndarray]], ahead: int) -> Iterator[tuple[T, np.ndarray]]:
+def in_order(
+    clip: ClipLens[Future[np.ndarray]], frames: Iterable[tuple[T, np.ndarray]], ahead: int
+) -> Iterator[tuple[T, np.ndarray]]:
     """(tag, frame) pairs -> (tag, spectrum) pairs in the same order, through `clip` built with
     `on_pool`: at most `ahead` frames are submitted and not yet collected (each holds its decoded
     frame). When the caller stops early, or `frames` or an extraction raises, what is pending is
@@ -161,10 +160,10 @@ def in_order(clip: ClipLens, frames: Iterable[tuple[T, np.ndarray]], ahead: int)
     try:
         for tag, frame in frames:
             tags.append(tag)
-            pending.extend(cast(list[Any], clip.feed(frame)))
+            pending.extend(clip.feed(frame))
             while len(pending) > ahead:
                 yield tags.popleft(), pending.popleft().result()
-        pending.extend(cast(list[Any], clip.flush()))
+        pending.extend(clip.flush())
         while pending:
             yield tags.popleft(), pending.popleft().result()
     finally:

@@ -14,8 +14,8 @@ import {
   scaleFromPoints,
   toMap,
 } from '../src/admin/geometry';
-import { stepsLeft } from '../src/admin/checklist';
-import { checkPlace, exportPlaces, parsePlaces, placeGaps } from '../src/admin/places-io';
+import { placeGaps, stepsLeft } from '../src/admin/checklist';
+import { checkPlace, exportPlaces, parsePlaces } from '../src/admin/places-io';
 import { parseRoute } from '../src/admin/routes';
 
 describe('metres and the map', () => {

@@ -46,21 +46,16 @@ describe('remapLinear', () => {
       const n = 200_000;
       const mx = new Float32Array(n);
       const my = new Float32Array(n);
+      // inside; across every edge; on whole and half-step coordinates (x * 32 ending in .5)
+      const at = (kind: number, size: number, step: number): number =>
+        kind === 0
+          ? r() * (size - 1)
+          : kind === 1
+            ? -3 + r() * (size + 6)
+            : Math.floor(r() * size) + (kind === 2 ? 0 : step);
       for (let i = 0; i < n; i++) {
-        const kind = i % 4;
-        // inside; across every edge; on whole and half-step coordinates (x * 32 ending in .5)
-        mx[i] =
-          kind === 0
-            ? r() * (w - 1)
-            : kind === 1
-              ? -3 + r() * (w + 6)
-              : Math.floor(r() * w) + (kind === 2 ? 0 : 1 / 64);
-        my[i] =
-          kind === 0
-            ? r() * (h - 1)
-            : kind === 1
-              ? -3 + r() * (h + 6)
-              : Math.floor(r() * h) + (kind === 2 ? 0 : 3 / 64);
+        mx[i] = at(i % 4, w, 1 / 64);
+        my[i] = at(i % 4, h, 3 / 64);
       }
       const want = viaOpenCv(src, w, h, mx, my, wrap);
       const got = new Uint8Array(n * 4);

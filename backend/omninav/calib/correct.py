@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 
@@ -25,13 +25,14 @@ log = logging.getLogger("omninav.calib")
 
 FIRST = 3  # frames the ring is measured on: a median of three rides over one frame's clutter
 
-Spectrum = np.ndarray
+Spectrum = TypeVar("Spectrum")  # what the per-frame function gives: a spectrum, or a future of one
 
 
-class ClipLens:
+class ClipLens(Generic[Spectrum]):
     """Frames of one clip -> their spectra through the lens corrected for this clip.
 
-    `extract(lens)` gives the per-frame function for a lens (a cached Extractor's `spectrum`);
+    `extract(lens)` gives the per-frame function for a lens (a cached Extractor's `spectrum`, or
+    one that hands each frame to a pool: video.on_pool), whose results pass through untouched;
     `check(frame)` refuses a frame of the wrong size before anything looks at it. After the
     first `FIRST` frames (or `flush`), `fit` says what was found and `lens` is the lens used.
     """
@@ -94,10 +95,10 @@ class ClipLens:
 def clip_spectra(
     lens: Lens,
     frames: Iterable[np.ndarray],
-    extract: Callable[[Lens], Callable[[np.ndarray], Spectrum]],
+    extract: Callable[[Lens], Callable[[np.ndarray], np.ndarray]],
     check: Callable[[np.ndarray], None] | None = None,
     clip: str = "clip",
-) -> tuple[np.ndarray, ClipLens]:
+) -> tuple[np.ndarray, ClipLens[np.ndarray]]:
     """All of a clip's frames -> ((F, C, K) spectra, what was corrected); an unusable ring is
     logged (the CLI also prints `ClipLens.warning`)."""
     c = ClipLens(lens, extract, check)

@@ -251,12 +251,10 @@ def guidance_sentence(g: Mapping[str, Any], style: Style = DEFAULT_STYLE) -> str
     fc = g.get("floor_change")
     if fc:
         return f"Take the {fc['via']} to {fc['to_floor_name']}."
-    if kind == "reassure":
+    if kind in ("reassure", "back_on_route"):
         tail = f" to {g['until']}" if g["until"] else ""
-        return f"Keep going, {metres(g['walk_m'])}{tail}."
-    if kind == "back_on_route":
-        tail = f" to {g['until']}" if g["until"] else ""
-        return f"You are on the route again; keep going, {metres(g['walk_m'])}{tail}."
+        keep = f"keep going, {metres(g['walk_m'])}{tail}."
+        return f"You are on the route again; {keep}" if kind == "back_on_route" else f"K{keep[1:]}"
     return instruction(b, g["walk_m"], g["until"], style, g.get("in_m"))
 
 

@@ -363,7 +363,7 @@ def _check_frame(ext: Extractor, frame: np.ndarray, what: str) -> None:
         raise ApiError(422, f"{e}; name the clip's lens profile with 'lens'") from None
 
 
-def _log_lens(clip: ClipLens) -> None:
+def _log_lens(clip: ClipLens[np.ndarray]) -> None:
     if (w := clip.warning("a locate request")) is not None:
         log.warning(w)
 

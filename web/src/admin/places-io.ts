@@ -88,16 +88,3 @@ export function toInput(p: EditablePlace): PlaceInput {
   if (p.kind) out.kind = p.kind;
   return out;
 }
-
-/**
- * What a venue's places leave the phone unable to say, in words for the venue's header (null:
- * nothing): with no place at all an answer is the floor alone; with places but no area, the
- * nearest place and how far, never the corridor the user is in. (What to do about it is the
- * checklist's, checklist.ts.)
- */
-export function placeGaps(places: readonly Place[]): string | null {
-  if (places.length === 0) return 'No places yet: the phone can only say the floor.';
-  if (!places.some((p) => p.area))
-    return 'No place has an area: the phone names the nearest place and how far it is, never the corridor the user is in.';
-  return null;
-}

@@ -261,9 +261,10 @@ export function guidanceSentence(g: Guided, style: Style): string {
     return `You are off the route; ${turn ? turn[0].toLowerCase() + turn.slice(1) : 'walk straight ahead'}.`;
   }
   if (g.floor_change) return `Take the ${g.floor_change.via} to ${g.floor_change.to_floor_name}.`;
-  if (g.kind === 'reassure') return `Keep going, ${metres(walk)}${g.until ? ` to ${g.until}` : ''}.`;
-  if (g.kind === 'back_on_route')
-    return `You are on the route again; keep going, ${metres(walk)}${g.until ? ` to ${g.until}` : ''}.`;
+  if (g.kind === 'reassure' || g.kind === 'back_on_route') {
+    const keep = `keep going, ${metres(walk)}${g.until ? ` to ${g.until}` : ''}.`;
+    return g.kind === 'back_on_route' ? `You are on the route again; ${keep}` : `K${keep.slice(1)}`;
+  }
   return instruction(b, walk, g.until, style, g.in_m ?? null);
 }
 

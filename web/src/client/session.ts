@@ -249,10 +249,11 @@ export class Session extends Emitter<SessionEvents> {
   private readonly standby: Standby | null;
   /** The lens in use is a donut's (its check comes before any frame is kept). */
   private donut = false;
-  /** The last first second filmed was the kept one (read by "Keep telling me" once it is filmed). */
+  /**
+   * The last first second was the one kept before the press (firstClip): of the press or turn being
+   * answered, since one films at a time (read by located() and by "Keep telling me").
+   */
   private lastKept = false;
-  /** The first frames of the seconds taken from the standby (a clip joined to more keeps its first). */
-  private readonly keptFirsts = new WeakSet<object>();
 
   constructor(private readonly o: SessionOptions) {
     super();
@@ -398,10 +399,7 @@ export class Session extends Emitter<SessionEvents> {
     const due = donut && this.lensWatch.due(ext.configured);
     const kept = due ? null : (this.standby?.take() ?? null);
     this.lastKept = !!kept && !(donut && this.lensWatch.changed(kept.frames));
-    if (kept && this.lastKept) {
-      this.keptFirsts.add(kept.frames[0]);
-      return kept;
-    }
+    if (kept && this.lastKept) return kept;
     const film = (stop?: () => boolean) => captureClip(this.o.video, ext, CLIP_FRAMES, CLIP_INTERVAL_MS, stop);
     if (due) {
       const stopped = { now: false };
@@ -456,7 +454,7 @@ export class Session extends Emitter<SessionEvents> {
       rttMs,
       lensCheck:
         r.donut && this.lastCheck ? { message: this.lastCheck.message, ms: median(this.lastCheck.ms) } : undefined,
-      kept: clip.frames.length > 0 && this.keptFirsts.has(clip.frames[0]),
+      kept: this.lastKept,
       duty: this.standby?.duty() ?? null,
     };
   }
@@ -509,38 +507,38 @@ export class Session extends Emitter<SessionEvents> {
       filming = this.filming = more;
       const rest = captureClip(video, ext, MORE_FRAMES, CLIP_INTERVAL_MS, () => more.stopped, clip);
       rest.catch(() => undefined); // a failure matters only when the frames are used (filmMore)
+      const ask = (): Promise<Answer> =>
+        locate(v.id, record, clip.fps, `web-${Date.now()}`).catch((e: unknown) => {
+          throw staleOrNot(e, v.features.settings_id);
+        });
+      /** An answer shown and said (`quiet`: only if it is news since the last said); the press's first marked. */
+      let marked = false;
+      const answered = (a: Answer, rttMs: number, quiet: boolean): void => {
+        if (!marked) mark('answer');
+        marked = true;
+        this.lastAnswer = a;
+        this.emit('answer', this.located(a, r, clip, record.length, rttMs));
+        this.tell(a, v, quiet, false);
+      };
       let t0 = performance.now();
       mark('first second');
-      let a = await locate(v.id, record, clip.fps, `web-${Date.now()}`).catch((e: unknown) => {
-        throw staleOrNot(e, v.features.settings_id);
-      });
+      const a = await ask();
+      if (trusted(a)) {
+        more.stopped = true;
+        return answered(a, performance.now() - t0, false);
+      }
       // a place, though not sure of it ("probably"), is said at once while the phone films on, and
       // the longer clip's answer only if it is news (another place, or now sure); "not sure" asks
       // the user to keep turning (a first answer of 0.57-0.66, right, was "not sure yet" before)
-      let probable = false;
-      if (trusted(a)) more.stopped = true;
-      else {
-        probable = !a.low_confidence;
-        if (probable) {
-          mark('answer');
-          this.lastAnswer = a;
-          this.emit('answer', this.located(a, r, clip, record.length, performance.now() - t0));
-          this.tell(a, v, false);
-        }
-        const longer = await this.filmMore(clip, rest, more, !probable);
-        if (!longer) return; // stopped: nothing sent, nothing more said
-        clip = longer;
-        record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id);
-        t0 = performance.now();
-        a = await locate(v.id, record, clip.fps, `web-${Date.now()}`).catch((e: unknown) => {
-          throw staleOrNot(e, v.features.settings_id);
-        });
-      }
-      const rttMs = performance.now() - t0;
-      if (!probable) mark('answer');
-      this.lastAnswer = a;
-      this.emit('answer', this.located(a, r, clip, record.length, rttMs));
-      this.tell(a, v, probable, false);
+      const probable = !a.low_confidence;
+      if (probable) answered(a, performance.now() - t0, false);
+      const longer = await this.filmMore(clip, rest, more, !probable);
+      if (!longer) return; // stopped: nothing sent, nothing more said
+      clip = longer;
+      record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id);
+      t0 = performance.now();
+      const b = await ask();
+      answered(b, performance.now() - t0, probable);
     } finally {
       if (filming) filming.stopped = true;
       if (this.filming === filming) this.filming = null;
