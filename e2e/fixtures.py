@@ -118,7 +118,11 @@ RING_CASES = [
     ("ring-hd", "hd", (5.0, 3.0), 1.0, 5),
     ("ring-cut", "donut", (3.0, -30.0), 1.0, 6),  # off the top of the picture: "cut"
     ("ring-larger", "donut", (0.0, 0.0), 1.05, 7),  # 5 % larger: the usable circle leaves the top
+    ("ring-housing", "donut", (4.0, -3.0), 1.0, 11),  # a bright housing hugs the ring (HOUSING_RIM)
 ]
+# the bright annulus of a real clip-on's housing, right against the mirror's edge: brighter outside
+# the ring than in it, and a more complete circle further out (calib/ring.py, A9)
+HOUSING_RIM = (1.0, 1.15, 180.0)
 
 
 def _rgba(out: Path, stem: str, bgr: np.ndarray) -> None:
@@ -142,7 +146,7 @@ def ring_golden(out: Path, rendered: list[np.ndarray] | None = None) -> None:
             _rgba(out, f"donut-default-{i}", bgr)
 
     lenses = {"donut": donut_lens(1.0), "wide": wide_lens(), "hd": hd_lens()}
-    recipe = json.dumps([RING_CASES, [lens.to_dict() for lens in lenses.values()], 1, "dim", "measured"])
+    recipe = json.dumps([RING_CASES, HOUSING_RIM, [lens.to_dict() for lens in lenses.values()], 1, "dim", "measured"])
     old = out / "ring.json"
     cached = old.exists() and json.loads(old.read_text()).get("recipe") == recipe
     items = []
@@ -153,7 +157,8 @@ def ring_golden(out: Path, rendered: list[np.ndarray] | None = None) -> None:
         if cached:
             bgr = cv2.imread(str(out / f"{stem}.png"))
         else:
-            bgr = ring_frames(true, 1, seed=seed)[0]
+            sur = Surround(rim=HOUSING_RIM) if stem == "ring-housing" else Surround()
+            bgr = ring_frames(true, 1, seed=seed, sur=sur)[0]
             _rgba(out, stem, bgr)
         frames.append((stem, bgr, lenses[name], (true.center[0], true.center[1], true.r_inner, true.r_outer)))
     for i, bgr in enumerate(rendered):

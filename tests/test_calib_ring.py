@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from conftest import run_cli
+from omninav.calib.cli_ring import SURROUND_WORDS
 from omninav.calib.ring import NoRing, Ring, find_ring, find_ring_frame, fit_lens, visible_share
 from omninav.errors import OmninavError
 from omninav.lens import direction_to_pixel, load_lens
@@ -60,6 +61,31 @@ def test_ring_recovered_across_geometries_and_clipons(clipons):
     assert np.median(e[:, 0]) < 0.5  # the issue's bar: centre within 0.5 px, radii within 1 px
     assert np.median(e[:, 1]) < 1.0 and np.median(e[:, 2]) < 1.0
     assert np.median(e[:, 0]) < 0.15 and np.median(e[:, 2]) < 0.3  # what it does today (0.02, 0.08)
+
+
+@pytest.mark.parametrize(
+    ("rim", "light"), [((1.0, 1.15, 180.0), 1.0), ((1.0, 1.12, 200.0), 0.5), ((1.0, 1.3, 230.0), 1.0)]
+)
+def test_a_bright_housing_against_the_mirror_is_not_the_ring(rim, light, tmp_path):
+    """A real clip-on's housing: a bright annulus right against the mirror's edge, brighter than
+    the ring's edge and a more complete circle further out. The scene's annulus (texture along the
+    circle) decides; the housing and the brighter surround are said, on the command line too."""
+    true = reclip(HALF["donut"], (2.0, -1.5), 1.0)
+    frames = ring_frames(true, 2, seed=11, sur=Surround(rim=rim, light=light, noise=3.0, jpeg=85))
+    ring = find_ring(frames)
+    dc, dri, dro = _errors(ring, (*true.center, true.r_inner, true.r_outer))
+    assert dc <= 0.5 and abs(dro) <= 1.0 and abs(dri) <= 1.0, (dc, dri, dro)
+    assert ring.surround == "brighter"
+    assert ring.housing == pytest.approx(rim[1] * true.r_outer, abs=3.0)
+    assert ring.texture_ratio > 5
+    assert ring.to_dict()["housing"] == pytest.approx(ring.housing, abs=1e-3)
+    for i, f in enumerate(frames):
+        cv2.imwrite(str(tmp_path / f"f{i}.png"), f)
+    p = run_cli("calib", "ring", *sorted(str(f) for f in tmp_path.iterdir()))
+    assert p.returncode == 0, p.stderr
+    assert f"housing  a complete circle at {ring.housing:.2f} px lies outside the scene" in p.stdout
+    assert f"surround {SURROUND_WORDS[ring.surround]}" in p.stdout
+    assert "sure     the scene's annulus has" in p.stdout
 
 
 def test_ring_at_full_size_both_geometries():

@@ -75,6 +75,9 @@ interface EngineRing {
   r_inner: number;
   r_outer: number;
   visible: number;
+  surround: 'darker' | 'brighter';
+  housing: number;
+  texture_ratio: number;
 }
 interface GoldenFrame {
   stem: string;
@@ -105,7 +108,7 @@ const ring = (f: GoldenFrame): Ring | null => {
 describe('the ring in a frame, as the engine finds it', () => {
   it('the golden set has what it should: clip-ons, 1920x1080, a cut ring, no ring', () => {
     expect(frames.map((f) => f.stem)).toEqual(
-      expect.arrayContaining(['ring-hd', 'ring-cut', 'ring-dim', 'ring-plain']),
+      expect.arrayContaining(['ring-hd', 'ring-cut', 'ring-dim', 'ring-plain', 'ring-housing']),
     );
     expect(frames.find((f) => f.stem === 'ring-hd')!.size).toEqual([1920, 1080]);
     expect(frames.filter((f) => f.engine === null).length).toBeGreaterThanOrEqual(2);
@@ -133,6 +136,10 @@ describe('the ring in a frame, as the engine finds it', () => {
       expect(Math.abs(r.r_outer - e.r_outer), 'r_outer').toBeLessThanOrEqual(0.5);
       expect(Math.abs(r.r_inner - e.r_inner), 'r_inner').toBeLessThanOrEqual(0.5);
       expect(Math.abs(r.visible - e.visible), 'visible').toBeLessThanOrEqual(0.005);
+      // A9 decided as the engine did: which surround, which circle was the housing
+      expect(r.surround, 'surround').toBe(e.surround);
+      expect(Math.abs(r.housing! - e.housing), 'housing').toBeLessThanOrEqual(0.5);
+      expect(r.texture_ratio!, 'texture ratio').toBeCloseTo(e.texture_ratio, 2);
       // and both are where the lens really sat (the renderer's ring)
       if (f.truth) {
         const [cx, cy, ri, ro] = f.truth;
@@ -141,6 +148,16 @@ describe('the ring in a frame, as the engine finds it', () => {
         expect(Math.abs(r.r_inner - ri), 'r_inner vs truth').toBeLessThanOrEqual(1);
       }
     });
+
+  it('a bright housing right against the mirror: the ring, not the housing, and a brighter surround', () => {
+    const f = frames.find((g) => g.stem === 'ring-housing')!;
+    const r = ring(f)!;
+    const [, , ri, ro] = f.truth!;
+    expect(r.surround).toBe('brighter');
+    expect(r.housing!).toBeGreaterThan(ro + 30); // the housing's outer edge, a complete circle
+    expect(Math.abs(r.r_outer - ro)).toBeLessThanOrEqual(1);
+    expect(Math.abs(r.r_inner - ri)).toBeLessThanOrEqual(1); // not the mirror's edge taken for the inner one
+  });
 
   it("the lens verdicts on the golden frames are the engine's", () => {
     for (const f of frames) {

@@ -23,6 +23,11 @@ from ..errors import OmninavError
 MAX_SIDE = 8192  # px: a frame larger than 8K is no phone video
 MAX_IMAGES = 500
 MAX_IMAGE_BYTES = 64 * 1024 * 1024
+SURROUND_WORDS = {
+    "darker": "darker than the ring's outer edge",
+    "brighter": "brighter than the ring's outer edge (a bright housing or wall)",
+}
+SURE_TEXTURE = 1.25  # below it the annulus called the scene hardly stands out from its surround
 MAX_FRAMES = 500  # --max-frames: far more frames than a ring or a calibration needs
 MAX_PIXELS = 600_000_000  # decoded pixels held at once: 1.8 GB (300 frames of 1920x1080)
 MAX_DECODED = 200_000  # frames a video may make us decode (skipped frames are decoded too)
@@ -148,7 +153,18 @@ def _ring_text(ring: Any) -> str:
         f"visible  {100 * ring.visible:.1f} % of the outer circle is inside the {ring.image_size[0]}x"
         f"{ring.image_size[1]} picture",
         f"frames   the ring showed in {ring.frames_used} of {ring.frames_total}",
+        "surround " + SURROUND_WORDS.get(ring.surround, ring.surround),
     ]
+    if ring.housing > 0:
+        lines.append(
+            f"housing  a complete circle at {ring.housing:.2f} px lies outside the scene: taken for the housing"
+        )
+    if ring.texture_ratio > 0:
+        sure = ring.texture_ratio >= SURE_TEXTURE
+        lines.append(
+            f"{'sure' if sure else 'unsure':<8} the scene's annulus has {ring.texture_ratio:.1f}x the texture of "
+            "its surround" + ("" if sure else ": check the ring on a picture before trusting it")
+        )
     if ring.ellipse_ratio > 1.01:
         lines.append(
             f"ellipse  the outer edge is an ellipse ({ring.ellipse_ratio:.3f}:1): the camera stretches the "

@@ -49,6 +49,31 @@ A. Coarse stage, on a copy whose longer side is at most COARSE_MAX = 640 px.
     score if that score >= MIN_COVERAGE. Else the same again with the edge points of a fainter
     Canny(blur, 8, 20) (CANNY_FAINT: a dim scene's inner edge); else r2 = 0 (no inner circle: a
     fisheye, not a failure).
+ 9. Which annulus holds the scene (A9, around (a1, b1) of A7, before A8): a housing, its rim or a
+    bright surround makes circles as complete as the mirror's edge, but only the scene has texture
+    *along* the circle. The texture T(r), for r = 0 .. floor(r1): at the N_BINS angles
+    t_n = (n + 0.5) 2 pi / 360 the pixel (u, v) = (floor(a1 + r cos t_n + 0.5), floor(b1 + r sin t_n
+    + 0.5)), where 0 <= u < cw and 0 <= v < ch, gives |-sin t_n gx(u, v) + cos t_n gy(u, v)| (gx, gy of
+    A3); T(r) = their mean over those angles, undefined when fewer than 36. Ts(r) = the mean of the
+    defined T over r - 2 .. r + 2 (undefined when none). rp = the first r >= 1 of the largest Ts,
+    P = Ts(rp); the scene runs from s down and e up from rp while Ts >= SCENE_SHARE (0.3) * P (an
+    undefined Ts ends the run). gap = 0.05 r1 + 3.
+    - Outer: if r1 - e > gap, the circle at r1 lies outside the scene (a housing). Around (a1, b1),
+      for each kind of radial edge point (inward: the surround darker; outward: brighter) the
+      coverage with window 1 (as A7) at each integer r from max(2, floor(e - gap)) to
+      floor(r1 - gap) (the scene's texture fades before its edge where the mirror vignettes). The
+      best of the two (first maximum, inward first on a tie) replaces the circle if its score >=
+      MIN_COVERAGE and at least 20 points of that kind lie within 2 px of its radius: their
+      algebraic circle fit is the new (a1, b1, r1), the old r1 is reported as the housing, and
+      stage B's sign for the outer edge is that kind's (-1 inward, +1 outward); the surround is
+      "darker" or "brighter" accordingly.
+    - Inner, after A8 around the new circle: the scene's start s is recomputed there as above; if
+      s > gap, s < r1 - gap and (r2 = 0 or |r2 - s| > gap), the best of both kinds of edge point over
+      max(2, floor(s - gap)) .. floor(s + gap), chosen as above, replaces r2 (with that kind's sign:
+      +1 outward, a dark centre; -1 inward, a bright one) if its score >= MIN_COVERAGE.
+    - texture_ratio = the median of the defined T over [r2 or s, r1] divided by the median over
+      r1 + 3 .. r1 + 3 + gap (the surround; T computed there too), or 0 when that is undefined or
+      0: how clearly the annulus called the scene stands out from what surrounds it.
 
 B. Sub-pixel stage, at full resolution.
  1. fine = GaussianBlur(grey, 5x5, sigma 1.0, BORDER_DEFAULT) (uint8 in, uint8 out), then read as
@@ -72,12 +97,14 @@ B. Sub-pixel stage, at full resolution.
     after a step whose largest component is < 1e-6). Then twice: e_i = |residual| of every point
     to the current circle, sigma = max(0.05, 1.4826 * median of e_i over the points still kept);
     keep only the kept points with e_i <= 3 sigma; refit them (algebraic, then geometric).
- 4. Outer circle: pass 1 = B2 (H = 6) around the circle from A (full resolution), then B3; pass 2
+ 4. Outer circle: pass 1 = B2 (H = 6, the sign of A9: -1 unless A9 chose an edge with a brighter
+    surround) around the circle from A (full resolution), then B3; pass 2
     = B2 (H = 3) around pass 1's circle, then B3. In each pass, no ring if the profiles gave
     fewer than max(20, MIN_SHARE * m) points or the fit kept fewer than that (MIN_SHARE = 0.5,
     m = the number of that pass's angles in the image). The kept points of pass 2 are the outer
     edge points (for the ellipse check).
- 5. Inner circle (only if A gave r2 > 0): the same two passes with sign +1 around the outer
+ 5. Inner circle (only if A gave r2 > 0): the same two passes with A9's sign (+1 unless A9 chose
+    a bright centre's edge) around the outer
     circle's final centre, starting at radius r2 (converted as B1), but instead of a circle fit
     r_inner = the mean distance of the points to that centre, with the same two rounds of
     3-sigma rejection (residual = distance - current mean). The centre stays the outer circle's:
@@ -94,7 +121,9 @@ B. Sub-pixel stage, at full resolution.
 C. Over frames (`find_ring`): the median of cx, cy, r_outer over the frames with a ring, and of
    r_inner over those of them with r_inner > 0 (r_inner = 0 when those are fewer than half);
    `spread` = the standard deviations over the same frames (population, ddof 0), center_px =
-   sqrt(std_x^2 + std_y^2).
+   sqrt(std_x^2 + std_y^2). The surround is "brighter" when more than half the frames say so;
+   the housing the median of the frames' nonzero housings when more than half have one (else 0);
+   texture_ratio the median.
    Fewer than half the frames with a ring: NoRing. `ellipse_ratio`: the median over frames of the
    major / minor axis of cv2.fitEllipse on the kept outer edge points (1.0 for a circle).
 ====================================================================================================
@@ -138,6 +167,9 @@ MIN_SHARE = 0.5
 EDGE_BIAS_PX = 0.0
 N_VISIBLE = 3600
 MIN_SIDE = 64
+SCENE_SHARE = 0.3
+SCENE_SMOOTH = 2
+GAP = (0.05, 3.0)
 
 # fit_lens thresholds (issue 12's decisions)
 STILL_PX = 0.25
@@ -163,6 +195,9 @@ class Ring:
     frames_total: int = 1
     spread: dict[str, float] | None = None  # std over frames: "center_px", "r_inner_px", "r_outer_px"
     ellipse_ratio: float = 1.0  # major / minor axis of an ellipse fitted to the outer edge
+    surround: str = "darker"  # outside the outer edge: "darker", or "brighter" (a bright housing, a wall)
+    housing: float = 0.0  # radius of a complete circle outside the scene taken for the housing (0: none)
+    texture_ratio: float = 0.0  # the scene annulus's texture over its surround's (0: no surround seen)
     points: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)  # (n, 2) outer edge
 
     def to_dict(self) -> dict[str, Any]:
@@ -177,6 +212,9 @@ class Ring:
             "frames_total": self.frames_total,
             "spread": {k: round(v, 3) for k, v in (self.spread or {}).items()},
             "ellipse_ratio": round(self.ellipse_ratio, 4),
+            "surround": self.surround,
+            "housing": round(self.housing, 3),
+            "texture_ratio": round(self.texture_ratio, 3),
         }
 
 
@@ -342,8 +380,123 @@ def _inner_radius(
     return 0.0
 
 
-def coarse_ring(grey: np.ndarray) -> tuple[tuple[float, float, float, float], tuple[float, float]] | None:
-    """Stage A: ((cx, cy, r_inner, r_outer) in coarse pixels, (sx, sy)) or None without a ring."""
+@dataclass(frozen=True)
+class Coarse:
+    """Stage A's ring, in coarse pixels, and what A9 decided about its edges."""
+
+    center: tuple[float, float]
+    r_inner: float
+    r_outer: float
+    scale: tuple[float, float]  # (sx, sy): coarse / full resolution
+    outer_sign: float = -1.0  # B2's sign for the outer edge: -1 darker outside, +1 brighter
+    inner_sign: float = 1.0  # and for the inner edge: +1 a dark centre, -1 a bright one
+    housing: float = 0.0
+    texture_ratio: float = 0.0
+
+
+def _gap(r: float) -> float:
+    return GAP[0] * r + GAP[1]
+
+
+def texture(gx: np.ndarray, gy: np.ndarray, c: tuple[float, float], rmax: int) -> np.ndarray:
+    """A9: T(r) for r = 0 .. rmax, the mean tangential gradient along the circle of radius r
+    (NaN where fewer than 36 of its angles fall in the image)."""
+    ch, cw = gx.shape
+    t = 2.0 * np.pi * (np.arange(N_BINS) + 0.5) / N_BINS
+    ct, st = np.cos(t), np.sin(t)
+    r = np.arange(rmax + 1, dtype=np.float64)[:, None]
+    u = np.floor(c[0] + r * ct + 0.5).astype(np.int64)
+    v = np.floor(c[1] + r * st + 0.5).astype(np.int64)
+    ok = (u >= 0) & (u < cw) & (v >= 0) & (v < ch)
+    uc, vc = np.clip(u, 0, cw - 1), np.clip(v, 0, ch - 1)
+    tg = np.abs(-st * gx[vc, uc].astype(np.float64) + ct * gy[vc, uc].astype(np.float64))
+    n = ok.sum(1)
+    total = np.where(ok, tg, 0.0).sum(1)
+    out: np.ndarray = np.where(n >= 36, total / np.maximum(n, 1), np.nan)
+    return out
+
+
+def _smooth(t: np.ndarray) -> np.ndarray:
+    """A9: Ts, the mean of the defined T over r - SCENE_SMOOTH .. r + SCENE_SMOOTH."""
+    defined = ~np.isnan(t)
+    k = np.ones(2 * SCENE_SMOOTH + 1)
+    total = np.convolve(np.where(defined, t, 0.0), k, "same")
+    count = np.convolve(defined.astype(np.float64), k, "same")
+    out: np.ndarray = np.where(count > 0, total / np.maximum(count, 1), np.nan)
+    return out
+
+
+def scene_run(ts: np.ndarray, r_hi: int) -> tuple[int, int] | None:
+    """A9: (s, e), the radii in 1 .. r_hi over which the smoothed texture stays above
+    SCENE_SHARE of its peak, around the peak; None when none is defined."""
+    seg = ts[1 : r_hi + 1]
+    if not len(seg) or np.isnan(seg).all():
+        return None
+    rp = int(np.nanargmax(seg)) + 1
+    floor_ = SCENE_SHARE * float(ts[rp])
+    e = rp
+    while e + 1 <= r_hi and ts[e + 1] >= floor_:
+        e += 1
+    s = rp
+    while s - 1 >= 1 and ts[s - 1] >= floor_:
+        s -= 1
+    return s, e
+
+
+def _either(
+    pts: np.ndarray, grad: np.ndarray, c: tuple[float, float], rlim: tuple[int, int], size: tuple[int, int]
+) -> tuple[float, int, float]:
+    """A9: the most complete circle of radial edges of either kind with r in rlim: (score, r,
+    sign), sign -1 for inward points (darker outside), +1 for outward; (0, 0, 0) for none."""
+    lo, hi = rlim
+    best = (0.0, 0, 0.0)
+    if hi < lo:
+        return best
+    radii = np.arange(lo, hi + 1)
+    for outward, sign in ((False, -1.0), (True, 1.0)):
+        hits, _, _ = _hits(pts, grad, c, hi + 1, outward)
+        sc = _coverage(hits, c, radii, size, 1)
+        k = int(np.argmax(sc))
+        if sc[k] > best[0]:
+            best = (float(sc[k]), int(radii[k]), sign)
+    return best
+
+
+def _scene_outer(
+    pts: np.ndarray, grad: np.ndarray, circle: tuple[float, float, float], ts: np.ndarray, size: tuple[int, int]
+) -> tuple[tuple[float, float, float], float, float]:
+    """A9, outer: (circle, sign, housing) - the circle of A7 unless it lies outside the scene and
+    an edge where the scene ends replaces it."""
+    a1, b1, r1 = circle
+    run = scene_run(ts, int(math.floor(r1)))
+    gap = _gap(r1)
+    if run is None or r1 - run[1] <= gap:
+        return circle, -1.0, 0.0
+    e = run[1]
+    lim = (max(2, int(math.floor(e - gap))), int(math.floor(r1 - gap)))
+    score, r, sign = _either(pts, grad, (a1, b1), lim, size)
+    if score < MIN_COVERAGE:
+        return circle, -1.0, 0.0
+    _, d, sel = _hits(pts, grad, (a1, b1), r + 2, sign > 0)
+    near = sel & (np.abs(d - r) <= 2.0)
+    if near.sum() < 20:
+        return circle, -1.0, 0.0
+    return fit_circle_algebraic(pts[near]), sign, r1
+
+
+def _texture_ratio(t: np.ndarray, start: float, r1: float) -> float:
+    """A9: the median texture over the scene [start, r1] over the surround's."""
+    gap = _gap(r1)
+    r = np.arange(len(t))
+    inside = t[(r >= start) & (r <= r1) & ~np.isnan(t)]
+    out = t[(r >= r1 + 3) & (r <= r1 + 3 + gap) & ~np.isnan(t)]
+    if not len(inside) or not len(out) or float(np.median(out)) <= 0:
+        return 0.0
+    return float(np.median(inside) / np.median(out))
+
+
+def coarse_ring(grey: np.ndarray) -> Coarse | None:
+    """Stage A: the ring in coarse pixels, or None without a ring."""
     h, w = grey.shape
     f = min(1.0, COARSE_MAX / max(w, h))
     cw, ch = int(math.floor(w * f + 0.5)), int(math.floor(h * f + 0.5))
@@ -380,7 +533,11 @@ def coarse_ring(grey: np.ndarray) -> tuple[tuple[float, float, float, float], tu
         if circle is None:
             return None
     assert circle is not None
-    a1, b1, r1 = circle
+    # A9: is that circle the scene's edge, or a housing's outside it?
+    t = texture(gx, gy, (circle[0], circle[1]), int(math.floor(circle[2] + 3 + _gap(circle[2]))))
+    (a1, b1, r1), osign, housing = _scene_outer(pts, grad, circle, _smooth(t), (cw, ch))
+    if housing > 0:
+        t = texture(gx, gy, (a1, b1), int(math.floor(r1 + 3 + _gap(r1))))
     # A8: the inner radius (a dark centre); a dim scene's faint inner edge: again with fainter edges
     lo, hi = int(math.floor(0.1 * r1 + 0.5)), int(math.floor(0.9 * r1 + 0.5))
     r2 = 0.0
@@ -389,7 +546,28 @@ def coarse_ring(grey: np.ndarray) -> tuple[tuple[float, float, float, float], tu
         if r2 == 0.0:
             pts2, grad2 = _edge_points(blur, gx, gy, CANNY_FAINT)
             r2 = _inner_radius(pts2, grad2, (a1, b1), (lo, hi), (cw, ch))
-    return (a1, b1, r2, r1), (cw / w, ch / h)
+    # A9, inner: where the scene starts, when A8's edge is not there
+    isign, gap = 1.0, _gap(r1)
+    run = scene_run(_smooth(t), int(math.floor(r1)))
+    start = r2
+    if run is not None:
+        s = run[0]
+        start = r2 or float(s)
+        if gap < s < r1 - gap and (r2 == 0.0 or abs(r2 - s) > gap):
+            lim = (max(2, int(math.floor(s - gap))), int(math.floor(s + gap)))
+            score, r, sign = _either(pts, grad, (a1, b1), lim, (cw, ch))
+            if score >= MIN_COVERAGE:
+                r2, isign, start = float(r), sign, float(r)
+    return Coarse(
+        center=(a1, b1),
+        r_inner=r2,
+        r_outer=r1,
+        scale=(cw / w, ch / h),
+        outer_sign=osign,
+        inner_sign=isign,
+        housing=housing,
+        texture_ratio=_texture_ratio(t, start, r1),
+    )
 
 
 # ---- B: sub-pixel ------------------------------------------------------------------------------
@@ -438,11 +616,11 @@ def edge_points(
 
 
 def _refine_outer(
-    fine: np.ndarray, circle: tuple[float, float, float]
+    fine: np.ndarray, circle: tuple[float, float, float], sign: float = -1.0
 ) -> tuple[tuple[float, float, float], np.ndarray] | None:
     """B2-B4 for the outer circle: (cx, cy, r) and the kept edge points, or None."""
     for half in (6.0, 3.0):
-        pts, n_in = edge_points(fine, (circle[0], circle[1]), circle[2], -1.0, half)
+        pts, n_in = edge_points(fine, (circle[0], circle[1]), circle[2], sign, half)
         if n_in == 0 or len(pts) < 20 or len(pts) < MIN_SHARE * n_in:
             return None
         circle, keep = _fit_robust(pts)
@@ -451,11 +629,11 @@ def _refine_outer(
     return circle, pts[keep]
 
 
-def _refine_inner(fine: np.ndarray, center: tuple[float, float], r0: float) -> float:
+def _refine_inner(fine: np.ndarray, center: tuple[float, float], r0: float, sign: float = 1.0) -> float:
     """B5: the inner radius around the outer circle's centre, or 0 without an inner edge."""
     r = r0
     for half in (6.0, 3.0):
-        pts, n_in = edge_points(fine, center, r, 1.0, half)
+        pts, n_in = edge_points(fine, center, r, sign, half)
         if n_in == 0 or len(pts) < 20 or len(pts) < MIN_SHARE * n_in:
             return 0.0
         r, keep = _radius_robust(pts, center)
@@ -490,15 +668,15 @@ def find_ring_frame(frame: np.ndarray) -> Ring | None:
     coarse = coarse_ring(grey)
     if coarse is None:
         return None
-    (a, b, ri, ro), (sx, sy) = coarse
+    (a, b), ri, ro, (sx, sy) = coarse.center, coarse.r_inner, coarse.r_outer, coarse.scale
     s = 0.5 * (sx + sy)
     cx, cy = (a + 0.5) / sx - 0.5, (b + 0.5) / sy - 0.5
     fine = cv2.GaussianBlur(grey, (5, 5), FINE_SIGMA).astype(np.float32)
-    got = _refine_outer(fine, (cx, cy, ro / s))
+    got = _refine_outer(fine, (cx, cy, ro / s), coarse.outer_sign)
     if got is None:
         return None
     (cx, cy, r_out), pts = got
-    r_in = _refine_inner(fine, (cx, cy), ri / s) if ri > 0 else 0.0
+    r_in = _refine_inner(fine, (cx, cy), ri / s, coarse.inner_sign) if ri > 0 else 0.0
     r_out -= EDGE_BIAS_PX
     if r_in > 0:
         r_in += EDGE_BIAS_PX
@@ -510,6 +688,9 @@ def find_ring_frame(frame: np.ndarray) -> Ring | None:
         visible=visible_share((cx, cy), r_out, (w, h)),
         ellipse_ratio=_ellipse_ratio(pts),
         points=pts,
+        surround="brighter" if coarse.outer_sign > 0 else "darker",
+        housing=coarse.housing / s,
+        texture_ratio=coarse.texture_ratio,
     )
 
 
@@ -547,6 +728,7 @@ def find_ring(frames: Iterable[np.ndarray]) -> Ring:
     sd = arr.std(axis=0)
     inner = arr[arr[:, 2] > 0, 2]  # frames where the inner edge was too faint say 0: not a radius
     med[2], sd[2] = (float(np.median(inner)), float(inner.std())) if 2 * len(inner) >= len(arr) else (0.0, 0.0)
+    housed = [r.housing for r in found if r.housing > 0]
     assert size is not None
     wh = (int(size[1]), int(size[0]))
     return Ring(
@@ -563,6 +745,9 @@ def find_ring(frames: Iterable[np.ndarray]) -> Ring:
             "r_outer_px": float(sd[3]),
         },
         ellipse_ratio=float(np.median([r.ellipse_ratio for r in found])),
+        surround="brighter" if 2 * sum(r.surround == "brighter" for r in found) > len(found) else "darker",
+        housing=float(np.median(housed)) if 2 * len(housed) > len(found) else 0.0,
+        texture_ratio=float(np.median([r.texture_ratio for r in found])),
     )
 
 

@@ -41,6 +41,12 @@ export interface Ring {
   visible: number;
   frames_used?: number;
   frames_total?: number;
+  /** A9: the outer edge has a darker surround, or a brighter one (a bright housing, a wall). */
+  surround?: 'darker' | 'brighter';
+  /** A9: the radius of a complete circle outside the scene taken for the housing (0: none). */
+  housing?: number;
+  /** A9: the scene annulus's texture over its surround's (0: no surround seen). */
+  texture_ratio?: number;
 }
 
 // ring.py's constants (its docstring says what each does)
@@ -65,6 +71,9 @@ const MIN_SHARE = 0.5;
 const EDGE_BIAS_PX = 0.0;
 const N_VISIBLE = 3600;
 const MIN_SIDE = 64;
+const SCENE_SHARE = 0.3;
+const SCENE_SMOOTH = 2;
+const GAP: [number, number] = [0.05, 3];
 /** Pixels around the coarse circle that the sub-pixel stage may read (its profiles reach 6 px out). */
 const WINDOW_MARGIN = 12;
 
@@ -211,6 +220,26 @@ interface Edges {
   ux: Float64Array;
   uy: Float64Array;
   n: number;
+  /** A3's blurred coarse image (cols x rows), for A9's texture. */
+  blur: Uint8Array;
+  cols: number;
+  rows: number;
+}
+
+/** A reflected index (OpenCV's BORDER_DEFAULT) into 0 .. n - 1. */
+const refl = (v: number, n: number) => (v < 0 ? Math.min(1, n - 1) : v >= n ? Math.max(n - 2, 0) : v);
+
+/** A3's Sobel (3x3, reflected border) of a uint8 image at one pixel: exactly cv.Sobel's values there. */
+function sobelAt(g: Uint8Array, cols: number, rows: number, px: number, py: number): [number, number] {
+  const xm = refl(px - 1, cols);
+  const xp = refl(px + 1, cols);
+  const ym = refl(py - 1, rows) * cols;
+  const y0 = py * cols;
+  const yp = refl(py + 1, rows) * cols;
+  return [
+    g[ym + xp] - g[ym + xm] + 2 * (g[y0 + xp] - g[y0 + xm]) + g[yp + xp] - g[yp + xm],
+    g[yp + xm] - g[ym + xm] + 2 * (g[yp + px] - g[ym + px]) + g[yp + xp] - g[ym + xp],
+  ];
 }
 
 /**
@@ -295,18 +324,11 @@ function coarseEdges(cv: RingCv, small: CvMat, canny: readonly [number, number] 
     const y = new Float64Array(idx.length);
     const ux = new Float64Array(idx.length);
     const uy = new Float64Array(idx.length);
-    const refl = (v: number, n: number) => (v < 0 ? Math.min(1, n - 1) : v >= n ? Math.max(n - 2, 0) : v);
     let n = 0;
     for (const i of idx) {
       const px = i % cols;
       const py = (i / cols) | 0;
-      const xm = refl(px - 1, cols);
-      const xp = refl(px + 1, cols);
-      const ym = refl(py - 1, rows) * cols;
-      const y0 = py * cols;
-      const yp = refl(py + 1, rows) * cols;
-      const gx = g[ym + xp] - g[ym + xm] + 2 * (g[y0 + xp] - g[y0 + xm]) + g[yp + xp] - g[yp + xm];
-      const gy = g[yp + xm] - g[ym + xm] + 2 * (g[yp + px] - g[ym + px]) + g[yp + xp] - g[ym + xp];
+      const [gx, gy] = sobelAt(g, cols, rows, px, py);
       if (gx === 0 && gy === 0) continue;
       const m = Math.sqrt(gx * gx + gy * gy);
       x[n] = px;
@@ -315,7 +337,7 @@ function coarseEdges(cv: RingCv, small: CvMat, canny: readonly [number, number] 
       uy[n] = gy / m;
       n++;
     }
-    return { x, y, ux, uy, n };
+    return { x, y, ux, uy, n, blur: g.slice(), cols, rows };
   } finally {
     blur.delete();
     edges.delete();
@@ -341,8 +363,128 @@ function boxSum(v: Int32Array, n: number, lines: number, step: number, lineStep:
   return out;
 }
 
-/** Stage A: ((cx, cy, r_inner, r_outer) in coarse pixels, (sx, sy)), or null without a ring. */
-function coarseRing(cv: RingCv, grey: CvMat): [[number, number, number, number], [number, number]] | null {
+/** Stage A's ring, in coarse pixels, and what A9 decided about its edges (ring.py's `Coarse`). */
+interface Coarse {
+  center: [number, number];
+  rInner: number;
+  rOuter: number;
+  /** (sx, sy): coarse / full resolution. */
+  scale: [number, number];
+  /** B2's sign for the outer edge: -1 darker outside, +1 brighter. */
+  outerSign: number;
+  /** And for the inner edge: +1 a dark centre, -1 a bright one. */
+  innerSign: number;
+  housing: number;
+  textureRatio: number;
+}
+
+const gapPx = (r: number) => GAP[0] * r + GAP[1];
+
+/** A9: T(r) for r = 0 .. rmax, the mean tangential gradient along the circle (NaN: under 36 angles in the image). */
+export function texture(e: Edges, c: [number, number], rmax: number): Float64Array {
+  const { blur, cols, rows } = e;
+  const out = new Float64Array(rmax + 1);
+  for (let r = 0; r <= rmax; r++) {
+    let n = 0;
+    let total = 0;
+    for (let k = 0; k < N_BINS; k++) {
+      const u = Math.floor(c[0] + r * BIN_COS[k] + 0.5);
+      const v = Math.floor(c[1] + r * BIN_SIN[k] + 0.5);
+      if (u < 0 || u >= cols || v < 0 || v >= rows) continue;
+      const [gx, gy] = sobelAt(blur, cols, rows, u, v);
+      total += Math.abs(-BIN_SIN[k] * gx + BIN_COS[k] * gy);
+      n++;
+    }
+    out[r] = n >= 36 ? total / Math.max(n, 1) : NaN;
+  }
+  return out;
+}
+
+/** A9: Ts, the mean of the defined T over r - SCENE_SMOOTH .. r + SCENE_SMOOTH. */
+function smooth(t: Float64Array): Float64Array {
+  const out = new Float64Array(t.length);
+  for (let r = 0; r < t.length; r++) {
+    let total = 0;
+    let count = 0;
+    for (let j = Math.max(0, r - SCENE_SMOOTH); j <= Math.min(t.length - 1, r + SCENE_SMOOTH); j++)
+      if (!Number.isNaN(t[j])) [total, count] = [total + t[j], count + 1];
+    out[r] = count > 0 ? total / count : NaN;
+  }
+  return out;
+}
+
+/** A9: [s, e], the radii in 1 .. rHi where the smoothed texture stays above SCENE_SHARE of its peak. */
+function sceneRun(ts: Float64Array, rHi: number): [number, number] | null {
+  let rp = -1;
+  for (let r = 1; r <= Math.min(rHi, ts.length - 1); r++)
+    if (!Number.isNaN(ts[r]) && (rp < 0 || ts[r] > ts[rp])) rp = r;
+  if (rp < 0) return null;
+  const floor = SCENE_SHARE * ts[rp];
+  let e = rp;
+  while (e + 1 <= rHi && ts[e + 1] >= floor) e++;
+  let s = rp;
+  while (s - 1 >= 1 && ts[s - 1] >= floor) s--;
+  return [s, e];
+}
+
+/** A9: the most complete circle of radial edges of either kind, r in lo..hi: [score, r, sign] (-1 inward, +1 outward). */
+function either(
+  e: Edges,
+  c: [number, number],
+  lo: number,
+  hi: number,
+  cw: number,
+  ch: number,
+): [number, number, number] {
+  let best: [number, number, number] = [0, 0, 0];
+  if (hi < lo) return best;
+  const radii = range(hi - lo + 1).map((i) => i + lo);
+  for (const [outward, sign] of [
+    [false, -1],
+    [true, 1],
+  ] as const) {
+    const sc = coverage(hits(e, c, hi + 1, outward).table, c, radii, cw, ch, 1);
+    let k = 0;
+    for (let i = 1; i < sc.length; i++) if (sc[i] > sc[k]) k = i;
+    if (sc[k] > best[0]) best = [sc[k], radii[k], sign];
+  }
+  return best;
+}
+
+/** A9, outer: [circle, sign, housing], A7's circle unless it lies outside the scene and an edge where the scene ends replaces it. */
+function sceneOuter(e: Edges, circle: Circle, ts: Float64Array, cw: number, ch: number): [Circle, number, number] {
+  const [a1, b1, r1] = circle;
+  const run = sceneRun(ts, Math.floor(r1));
+  const gap = gapPx(r1);
+  if (!run || r1 - run[1] <= gap) return [circle, -1, 0];
+  const end = run[1];
+  const lo = Math.max(2, Math.floor(end - gap));
+  const hi = Math.floor(r1 - gap);
+  const [score, r, sign] = either(e, [a1, b1], lo, hi, cw, ch);
+  if (score < MIN_COVERAGE) return [circle, -1, 0];
+  const kind = hits(e, [a1, b1], r + 2, sign > 0);
+  const near: number[] = [];
+  for (let i = 0; i < e.n; i++) if (kind.sel[i] && Math.abs(kind.dist[i] - r) <= 2) near.push(i);
+  if (near.length < 20) return [circle, -1, 0];
+  return [fitCircleAlgebraic(e.x, e.y, near), sign, r1];
+}
+
+/** A9: the median texture over the scene [start, r1] over the surround's (0: no surround seen). */
+function textureRatio(t: Float64Array, start: number, r1: number): number {
+  const gap = gapPx(r1);
+  const inside: number[] = [];
+  const out: number[] = [];
+  t.forEach((v, r) => {
+    if (Number.isNaN(v)) return;
+    if (r >= start && r <= r1) inside.push(v);
+    if (r >= r1 + 3 && r <= r1 + 3 + gap) out.push(v);
+  });
+  if (!inside.length || !out.length || median(out) <= 0) return 0;
+  return median(inside) / median(out);
+}
+
+/** Stage A: the ring in coarse pixels, or null without a ring. */
+function coarseRing(cv: RingCv, grey: CvMat): Coarse | null {
   const h = grey.rows;
   const w = grey.cols;
   const f = Math.min(1, COARSE_MAX / Math.max(w, h));
@@ -358,14 +500,7 @@ function coarseRing(cv: RingCv, grey: CvMat): [[number, number, number, number],
   }
 }
 
-function coarseStages(
-  cv: RingCv,
-  img: CvMat,
-  w: number,
-  h: number,
-  cw: number,
-  ch: number,
-): [[number, number, number, number], [number, number]] | null {
+function coarseStages(cv: RingCv, img: CvMat, w: number, h: number, cw: number, ch: number): Coarse | null {
   const e = coarseEdges(cv, img);
   if (e.n < 20) return null;
   const rmin = Math.floor(0.15 * Math.min(cw, ch) + 0.5);
@@ -399,7 +534,10 @@ function coarseStages(
     circle = outerCircle(e, [circle[0], circle[1]], rmin, rmax, cw, ch, win);
     if (!circle) return null;
   }
-  const [a1, b1, r1] = circle;
+  // A9: is that circle the scene's edge, or a housing's outside it?
+  let t = texture(e, [circle[0], circle[1]], Math.floor(circle[2] + 3 + gapPx(circle[2])));
+  const [[a1, b1, r1], outerSign, housing] = sceneOuter(e, circle, smooth(t), cw, ch);
+  if (housing > 0) t = texture(e, [a1, b1], Math.floor(r1 + 3 + gapPx(r1)));
   // A8: the inner radius (a dark centre)
   const lo = Math.floor(0.1 * r1 + 0.5);
   const hi = Math.floor(0.9 * r1 + 0.5);
@@ -409,10 +547,29 @@ function coarseStages(
     // a dim scene's faint inner edge: again with the edge points of a fainter Canny
     if (r2 === 0) r2 = innerRadius(coarseEdges(cv, img, CANNY_FAINT), [a1, b1], lo, hi, cw, ch);
   }
-  return [
-    [a1, b1, r2, r1],
-    [cw / w, ch / h],
-  ];
+  // A9, inner: where the scene starts, when A8's edge is not there
+  let innerSign = 1;
+  const gap = gapPx(r1);
+  const run = sceneRun(smooth(t), Math.floor(r1));
+  let start = r2;
+  if (run) {
+    const s = run[0];
+    start = r2 || s;
+    if (gap < s && s < r1 - gap && (r2 === 0 || Math.abs(r2 - s) > gap)) {
+      const [score, r, sign] = either(e, [a1, b1], Math.max(2, Math.floor(s - gap)), Math.floor(s + gap), cw, ch);
+      if (score >= MIN_COVERAGE) [r2, innerSign, start] = [r, sign, r];
+    }
+  }
+  return {
+    center: [a1, b1],
+    rInner: r2,
+    rOuter: r1,
+    scale: [cw / w, ch / h],
+    outerSign,
+    innerSign,
+    housing,
+    textureRatio: textureRatio(t, start, r1),
+  };
 }
 
 /** A8: the radius in lo..hi of the widest coverage by outward points (a dark centre), else 0. */
@@ -568,9 +725,9 @@ function edgePoints(
 }
 
 /** B2-B4 for the outer circle, or null. */
-function refineOuter(fine: Fine, circle: Circle): Circle | null {
+function refineOuter(fine: Fine, circle: Circle, sign: number): Circle | null {
   for (const half of [6, 3]) {
-    const { xs, ys, nIn } = edgePoints(fine, [circle[0], circle[1]], circle[2], -1, half);
+    const { xs, ys, nIn } = edgePoints(fine, [circle[0], circle[1]], circle[2], sign, half);
     if (nIn === 0 || xs.length < 20 || xs.length < MIN_SHARE * nIn) return null;
     const [c, keep] = fitRobust(xs, ys);
     if (keep.length < Math.max(20, MIN_SHARE * nIn)) return null;
@@ -580,10 +737,10 @@ function refineOuter(fine: Fine, circle: Circle): Circle | null {
 }
 
 /** B5: the inner radius around the outer circle's centre, or 0 without an inner edge. */
-function refineInner(fine: Fine, center: [number, number], r0: number): number {
+function refineInner(fine: Fine, center: [number, number], r0: number, sign: number): number {
   let r = r0;
   for (const half of [6, 3]) {
-    const { xs, ys, nIn } = edgePoints(fine, center, r, 1, half);
+    const { xs, ys, nIn } = edgePoints(fine, center, r, sign, half);
     if (nIn === 0 || xs.length < 20 || xs.length < MIN_SHARE * nIn) return 0;
     const [rr, kept] = radiusRobust(xs, ys, center);
     if (kept < Math.max(20, MIN_SHARE * nIn)) return 0;
@@ -610,14 +767,19 @@ export function findRingFrame(
     cv.cvtColor(src, grey, cv.COLOR_RGBA2GRAY, 0);
     const coarse = coarseRing(cv, grey);
     if (!coarse) return null;
-    const [[a, b, ri, ro], [sx, sy]] = coarse;
+    const {
+      center: [a, b],
+      rInner: ri,
+      rOuter: ro,
+      scale: [sx, sy],
+    } = coarse;
     const s = 0.5 * (sx + sy);
     const start: Circle = [(a + 0.5) / sx - 0.5, (b + 0.5) / sy - 0.5, ro / s];
     // B2-B5 read the frame near the coarse circle only: blur that window (a 1920x1080 frame's
     // blur is the slowest step), or the whole frame should a profile reach further
     const refine = (fine: Fine): [Circle | null, number] => {
-      const outer = refineOuter(fine, start);
-      return [outer, outer && ri > 0 ? refineInner(fine, [outer[0], outer[1]], ri / s) : 0];
+      const outer = refineOuter(fine, start, coarse.outerSign);
+      return [outer, outer && ri > 0 ? refineInner(fine, [outer[0], outer[1]], ri / s, coarse.innerSign) : 0];
     };
     let got: [Circle | null, number];
     try {
@@ -638,6 +800,9 @@ export function findRingFrame(
       r_inner: rIn,
       r_outer: rOut,
       visible: visibleShare([cx, cy], rOut, width, height),
+      surround: coarse.outerSign > 0 ? 'brighter' : 'darker',
+      housing: coarse.housing / s,
+      texture_ratio: coarse.textureRatio,
     };
   } finally {
     for (const m of [src, grey]) m.delete();
