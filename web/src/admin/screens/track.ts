@@ -536,6 +536,9 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     };
 
     // ---- the waypoint table ------------------------------------------------------------------
+    // each row's waypoint: a redraw puts the focus back on the same field of the same waypoint
+    // (Tab out of a changed x lands on its y, which the redraw replaces)
+    const rowPoint = new WeakMap<Element, Point>();
     const drawTable = () => {
       wpBody.replaceChildren(
         ...points.map((p, i) => {
@@ -556,9 +559,18 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
                 i2.setAttribute('aria-invalid', String(i2.value === '' || !Number.isFinite(Number(i2.value))));
               return;
             }
-            const rest = points.filter((q) => q !== p);
-            points = [...rest, { t: nt, x: nx, y: ny }].sort((a, b) => a.t - b.t);
-            changed(`Waypoint ${n} set to ${formatTime(nt)}, x ${nx} m, y ${ny} m.`);
+            const np = { t: nt, x: nx, y: ny };
+            points = [...points.filter((q) => q !== p), np].sort((a, b) => a.t - b.t);
+            // redrawn once the focus has moved (a change fires on Tab before the next field has it)
+            setTimeout(() => {
+              const active = document.activeElement;
+              const row = active && wpBody.contains(active) ? active.closest('tr') : null;
+              const field = row ? [...row.querySelectorAll('input, button')].indexOf(active!) : -1;
+              const at = row ? rowPoint.get(row) : undefined;
+              changed(`Waypoint ${n} set to ${formatTime(nt)}, x ${nx} m, y ${ny} m.`);
+              const k = at ? points.indexOf(at === p ? np : at) : -1;
+              if (k >= 0 && field >= 0) wpBody.rows[k]?.querySelectorAll<HTMLElement>('input, button')[field]?.focus();
+            }, 0);
           };
           for (const i2 of [tIn, xIn, yIn]) i2.addEventListener('change', typed);
           const go = button('Go to', () => seek(p.t, true), 'secondary');
@@ -575,7 +587,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
             'danger',
           );
           del.setAttribute('aria-label', `Delete waypoint ${n}`);
-          return el(
+          const tr = el(
             'tr',
             { dataset: { t: p.t.toFixed(3) } },
             el('th', { scope: 'row', textContent: String(n) }),
@@ -584,6 +596,8 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
             el('td', {}, yIn),
             el('td', {}, go, ' ', del),
           );
+          rowPoint.set(tr, p);
+          return tr;
         }),
       );
     };
