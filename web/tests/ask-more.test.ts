@@ -92,6 +92,17 @@ describe('asking for more when the first second is not sure', () => {
     expect(voice.say).toHaveBeenLastCalledWith(said[0], 'ok');
   });
 
+  it('"probably", then not sure from the 3 s: the probable place stands, nothing withdrawn', async () => {
+    const middling = { ...answer(false), confidence: TRUSTED_CONFIDENCE - 0.2 };
+    api.locate.mockResolvedValueOnce(middling).mockResolvedValueOnce(answer(true));
+    const { s, said, answers } = session();
+    await s.whereAmI();
+    expect(sent().map((r) => r.frames)).toEqual([10, 30]);
+    // the longer clip is no news: "Not sure where you are" would take back what the user just heard
+    expect(said).toEqual([s.sentence(middling, VENUE)]);
+    expect(answers).toEqual([10]);
+  });
+
   it('unsure twice: the usual "not sure", and no third request', async () => {
     api.locate.mockResolvedValue(answer(true));
     const { s, said } = session();

@@ -23,7 +23,13 @@ import {
   type PageHost,
   type Words,
 } from '../src/client/guide';
-import { guidanceSentence, previewSentence, type Style } from '../src/client/directions';
+import {
+  GUIDE_UNSURE,
+  GUIDE_UNSURE_CHOSEN,
+  guidanceSentence,
+  previewSentence,
+  type Style,
+} from '../src/client/directions';
 import type { MotionReading } from '../src/client/motion';
 import type { Voice } from '../src/client/session';
 
@@ -337,6 +343,19 @@ describe('Guide', () => {
     await vi.advanceTimersByTimeAsync(INTERVAL_MS);
     r.guide.whatNext();
     expect(r.texts().at(-1)).toBe(QUIET.sentence);
+  });
+
+  it('not sure where the user is when the place is chosen: asked to press Start and walk, not to keep walking', async () => {
+    const UNSURE = g('unsure', GUIDE_UNSURE);
+    const r = rig([UNSURE, UNSURE, START]);
+    const c = r.guide.choose({ id: 'p3', name: 'Room 102' });
+    await vi.advanceTimersByTimeAsync(1000);
+    await c;
+    expect(r.texts()).toEqual([GUIDE_UNSURE_CHOSEN]);
+    r.guide.start();
+    await vi.advanceTimersByTimeAsync(1000 + INTERVAL_MS * 2);
+    // Start says the current instruction, now that the user walks; then the way once sure
+    expect(r.texts()).toEqual([GUIDE_UNSURE_CHOSEN, GUIDE_UNSURE, START.sentence]);
   });
 
   it('"outside the mapped area" is said inside a spell of "not sure", once; What next? repeats it; guiding goes on', async () => {

@@ -201,6 +201,8 @@ export const STRAIGHT_DEG = SECTOR_DEG[0];
 /** The sides style's turn beyond this is "Turn around", not "Turn sharp left" at 161 degrees. */
 export const AROUND_DEG = 150;
 export const GUIDE_UNSURE = 'Not sure where you are yet; keep walking slowly.';
+/** The same, when a place was just chosen: the user has not been asked to walk yet. */
+export const GUIDE_UNSURE_CHOSEN = 'Not sure where you are yet; press Start and walk slowly.';
 export const GUIDE_NOT_HERE = 'You may be outside the mapped area; keep walking slowly, or stop guidance.';
 
 /** What a guidance sentence is made from: the answer's `guidance` (its `to` may carry the place's `say`). */

@@ -29,7 +29,7 @@
  */
 import { ApiProblem, Unreachable, newSessionId, type Answer, type Guidance } from './api';
 import { CameraProblem } from './camera';
-import type { Style } from './directions';
+import { GUIDE_UNSURE_CHOSEN, type Style } from './directions';
 import type { Motion, MotionReading } from './motion';
 import { RecordMismatch, mapUpdated, problemText } from './problems';
 import { Emitter, type Voice } from './session';
@@ -323,7 +323,7 @@ export class Guide extends Emitter<GuideEvents> {
       }
       if (g.kind === 'unsure') {
         this.unsureSaid = true;
-        this.say(this.words(g), 'unsure');
+        this.say(GUIDE_UNSURE_CHOSEN, 'unsure');
       } else this.say(this.previewText || this.words(g), 'ok');
       this.set('ready');
     } catch (e) {

@@ -538,6 +538,8 @@ export class Session extends Emitter<SessionEvents> {
       record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id);
       t0 = performance.now();
       const b = await ask();
+      // not sure after a "probably" is no news: it would take back the place the user just heard
+      if (probable && b.low_confidence) return;
       answered(b, performance.now() - t0, probable);
     } finally {
       if (filming) filming.stopped = true;
