@@ -135,7 +135,7 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     await expect(page.locator('#venue-gaps')).toContainText('No places yet: the phone can only say the floor');
     // the checklist: what the venue still lacks, each a link to its screen
     const steps = page.getByRole('list', { name: 'Still to do for this venue' }).getByRole('link');
-    await expect(steps).toHaveCount(6);
+    await expect(steps).toHaveCount(9);
     await expect(steps.filter({ hasText: 'Draw the walked corridors as areas' })).toHaveAttribute('href', /\/places$/);
   });
 
@@ -152,6 +152,8 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     await a.fill(page.getByLabel('Distance between the points (metres)'), String(truth.scale.distance_m));
     await a.click(page.getByRole('button', { name: 'Save the scale' }));
     await expect(say(page)).toContainText('Scale saved');
+    // the button, disabled while it saved, has the focus back (not the page: a keyboard user is lost there)
+    await expect(page.getByRole('button', { name: 'Save the scale' })).toBeFocused();
     const v = await adminApi<{ floors: { px_per_m: number }[] }>('GET', `/api/admin/venues/${VENUE}`);
     expect(Math.abs(v.floors[0].px_per_m - s) / s).toBeLessThan(0.02);
   });
@@ -184,13 +186,17 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     await expect(page.locator('#venue-gaps')).toHaveCount(0); // (the venue read again: places, areas)
     await expect(page.getByRole('list', { name: 'Still to do for this venue' }).getByRole('link')).toHaveText([
       'Add the lens profile of the modelling camera',
-      'Upload a modelling walk, tag its track and model it',
+      'Upload a modelling walk',
+      'Model the tagged walks',
+      'Compute the quality map',
+      'Upload an evaluation walk, tag it and evaluate it',
     ]);
     a.ops++;
     await page.getByLabel('Lens profile file (lens.json)').setInputFiles(adminFile('lens.json'));
     await a.fill(page.getByLabel('Profile name'), 'donut');
     await a.click(page.getByRole('button', { name: 'Upload the lens profile' }));
     await expect(say(page)).toContainText('Lens profile donut saved');
+    await expect(page.getByRole('button', { name: 'Upload the lens profile' })).toBeFocused();
   });
 
   await test.step('the walk video, resumably: cut off mid-upload, the page reloaded, resumed from received', async () => {
@@ -239,6 +245,32 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     );
     trackOps = 1 + clicks + 1; // "Tag the suggestions in order", a plan click each, "Save the track"
     a.ops += trackOps;
+    // the walked corridors all have areas: modelling is next; said after the save, not instead of it
+    const todo = page.getByRole('list', { name: 'Still to do for this venue' }).getByRole('link');
+    await expect(todo).toHaveText([
+      'Model the tagged walks',
+      'Compute the quality map',
+      'Upload an evaluation walk, tag it and evaluate it',
+    ]);
+    await expect(todo.first()).toHaveAttribute('href', /\/modelling$/);
+    await expect(say(page)).toHaveText(
+      /^Track of walk\.mp4 saved: .* 3 steps left for this venue: Model the tagged walks\.$/,
+    );
+    // a walked corridor without its area (taken away by another admin): the checklist asks for it
+    type P = { id: string; name: string; floor: string; x: number; y: number; area?: number[] };
+    const { places } = await adminApi<{ places: P[] }>('GET', `/api/admin/venues/${VENUE}`);
+    const corridor = places.find((p) => p.name === 'Corridor 1')!;
+    await adminApi('DELETE', `/api/admin/venues/${VENUE}/places/${encodeURIComponent(corridor.id)}`);
+    await page.reload();
+    const ask = todo.filter({
+      hasText: /^Draw areas along the rest of the walked corridors \(\d+ of the walk's \d+ seconds are in none\)$/,
+    });
+    await expect(ask).toHaveCount(1);
+    await expect(ask).toHaveAttribute('href', /\/places$/);
+    const { id: _, ...again } = corridor;
+    await adminApi('POST', `/api/admin/venues/${VENUE}/places`, again);
+    await page.reload();
+    await expect(todo).toHaveCount(3);
   });
 
   await test.step('modelling: the progress bar reaches 100 %', async () => {
@@ -254,6 +286,10 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     await a.waiting(() => expect(page.getByRole('progressbar', { name: 'Quality map progress' })).toBeVisible());
     const sentence = page.locator('#quality-sentence');
     await a.waiting(() => expect(sentence).toBeVisible({ timeout: 300_000 }));
+    await expect(page.getByRole('list', { name: 'Still to do for this venue' }).getByRole('link')).toHaveText([
+      'Upload an evaluation walk, tag it and evaluate it',
+    ]);
+    await expect(page.getByRole('button', { name: 'Compute the quality map' })).toBeFocused();
     const q = await adminApi<{ summary: { share_green: number; ambiguous: number; wrong: number }; sentence: string }>(
       'GET',
       `/api/admin/venues/${VENUE}/quality`,
@@ -312,6 +348,9 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     await a.waiting(() => expect(share).toBeVisible({ timeout: 300_000 }));
     // the Run button was disabled while it ran: the keyboard's place is now the result, not the page
     await expect(page.locator('#evaluation-summary')).toBeFocused();
+    // nothing left on the checklist, and that is said after the evaluation's own words
+    await expect(page.locator('#venue-checklist')).toHaveCount(0);
+    await expect(say(page)).toHaveText(/within 2 m.*\. This venue has everything the phone needs\.$/);
     type Xy = { x: number; y: number };
     const e = await adminApi<{
       summary: { within_2m: number; clips: number; probably: number; sure_over_2m: number };

@@ -134,6 +134,19 @@ export async function waitUploadedAndSuggested(page: Page, name: string, timeout
     found.test(t),
   )!;
   expect(Number(said.match(found)![1]), said).toBe(shown);
+  // the screen opened again (another screen, then back): what was said then is not said again
+  const heard = async () => (await page.evaluate(() => (window as unknown as { __said: string[] }).__said)).length;
+  const before = await heard();
+  const screens = page.getByRole('navigation', { name: 'Venue screens' });
+  await screens.getByRole('link', { name: 'Places', exact: true }).click();
+  await expect(page.getByRole('heading', { name: 'Places', level: 2 })).toBeVisible();
+  await screens.getByRole('link', { name: 'Videos', exact: true }).click();
+  await expect(page.getByRole('heading', { name: 'Videos', level: 2 })).toBeVisible();
+  await page.waitForTimeout(500);
+  const again = (await page.evaluate(() => (window as unknown as { __said: string[] }).__said))
+    .slice(before)
+    .filter((t) => found.test(t) || t.includes(`${name} is uploaded`));
+  expect(again).toEqual([]);
 }
 
 /** Where a truth track has the walker at `t` (linear between waypoints, clamped to its ends). */
@@ -194,6 +207,15 @@ export function planSizeM(truth = adminTruth()): [number, number] {
  * walker truly was at each suggested moment; -> how many plan clicks it took.
  */
 export async function tagBySuggestions(page: Page, track: TruthTrack, sizeM = planSizeM()): Promise<number> {
+  // what the status region says, as a screen reader hears it: each text it is given
+  await page.evaluate(() => {
+    const w = window as unknown as { heard: string[] };
+    w.heard = [];
+    const region = document.getElementById('status')!;
+    new MutationObserver(() => {
+      if (region.textContent) w.heard.push(region.textContent);
+    }).observe(region, { childList: true, characterData: true, subtree: true });
+  });
   await page.getByRole('button', { name: 'Tag the suggestions in order' }).click();
   let clicks = 0;
   for (; clicks < 50; clicks++) {
@@ -205,6 +227,12 @@ export async function tagBySuggestions(page: Page, track: TruthTrack, sizeM = pl
     // the click is taken: that suggestion is tagged (and the next one, if any, is current)
     await expect(page.locator(`#suggestions li.tagged button[data-t="${t}"]`)).toHaveCount(1);
   }
+  // each tag is said once, with what comes next, not alone and then again with it
+  const heard = () => page.evaluate(() => (window as unknown as { heard: string[] }).heard);
+  const tags = async () => (await heard()).filter((h) => h.includes(' tagged at ')).length;
+  await expect.poll(tags).toBeGreaterThanOrEqual(clicks); // the last is said a moment after its click
+  await page.waitForTimeout(300);
+  expect(await tags(), `tags heard: ${(await heard()).join(' | ')}`).toBe(clicks);
   return clicks;
 }
 
@@ -237,6 +265,8 @@ export async function expectSavedTrackNear(
 export async function saveTrack(page: Page, name: string): Promise<void> {
   await page.getByRole('button', { name: 'Save the track' }).click();
   await expect(page.locator('#track-status')).toContainText(`Track of ${name} saved`);
+  // disabled while it saved, the button has the focus back, not the page
+  await expect(page.getByRole('button', { name: 'Save the track' })).toBeFocused();
 }
 
 /** On the modelling screen: model the waiting videos and watch the progress bar reach 100 %. */

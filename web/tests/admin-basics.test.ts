@@ -203,5 +203,51 @@ describe("a venue's first-run checklist", () => {
     ]);
     const all = { ...ready, places: [point, { ...point, id: 'c', name: 'Corridor 1', area: [0, 0, 9, 2] }] };
     expect(stepsLeft(all as typeof ready)).toEqual([]);
+
+    // with the videos and jobs: every walked second in an area, each walk tagged and modelled,
+    // a quality map and an evaluation; each missing piece is a step with its screen
+    type Progress = NonNullable<Parameters<typeof stepsLeft>[1]>;
+    const walk = (name: string, role: string, track: unknown, status = 'modelled') =>
+      ({ name, role, floor: '1', status, tracked: !!track, track, fps: 30 }) as unknown as Progress['videos'][number];
+    // 20 s east along y = 1 (in Corridor 1 up to x = 9), then 10 s south along x = 20 (in no area)
+    const track = {
+      waypoints: [
+        { t: 0, x: 0, y: 1 },
+        { t: 20, x: 20, y: 1 },
+        { t: 30, x: 20, y: 11 },
+      ],
+    };
+    const job = (kind: string, state = 'done') => ({ kind, state }) as unknown as Progress['jobs'][number];
+    const full: Progress = { videos: [walk('walk.mp4', 'model', track)], jobs: [job('quality'), job('evaluate')] };
+    const areas = stepsLeft(all as typeof ready, full);
+    // 9 of the 20 s along y = 1 are in Corridor 1 (their middles at 0.5 .. 8.5 m), none of the next 10
+    expect(areas).toEqual([
+      {
+        screen: 'places',
+        text: "Draw areas along the rest of the walked corridors (21 of the walk's 30 seconds are in none)",
+      },
+    ]);
+    const zoned = {
+      ...all,
+      places: [
+        ...all.places,
+        { ...point, id: 'd', name: 'Corridor 2', area: [8, 0, 21, 2] },
+        { ...point, id: 'e', name: 'Corridor 3', area: [19, 0, 21, 12] },
+      ],
+    } as typeof ready;
+    expect(stepsLeft(zoned, full)).toEqual([]);
+    // a walk uploaded but not tagged, nothing modelled, no quality map, no evaluation
+    const early: Progress = { videos: [walk('walk.mp4', 'model', null, 'ready')], jobs: [job('quality', 'failed')] };
+    expect(stepsLeft({ ...zoned, modelled: false }, early)).toEqual([
+      { screen: 'track', text: 'Tag the track of walk.mp4', params: { video: 'walk.mp4' } },
+      { screen: 'modelling', text: 'Model the tagged walks' },
+      { screen: 'quality', text: 'Compute the quality map' },
+      { screen: 'evaluation', text: 'Upload an evaluation walk, tag it and evaluate it' },
+    ]);
+    // tagged, not modelled again; no walk at all; an evaluation walk is not a modelling walk
+    const tagged: Progress = { ...full, videos: [walk('walk.mp4', 'model', track, 'ready')] };
+    expect(stepsLeft(zoned, tagged).map((st) => st.text)).toEqual(['Model the newly tagged walks']);
+    const none: Progress = { ...full, videos: [walk('eval.mp4', 'evaluation', track)] };
+    expect(stepsLeft(zoned, none).map((st) => st.text)).toEqual(['Upload a modelling walk']);
   });
 });

@@ -46,6 +46,16 @@ export function numberInput(value: number | null, min?: number): HTMLInputElemen
   return i;
 }
 
+/**
+ * Enable again a button that was disabled while its action ran. A focused button that is disabled
+ * drops the focus to the page, where a keyboard or screen reader user is left nowhere: the focus
+ * comes back to the button when nothing else took it meanwhile.
+ */
+export function enable(btn: HTMLButtonElement): void {
+  btn.disabled = false;
+  if (btn.isConnected && (!document.activeElement || document.activeElement === document.body)) btn.focus();
+}
+
 /** A button; `onClick` gets the event. */
 export function button(text: string, onClick: (e: MouseEvent) => void, className = ''): HTMLButtonElement {
   const b = el('button', { type: 'button', textContent: text, className });

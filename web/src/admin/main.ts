@@ -10,7 +10,7 @@ import type { Floor, Venue } from '../shared/api-types';
 import { AdminApi, AdminError, venuePath } from './api';
 import type { AdminContext, Mount } from './context';
 import { el } from './dom';
-import { placeGaps, stepsLeft } from './checklist';
+import { placeGaps, stepsLeft, type Progress } from './checklist';
 import { PlanMap } from './planmap';
 import * as evaluation from './screens/evaluation';
 import * as floorScreen from './screens/floor';
@@ -22,8 +22,8 @@ import { clearToken, mountSignIn, savedToken } from './screens/signin';
 import * as track from './screens/track';
 import * as venues from './screens/venues';
 import * as videos from './screens/videos';
-import { SCREEN_IDS, parseRoute, type Route } from './routes';
-import type { AdminVenue } from './types';
+import { SCREEN_IDS, parseRoute, venueHash, type Route } from './routes';
+import type { AdminVenue, Job, Video } from './types';
 
 /** The venue's screens, in the order of the work (and of the nav). */
 const SCREENS: { id: (typeof SCREEN_IDS)[number]; title: string; mount: Mount }[] = [
@@ -52,8 +52,13 @@ let route: Route = parseRoute(location.hash);
 let unmount: (() => void) | null = null;
 let mounting = 0;
 
+/** The polite message last said, and when (a follow-up within FOLLOW_MS is said with it). */
+let lastSaid = { text: '', at: 0 };
+const FOLLOW_MS = 2000;
+
 function announce(message: string, assertive = false): void {
   const target = assertive ? alertEl : statusEl;
+  if (!assertive) lastSaid = { text: message, at: Date.now() };
   // the same words twice are announced twice: empty the region first
   target.textContent = '';
   setTimeout(() => {
@@ -169,7 +174,33 @@ function setVenue(v: Venue): void {
       : {}),
     ...v,
   };
+  if (progress) progress.fresh = false;
+  progressRead++;
   drawHead();
+  void readProgress(v.id);
+}
+
+/**
+ * The venue's videos and jobs as last read, for the checklist: read again whenever the venue is,
+ * and `fresh` once the latest such read has come back (only then is a change of steps said).
+ */
+let progress: { id: string; p: Progress; fresh: boolean } | null = null;
+let progressRead = 0;
+
+async function readProgress(id: string): Promise<void> {
+  if (!api) return;
+  const mine = progressRead;
+  try {
+    const [vids, jobs] = await Promise.all([
+      api.get<{ videos: Video[] }>(venuePath(id, '/videos')),
+      api.get<{ jobs: Job[] }>(venuePath(id, '/jobs')),
+    ]);
+    if (mine !== progressRead) return;
+    progress = { id, p: { videos: vids.videos, jobs: jobs.jobs }, fresh: true };
+    if (venue?.id === id) drawHead();
+  } catch {
+    // the checklist stays as the venue document alone shows it; the screens say what failed
+  }
 }
 
 /** The venue and count of the checklist last drawn (announced when it changes). */
@@ -204,25 +235,34 @@ function drawHead(): void {
   const gaps = placeGaps(v.places);
   if (gaps) head.append(el('p', { className: 'hint', id: 'venue-gaps', textContent: gaps }));
   // what the venue still lacks, each a link to the screen that does it; said when it changes
-  const left = stepsLeft(v);
+  const known = progress?.id === v.id ? progress.p : null;
+  const left = stepsLeft(v, known);
   if (left.length) {
     const list = el(
       'ul',
       { id: 'venue-checklist' },
       ...left.map((st) =>
-        el('li', {}, el('a', { href: `#/v/${encodeURIComponent(v.id)}/${st.screen}`, textContent: st.text })),
+        el(
+          'li',
+          {},
+          el('a', { href: venueHash(v.id, st.screen, new URLSearchParams(st.params)), textContent: st.text }),
+        ),
       ),
     );
     list.setAttribute('aria-label', 'Still to do for this venue');
     head.append(el('p', { className: 'hint', id: 'venue-checklist-title', textContent: 'Still to do:' }), list);
   }
-  const key = `${v.id}:${left.length}`;
-  if (lastSteps && lastSteps !== key && lastSteps.startsWith(`${v.id}:`))
-    announce(
-      left.length
-        ? `${left.length} step${left.length === 1 ? '' : 's'} left for this venue: ${left[0].text}.`
-        : 'This venue has everything the phone needs.',
-    );
+  // said only between two lists read with the videos and jobs (the first of them is no news)
+  const fresh = !!known && !!progress?.fresh;
+  const key = fresh ? `${v.id}:${left.map((st) => st.text).join('|')}` : lastSteps;
+  if (fresh && lastSteps && lastSteps !== key && lastSteps.startsWith(`${v.id}:`)) {
+    const news = left.length
+      ? `${left.length} step${left.length === 1 ? '' : 's'} left for this venue: ${left[0].text}.`
+      : 'This venue has everything the phone needs.';
+    // after what the action itself said, not instead of it
+    const before = lastSaid.text.replace(/([^.!?])$/, '$1.');
+    announce(Date.now() - lastSaid.at < FOLLOW_MS && before ? `${before} ${news}` : news);
+  }
   lastSteps = key;
   if (v.floors.length > 1)
     head.append(

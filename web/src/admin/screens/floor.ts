@@ -7,7 +7,7 @@
  */
 import { venuePath } from '../api';
 import type { AdminContext } from '../context';
-import { el, field, num, numberInput } from '../dom';
+import { el, enable, field, num, numberInput } from '../dom';
 import { cm, metresLabel, scaleFromPoints } from '../geometry';
 import type { PlanMap } from '../planmap';
 import type { Floor } from '../../shared/api-types';
@@ -311,9 +311,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
         );
       })
       .catch((err: unknown) => ctx.fail(err, 'Saving the scale'))
-      .finally(() => {
-        saveScale.disabled = false;
-      });
+      .finally(() => enable(saveScale));
   });
 
   addFloorForm.addEventListener('submit', (e) => {

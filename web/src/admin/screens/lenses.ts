@@ -5,7 +5,7 @@
  */
 import { venuePath } from '../api';
 import type { AdminContext } from '../context';
-import { el, field, num, numberInput } from '../dom';
+import { el, enable, field, num, numberInput } from '../dom';
 import { lensOverlay, lensRows } from '../lens-view';
 import type { Lens } from '../../shared/lens';
 import type { Video } from '../types';
@@ -187,9 +187,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
         ctx.announce(`Lens profile ${name} saved. ${caption.textContent ?? ''}`);
       })
       .catch((err: unknown) => ctx.fail(err, `Saving lens profile ${name}`))
-      .finally(() => {
-        uploadBtn.disabled = false;
-      });
+      .finally(() => enable(uploadBtn));
   });
 
   viewForm.addEventListener('submit', (e) => {

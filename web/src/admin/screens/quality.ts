@@ -7,7 +7,7 @@
  */
 import { AdminError, venuePath } from '../api';
 import type { AdminContext } from '../context';
-import { dataTable, el, statusLine } from '../dom';
+import { dataTable, el, enable, statusLine } from '../dom';
 import '../analysis.css';
 import { JobProgress } from '../jobprogress';
 import {
@@ -240,10 +240,11 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       if (end.state === 'done') {
         say('The quality map is ready.');
         await load();
+        void ctx.refresh().catch(() => undefined); // the venue's checklist (a failed read changes nothing)
       } else if (end.state === 'failed') say(`The quality map failed: ${end.error ?? 'no reason given'}`, true);
       else say('The quality map was cancelled.');
     } finally {
-      compute.disabled = false;
+      enable(compute);
     }
   };
 

@@ -10,7 +10,7 @@
 import type * as L from 'leaflet';
 import { AdminError, venuePath } from '../api';
 import type { AdminContext } from '../context';
-import { button, dataTable, el, field, uid } from '../dom';
+import { button, dataTable, el, enable, field, uid } from '../dom';
 import { formatTime } from '../format';
 import '../media.css';
 import type { PlanMap } from '../planmap';
@@ -480,7 +480,8 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
           const sg = suggestions[current];
           points = acceptSuggestion(points, sg, s);
           const nxt = nextUntagged(suggestions, points, current + 1);
-          changed(`${suggestionText(sg)} tagged at ${where}.`);
+          // said once, with what comes next (the next suggestion, or that every one is tagged)
+          changed(`${suggestionText(sg)} tagged at ${where}.`, false);
           if (nxt >= 0) choose(nxt, true);
           else {
             current = -1;
@@ -611,14 +612,16 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       dirty.textContent = isDirty ? 'Unsaved changes.' : points.length ? 'Saved.' : '';
     };
 
-    const changed = (msg: string) => {
+    /** Redraw after a change of the points, and say `msg` (`aloud` false: only show it, for a caller that says more). */
+    const changed = (msg: string, aloud = true) => {
       const keep = document.activeElement;
       drawPlan();
       drawTable();
       drawSuggestions();
       drawState();
       if (keep instanceof HTMLElement && keep.isConnected) keep.focus();
-      say(msg);
+      if (aloud) say(msg);
+      else status.textContent = msg;
     };
 
     const doSave = async () => {
@@ -636,11 +639,13 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
         const again = modelled && v.status === 'ready' ? '; the next modelling models it again with it' : '';
         modelled = v.status === 'modelled';
         say(`Track of ${name} saved: ${points.length} waypoints${again}.`);
+        void ctx.refresh().catch(() => undefined); // the venue's checklist (a failed read changes nothing)
       } catch (e) {
         if (e instanceof AdminError) status.textContent = `Not saved: ${e.message}`;
         ctx.fail(e, 'Saving the track');
       } finally {
         drawState();
+        if (!save.disabled) enable(save);
       }
     };
 

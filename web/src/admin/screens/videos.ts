@@ -172,6 +172,8 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   }
   const rows = new Map<Upload, Row>();
 
+  // uploads already under way when the screen opens: what they are at is no news (said before)
+  const atOpen = new Set(uploads.list);
   const rowFor = (u: Upload): Row => {
     let r = rows.get(u);
     if (r) return r;
@@ -215,11 +217,11 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       replace,
       remove,
       turns,
-      state: '',
+      state: atOpen.has(u) ? u.state : '',
       suggest: '',
       lost: false,
       received: 0,
-      turnsSaid: false,
+      turnsSaid: atOpen.has(u) && u.suggest?.state === 'done',
     };
     rows.set(u, r);
     return r;
@@ -296,6 +298,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
         r.lost = false;
         ctx.announce(`${u.name} is uploaded; finding its turns and stops.`);
         void loadVideos();
+        void ctx.refresh().catch(() => undefined); // the venue's checklist (a failed read changes nothing)
         break;
     }
   };
