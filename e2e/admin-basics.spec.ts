@@ -53,6 +53,8 @@ async function signIn(page: Page): Promise<void> {
 
 const nav = (page: Page, name: string): Locator =>
   page.getByRole('navigation', { name: 'Venue screens' }).getByRole('link', { name, exact: true });
+/** The page's own status region (the checklist's news has another). */
+const said = (page: Page): Locator => page.locator('#status');
 
 test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, rename, delete', async ({
   page,
@@ -110,7 +112,7 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     await expect(page.getByRole('alert')).toContainText('Uploading the plan: the floor plan is not a readable PNG');
     await page.getByLabel('Plan image (PNG or JPEG)').setInputFiles(resolve(ADMIN, 'plan.png'));
     await page.getByRole('button', { name: 'Upload the plan' }).click();
-    await expect(page.getByRole('status')).toContainText('Plan uploaded');
+    await expect(said(page)).toContainText('Plan uploaded');
     await expect(page.locator('#floor-facts')).toContainText('the scale is not set');
     await expect(page.locator('.pm-scale-text')).toContainText('scale not set');
     await expectNoAxeViolations(page, 'the floor screen');
@@ -118,7 +120,7 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     await page.getByRole('button', { name: 'Pick the two points on the plan' }).click();
     const a = await screenOf(page, facts.scale.a_px);
     await page.mouse.click(a.x, a.y);
-    await expect(page.getByRole('status')).toContainText('Now click the second point');
+    await expect(said(page)).toContainText('Now click the second point');
     const b = await screenOf(page, facts.scale.b_px);
     await page.mouse.click(b.x, b.y);
     await expect(page.getByLabel('Distance between the points (metres)')).toBeFocused();
@@ -131,7 +133,7 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     typed.forEach((v, i) => expect(Math.abs(v - want[i]), `point ${i}: ${v} vs ${want[i]}`).toBeLessThan(3));
     await page.getByLabel('Distance between the points (metres)').fill(String(facts.scale.distance_m));
     await page.getByRole('button', { name: 'Save the scale' }).click();
-    await expect(page.getByRole('status')).toContainText('Scale saved');
+    await expect(said(page)).toContainText('Scale saved');
     const stored = (await venueDoc(page)).floors[0].px_per_m!;
     expect(Math.abs(stored - facts.plan.px_per_m) / facts.plan.px_per_m).toBeLessThan(0.02);
     await expect(page.locator('#floor-facts')).toContainText('pixels per metre');
@@ -161,7 +163,7 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     await page.getByLabel('Place name').fill('Room 1');
     await page.getByLabel('Kind').selectOption('room');
     await page.getByRole('button', { name: 'Add the place' }).click();
-    await expect(page.getByRole('status')).toContainText('Added Room 1');
+    await expect(said(page)).toContainText('Added Room 1');
     let room = (await venueDoc(page)).places.find((q) => q.name === 'Room 1')!;
     expect(room.kind).toBe('room');
     expect(Math.abs(room.x - 11)).toBeLessThan(0.5);
@@ -176,7 +178,7 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     await page.mouse.move((from.x + to.x) / 2, to.y, { steps: 5 });
     await page.mouse.move(to.x, to.y, { steps: 5 });
     await page.mouse.up();
-    await expect(page.getByRole('status')).toContainText('Moved Room 1');
+    await expect(said(page)).toContainText('Moved Room 1');
     room = (await venueDoc(page)).places.find((q) => q.name === 'Room 1')!;
     expect(Math.abs(room.x - 14)).toBeLessThan(0.4);
 
@@ -188,7 +190,7 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     await page.getByLabel('Place x (m)').fill('12.5');
     await page.getByLabel('Place y (m)').fill('2.25');
     await page.getByRole('button', { name: 'Save the place' }).click();
-    await expect(page.getByRole('status')).toContainText('Saved Room 1');
+    await expect(said(page)).toContainText('Saved Room 1');
     room = (await venueDoc(page)).places.find((q) => q.name === 'Room 1')!;
     expect([room.x, room.y]).toEqual([12.5, 2.25]);
 
@@ -197,11 +199,11 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     const c1 = await screenOfMetres(page, 1, 1, pxPerM);
     const c2 = await screenOfMetres(page, 21, 3, pxPerM);
     await page.mouse.click(c1.x, c1.y);
-    await expect(page.getByRole('status')).toContainText('opposite corner');
+    await expect(said(page)).toContainText('opposite corner');
     await page.mouse.click(c2.x, c2.y);
     await page.getByLabel('Place name').fill('North corridor');
     await page.getByRole('button', { name: 'Add the place' }).click();
-    await expect(page.getByRole('status')).toContainText('Added North corridor');
+    await expect(said(page)).toContainText('Added North corridor');
     const corridor = (await venueDoc(page)).places.find((q) => q.name === 'North corridor')!;
     const area = corridor.area!;
     [1, 1, 21, 3].forEach((v, i) => expect(Math.abs(area[i] - v)).toBeLessThan(0.5));
@@ -213,13 +215,13 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     await expect(page.getByRole('heading', { name: 'New place' })).toBeVisible();
     await page.getByLabel('Place name').fill('Room 2');
     await page.getByRole('button', { name: 'Add the place' }).click();
-    await expect(page.getByRole('status')).toContainText('Added Room 2');
+    await expect(said(page)).toContainText('Added Room 2');
     await page
       .locator('#place-list')
       .getByRole('button', { name: /^Room 2/ })
       .click();
     await page.getByRole('button', { name: 'Delete Room 2' }).click();
-    await expect(page.getByRole('status')).toContainText('Deleted Room 2');
+    await expect(said(page)).toContainText('Deleted Room 2');
 
     // delete
     await page
@@ -227,7 +229,7 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
       .getByRole('button', { name: /^Room 1/ })
       .click();
     await page.getByRole('button', { name: 'Delete Room 1' }).click();
-    await expect(page.getByRole('status')).toContainText('Deleted Room 1');
+    await expect(said(page)).toContainText('Deleted Room 1');
     expect((await venueDoc(page)).places.map((q) => q.name)).toEqual(['North corridor']);
   });
 
@@ -253,7 +255,7 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     );
     await page.getByLabel('Place file (JSON)').setInputFiles(good);
     await page.getByRole('button', { name: 'Import the places' }).click();
-    await expect(page.getByRole('status')).toContainText('Imported 2 places');
+    await expect(said(page)).toContainText('Imported 2 places');
     await expect(page.locator('#place-list li')).toHaveCount(3);
     const [download] = await Promise.all([
       page.waitForEvent('download'),
@@ -271,7 +273,7 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     await expect(page.getByLabel('Profile name')).toHaveValue('lens');
     await page.getByLabel('Profile name').fill('donut');
     await page.getByRole('button', { name: 'Upload the lens profile' }).click();
-    await expect(page.getByRole('status')).toContainText('Lens profile donut saved');
+    await expect(said(page)).toContainText('Lens profile donut saved');
     const lens = JSON.parse(readFileSync(resolve(ADMIN, 'lens.json'), 'utf8')) as { r_outer: number };
     await expect(page.locator('#lens-table')).toContainText(`${lens.r_outer} pixels`);
     await expect(page.locator('#lens-frame svg circle.ring-outer')).toHaveCount(1);
@@ -315,7 +317,7 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     await expect(page.getByRole('heading', { name: 'Edit the lifts' })).toBeFocused();
     await page.getByLabel('Place y (m)').fill('2.5');
     await page.getByRole('button', { name: 'Save the place' }).click();
-    await expect(page.getByRole('status')).toContainText('Saved the lifts');
+    await expect(said(page)).toContainText('Saved the lifts');
     // the second tab's save is refused, not a silent overwrite
     await tab.getByRole('button', { name: 'New place by typing' }).click();
     await tab.getByLabel('Place name').fill('Stale place');
@@ -341,7 +343,7 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     await page.getByLabel('New floor id').fill('2');
     await page.getByLabel('New floor name').fill('Second floor');
     await page.getByRole('button', { name: 'Add the floor' }).click();
-    await expect(page.getByRole('status')).toContainText('Floor Second floor added');
+    await expect(said(page)).toContainText('Floor Second floor added');
     await expect(page).toHaveURL(/floor=2/);
     await expect(page.locator('#floor-facts')).toContainText('no plan yet');
     await expect(page.getByLabel('Floor', { exact: true })).toHaveValue('2');
@@ -357,7 +359,7 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     await page.getByRole('button', { name: 'Rename Basics Hall' }).click();
     await page.getByLabel(`New name for ${VENUE}`).fill('Basics Hall East');
     await page.getByRole('button', { name: 'Save the name' }).click();
-    await expect(page.getByRole('status')).toContainText('Renamed basics to Basics Hall East');
+    await expect(said(page)).toContainText('Renamed basics to Basics Hall East');
     await expect(page.locator('#venue-list')).toContainText('Basics Hall East');
     await page.getByRole('button', { name: 'Delete Basics Hall East…' }).click();
     const confirm = page.locator('.confirm');
@@ -367,7 +369,7 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     await expect(confirm).toContainText('cannot be undone');
     await expectNoAxeViolations(page, 'the delete confirmation');
     await page.getByRole('button', { name: 'Delete Basics Hall East for good' }).click();
-    await expect(page.getByRole('status')).toContainText('Deleted Basics Hall East');
+    await expect(said(page)).toContainText('Deleted Basics Hall East');
     await expect(page.locator('#venue-list')).not.toContainText('Basics Hall East');
     expect((await page.request.get(`${base()}/api/venues/${VENUE}`)).status()).toBe(404);
   });

@@ -88,6 +88,15 @@ def test_a_bright_housing_against_the_mirror_is_not_the_ring(rim, light, tmp_pat
     assert "sure     the scene's annulus has" in p.stdout
 
 
+def test_a_flat_black_surround_is_the_surest_ring_not_an_unseen_one():
+    """A clipped, noiseless surround has no texture at all: the ratio is large, not 0 ("none seen")."""
+    true = reclip(HALF["donut"], (1.0, 1.0), 1.0)
+    frame = ring_frames(true, 1, seed=3, sur=Surround(housing=(0.0, 0.0), rim=(1.0, 1.0, 0.0), noise=0.0, blur=0.0))[0]
+    ring = find_ring_frame(frame)
+    assert ring is not None and ring.housing == 0.0 and ring.surround == "darker"
+    assert ring.texture_ratio > 20
+
+
 def test_ring_at_full_size_both_geometries():
     """At the real sizes (960x720, 1280x720), a lens moved and scaled, JPEG-compressed."""
     for name, lens in geometries(1.0).items():

@@ -247,6 +247,15 @@ describe("a venue's first-run checklist", () => {
     // tagged, not modelled again; no walk at all; an evaluation walk is not a modelling walk
     const tagged: Progress = { ...full, videos: [walk('walk.mp4', 'model', track, 'ready')] };
     expect(stepsLeft(zoned, tagged).map((st) => st.text)).toEqual(['Model the newly tagged walks']);
+    // a quality map and an evaluation from before the live modelling judged other frames: asked again
+    const old = (kind: string) => ({ kind, state: 'done', finished: 100 }) as unknown as Progress['jobs'][number];
+    const remodelled = { ...zoned, modelled_at: 200 };
+    expect(stepsLeft(remodelled, { ...full, jobs: [old('quality'), old('evaluate')] }).map((st) => st.screen)).toEqual([
+      'quality',
+      'evaluation',
+    ]);
+    const fresh = (kind: string) => ({ kind, state: 'done', finished: 300 }) as unknown as Progress['jobs'][number];
+    expect(stepsLeft(remodelled, { ...full, jobs: [fresh('quality'), fresh('evaluate')] })).toEqual([]);
     const none: Progress = { ...full, videos: [walk('eval.mp4', 'evaluation', track)] };
     expect(stepsLeft(zoned, none).map((st) => st.text)).toEqual(['Upload a modelling walk']);
   });

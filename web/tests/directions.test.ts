@@ -49,11 +49,11 @@ group('directions', () => {
     expect(direction(-170, 'sides')).toBe('behind you');
   });
   it('degrees, rounded, with a side', () => {
-    expect(direction(88.4, 'degrees')).toBe('88 degrees to your right');
-    expect(direction(-30.6, 'degrees')).toBe('31 degrees to your left');
+    expect(direction(88.4, 'degrees')).toBe('at 88 degrees to your right');
+    expect(direction(-30.6, 'degrees')).toBe('at 31 degrees to your left');
     expect(direction(0.2, 'degrees')).toBe('straight ahead');
-    expect(direction(270, 'degrees')).toBe('90 degrees to your left');
-    expect(direction(1, 'degrees')).toBe('1 degree to your right');
+    expect(direction(270, 'degrees')).toBe('at 90 degrees to your left');
+    expect(direction(1, 'degrees')).toBe('at 1 degree to your right');
   });
   it('articles as the server uses them', () => {
     expect(withArticle('Corridor 1')).toBe('Corridor 1');

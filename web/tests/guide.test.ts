@@ -637,7 +637,7 @@ describe('Guide', () => {
     expect(heard).toEqual({
       clock: ["You have arrived at Room 102; it is at 3 o'clock, 2 metres. The door is on your left."],
       sides: ['You have arrived at Room 102; it is to your right, 2 metres. The door is on your left.'],
-      degrees: ['You have arrived at Room 102; it is 90 degrees to your right, 2 metres. The door is on your left.'],
+      degrees: ['You have arrived at Room 102; it is at 90 degrees to your right, 2 metres. The door is on your left.'],
     });
     // arriving at the preview (the walk began at the place): the same words, once
     const r = rig([g('arrived', '', { to, bearing_deg: 0, walk_m: 0.3, remaining_m: 0, preview: PREVIEW })], {

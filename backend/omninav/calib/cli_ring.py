@@ -27,7 +27,6 @@ SURROUND_WORDS = {
     "darker": "darker than the ring's outer edge",
     "brighter": "brighter than the ring's outer edge (a bright housing or wall)",
 }
-SURE_TEXTURE = 1.25  # below it the annulus called the scene hardly stands out from its surround
 MAX_FRAMES = 500  # --max-frames: far more frames than a ring or a calibration needs
 MAX_PIXELS = 600_000_000  # decoded pixels held at once: 1.8 GB (300 frames of 1920x1080)
 MAX_DECODED = 200_000  # frames a video may make us decode (skipped frames are decoded too)
@@ -160,6 +159,8 @@ def _ring_text(ring: Any) -> str:
             f"housing  a complete circle at {ring.housing:.2f} px lies outside the scene: taken for the housing"
         )
     if ring.texture_ratio > 0:
+        from .ring import SURE_TEXTURE
+
         sure = ring.texture_ratio >= SURE_TEXTURE
         lines.append(
             f"{'sure' if sure else 'unsure':<8} the scene's annulus has {ring.texture_ratio:.1f}x the texture of "

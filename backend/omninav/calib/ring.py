@@ -51,7 +51,7 @@ A. Coarse stage, on a copy whose longer side is at most COARSE_MAX = 640 px.
     fisheye, not a failure).
  9. Which annulus holds the scene (A9, around (a1, b1) of A7, before A8): a housing, its rim or a
     bright surround makes circles as complete as the mirror's edge, but only the scene has texture
-    *along* the circle. The texture T(r), for r = 0 .. floor(r1): at the N_BINS angles
+    *along* the circle. The texture T(r), for r = 0 .. floor(r1 + 3 + gap): at the N_BINS angles
     t_n = (n + 0.5) 2 pi / 360 the pixel (u, v) = (floor(a1 + r cos t_n + 0.5), floor(b1 + r sin t_n
     + 0.5)), where 0 <= u < cw and 0 <= v < ch, gives |-sin t_n gx(u, v) + cos t_n gy(u, v)| (gx, gy of
     A3); T(r) = their mean over those angles, undefined when fewer than 36. Ts(r) = the mean of the
@@ -67,13 +67,13 @@ A. Coarse stage, on a copy whose longer side is at most COARSE_MAX = 640 px.
       algebraic circle fit is the new (a1, b1, r1), the old r1 is reported as the housing, and
       stage B's sign for the outer edge is that kind's (-1 inward, +1 outward); the surround is
       "darker" or "brighter" accordingly.
-    - Inner, after A8 around the new circle: the scene's start s is recomputed there as above; if
-      s > gap, s < r1 - gap and (r2 = 0 or |r2 - s| > gap), the best of both kinds of edge point over
-      max(2, floor(s - gap)) .. floor(s + gap), chosen as above, replaces r2 (with that kind's sign:
-      +1 outward, a dark centre; -1 inward, a bright one) if its score >= MIN_COVERAGE.
-    - texture_ratio = the median of the defined T over [r2 or s, r1] divided by the median over
-      r1 + 3 .. r1 + 3 + gap (the surround; T computed there too), or 0 when that is undefined or
-      0: how clearly the annulus called the scene stands out from what surrounds it.
+    - A8 then looks for the inner edge around the circle A9 kept (around the mirror's edge rather
+      than the housing's, it finds the dark centre there, not the mirror's edge).
+    - texture_ratio = the median of the defined T over [r2, r1] (over [s, r1] when r2 = 0, s the
+      scene's start recomputed around A9's circle) divided by max(TEXTURE_FLOOR, the median over
+      r1 + 3 .. r1 + 3 + gap) (the surround; TEXTURE_FLOOR = 0.05: a flat, clipped surround is
+      the clearest case, not a missing one), or 0 when no surround lies in the picture: how
+      clearly the annulus called the scene stands out from what surrounds it.
 
 B. Sub-pixel stage, at full resolution.
  1. fine = GaussianBlur(grey, 5x5, sigma 1.0, BORDER_DEFAULT) (uint8 in, uint8 out), then read as
@@ -103,8 +103,7 @@ B. Sub-pixel stage, at full resolution.
     fewer than max(20, MIN_SHARE * m) points or the fit kept fewer than that (MIN_SHARE = 0.5,
     m = the number of that pass's angles in the image). The kept points of pass 2 are the outer
     edge points (for the ellipse check).
- 5. Inner circle (only if A gave r2 > 0): the same two passes with A9's sign (+1 unless A9 chose
-    a bright centre's edge) around the outer
+ 5. Inner circle (only if A gave r2 > 0): the same two passes with sign +1 around the outer
     circle's final centre, starting at radius r2 (converted as B1), but instead of a circle fit
     r_inner = the mean distance of the points to that centre, with the same two rounds of
     3-sigma rejection (residual = distance - current mean). The centre stays the outer circle's:
@@ -118,12 +117,14 @@ B. Sub-pixel stage, at full resolution.
  7. visible = the share of N_VISIBLE = 3600 points (cx + r_outer cos t, cy + r_outer sin t),
     t = 2 pi (k + 0.5) / 3600, with -0.5 <= x <= w - 0.5 and -0.5 <= y <= h - 0.5.
 
-C. Over frames (`find_ring`): the median of cx, cy, r_outer over the frames with a ring, and of
+C. Over frames (`find_ring`): first the majority of the frames with a ring, by whether A9 took a
+   circle for the housing or not (on a tie, those that did not: the two see different circles); then
+   the median of cx, cy, r_outer over those frames, and of
    r_inner over those of them with r_inner > 0 (r_inner = 0 when those are fewer than half);
    `spread` = the standard deviations over the same frames (population, ddof 0), center_px =
-   sqrt(std_x^2 + std_y^2). The surround is "brighter" when more than half the frames say so;
-   the housing the median of the frames' nonzero housings when more than half have one (else 0);
-   texture_ratio the median.
+   sqrt(std_x^2 + std_y^2). Over the same frames: the surround is "brighter" when more than half
+   of them say so, texture_ratio is the median, and the housing the median of the nonzero
+   housings when more than half of all the frames have one (else 0). frames_used counts them all.
    Fewer than half the frames with a ring: NoRing. `ellipse_ratio`: the median over frames of the
    major / minor axis of cv2.fitEllipse on the kept outer edge points (1.0 for a circle).
 ====================================================================================================
@@ -170,6 +171,8 @@ MIN_SIDE = 64
 SCENE_SHARE = 0.3
 SCENE_SMOOTH = 2
 GAP = (0.05, 3.0)
+TEXTURE_FLOOR = 0.05
+SURE_TEXTURE = 1.25  # texture_ratio below it: the annulus called the scene hardly stands out (unsure)
 
 # fit_lens thresholds (issue 12's decisions)
 STILL_PX = 0.25
@@ -389,7 +392,6 @@ class Coarse:
     r_outer: float
     scale: tuple[float, float]  # (sx, sy): coarse / full resolution
     outer_sign: float = -1.0  # B2's sign for the outer edge: -1 darker outside, +1 brighter
-    inner_sign: float = 1.0  # and for the inner edge: +1 a dark centre, -1 a bright one
     housing: float = 0.0
     texture_ratio: float = 0.0
 
@@ -398,7 +400,7 @@ def _gap(r: float) -> float:
     return GAP[0] * r + GAP[1]
 
 
-def texture(gx: np.ndarray, gy: np.ndarray, c: tuple[float, float], rmax: int) -> np.ndarray:
+def _texture(gx: np.ndarray, gy: np.ndarray, c: tuple[float, float], rmax: int) -> np.ndarray:
     """A9: T(r) for r = 0 .. rmax, the mean tangential gradient along the circle of radius r
     (NaN where fewer than 36 of its angles fall in the image)."""
     ch, cw = gx.shape
@@ -426,7 +428,7 @@ def _smooth(t: np.ndarray) -> np.ndarray:
     return out
 
 
-def scene_run(ts: np.ndarray, r_hi: int) -> tuple[int, int] | None:
+def _scene_run(ts: np.ndarray, r_hi: int) -> tuple[int, int] | None:
     """A9: (s, e), the radii in 1 .. r_hi over which the smoothed texture stays above
     SCENE_SHARE of its peak, around the peak; None when none is defined."""
     seg = ts[1 : r_hi + 1]
@@ -468,7 +470,7 @@ def _scene_outer(
     """A9, outer: (circle, sign, housing) - the circle of A7 unless it lies outside the scene and
     an edge where the scene ends replaces it."""
     a1, b1, r1 = circle
-    run = scene_run(ts, int(math.floor(r1)))
+    run = _scene_run(ts, int(math.floor(r1)))
     gap = _gap(r1)
     if run is None or r1 - run[1] <= gap:
         return circle, -1.0, 0.0
@@ -490,9 +492,9 @@ def _texture_ratio(t: np.ndarray, start: float, r1: float) -> float:
     r = np.arange(len(t))
     inside = t[(r >= start) & (r <= r1) & ~np.isnan(t)]
     out = t[(r >= r1 + 3) & (r <= r1 + 3 + gap) & ~np.isnan(t)]
-    if not len(inside) or not len(out) or float(np.median(out)) <= 0:
+    if not len(inside) or not len(out):
         return 0.0
-    return float(np.median(inside) / np.median(out))
+    return float(np.median(inside) / max(TEXTURE_FLOOR, float(np.median(out))))
 
 
 def coarse_ring(grey: np.ndarray) -> Coarse | None:
@@ -534,10 +536,10 @@ def coarse_ring(grey: np.ndarray) -> Coarse | None:
             return None
     assert circle is not None
     # A9: is that circle the scene's edge, or a housing's outside it?
-    t = texture(gx, gy, (circle[0], circle[1]), int(math.floor(circle[2] + 3 + _gap(circle[2]))))
+    t = _texture(gx, gy, (circle[0], circle[1]), int(math.floor(circle[2] + 3 + _gap(circle[2]))))
     (a1, b1, r1), osign, housing = _scene_outer(pts, grad, circle, _smooth(t), (cw, ch))
     if housing > 0:
-        t = texture(gx, gy, (a1, b1), int(math.floor(r1 + 3 + _gap(r1))))
+        t = _texture(gx, gy, (a1, b1), int(math.floor(r1 + 3 + _gap(r1))))
     # A8: the inner radius (a dark centre); a dim scene's faint inner edge: again with fainter edges
     lo, hi = int(math.floor(0.1 * r1 + 0.5)), int(math.floor(0.9 * r1 + 0.5))
     r2 = 0.0
@@ -546,25 +548,15 @@ def coarse_ring(grey: np.ndarray) -> Coarse | None:
         if r2 == 0.0:
             pts2, grad2 = _edge_points(blur, gx, gy, CANNY_FAINT)
             r2 = _inner_radius(pts2, grad2, (a1, b1), (lo, hi), (cw, ch))
-    # A9, inner: where the scene starts, when A8's edge is not there
-    isign, gap = 1.0, _gap(r1)
-    run = scene_run(_smooth(t), int(math.floor(r1)))
-    start = r2
-    if run is not None:
-        s = run[0]
-        start = r2 or float(s)
-        if gap < s < r1 - gap and (r2 == 0.0 or abs(r2 - s) > gap):
-            lim = (max(2, int(math.floor(s - gap))), int(math.floor(s + gap)))
-            score, r, sign = _either(pts, grad, (a1, b1), lim, (cw, ch))
-            if score >= MIN_COVERAGE:
-                r2, isign, start = float(r), sign, float(r)
+    # A9: the texture ratio, over the scene from its inner edge (or from where its texture starts)
+    run = _scene_run(_smooth(t), int(math.floor(r1)))
+    start = r2 or (float(run[0]) if run is not None else 0.0)
     return Coarse(
         center=(a1, b1),
         r_inner=r2,
         r_outer=r1,
         scale=(cw / w, ch / h),
         outer_sign=osign,
-        inner_sign=isign,
         housing=housing,
         texture_ratio=_texture_ratio(t, start, r1),
     )
@@ -629,11 +621,11 @@ def _refine_outer(
     return circle, pts[keep]
 
 
-def _refine_inner(fine: np.ndarray, center: tuple[float, float], r0: float, sign: float = 1.0) -> float:
+def _refine_inner(fine: np.ndarray, center: tuple[float, float], r0: float) -> float:
     """B5: the inner radius around the outer circle's centre, or 0 without an inner edge."""
     r = r0
     for half in (6.0, 3.0):
-        pts, n_in = edge_points(fine, center, r, sign, half)
+        pts, n_in = edge_points(fine, center, r, 1.0, half)
         if n_in == 0 or len(pts) < 20 or len(pts) < MIN_SHARE * n_in:
             return 0.0
         r, keep = _radius_robust(pts, center)
@@ -676,7 +668,7 @@ def find_ring_frame(frame: np.ndarray) -> Ring | None:
     if got is None:
         return None
     (cx, cy, r_out), pts = got
-    r_in = _refine_inner(fine, (cx, cy), ri / s, coarse.inner_sign) if ri > 0 else 0.0
+    r_in = _refine_inner(fine, (cx, cy), ri / s) if ri > 0 else 0.0
     r_out -= EDGE_BIAS_PX
     if r_in > 0:
         r_in += EDGE_BIAS_PX
@@ -723,12 +715,14 @@ def find_ring(frames: Iterable[np.ndarray]) -> Ring:
             f"no lens ring found in {total - len(found)} of {total} frames: "
             "is the panoramic lens attached and uncovered?"
         )
-    arr = np.array([[r.center[0], r.center[1], r.r_inner, r.r_outer] for r in found])
+    # frames that took a housing for it and frames that did not see different circles: the majority's
+    housed = [r.housing for r in found if r.housing > 0]
+    major = [r for r in found if (r.housing > 0) == (2 * len(housed) > len(found))]
+    arr = np.array([[r.center[0], r.center[1], r.r_inner, r.r_outer] for r in major])
     med = np.median(arr, axis=0)
     sd = arr.std(axis=0)
     inner = arr[arr[:, 2] > 0, 2]  # frames where the inner edge was too faint say 0: not a radius
     med[2], sd[2] = (float(np.median(inner)), float(inner.std())) if 2 * len(inner) >= len(arr) else (0.0, 0.0)
-    housed = [r.housing for r in found if r.housing > 0]
     assert size is not None
     wh = (int(size[1]), int(size[0]))
     return Ring(
@@ -744,10 +738,10 @@ def find_ring(frames: Iterable[np.ndarray]) -> Ring:
             "r_inner_px": float(sd[2]),
             "r_outer_px": float(sd[3]),
         },
-        ellipse_ratio=float(np.median([r.ellipse_ratio for r in found])),
-        surround="brighter" if 2 * sum(r.surround == "brighter" for r in found) > len(found) else "darker",
+        ellipse_ratio=float(np.median([r.ellipse_ratio for r in major])),
+        surround="brighter" if 2 * sum(r.surround == "brighter" for r in major) > len(major) else "darker",
         housing=float(np.median(housed)) if 2 * len(housed) > len(found) else 0.0,
-        texture_ratio=float(np.median([r.texture_ratio for r in found])),
+        texture_ratio=float(np.median([r.texture_ratio for r in major])),
     )
 
 

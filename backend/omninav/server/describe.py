@@ -77,7 +77,7 @@ def sector(bearing: float) -> int:
 
 
 def direction(bearing: float, style: Style) -> str:
-    """'at 3 o'clock' | 'to your right' | '90 degrees to your right': a phrase that follows a place name."""
+    """'at 3 o'clock' | 'to your right' | 'at 90 degrees to your right': a phrase that follows a place name."""
     b = _signed(bearing)
     side = "right" if b > 0 else "left"
     a = abs(b)
@@ -89,7 +89,7 @@ def direction(bearing: float, style: Style) -> str:
             return "straight ahead"
         if d == 180:
             return "straight behind you"
-        return f"{d} {'degree' if d == 1 else 'degrees'} to your {side}"
+        return f"at {d} {'degree' if d == 1 else 'degrees'} to your {side}"
     return ("straight ahead", f"ahead on your {side}", f"to your {side}", f"behind you on your {side}", "behind you")[
         sector(b)
     ]

@@ -65,7 +65,9 @@ export function walkOutsideAreas(videos: readonly Video[], places: readonly Plac
   return { outside, all };
 }
 
-const done = (jobs: readonly Job[], kind: Job['kind']) => jobs.some((j) => j.kind === kind && j.state === 'done');
+/** A job of that kind done since the live modelling (`since`, Unix s; null: not known): one before it judged other frames. */
+const done = (jobs: readonly Job[], kind: Job['kind'], since: number | null) =>
+  jobs.some((j) => j.kind === kind && j.state === 'done' && (since === null || (j.finished ?? 0) >= since));
 
 /**
  * The steps still to do, in the order a new admin does them (none: the venue is ready). With the
@@ -73,7 +75,8 @@ const done = (jobs: readonly Job[], kind: Job['kind']) => jobs.some((j) => j.kin
  * and whether the quality map and an evaluation walk were done; without them, what the venue
  * document alone shows.
  */
-export function stepsLeft(v: Venue, progress: Progress | null = null): Step[] {
+export function stepsLeft(v: Venue & { modelled_at?: number | null }, progress: Progress | null = null): Step[] {
+  const since = v.modelled_at ?? null;
   const areas = (): [boolean, Step] => {
     if (!hasAreas(v.places) || !progress)
       return [
@@ -116,9 +119,9 @@ export function stepsLeft(v: Venue, progress: Progress | null = null): Step[] {
       v.modelled && !walks.some((w) => w.tracked && w.status === 'ready'),
       { screen: 'modelling', text: v.modelled ? 'Model the newly tagged walks' : 'Model the tagged walks' },
     ],
-    [done(progress.jobs, 'quality'), { screen: 'quality', text: 'Compute the quality map' }],
+    [done(progress.jobs, 'quality', since), { screen: 'quality', text: 'Compute the quality map' }],
     [
-      done(progress.jobs, 'evaluate'),
+      done(progress.jobs, 'evaluate', since),
       { screen: 'evaluation', text: 'Upload an evaluation walk, tag it and evaluate it' },
     ],
   );

@@ -44,6 +44,7 @@ const nav = byId('screens');
 const signout = byId<HTMLButtonElement>('signout');
 const statusEl = byId('status');
 const alertEl = byId('alert');
+const stepsNews = byId('steps-news');
 const banner = byId('banner');
 
 let api: AdminApi | null = null;
@@ -52,13 +53,8 @@ let route: Route = parseRoute(location.hash);
 let unmount: (() => void) | null = null;
 let mounting = 0;
 
-/** The polite message last said, and when (a follow-up within FOLLOW_MS is said with it). */
-let lastSaid = { text: '', at: 0 };
-const FOLLOW_MS = 2000;
-
 function announce(message: string, assertive = false): void {
   const target = assertive ? alertEl : statusEl;
-  if (!assertive) lastSaid = { text: message, at: Date.now() };
   // the same words twice are announced twice: empty the region first
   target.textContent = '';
   setTimeout(() => {
@@ -259,9 +255,11 @@ function drawHead(): void {
     const news = left.length
       ? `${left.length} step${left.length === 1 ? '' : 's'} left for this venue: ${left[0].text}.`
       : 'This venue has everything the phone needs.';
-    // after what the action itself said, not instead of it
-    const before = lastSaid.text.replace(/([^.!?])$/, '$1.');
-    announce(Date.now() - lastSaid.at < FOLLOW_MS && before ? `${before} ${news}` : news);
+    // a region of its own: said after what the action itself says, which it neither cuts nor repeats
+    stepsNews.textContent = '';
+    setTimeout(() => {
+      stepsNews.textContent = news;
+    }, 30);
   }
   lastSteps = key;
   if (v.floors.length > 1)

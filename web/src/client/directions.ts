@@ -71,7 +71,7 @@ export function sector(bearing: number): number {
   return k < 0 ? SECTOR_DEG.length : k;
 }
 
-/** "at 3 o'clock" | "to your right" | "90 degrees to your right": a phrase that follows a place name. */
+/** "at 3 o'clock" | "to your right" | "at 90 degrees to your right": a phrase that follows a place name. */
 export function direction(bearing: number, style: Style): string {
   const b = signed(bearing);
   const side = b > 0 ? 'right' : 'left';
@@ -81,7 +81,7 @@ export function direction(bearing: number, style: Style): string {
     const d = round(a);
     if (d === 0) return 'straight ahead';
     if (d === 180) return 'straight behind you';
-    return `${d} ${d === 1 ? 'degree' : 'degrees'} to your ${side}`;
+    return `at ${d} ${d === 1 ? 'degree' : 'degrees'} to your ${side}`;
   }
   return ['straight ahead', `ahead on your ${side}`, `to your ${side}`, `behind you on your ${side}`, 'behind you'][
     sector(b)

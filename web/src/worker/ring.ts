@@ -74,6 +74,7 @@ const MIN_SIDE = 64;
 const SCENE_SHARE = 0.3;
 const SCENE_SMOOTH = 2;
 const GAP: [number, number] = [0.05, 3];
+const TEXTURE_FLOOR = 0.05;
 /** Pixels around the coarse circle that the sub-pixel stage may read (its profiles reach 6 px out). */
 const WINDOW_MARGIN = 12;
 
@@ -372,8 +373,6 @@ interface Coarse {
   scale: [number, number];
   /** B2's sign for the outer edge: -1 darker outside, +1 brighter. */
   outerSign: number;
-  /** And for the inner edge: +1 a dark centre, -1 a bright one. */
-  innerSign: number;
   housing: number;
   textureRatio: number;
 }
@@ -381,7 +380,7 @@ interface Coarse {
 const gapPx = (r: number) => GAP[0] * r + GAP[1];
 
 /** A9: T(r) for r = 0 .. rmax, the mean tangential gradient along the circle (NaN: under 36 angles in the image). */
-export function texture(e: Edges, c: [number, number], rmax: number): Float64Array {
+function texture(e: Edges, c: [number, number], rmax: number): Float64Array {
   const { blur, cols, rows } = e;
   const out = new Float64Array(rmax + 1);
   for (let r = 0; r <= rmax; r++) {
@@ -479,8 +478,8 @@ function textureRatio(t: Float64Array, start: number, r1: number): number {
     if (r >= start && r <= r1) inside.push(v);
     if (r >= r1 + 3 && r <= r1 + 3 + gap) out.push(v);
   });
-  if (!inside.length || !out.length || median(out) <= 0) return 0;
-  return median(inside) / median(out);
+  if (!inside.length || !out.length) return 0;
+  return median(inside) / Math.max(TEXTURE_FLOOR, median(out));
 }
 
 /** Stage A: the ring in coarse pixels, or null without a ring. */
@@ -547,26 +546,15 @@ function coarseStages(cv: RingCv, img: CvMat, w: number, h: number, cw: number, 
     // a dim scene's faint inner edge: again with the edge points of a fainter Canny
     if (r2 === 0) r2 = innerRadius(coarseEdges(cv, img, CANNY_FAINT), [a1, b1], lo, hi, cw, ch);
   }
-  // A9, inner: where the scene starts, when A8's edge is not there
-  let innerSign = 1;
-  const gap = gapPx(r1);
+  // A9: the texture ratio, over the scene from its inner edge (or from where its texture starts)
   const run = sceneRun(smooth(t), Math.floor(r1));
-  let start = r2;
-  if (run) {
-    const s = run[0];
-    start = r2 || s;
-    if (gap < s && s < r1 - gap && (r2 === 0 || Math.abs(r2 - s) > gap)) {
-      const [score, r, sign] = either(e, [a1, b1], Math.max(2, Math.floor(s - gap)), Math.floor(s + gap), cw, ch);
-      if (score >= MIN_COVERAGE) [r2, innerSign, start] = [r, sign, r];
-    }
-  }
+  const start = r2 || (run ? run[0] : 0);
   return {
     center: [a1, b1],
     rInner: r2,
     rOuter: r1,
     scale: [cw / w, ch / h],
     outerSign,
-    innerSign,
     housing,
     textureRatio: textureRatio(t, start, r1),
   };
@@ -737,10 +725,10 @@ function refineOuter(fine: Fine, circle: Circle, sign: number): Circle | null {
 }
 
 /** B5: the inner radius around the outer circle's centre, or 0 without an inner edge. */
-function refineInner(fine: Fine, center: [number, number], r0: number, sign: number): number {
+function refineInner(fine: Fine, center: [number, number], r0: number): number {
   let r = r0;
   for (const half of [6, 3]) {
-    const { xs, ys, nIn } = edgePoints(fine, center, r, sign, half);
+    const { xs, ys, nIn } = edgePoints(fine, center, r, 1, half);
     if (nIn === 0 || xs.length < 20 || xs.length < MIN_SHARE * nIn) return 0;
     const [rr, kept] = radiusRobust(xs, ys, center);
     if (kept < Math.max(20, MIN_SHARE * nIn)) return 0;
@@ -779,7 +767,7 @@ export function findRingFrame(
     // blur is the slowest step), or the whole frame should a profile reach further
     const refine = (fine: Fine): [Circle | null, number] => {
       const outer = refineOuter(fine, start, coarse.outerSign);
-      return [outer, outer && ri > 0 ? refineInner(fine, [outer[0], outer[1]], ri / s, coarse.innerSign) : 0];
+      return [outer, outer && ri > 0 ? refineInner(fine, [outer[0], outer[1]], ri / s) : 0];
     };
     let got: [Circle | null, number];
     try {
@@ -816,18 +804,24 @@ export function findRingFrame(
 export function medianRing(rings: (Ring | null)[]): Ring | null {
   const found = rings.filter((r): r is Ring => r !== null);
   if (!found.length || found.length * 2 < rings.length) return null;
-  const center: [number, number] = [median(found.map((r) => r.center[0])), median(found.map((r) => r.center[1]))];
-  const r_outer = median(found.map((r) => r.r_outer));
-  const inner = found.map((r) => r.r_inner).filter((r) => r > 0);
+  // the majority by whether A9 took a circle for the housing: the two kinds see different circles
+  const housed = found.filter((r) => (r.housing ?? 0) > 0);
+  const major = found.filter((r) => (r.housing ?? 0) > 0 === 2 * housed.length > found.length);
+  const center: [number, number] = [median(major.map((r) => r.center[0])), median(major.map((r) => r.center[1]))];
+  const r_outer = median(major.map((r) => r.r_outer));
+  const inner = major.map((r) => r.r_inner).filter((r) => r > 0);
   const [w, h] = found[0].image_size;
   return {
     image_size: [w, h],
     center,
-    r_inner: 2 * inner.length >= found.length ? median(inner) : 0,
+    r_inner: 2 * inner.length >= major.length ? median(inner) : 0,
     r_outer,
     visible: visibleShare(center, r_outer, w, h),
     frames_used: found.length,
     frames_total: rings.length,
+    surround: 2 * major.filter((r) => r.surround === 'brighter').length > major.length ? 'brighter' : 'darker',
+    housing: 2 * housed.length > found.length ? median(housed.map((r) => r.housing!)) : 0,
+    texture_ratio: median(major.map((r) => r.texture_ratio ?? 0)),
   };
 }
 

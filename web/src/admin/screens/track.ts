@@ -560,17 +560,21 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
                 i2.setAttribute('aria-invalid', String(i2.value === '' || !Number.isFinite(Number(i2.value))));
               return;
             }
+            // the row's waypoint as it stands: a second change before the redraw replaces the first
+            const was = rowPoint.get(tr) ?? p;
             const np = { t: nt, x: nx, y: ny };
-            points = [...points.filter((q) => q !== p), np].sort((a, b) => a.t - b.t);
+            points = [...points.filter((q) => q !== was), np].sort((a, b) => a.t - b.t);
+            rowPoint.set(tr, np);
             // redrawn once the focus has moved (a change fires on Tab before the next field has it)
             setTimeout(() => {
               const active = document.activeElement;
               const row = active && wpBody.contains(active) ? active.closest('tr') : null;
-              const field = row ? [...row.querySelectorAll('input, button')].indexOf(active!) : -1;
-              const at = row ? rowPoint.get(row) : undefined;
+              const control = row ? [...row.querySelectorAll('input, button')].indexOf(active!) : -1;
+              const of = row ? rowPoint.get(row) : undefined;
               changed(`Waypoint ${n} set to ${formatTime(nt)}, x ${nx} m, y ${ny} m.`);
-              const k = at ? points.indexOf(at === p ? np : at) : -1;
-              if (k >= 0 && field >= 0) wpBody.rows[k]?.querySelectorAll<HTMLElement>('input, button')[field]?.focus();
+              const k = of ? points.indexOf(of) : -1;
+              if (k >= 0 && control >= 0)
+                wpBody.rows[k]?.querySelectorAll<HTMLElement>('input, button')[control]?.focus();
             }, 0);
           };
           for (const i2 of [tIn, xIn, yIn]) i2.addEventListener('change', typed);

@@ -16,6 +16,13 @@ import { matchUpload } from '../upload';
 
 const ROLE_TEXT = { model: 'modelling walk', evaluation: 'evaluation walk' } as const;
 
+/**
+ * What the screen has said of each upload (its state, whether its turns were found), kept while
+ * the page lives: uploads go on while the admin is on other screens, and on coming back only what
+ * happened since is said.
+ */
+const told = new WeakMap<Upload, { state: string; turns: boolean }>();
+
 export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   const abort = new AbortController();
   const venue = ctx.venue();
@@ -172,8 +179,6 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   }
   const rows = new Map<Upload, Row>();
 
-  // uploads already under way when the screen opens: what they are at is no news (said before)
-  const atOpen = new Set(uploads.list);
   const rowFor = (u: Upload): Row => {
     let r = rows.get(u);
     if (r) return r;
@@ -217,11 +222,12 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       replace,
       remove,
       turns,
-      state: atOpen.has(u) ? u.state : '',
+      // what was said of this upload on an earlier visit is not said again; what happened since is
+      state: told.get(u)?.state ?? '',
       suggest: '',
       lost: false,
       received: 0,
-      turnsSaid: atOpen.has(u) && u.suggest?.state === 'done',
+      turnsSaid: told.get(u)?.turns ?? false,
     };
     rows.set(u, r);
     return r;
@@ -252,6 +258,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     if (u.state !== r.state) {
       announceState(u, r.state, r);
       r.state = u.state;
+      told.set(u, { state: r.state, turns: r.turnsSaid });
     }
     drawTurns(u, r);
   };
@@ -341,6 +348,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       if (!r.turnsSaid) {
         ctx.announce(`${n} turns and stops found in ${u.name}. Its track can be tagged now.`);
         r.turnsSaid = true;
+        told.set(u, { state: r.state, turns: true });
       }
       void loadVideos();
       return;
