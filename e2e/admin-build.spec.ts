@@ -135,7 +135,7 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     await expect(page.locator('#venue-gaps')).toContainText('No places yet: the phone can only say the floor');
     // the checklist: what the venue still lacks, each a link to its screen
     const steps = page.getByRole('list', { name: 'Still to do for this venue' }).getByRole('link');
-    await expect(steps).toHaveCount(9);
+    await expect(steps).toHaveCount(10);
     await expect(steps.filter({ hasText: 'Draw the walked corridors as areas' })).toHaveAttribute('href', /\/places$/);
   });
 
@@ -187,6 +187,7 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     await expect(page.getByRole('list', { name: 'Still to do for this venue' }).getByRole('link')).toHaveText([
       'Add the lens profile of the modelling camera',
       'Upload a modelling walk',
+      'Tag the walk’s track (where the walker was)',
       'Model the tagged walks',
       'Compute the quality map',
       'Upload an evaluation walk, tag it and evaluate it',

@@ -257,6 +257,9 @@ describe("a venue's first-run checklist", () => {
     const fresh = (kind: string) => ({ kind, state: 'done', finished: 300 }) as unknown as Progress['jobs'][number];
     expect(stepsLeft(remodelled, { ...full, jobs: [fresh('quality'), fresh('evaluate')] })).toEqual([]);
     const none: Progress = { ...full, videos: [walk('eval.mp4', 'evaluation', track)] };
-    expect(stepsLeft(zoned, none).map((st) => st.text)).toEqual(['Upload a modelling walk']);
+    expect(stepsLeft(zoned, none).map((st) => st.text)).toEqual([
+      'Upload a modelling walk',
+      'Tag the walk’s track (where the walker was)',
+    ]);
   });
 });

@@ -107,13 +107,12 @@ export function stepsLeft(v: Venue & { modelled_at?: number | null }, progress: 
   const untagged = walks.find((w) => !w.tracked);
   steps.push(
     [walks.length > 0, { screen: 'videos', text: 'Upload a modelling walk' }],
+    // before any walk, its tagging is a step still to come, not one done
     [
-      !untagged,
-      {
-        screen: 'track',
-        text: `Tag the track of ${untagged?.name ?? 'the walk'}`,
-        params: { video: untagged?.name ?? '' },
-      },
+      walks.length > 0 && !untagged,
+      untagged
+        ? { screen: 'track', text: `Tag the track of ${untagged.name}`, params: { video: untagged.name } }
+        : { screen: 'track', text: 'Tag the walk’s track (where the walker was)' },
     ],
     [
       v.modelled && !walks.some((w) => w.tracked && w.status === 'ready'),
