@@ -29,9 +29,9 @@ AT_M = 1.0
 FACING_M = 30.0  # nor one this far "faced"
 FACING_DEG = 30.0  # and "facing" means within this angle of the heading
 UNSURE = "Not sure where you are; turn slowly and try again."
-# An answer under SURE (aggregate.py's: the confidence's promise in docs/formats.md, of the answers at or above it at
-# least 80 % within 2 m, and the app's "film on" line), though not "not sure", is said as "You are
-# probably ...": under it a fifth to two fifths of the answers are further than 2 m off on the
+# An answer under SURE (aggregate.py's: the confidence's promise in docs/formats.md, of the answers
+# at or above it at least 80 % within 2 m, and the app's "film on" line), though not "not sure",
+# is said as "You are probably ...": under it a fifth to two fifths of the answers are further than 2 m off on the
 # venue families we never tuned on, against 1-2 % above it (docs/benchmarks.md, "Said as
 # probably"), and a user who hears a place as a fact walks off on it.
 
@@ -252,9 +252,8 @@ def guidance_sentence(g: Mapping[str, Any], style: Style = DEFAULT_STYLE) -> str
     if fc:
         return f"Take the {fc['via']} to {fc['to_floor_name']}."
     if kind in ("reassure", "back_on_route"):
-        tail = f" to {g['until']}" if g["until"] else ""
-        keep = f"keep going, {metres(g['walk_m'])}{tail}."
-        return f"You are on the route again; {keep}" if kind == "back_on_route" else f"K{keep[1:]}"
+        on = f"{metres(g['walk_m'])}" + (f" to {g['until']}" if g["until"] else "") + "."
+        return f"You are on the route again; keep going, {on}" if kind == "back_on_route" else f"Keep going, {on}"
     return instruction(b, g["walk_m"], g["until"], style, g.get("in_m"))
 
 

@@ -4,6 +4,7 @@
  */
 import type { Place, Venue } from '../shared/api-types';
 import type { ScreenId } from './routes';
+import { inArea } from './geometry';
 import { fromTrack, positionAt } from './track-edit';
 import type { Job, Video } from './types';
 
@@ -55,11 +56,7 @@ export function walkOutsideAreas(videos: readonly Video[], places: readonly Plac
       const at = positionAt(pts, t + 0.5);
       if (!at) continue;
       all++;
-      const inside = areas.some(
-        ([x0, y0, x1, y1]) =>
-          at.x >= Math.min(x0, x1) && at.x <= Math.max(x0, x1) && at.y >= Math.min(y0, y1) && at.y <= Math.max(y0, y1),
-      );
-      if (!inside) outside++;
+      if (!areas.some((a) => inArea(a, at.x, at.y))) outside++;
     }
   }
   return { outside, all };

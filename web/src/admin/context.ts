@@ -14,6 +14,11 @@ export interface AdminContext {
   venue(): Venue;
   /** Re-read the venue from the server (after another tab's change, or a job's end). */
   refresh(): Promise<Venue>;
+  /**
+   * The venue's videos or jobs changed (an upload, a track, a quality map or an evaluation done):
+   * its checklist reads them again, and says a step done (a failed read changes nothing).
+   */
+  recheck(): void;
   /** Keep a venue document a write answered (or its new revision). */
   setVenue(v: Venue): void;
   /** The floor the admin is working on (a floor id of the venue). */

@@ -68,5 +68,11 @@ export function areaOf(a: Metres, b: Metres): [number, number, number, number] {
   return [Math.min(a.x, b.x), Math.min(a.y, b.y), Math.max(a.x, b.x), Math.max(a.y, b.y)];
 }
 
+/** Whether a point (metres) lies in an area [x0, y0, x1, y1] (its corners in any order), edges included. */
+export function inArea(area: readonly [number, number, number, number], x: number, y: number): boolean {
+  const [x0, y0, x1, y1] = area;
+  return x >= Math.min(x0, x1) && x <= Math.max(x0, x1) && y >= Math.min(y0, y1) && y <= Math.max(y0, y1);
+}
+
 /** Round to centimetres for display and storage of typed-in or dragged values. */
 export const cm = (v: number): number => Math.round(v * 100) / 100;

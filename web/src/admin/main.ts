@@ -53,13 +53,16 @@ let route: Route = parseRoute(location.hash);
 let unmount: (() => void) | null = null;
 let mounting = 0;
 
-function announce(message: string, assertive = false): void {
-  const target = assertive ? alertEl : statusEl;
-  // the same words twice are announced twice: empty the region first
-  target.textContent = '';
+/** Put `message` in a live region; the same words twice are announced twice: emptied first. */
+function sayIn(region: HTMLElement, message: string): void {
+  region.textContent = '';
   setTimeout(() => {
-    target.textContent = message;
+    region.textContent = message;
   }, 30);
+}
+
+function announce(message: string, assertive = false): void {
+  sayIn(assertive ? alertEl : statusEl, message);
   if (!assertive) alertEl.textContent = '';
 }
 
@@ -139,6 +142,7 @@ const ctx: AdminContext = {
     setVenue(v);
     return v;
   },
+  recheck: () => void readProgress(requireVenue().id),
   setVenue: (v: Venue) => setVenue(v),
   floor: () => currentFloor()?.id ?? '1',
   planMap: (elm: HTMLElement) => {
@@ -170,29 +174,28 @@ function setVenue(v: Venue): void {
       : {}),
     ...v,
   };
-  if (progress) progress.fresh = false;
-  progressRead++;
+  void readProgress(v.id); // first: what was read before is stale now (drawn, not said)
   drawHead();
-  void readProgress(v.id);
 }
 
 /**
  * The venue's videos and jobs as last read, for the checklist: read again whenever the venue is,
- * and `fresh` once the latest such read has come back (only then is a change of steps said).
+ * or a screen says they changed. `read` is the number of the read that gave them: the latest one
+ * (`progressRead`) has come back when they are equal, and only then is a change of steps said.
  */
-let progress: { id: string; p: Progress; fresh: boolean } | null = null;
+let progress: { id: string; p: Progress; read: number } | null = null;
 let progressRead = 0;
 
 async function readProgress(id: string): Promise<void> {
   if (!api) return;
-  const mine = progressRead;
+  const mine = ++progressRead;
   try {
     const [vids, jobs] = await Promise.all([
       api.get<{ videos: Video[] }>(venuePath(id, '/videos')),
       api.get<{ jobs: Job[] }>(venuePath(id, '/jobs')),
     ]);
     if (mine !== progressRead) return;
-    progress = { id, p: { videos: vids.videos, jobs: jobs.jobs }, fresh: true };
+    progress = { id, p: { videos: vids.videos, jobs: jobs.jobs }, read: mine };
     if (venue?.id === id) drawHead();
   } catch {
     // the checklist stays as the venue document alone shows it; the screens say what failed
@@ -249,17 +252,14 @@ function drawHead(): void {
     head.append(el('p', { className: 'hint', id: 'venue-checklist-title', textContent: 'Still to do:' }), list);
   }
   // said only between two lists read with the videos and jobs (the first of them is no news)
-  const fresh = !!known && !!progress?.fresh;
+  const fresh = !!known && progress?.read === progressRead;
   const key = fresh ? `${v.id}:${left.map((st) => st.text).join('|')}` : lastSteps;
   if (fresh && lastSteps && lastSteps !== key && lastSteps.startsWith(`${v.id}:`)) {
     const news = left.length
       ? `${left.length} step${left.length === 1 ? '' : 's'} left for this venue: ${left[0].text}.`
       : 'This venue has everything the phone needs.';
     // a region of its own: said after what the action itself says, which it neither cuts nor repeats
-    stepsNews.textContent = '';
-    setTimeout(() => {
-      stepsNews.textContent = news;
-    }, 30);
+    sayIn(stepsNews, news);
   }
   lastSteps = key;
   if (v.floors.length > 1)

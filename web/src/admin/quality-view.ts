@@ -3,6 +3,7 @@
  * what each verdict looks like on the plan and how each stretch and corridor is said in the text
  * alternative. The result's format is omninav.quality.quality_map's (types.ts, Quality).
  */
+import { inArea } from './geometry';
 import type { Quality, QualityCorridor, QualitySegment, Verdict } from './types';
 
 export type CorridorVerdict = Verdict | 'grey';
@@ -116,8 +117,7 @@ export function stretches(segments: readonly QualitySegment[]): QualitySegment[]
 export function outsideAreas(q: Quality, floor: string): { outside: number; all: number } {
   const areas = q.corridors.filter((c) => c.floor === floor).map((c) => c.area);
   const segs = q.segments.filter((s) => s.floor === floor);
-  const inside = ([x, y]: [number, number]) =>
-    areas.some(([x0, y0, x1, y1]) => x >= x0 && x <= x1 && y >= y0 && y <= y1);
+  const inside = ([x, y]: [number, number]) => areas.some((a) => inArea(a, x, y));
   return { outside: segs.filter((s) => !inside(middle(s))).length, all: segs.length };
 }
 

@@ -125,12 +125,13 @@ export function corridorLines(places: readonly Place[], floor: string): Line[] {
     });
 }
 
-/** The point of segment `l` nearest to (x, y), and its distance. */
-export function nearestOn(l: Line, x: number, y: number): { x: number; y: number; d: number } {
+/** The point of segment `l` nearest to (x, y), and its distance (`clamp` false: of the infinite line through it). */
+export function nearestOn(l: Line, x: number, y: number, clamp = true): { x: number; y: number; d: number } {
   const dx = l.x1 - l.x0;
   const dy = l.y1 - l.y0;
   const len2 = dx * dx + dy * dy;
-  const k = len2 > 0 ? Math.min(1, Math.max(0, ((x - l.x0) * dx + (y - l.y0) * dy) / len2)) : 0;
+  const along = len2 > 0 ? ((x - l.x0) * dx + (y - l.y0) * dy) / len2 : 0;
+  const k = clamp ? Math.min(1, Math.max(0, along)) : along;
   const px = l.x0 + k * dx;
   const py = l.y0 + k * dy;
   return { x: px, y: py, d: Math.hypot(x - px, y - py) };
@@ -178,11 +179,7 @@ export function snapToLines(
   // onto one line: only across it. Past the end of its area (a corner whose other corridor has no
   // area) the click keeps how far along it is: pulled to the line's end, a corner moved 2 m back
   const { l } = near[0];
-  const across = nearestOn(
-    { ...l, x0: 2 * l.x0 - l.x1, y0: 2 * l.y0 - l.y1, x1: 2 * l.x1 - l.x0, y1: 2 * l.y1 - l.y0 },
-    p.x,
-    p.y,
-  );
+  const across = nearestOn(l, p.x, p.y, false);
   return { x: across.x, y: across.y, line: l.place };
 }
 

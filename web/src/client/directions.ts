@@ -16,8 +16,8 @@ export const DEFAULT_STYLE: Style = 'clock';
 export const UNSURE = 'Not sure where you are; turn slowly and try again.';
 /**
  * An answer under this confidence, though not "not sure", is said as "You are probably ...": the
- * confidence's promise (docs/formats.md: at least 80 % of the answers at or above it within 2 m) and the one under
- * which "Where am I?" films on. Under it a fifth of the answers or more were further than 2 m off
+ * confidence's promise (docs/formats.md: at least 80 % of the answers at or above it within 2 m)
+ * and the one under which "Where am I?" films on. Under it a fifth of the answers or more were further than 2 m off
  * on the venue families we never tuned on, against 1-2 % above it (docs/benchmarks.md, "Said as
  * probably"); a place heard as a fact is walked to.
  */
@@ -264,8 +264,8 @@ export function guidanceSentence(g: Guided, style: Style): string {
   }
   if (g.floor_change) return `Take the ${g.floor_change.via} to ${g.floor_change.to_floor_name}.`;
   if (g.kind === 'reassure' || g.kind === 'back_on_route') {
-    const keep = `keep going, ${metres(walk)}${g.until ? ` to ${g.until}` : ''}.`;
-    return g.kind === 'back_on_route' ? `You are on the route again; ${keep}` : `K${keep.slice(1)}`;
+    const on = `${metres(walk)}${g.until ? ` to ${g.until}` : ''}.`;
+    return g.kind === 'back_on_route' ? `You are on the route again; keep going, ${on}` : `Keep going, ${on}`;
   }
   return instruction(b, walk, g.until, style, g.in_m ?? null);
 }

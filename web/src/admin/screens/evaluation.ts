@@ -190,7 +190,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
         say('The evaluation is done.');
         if (job.target) pick.value = job.target;
         await load();
-        void ctx.refresh().catch(() => undefined); // the venue's checklist (a failed read changes nothing)
+        ctx.recheck();
       } else if (end.state === 'failed') say(`The evaluation failed: ${end.error ?? 'no reason given'}`, true);
       else say('The evaluation was cancelled.');
     } finally {

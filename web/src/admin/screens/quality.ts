@@ -240,7 +240,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       if (end.state === 'done') {
         say('The quality map is ready.');
         await load();
-        void ctx.refresh().catch(() => undefined); // the venue's checklist (a failed read changes nothing)
+        ctx.recheck();
       } else if (end.state === 'failed') say(`The quality map failed: ${end.error ?? 'no reason given'}`, true);
       else say('The quality map was cancelled.');
     } finally {

@@ -643,7 +643,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
         const again = modelled && v.status === 'ready' ? '; the next modelling models it again with it' : '';
         modelled = v.status === 'modelled';
         say(`Track of ${name} saved: ${points.length} waypoints${again}.`);
-        void ctx.refresh().catch(() => undefined); // the venue's checklist (a failed read changes nothing)
+        ctx.recheck();
       } catch (e) {
         if (e instanceof AdminError) status.textContent = `Not saved: ${e.message}`;
         ctx.fail(e, 'Saving the track');

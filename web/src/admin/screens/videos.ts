@@ -305,7 +305,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
         r.lost = false;
         ctx.announce(`${u.name} is uploaded; finding its turns and stops.`);
         void loadVideos();
-        void ctx.refresh().catch(() => undefined); // the venue's checklist (a failed read changes nothing)
+        ctx.recheck();
         break;
     }
   };
