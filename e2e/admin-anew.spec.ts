@@ -62,6 +62,8 @@ test('Model anew: the modelling screen offers it, runs it, and a phone takes the
   test.setTimeout(600_000);
   const truth = adminTruth();
   let srv = await own.start(true);
+  // the token came from the environment: the banner says so, not "printed on the first start"
+  expect(srv.log()).toContain('(sign in with OMNINAV_ADMIN_TOKEN)');
   await test.step('a venue modelled from walk.mp4 through the admin API', async () => {
     await venueByApi(VENUE);
     const walk = adminFile('walk.mp4');

@@ -144,6 +144,12 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
     await page.getByLabel('Distance between the points (metres)').fill('0');
     await page.getByRole('button', { name: 'Save the scale' }).click();
     await expect(page.getByRole('alert')).toContainText('more than 0 m');
+    // not a number ("1e" typed: the field reads as empty): what to type, not "more than 0 m"
+    await page.getByLabel('Distance between the points (metres)').fill('');
+    await page.getByLabel('Distance between the points (metres)').pressSequentially('1e');
+    await page.getByRole('button', { name: 'Save the scale' }).click();
+    await expect(page.getByRole('alert')).toContainText('in metres, as a number');
+    await expect(page.getByLabel('Distance between the points (metres)')).toBeFocused();
   });
 
   let pxPerM = facts.plan.px_per_m;

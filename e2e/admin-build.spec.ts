@@ -137,6 +137,10 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     const steps = page.getByRole('list', { name: 'Still to do for this venue' }).getByRole('link');
     await expect(steps).toHaveCount(10);
     await expect(steps.filter({ hasText: 'Draw the walked corridors as areas' })).toHaveAttribute('href', /\/places$/);
+    // a step of the screen already open: its heading takes the focus (the link alone did nothing)
+    await steps.filter({ hasText: 'Upload the floor plan' }).focus();
+    await page.keyboard.press('Enter');
+    await expect(page.getByRole('heading', { name: 'Floor plan', level: 2 })).toBeFocused();
   });
 
   await test.step('the plan, and its scale by two clicks and a distance', async () => {

@@ -283,10 +283,12 @@ def test_the_admin_venue_says_which_generation_is_live(tmp_path: Path, small_ds:
     assert r.headers["ETag"] == f'"{r.json["revision"]}"'
     public = api.get("/api/venues/v").json
     assert {k: r.json[k] for k in public} == public
+    assert [v["modelled"] for v in api.get("/api/venues").json["venues"]] == [False]  # the app's list too
     st, vid = modelled
     shutil.copytree(st.venue_dir(vid), tmp_path / "data" / "venues" / "v")
     r = api.get("/api/admin/venues/v", headers=ADMIN)
     assert r.json["generation"] == 1 and r.json["modelled_at"] > 0 and r.json["frames"] > 0
+    assert [v["modelled"] for v in api.get("/api/venues").json["venues"]] == [True]
     assert api.get("/api/admin/venues/nope", headers=ADMIN).status_code == 404
 
 

@@ -139,7 +139,7 @@ def test_public_venue_describes_what_a_client_needs(built):
     _, api = built
     assert api.get("/api/health").json["status"] == "ok"
     assert api.get("/api/openapi.json").json["openapi"].startswith("3.1")
-    assert [v["id"] for v in api.get("/api/venues").json["venues"]] == ["lab"]
+    assert [(v["id"], v["modelled"]) for v in api.get("/api/venues").json["venues"]] == [("lab", True)]
     v = api.get("/api/venues/lab").json
     assert v["modelled"] and v["frames"] > 100
     assert v["floors"][0]["name"] == "Second floor"

@@ -111,6 +111,21 @@ describe('asking for more when the first second is not sure', () => {
     expect(said).toEqual([KEEP_TURNING, UNSURE]);
   });
 
+  it('no venue chosen: the first modelled one, not one an admin has only begun that sorts first', async () => {
+    api.venues.mockResolvedValue([
+      { id: 'begun', name: 'Begun', modelled: false },
+      { id: 'lab', name: 'Lab', modelled: true },
+    ]);
+    const { s } = session();
+    await s.loadVenue();
+    expect(api.venue).toHaveBeenCalledWith('lab');
+    // none modelled: the first, which then says it is not modelled yet
+    api.venues.mockResolvedValue([{ id: 'begun', name: 'Begun', modelled: false }]);
+    api.venue.mockClear();
+    await session().s.loadVenue();
+    expect(api.venue).toHaveBeenCalledWith('begun');
+  });
+
   it('once per press: the next press starts again from one second', async () => {
     api.locate.mockResolvedValue(answer(true));
     const { s } = session();

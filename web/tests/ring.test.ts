@@ -494,7 +494,7 @@ describe("the session's lens check: when it runs, what is said, what is sent", (
   });
 
   function session(lenses: Record<string, unknown> = { donut }, [videoWidth, videoHeight] = [960, 720]) {
-    vi.mocked(venues).mockResolvedValue([{ id: 'demo', name: 'Demo' }]);
+    vi.mocked(venues).mockResolvedValue([{ id: 'demo', name: 'Demo', modelled: true }]);
     vi.mocked(venue).mockResolvedValue({ ...VENUE, lenses } as never);
     vi.mocked(openCamera).mockResolvedValue({ getVideoTracks: () => [{ readyState: 'live' }] } as never);
     vi.mocked(captureClip).mockResolvedValue(clip());

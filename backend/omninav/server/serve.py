@@ -181,7 +181,10 @@ def serve(
         _wait_for_port(host, port, proxy)
         for u in urls:
             echo(f"omninav: {u}")
-        echo(f"admin page: {urls[0]}admin (sign in with the token printed on the first start)")
+        whose = (
+            "OMNINAV_ADMIN_TOKEN" if os.environ.get("OMNINAV_ADMIN_TOKEN") else "the token printed on the first start"
+        )
+        echo(f"admin page: {urls[0]}admin (sign in with {whose})")
         sys.stdout.flush()
         while not stop[0]:
             if proxy.poll() is not None:

@@ -83,8 +83,20 @@ def openapi() -> Any:
 
 @bp.get("/api/venues")
 def venues() -> Any:
+    """Every venue, and whether it is modelled: an app with none chosen opens the first that is."""
+    cat = _cat()
     return jsonify(
-        {"venues": [{"id": v["id"], "name": v["name"], "url": f"/api/venues/{v['id']}"} for v in _cat().venues.all()]}
+        {
+            "venues": [
+                {
+                    "id": v["id"],
+                    "name": v["name"],
+                    "url": f"/api/venues/{v['id']}",
+                    "modelled": cat.venues.modelled(v["id"])[0] is not None,
+                }
+                for v in cat.venues.all()
+            ]
+        }
     )
 
 

@@ -10,7 +10,7 @@ import type { Floor, Venue } from '../shared/api-types';
 import { AdminApi, AdminError, venuePath } from './api';
 import type { AdminContext, Mount } from './context';
 import { el } from './dom';
-import { placeGaps, stepsLeft, type Progress } from './checklist';
+import { placeGaps, stepsLeft, type Progress, type Step } from './checklist';
 import { PlanMap } from './planmap';
 import * as evaluation from './screens/evaluation';
 import * as floorScreen from './screens/floor';
@@ -205,6 +205,23 @@ async function readProgress(id: string): Promise<void> {
 /** The venue and count of the checklist last drawn (announced when it changes). */
 let lastSteps = '';
 
+/**
+ * A checklist step's link. On the screen it names already the hash would not change and nothing
+ * would happen: the screen's heading takes the focus instead, as after any move to a screen.
+ */
+function stepLink(id: string, st: Step): HTMLAnchorElement {
+  const a = el('a', { href: venueHash(id, st.screen, new URLSearchParams(st.params)), textContent: st.text });
+  a.addEventListener('click', (e) => {
+    const r = route;
+    if (r.kind !== 'venue' || r.screen !== st.screen) return;
+    if (st.params?.video && st.params.video !== r.params.get('video')) return;
+    e.preventDefault();
+    const section = main.querySelector<HTMLElement>('section');
+    if (section) focusScreen(section);
+  });
+  return a;
+}
+
 function drawHead(): void {
   if (!venue || route.kind !== 'venue') {
     head.hidden = true;
@@ -237,17 +254,7 @@ function drawHead(): void {
   const known = progress?.id === v.id ? progress.p : null;
   const left = stepsLeft(v, known);
   if (left.length) {
-    const list = el(
-      'ul',
-      { id: 'venue-checklist' },
-      ...left.map((st) =>
-        el(
-          'li',
-          {},
-          el('a', { href: venueHash(v.id, st.screen, new URLSearchParams(st.params)), textContent: st.text }),
-        ),
-      ),
-    );
+    const list = el('ul', { id: 'venue-checklist' }, ...left.map((st) => el('li', {}, stepLink(v.id, st))));
     list.setAttribute('aria-label', 'Still to do for this venue');
     head.append(el('p', { className: 'hint', id: 'venue-checklist-title', textContent: 'Still to do:' }), list);
   }

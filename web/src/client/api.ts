@@ -57,8 +57,8 @@ async function call(path: string, init?: RequestInit, timeoutMs = 15000): Promis
   return body;
 }
 
-export async function venues(): Promise<{ id: string; name: string }[]> {
-  return ((await call('/api/venues')) as { venues: { id: string; name: string }[] }).venues;
+export async function venues(): Promise<{ id: string; name: string; modelled: boolean }[]> {
+  return ((await call('/api/venues')) as { venues: { id: string; name: string; modelled: boolean }[] }).venues;
 }
 
 export async function venue(id: string): Promise<Venue> {

@@ -316,13 +316,16 @@ export class Session extends Emitter<SessionEvents> {
     return describe(a, this.prefs.style, v.floors.find((f) => f.id === a.floor)?.name);
   }
 
-  /** Load the chosen venue (or the first); start the feature worker on its lens meanwhile. */
+  /**
+   * Load the chosen venue (or the first modelled one: a venue an admin has only begun cannot answer
+   * a new user; else the first); start the feature worker on its lens meanwhile.
+   */
   async loadVenue(): Promise<Venue | null> {
     try {
       const list = await fetchVenues();
       if (!list.length) return this.setLine('This server has no venues yet.');
       const want = this.o.askedVenue || this.prefs.venue;
-      const id = list.some((v) => v.id === want) ? want : list[0].id;
+      const id = list.some((v) => v.id === want) ? want : (list.find((v) => v.modelled) ?? list[0]).id;
       this.emit('venues', { list, chosen: id });
       const v = await fetchVenue(id);
       this.venue = v;

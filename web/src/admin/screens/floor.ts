@@ -295,6 +295,11 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     const pb = pt(bx, by);
     const m = num(dist);
     if (!pa || !pb) return ctx.announce('Pick or type both points first.', true);
+    if (!Number.isFinite(m)) {
+      // text in a number field reads as empty: say what to type, not that it is 0
+      dist.focus();
+      return ctx.announce('Type the distance between the points in metres, as a number (for example 12.5).', true);
+    }
     try {
       scaleFromPoints(pa, pb, m);
     } catch (err) {
