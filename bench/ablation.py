@@ -1,7 +1,7 @@
 """The accuracy changes since the paper's method, as named configurations the benches share.
 
 Each is a preset and the settings over it; the ladder adds one change a rung, in the order the
-changes were made (docs/benchmarks.md), so a table over the ladder is the ablation the accuracy
+changes were made (docs/benchlog.md), so a table over the ladder is the ablation the accuracy
 issue asks for. bench/foreign.py and bench/sources.py take these names.
 """
 
@@ -34,7 +34,7 @@ CONFIGS: dict[str, tuple[str, dict[str, Any]]] = {
 # the ladder's rungs in the order the changes were made (the rest of CONFIGS are candidates)
 LADDER = tuple(CONFIGS)
 
-# Candidates for a default that holds beyond our renderer (docs/benchmarks.md, "Three sources")
+# Candidates for a default that holds beyond our renderer (docs/benchmarks.md, "Accuracy on three sources")
 CONFIGS.update(
     {
         "two-bands-shared": ("default", {**TWO_BANDS}),

@@ -9,14 +9,14 @@ the refit: the reliability table (answers binned by confidence against the share
 share answered with confidence >= 0.8 and how many of those were further than 2 m. --png draws the
 preset's model's reliability diagram. A refit goes into presets.py's `confidence_coef` only when
 it does better on the held-out families as well: fewer of the answers it calls sure wrong, and no
-more clips filmed elsewhere called sure (docs/benchmarks.md says what was tried; the model since
+more clips filmed elsewhere called sure (docs/benchlog.md says what was tried; the model since
 "Ties" has the worse held-out Brier, modest about the venues' own clips).
 
 --elsewhere FILE (bench/elsewhere.py --json) adds the single answers of the tuning families'
 clips filmed where the venue was never modelled (another seed's building, another family's), each
 labelled wrong, weighing --elsewhere-weight W of the venue's own answers in all: a user also asks
 in a room nobody filmed, and a model fit on the venue's own clips alone calls more of those sure
-(docs/benchmarks.md, "Ties"). Its sure share there is printed for both splits.
+(docs/benchlog.md, "Ties"). Its sure share there is printed for both splits.
 
 --extra FAMILY:SEEDS adds more seeds of a tuning family to the fit (ring-bare:3,4,5,6: the
 tuning side's corridor of identical doors, rendered again for the ties it holds). --cover

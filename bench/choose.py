@@ -1,6 +1,6 @@
 """A venue that chooses its preset from an evaluation walk of its own, against one fixed default.
 
-No fixed configuration wins on every source (docs/benchmarks.md, "Three sources"): the five
+No fixed configuration wins on every source (docs/benchmarks.md, "Accuracy on three sources"): the five
 narrow bands of intensity tell our renderer's identical doors apart and lose on the foreign pack,
 one wide band does the opposite. A building can say which it is: the admin films an evaluation
 walk (the admin page's evaluation walks, `omninav evaluate`), and the venue is answered with the

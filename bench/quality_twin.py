@@ -1,4 +1,4 @@
-"""The quality map on the twin venue (docs/benchmarks.md, "Quality map"): what the map says against
+"""The quality map on the twin venue (docs/benchlog.md, "Quality map"): what the map says against
 what an independent walk finds, for the default preset and the same with one setting changed.
 
 The twin venue (scene.py `twin`, half-resolution donut, 10 fps; as tests/test_quality.py builds

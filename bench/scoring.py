@@ -1,5 +1,5 @@
 """Scores of a source's clips, the same for every bench: per-clip outcomes, their summary, the
-adoption rule's verdict on one source (docs/benchmarks.md, "Three sources"), the reliability table.
+adoption rule's verdict on one source (docs/benchmarks.md, "Accuracy on three sources"), the reliability table.
 
 Rows are what bench/families.py and bench/foreign.py cache for every answer: its error, its
 heading error and its confidence inputs (rescored with the configuration's model).

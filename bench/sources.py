@@ -11,7 +11,7 @@ A change to features, search, aggregation or confidence is judged on three sourc
   does to a match: the photo against itself read through a lens profile 2 degrees off in
   elevation (either way), after another exposure, and turned about the lens axis (the heading).
 
-The adoption rule (docs/benchmarks.md, "Three sources"): a candidate becomes the default only
+The adoption rule (docs/benchmarks.md, "Accuracy on three sources"): a candidate becomes the default only
 where it loses on none of the sources by more than that source's noise; otherwise it is a venue
 option. The noise of a source of clips is the paired standard error of the difference in the
 share within 2 m over the same clips (the Wald form of McNemar's test, choose.paired_se:

@@ -1,5 +1,5 @@
 """Named presets (presets.py): the "wide" venue option makes the record the phone can make, and
-holds a place where the default's narrow bands let go (docs/benchmarks.md, "Three sources")."""
+holds a place where the default's narrow bands let go (docs/benchmarks.md, "Accuracy on three sources")."""
 
 from __future__ import annotations
 

@@ -181,7 +181,7 @@ def logistic(coef: Sequence[float], inputs: Sequence[float]) -> float:
 # it is than the best other place >= ALT_M away (repetitive corridors make that rival close);
 # sqrt_margin: its square root (0 for the median's negative margins), steep where two places
 # nearly tie: a margin of 0.01 counts half of one of 0.04. A tie between two doors of a corridor
-# of identical doors is a coin toss, however well both match (docs/benchmarks.md, "Ties").
+# of identical doors is a coin toss, however well both match (docs/benchlog.md, "Ties").
 def _margin(e: Estimate | Mapping[str, Any]) -> float:
     return field_of(e, "support") - field_of(e, "rival")
 

@@ -2,12 +2,12 @@
 with each candidate preset, an evaluation walk of the same building located against each, and the
 first preset kept unless another places clearly more of its clips within 2 m.
 
-No one preset wins everywhere (docs/benchmarks.md, "Three sources"): the default's five narrow
+No one preset wins everywhere (docs/benchmarks.md, "Accuracy on three sources"): the default's five narrow
 bands of intensity tell identical doors apart where the modelling walk and the users' phones see
 the walls alike, and lose where they do not (another height, tilt, place across the corridor);
 "wide" holds there and gives up some of the doors. A building's own evaluation walk says which it
 is (bench/choose.py measures the choice). "Clearly" is the adoption rule's noise
-(docs/benchmarks.md): more than twice the paired standard error of the difference, the clips being
+(docs/benchlog.md): more than twice the paired standard error of the difference, the clips being
 the same for every preset. The walks are modelled into a scratch store, so the catalogue is not
 touched: the admin then creates the venue with the preset chosen.
 """

@@ -131,7 +131,7 @@ def soft_clip(curves: np.ndarray, sd: float) -> np.ndarray:
     A daylit window or one high-contrast edge makes a few columns several standard deviations
     out; they then dominate the curve's low harmonics and change with the hour or the exposure.
     tanh keeps the order of the columns (where the edges are) and bounds how much any one can
-    weigh. Measured on the tuning families only (docs/benchmarks.md, "Softly clipped curves").
+    weigh. Measured on the tuning families only (docs/benchlog.md, "Softly clipped curves").
     """
     out: np.ndarray = normalise(np.float32(sd) * np.tanh(curves / np.float32(sd)))
     return out

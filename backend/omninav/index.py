@@ -16,7 +16,7 @@ frame of a group is verified against every candidate that stage 1 kept for any f
 and keeps the k that verify best. Stage 1 ranks by magnitudes alone, and a frame that people,
 another hour's light or a tilt spoil there can drop its right place from its own top k while its
 neighbours in time keep it: the phase verification, which sees the shape and not only its
-spectrum's magnitudes, then finds it (docs/benchmarks.md, "Shared candidates": held-out 1 s clips
+spectrum's magnitudes, then finds it (docs/benchlog.md, "Shared candidates": held-out 1 s clips
 94.0 % -> 95.6 % within 2 m). Ranking the group's candidates by stage 1's bound first and verifying
 only the best of them lost most of that gain, so all of them are verified: a 1 s clip's frames
 verify 3-8 times the candidates a lone frame does (26-132 a frame on the venue families before
@@ -27,7 +27,7 @@ The shortlist: with shared candidates, stage 1 keeps more a frame (`shortlist`, 
 frame keeps after verification (k, 16). In a corridor of identical doors every frame's magnitudes
 look alike, and the right place, which verifies at 0.95, can rank 20th by magnitude for every
 frame of the second. Keeping 32 after verification instead adds as many weak supporters and
-rivals to the clip's aggregation as it finds places, and was worse (docs/benchmarks.md, "The
+rivals to the clip's aggregation as it finds places, and was worse (docs/benchlog.md, "The
 shortlist"). With projected keys the projection still shortlists PREFILTER*k, and the exact
 magnitudes choose the 32 among them: a wider projected pass cost a tenth of a millisecond at
 8,000 frames and chose the same 32.

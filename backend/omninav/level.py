@@ -4,7 +4,7 @@ A phone is never held level, and a clip-on donut leans with it: the band of elev
 sum over then rises on one side of the panorama and falls on the other, and the curves change
 with how the phone is held rather than with where it is. Five 10-degree bands feel that more than
 two wide ones did: tilted 5 degrees, the right place's score falls from 1 to 0.956 on average (8
-degrees: 0.911; docs/benchmarks.md, "Levelling"; levelled, 0.992 and 0.991).
+degrees: 0.911; docs/benchlog.md, "Levelling"; levelled, 0.992 and 0.991).
 
 Why from the picture and not from the phone's gravity: which way the lens's axis and its image
 axes sit in the phone's frame depends on the phone, the clip-on and the browser, none of which

@@ -132,7 +132,7 @@ class Locator:
         identical doors, and a track along one slid a door for seconds at a time (long-bare and
         ring-bare, with the phone's steps); the frame's own candidates keep the floor where it
         was, and the shared best still give the places the clip found their verified scores
-        (docs/benchmarks.md, "Shared candidates")."""
+        (docs/benchlog.md, "Shared candidates")."""
         if q_spec.ndim != 3 or q_spec.shape[0] == 0:
             raise OmninavError("a clip needs at least one frame")
         if times is None:

@@ -40,7 +40,7 @@ DEFAULTS: dict[str, Any] = {
     "shared_candidates": True,
     # with shared candidates, stage 1 shortlists this many a frame, every one of a second's
     # shortlists verified, and each frame keeps its `candidates` best (index.py, "The shortlist";
-    # docs/benchmarks.md): a search setting too, which a venue modelled before it reads as this
+    # docs/benchlog.md): a search setting too, which a venue modelled before it reads as this
     "shortlist": 32,
     # Above `key_project_above` frames, stage 1 first shortlists with keys projected to
     # `key_dims` dims (less memory traffic), then re-ranks the shortlist with all C*K magnitudes
@@ -59,7 +59,7 @@ DEFAULTS: dict[str, Any] = {
     # never modelled (all wrong: `--elsewhere-weight`, the least that calls no more of those sure
     # than the model before), its intercept then moved to answer as many of the venue's own sure
     # as the model before (`--cover preset`). The square root of the margin: a near tie between
-    # two places is not sure unless both match almost perfectly (docs/benchmarks.md, "Ties").
+    # two places is not sure unless both match almost perfectly (docs/benchlog.md, "Ties").
     # Models before it: SUPERSEDED_CONFIDENCE. Both weights positive: fits that gave an input a
     # negative weight, or read the relative margin, answered a clip of one matching frame as sure
     "confidence_features": ["support", "sqrt_margin"],
@@ -174,7 +174,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     },
     # The paper's six curves (H, S, I and their gradients), one band, with our aggregation.
     "six": {"n_harmonics": 32},
-    # Our default. Each change over "six" is measured in docs/benchmarks.md:
+    # Our default. Each change over "six" is measured in docs/benchlog.md:
     # - gray-world colour constancy: a colour cast no longer moves hue and saturation;
     # - opponent colours (R-G, R+G-2B) instead of hue and saturation: stable at low saturation;
     # - two bands, below and above the horizon: doors and floor vs. boards, windows and lights
@@ -183,11 +183,11 @@ PRESETS: dict[str, dict[str, Any]] = {
     # - intensity and its gradient in five 10-degree bands, the colours over the whole band:
     #   where along a corridor of identical doors the camera is shows in how the corridor's
     #   light and edges are spread in elevation, which a 25-degree band's column sums average
-    #   away (docs/benchmarks.md, "Five bands of intensity"); 14 curves, 896 bytes a frame.
+    #   away (docs/benchlog.md, "Five bands of intensity"); 14 curves, 896 bytes a frame.
     #   `channels` is then the union the bands use: with `band_channels` set it does not choose
     #   the curves (it still counts in the settings id);
     # - levelled: each frame unwarped through the tilt its own upright edges show (level.py), two
-    #   passes: five narrow bands feel a phone held a few degrees off vertical (docs/benchmarks.md,
+    #   passes: five narrow bands feel a phone held a few degrees off vertical (docs/benchlog.md,
     #   "Levelling").
     "default": {
         "gray_world": True,
@@ -199,7 +199,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "soft_clip_sd": 1.25,
         "level_iters": 2,
     },
-    # A venue option for buildings where the default's narrow bands do not hold (docs/benchmarks.md,
+    # A venue option for buildings where the default's narrow bands do not hold (docs/benchlog.md,
     # "Three sources"): the six curves of "six" with gray world and opponent colours over one wide
     # band, softly clipped and levelled, searched as the default searches. Where along the wall a
     # row lands moves with the phone's height, its tilt and the user's place across the corridor;
@@ -261,7 +261,7 @@ def _check_shortlist(conf: dict[str, Any]) -> None:
 
 
 def _check_level(conf: dict[str, Any]) -> None:
-    """None (off) or a whole number of passes 0-4: more buys nothing (docs/benchmarks.md) and
+    """None (off) or a whole number of passes 0-4: more buys nothing (docs/benchlog.md) and
     costs an unwarp each, on the phone too."""
     n = conf.get("level_iters")
     if n is None:

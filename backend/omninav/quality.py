@@ -11,7 +11,7 @@ Why so narrow a window: a walk filmed once has no other frames of its stretch, a
 panorama changes within a stride (a door beside the walker turns by 40 degrees in 1 m). Leaving
 out the whole 1 s segment and 0.5 s either side made 7 % of the twin venue's walk green where an
 independent query walk was answered within 2 m 96 % of the time (73 % also unambiguously); 0.13 m
-gave 61 %, 0.4 m 33 %; 0.1 m gives 77 % (docs/benchmarks.md, "Quality map").
+gave 61 %, 0.4 m 33 %; 0.1 m gives 77 % (docs/benchlog.md, "Quality map").
 
 A segment is
   green  answered within `RADIUS_M` of where the walk was (its last frame), unambiguously;

@@ -39,7 +39,7 @@ here": a walker somewhere the venue never modelled gets two thirds of their answ
 odd sure one between them landed on the destination's look-alike in a quarter of such guidances
 (bench/guided.py, held-out, a look-alike building: 6 of 24, and 1 with the rule, for 1-2 of 24
 destinations in the venue told "probably" instead). SETTLE_S and SETTLE_LOW were chosen on the
-tuning families (docs/benchmarks.md, "Arrival").
+tuning families (docs/benchlog.md, "Arrival").
 
 "Not here": when more than half the answers of a whole minute of guidance (NOT_HERE_S) were low,
 the guide says once, of a low answer (never in place of a sure one), "You may be outside the

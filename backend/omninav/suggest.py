@@ -331,7 +331,7 @@ def suggest_waypoints(
     `progress(done, total, elapsed_s)` after every sampled frame; it may raise to stop the work.
     """
     s = settings_for(settings)
-    # the heading track's thresholds (min_sector_peak, the tolerances in docs/benchmarks.md) were
+    # the heading track's thresholds (min_sector_peak, the tolerances in docs/benchlog.md) were
     # measured on unclipped curves, in two bands for the default: the suggestions keep them whatever
     # the preset clips or however it bands its channels
     conf = resolve(s["preset"], {"soft_clip_sd": None})

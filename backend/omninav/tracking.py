@@ -20,7 +20,7 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
   `track_zero_steps_m` or more from where the last clip was best is read as no count at all: the
   phone is held steady, or rolls, while its user moves on (each such zero pulled the belief back
   towards standing still, and a walk fell behind by a door or two; chosen on the tuning families'
-  walks, docs/benchmarks.md). A phone whose counter counted STEPS_WORK_N steps in one update
+  walks, docs/benchlog.md). A phone whose counter counted STEPS_WORK_N steps in one update
   within the last STEPS_WORK_S works, and keeps its zeros: it is standing (at a stop in a
   corridor of identical doors its clip is now and then best a door on, and dropping those zeros
   cost answers there). A blank clip (best nowhere) and a change of floor (a lift's ride counts
@@ -85,7 +85,7 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
   the first update that is not held (a step, a turn, another best node) answers with its full
   confidence again. Tried first, and not kept: counting a held clip's
   evidence a fifth as much; on the held-out families a fresh start held still inside the venue
-  then said "not sure" 21 % of the time instead of 8 % (docs/benchmarks.md).
+  then said "not sure" 21 % of the time instead of 8 % (docs/benchlog.md).
 - **Facing**: the clip also says where the phone faces at each node (its best match's heading
   there). A move that walks backwards from that counts less (`track_backward`): people walk the
   way they hold the phone, and a corridor of repeating doors no longer lets the track slide back
@@ -113,7 +113,7 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
   - *a sure clip says elsewhere*: the clip alone is sure (aggregate.SURE, the app's 0.8) of a place
     FAR_M or more from the answer (or on another floor). Two calibrated sources that disagree
     are the split evidence the answer must not be sure of; the walk settles it in a few seconds.
-  Chosen on the tuning families' walks (docs/benchmarks.md, "Recent clips" and "A sure clip
+  Chosen on the tuning families' walks (docs/benchlog.md, "Recent clips" and "A sure clip
   elsewhere"), with the single clip's confidence model of then (support and margin): the clip's
   confidence here is `track_clip_confidence_*`, not the venue's `confidence_*`, which was refit
   since and gives other numbers to the same clips.
@@ -125,7 +125,7 @@ emission), with a state of a few hundred bytes (at most ~21 KB) that a server ca
   not, while the sure clip of the moment, which reads how its frames follow one another, was
   mostly right. A sure clip of a place the walk has all but ruled out (a look-alike corridor
   20 m away) moves nothing: ruling those out is what the walk is for. Chosen on the tuning
-  families' walks (docs/benchmarks.md, "A sure clip breaks a split belief").
+  families' walks (docs/benchlog.md, "A sure clip breaks a split belief").
 """
 
 from __future__ import annotations
@@ -1111,7 +1111,7 @@ class Tracker:
             m = matches.rows(c)
             # each part's own answer: the rules of the clip's own answer were chosen on 1 s clips'
             # (the whole clip's, surer for being longer, was tried: it did no better on the
-            # held-out families; docs/benchmarks.md, "Filming throughout")
+            # held-out families; docs/benchlog.md, "Filming throughout")
             own = None if answer is None else answer(m, times[c])
             restarted = restarted or state is None or not self.goes_on(state, end)
             state, made = self._step(state, m, times[c], end, mv, own, heading)

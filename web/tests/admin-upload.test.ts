@@ -46,7 +46,7 @@ describe('pieces', () => {
     expect(MIN_PIECE).toBe(MB);
     expect(MAX_PIECE).toBe(64 * MB);
     expect(plan(0, 64 * MB).length).toBe(4);
-    expect(plan(0, 95_252_897).length).toBe(4); // the benchmark's walk (docs/benchmarks.md)
+    expect(plan(0, 95_252_897).length).toBe(4); // the benchmark's walk (docs/benchlog.md)
     expect(plan(0, 256 * MB).length).toBe(4);
     expect(plan(0, 1000 * MB).length).toBe(16);
     expect(pieceSize(4000 * MB)).toBe(MAX_PIECE);

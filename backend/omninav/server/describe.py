@@ -32,7 +32,7 @@ UNSURE = "Not sure where you are; turn slowly and try again."
 # An answer under SURE (aggregate.py's: the confidence's promise in docs/formats.md, of the answers
 # at or above it at least 80 % within 2 m, and the app's "film on" line), though not "not sure",
 # is said as "You are probably ...": under it a fifth to two fifths of the answers are further than 2 m off on the
-# venue families we never tuned on, against 1-2 % above it (docs/benchmarks.md, "Said as
+# venue families we never tuned on, against 1-2 % above it (docs/benchlog.md, "Said as
 # probably"), and a user who hears a place as a fact walks off on it.
 
 Style = Literal["clock", "sides", "degrees"]

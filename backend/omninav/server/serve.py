@@ -61,7 +61,7 @@ class _Gunicorn(BaseApplication):  # type: ignore[misc]
         gunicorn.util.write_error = _json_error  # in this worker: see _json_error
 
         # Requests are the parallelism here (processes x threads): a BLAS thread pool per request
-        # thread would only fight over the cores (measured: 106 locate/s with it, see benchmarks.md).
+        # thread would only fight over the cores (measured: 106 locate/s with it, see docs/benchlog.md).
         threadpool_limits(1)
         return create_app(self.overrides)  # in each worker, after the fork: its own engine and threads
 
@@ -312,7 +312,7 @@ def _run_workers(options: dict[str, Any], overrides: dict[str, Any]) -> None:
 
 def _run_jobs(conf: dict[str, Any]) -> None:
     """The job runner: claims queued jobs from the database and models them, at a lower priority
-    than the workers (a modelling job must not slow the answers: measured in docs/benchmarks.md)."""
+    than the workers (a modelling job must not slow the answers: measured in docs/benchlog.md)."""
     _die_with_parent()
     os.nice(10)
     # one BLAS thread, as in the app workers (_Gunicorn.load): the runner shares the cores with

@@ -16,7 +16,7 @@ export const MIN_PIECE_OVERRIDE = 64 * 1024;
  * multiple of 64 KiB. Few pieces because each one costs a request (a few milliseconds of the
  * server's bookkeeping, the browser's setting up of a new upload, the pipe from the browser to the
  * workers drained and refilled): 16 pieces made the page's upload half as fast as curl's one PUT
- * on loopback (docs/benchmarks.md, issue 11). Large pieces lose nothing: the server keeps every
+ * on loopback (docs/benchlog.md, issue 11). Large pieces lose nothing: the server keeps every
  * byte of a piece that arrived, even when its request is cut off (pause, a dropped connection),
  * and the upload resumes from there; progress within a piece comes from the request's own upload
  * events. Over 64 MiB the pieces get more numerous (a 1 GB walk: 16), which costs little at that

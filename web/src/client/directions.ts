@@ -18,7 +18,7 @@ export const UNSURE = 'Not sure where you are; turn slowly and try again.';
  * An answer under this confidence, though not "not sure", is said as "You are probably ...": the
  * confidence's promise (docs/formats.md: at least 80 % of the answers at or above it within 2 m)
  * and the one under which "Where am I?" films on. Under it a fifth of the answers or more were further than 2 m off
- * on the venue families we never tuned on, against 1-2 % above it (docs/benchmarks.md, "Said as
+ * on the venue families we never tuned on, against 1-2 % above it (docs/benchlog.md, "Said as
  * probably"); a place heard as a fact is walked to.
  */
 export const SURE = 0.8;

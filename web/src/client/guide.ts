@@ -6,7 +6,7 @@
  * phone's motion since the previous request: WALK_SECONDS a request, all the loop can film but
  * the answer's time and a MIN_GAP_MS pause (the server's filter walks it second by second: an
  * unseen second of walking is evidence lost; on the venue families it was never tuned on, more of
- * the walk filmed is right more often: docs/benchmarks.md, "Filming throughout");
+ * the walk filmed is right more often: docs/benchlog.md, "Filming throughout");
  * the server's filter and guide decide what is new, and this loop speaks only what it marks
  * `speak`. Off the route, arrival and a turn before its corner cut in (urgent); "not sure" is said once per spell; arrival
  * ends the loop, and only a sure one does: "You are probably at ..." (`probably_arrived`, a pose

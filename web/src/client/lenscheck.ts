@@ -25,7 +25,7 @@ export const TOO_FAR =
  * A correction is said when the profile in use moves by at least this much (px). Not 1: the e2e
  * clips' lens sits 1 px off, and the same clip was "corrected" aloud in some runs and not in others
  * (the engine finds its ring 0.98 px off); 2 px is still under the smallest move of a lens clipped on
- * again (2.5-10 px, docs/benchmarks.md "Finding the ring") and far above the finder's error
+ * again (2.5-10 px, docs/benchlog.md "Finding the ring") and far above the finder's error
  * (0.02-0.3 px). Below it the worker still corrects, silently.
  */
 export const SAY_PX = 2;

@@ -60,7 +60,7 @@ export const KEEP_TURNING = 'Not sure yet. Keep turning slowly.';
  * What a turn of "Keep telling me" films once one of its turns was answered (the first films 1 s,
  * so that the first answer comes as soon as ever): twice the evidence at the same pace, since the
  * wait after it is a second shorter. On the held-out venue families, with the phone's motion,
- * 93.3 -> 96.2 % of the answers within 2 m and "sure" 58 -> 85 % (docs/benchmarks.md, "Keep
+ * 93.3 -> 96.2 % of the answers within 2 m and "sure" 58 -> 85 % (docs/benchlog.md, "Keep
  * telling me").
  */
 export const KEEP_SECONDS = 2;
