@@ -36,8 +36,8 @@ from typing import Any
 import numpy as np
 
 from omninav.aggregate import SURE
+from omninav.motion import Imu
 from omninav.synth.families import FAMILIES
-from omninav.tracking import Imu
 
 sys.path.insert(0, str(Path(__file__).parent))
 from families import dataset, family_names, settings  # noqa: E402

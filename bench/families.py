@@ -126,7 +126,7 @@ def cached_venue(
         )  # fmt: skip
         print(f"modelled {root.name} as {vid} in {time.perf_counter() - t:.0f} s", file=sys.stderr, flush=True)
     loc = Locator(st, vid, device="cpu")
-    loc.conf.update({k: settings[k] for k in (*CONFIDENCE_KEYS, *SEARCH_KEYS)})
+    loc.change_settings({k: settings[k] for k in (*CONFIDENCE_KEYS, *SEARCH_KEYS)})
     return loc
 
 

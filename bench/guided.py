@@ -61,8 +61,9 @@ from omninav import route as rt
 from omninav import walkgraph as wg
 from omninav.aggregate import SURE, confidence, sequence
 from omninav.locate import Locator
+from omninav.motion import Imu
 from omninav.synth.families import FAMILIES
-from omninav.tracking import Imu, Tracker
+from omninav.tracking import Tracker
 
 sys.path.insert(0, str(Path(__file__).parent))
 from families import dataset, family_names, settings  # noqa: E402

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from omninav.calib.correct import FIRST, ClipLens
-from omninav.calib.ring import corrected_lens
+from omninav.calib.lens_fit import corrected_lens
 from omninav.extract import Extractor
 from omninav.heading import wrap_deg
 from omninav.lens import load_lens

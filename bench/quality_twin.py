@@ -32,7 +32,8 @@ from omninav.presets import resolve
 from omninav.quality import AMBIGUOUS_MARGIN, RADIUS_M, quality_map
 from omninav.store import Store
 from omninav.synth import Dataset, make_dataset
-from omninav.synth.scene import TWINS, build_scene
+from omninav.synth.layouts import TWINS
+from omninav.synth.scene import build_scene
 from omninav.track import load_track
 
 sys.path.insert(0, str(Path(__file__).parent))

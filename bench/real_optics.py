@@ -37,6 +37,7 @@ import cv2
 import numpy as np
 
 from omninav.calib import ocam as oc
+from omninav.calib import ocam_file as ocf
 from omninav.extract import Extractor
 from omninav.heading import relative_heading, wrap_deg
 from omninav.lens import Catadioptric
@@ -106,9 +107,9 @@ def real_photo(cache: Path) -> tuple[np.ndarray, Catadioptric, np.ndarray, float
         data = z.read("pyomniunwarp/data/example.jpg")
         img = _decode(data)
         (cache / "calib_results.txt").write_bytes(z.read("pyomniunwarp/data/calib_results.txt"))
-    cal = oc.read_ocamcalib_file(cache / "calib_results.txt")
+    cal = ocf.read_ocamcalib_file(cache / "calib_results.txt")
     assert cal.roi is not None and cal.crop_lr is not None
-    model = oc.read_ocamcalib(cache / "calib_results.txt", offset=(cal.crop_lr[0], 0), image_size=(1920, 1080))
+    model = ocf.read_ocamcalib(cache / "calib_results.txt", offset=(cal.crop_lr[0], 0), image_size=(1920, 1080))
     ring = SimpleNamespace(center=model.center, r_inner=cal.roi[1], r_outer=cal.roi[0])
     prof, _ = oc.to_profile(model, ring, 0, True)
     det = detect_board(img, parse_board("chess:9x6:0.03"), ring)

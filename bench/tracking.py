@@ -45,19 +45,13 @@ from omninav.heading import wrap_deg
 from omninav.index import Matches
 from omninav.lens import load_lens
 from omninav.locate import Locator
+from omninav.lookalikes import ALIKE_K, frame_search, look_alikes
+from omninav.motion import Imu, Motion, parse_imu
 from omninav.presets import DEFAULTS, n_curves, resolve
 from omninav.synth.families import FAMILIES, _jpeg, family_venue, pano_width
 from omninav.synth.walks import imu_for, poses_from_track, render_frames, with_stops, write_video
 from omninav.track import load_track
-from omninav.tracking import (
-    ALIKE_K,
-    Imu,
-    Motion,
-    Tracker,
-    frame_search,
-    look_alikes,
-    parse_imu,
-)
+from omninav.tracking import Tracker
 from omninav.walkgraph import WalkGraph, from_frames
 
 sys.path.insert(0, str(Path(__file__).parent))

@@ -136,7 +136,8 @@ def ring_golden(out: Path, rendered: list[np.ndarray] | None = None) -> None:
     its `fit_lens` of the frame's lens profile (as it was before the lens was clipped on again).
     The clip-ons' frames (rendered once, kept while their recipe holds: the 1920x1080 one takes a
     few seconds) wear a real lens's surround; the golden donut frames above are bare renders."""
-    from omninav.calib.ring import find_ring_frame, fit_lens
+    from omninav.calib.lens_fit import fit_lens
+    from omninav.calib.ring import find_ring_frame
     from omninav.synth.clipon import Surround, covered_lens, plain_photo, reclip, ring_frames, wide_lens
 
     out.mkdir(parents=True, exist_ok=True)

@@ -22,6 +22,7 @@ from scipy.optimize import least_squares  # type: ignore[import-untyped]
 from scipy.spatial.transform import Rotation  # type: ignore[import-untyped]
 
 from omninav.calib import ocam as oc
+from omninav.calib import ocam_file as ocf
 from omninav.calib.board import parse_board
 from omninav.lens import Catadioptric, direction_to_pixel
 from omninav.unwarp import build_map, panorama_elevations, unwarp
@@ -35,9 +36,9 @@ def photo(pyomniunwarp: tuple[bytes, Path]) -> SimpleNamespace:
     data, calib = pyomniunwarp
     jpg = np.frombuffer(data, np.uint8)
     img = cv2.imdecode(jpg, cv2.IMREAD_COLOR)
-    cal = oc.read_ocamcalib_file(calib)
+    cal = ocf.read_ocamcalib_file(calib)
     assert img.shape == (1080, 1920, 3) and cal.crop_lr == (300, 320) and cal.roi is not None
-    model = oc.read_ocamcalib(calib, offset=(cal.crop_lr[0], 0), image_size=(1920, 1080))
+    model = ocf.read_ocamcalib(calib, offset=(cal.crop_lr[0], 0), image_size=(1920, 1080))
     ring = SimpleNamespace(center=model.center, r_inner=cal.roi[1], r_outer=cal.roi[0])
     return SimpleNamespace(img=img, cal=cal, model=model, ring=ring)
 
@@ -60,7 +61,7 @@ def test_read_ocamcalib_as_ocamcalib_means_it(photo: SimpleNamespace) -> None:
     xy = np.stack([m.center[0] + rr * np.cos(pp), m.center[1] + rr * np.sin(pp)], -1).reshape(-1, 2)
     rays = m.cam2world(xy)
     assert np.abs(m.world2cam(rays) - xy).max() < 1e-6
-    assert np.abs(oc.world2cam_invpol(photo.cal, rays, (300, 0)) - xy).max() < 0.05
+    assert np.abs(ocf.world2cam_invpol(photo.cal, rays, (300, 0)) - xy).max() < 0.05
     # the convex mirror: the inner edge looks down at the floor, the outer edge above the horizon
     lo, hi = m.elevation(np.array(photo.cal.roi[::-1]))
     assert lo < -20 < 10 < hi

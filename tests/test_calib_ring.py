@@ -15,7 +15,8 @@ import pytest
 
 from conftest import run_cli
 from omninav.calib.cli_ring import SURROUND_WORDS
-from omninav.calib.ring import NoRing, Ring, find_ring, find_ring_frame, fit_lens, visible_share
+from omninav.calib.lens_fit import fit_lens
+from omninav.calib.ring import NoRing, Ring, find_ring, find_ring_frame, visible_share
 from omninav.errors import OmninavError
 from omninav.lens import direction_to_pixel, load_lens
 from omninav.synth import donut_lens, equirect_lens
@@ -255,7 +256,7 @@ def test_fit_lens_too_far_cut_and_no_ring(donut_half):
 
 
 def test_corrected_lens_on_frames():
-    from omninav.calib.ring import corrected_lens
+    from omninav.calib.lens_fit import corrected_lens
 
     lens = HALF["wide"]
     fit = corrected_lens(lens, [plain_photo(lens.image_size, seed=1)] * 2)

@@ -14,15 +14,17 @@ import numpy as np
 import pytest
 
 from omninav.aggregate import NEAR_M, WALK_MPS, gate_deg, reach_m, sequence
+from omninav.errors import OmninavError
 from omninav.heading import wrap_deg
 from omninav.index import Matches
 from omninav.lens import load_lens
 from omninav.locate import MAX_CLIP_S, Locator, clip_groups
-from omninav.presets import resolve
+from omninav.presets import DEFAULTS, resolve
 from omninav.server import create_app
+from omninav.settings_upgrade import upgrade
 from omninav.spectrum import encode_binary, encode_json
 from omninav.synth.walks import QUERY, Pose, render_frames
-from omninav.tracking import ClipAnswer
+from omninav.tracking_state import ClipAnswer
 from server_helpers import TOKEN, Api, clip_spectra, heading_error, query_clip
 
 CONF = resolve("default")
@@ -119,7 +121,7 @@ def test_clip_groups_are_the_seconds_counted_back_from_the_last_frame():
     assert clip_groups(np.array([0.0, np.nan, 0.3, 0.2])).tolist() == [0, 0, 0, 0]
 
 
-def test_each_second_of_a_clip_shares_its_candidates(loc, small_ds, monkeypatch):
+def test_each_second_of_a_clip_shares_its_candidates(loc, small_ds):
     """A locate searches its clip second by second, every frame of a second verified against the
     shortlists of all of them (`shortlist` a frame, by stage 1), each keeping its `candidates`
     best; with `shared_candidates` off, each frame keeps its own."""
@@ -147,17 +149,24 @@ def test_each_second_of_a_clip_shares_its_candidates(loc, small_ds, monkeypatch)
     assert np.array_equal(best.index, m.index) and evidence.index.shape == (25, 2 * k)
     assert np.array_equal(evidence.index[:, :k], m.index) and np.array_equal(evidence.index[:, k:], own.index)
     assert np.allclose(evidence.score[:, k:], own.score, atol=1e-5)
-    monkeypatch.setitem(loc.conf, "shared_candidates", False)
+    loc.change_settings({"shared_candidates": False})  # (the fixture's Locator: set back below)
     plain, _ = loc.search_clip(spec, t)
     assert np.array_equal(plain.index, own.index) and np.array_equal(plain.score, own.score)
     assert loc.clip_matches(spec, t)[1].index.shape == (25, k)  # without sharing: the frame's own
-    monkeypatch.setitem(loc.conf, "shared_candidates", True)
+    loc.change_settings({"shared_candidates": True})
     # a venue modelled before the shortlist (no key) searches with the default's; a shortlist of
     # `candidates` is the search before it
-    monkeypatch.delitem(loc.conf, "shortlist")
-    assert np.array_equal(loc.search_clip(spec, t)[0].index, m.index)
-    monkeypatch.setitem(loc.conf, "shortlist", k)
+    stored = {key: v for key, v in loc.conf.items() if key not in ("shortlist", "version")}
+    assert upgrade(stored)["shortlist"] == loc.search.shortlist == DEFAULTS["shortlist"]
+    loc.change_settings({"shortlist": k})
     before, _ = loc.search_clip(spec, t)
+    loc.change_settings({"shortlist": DEFAULTS["shortlist"]})
+    # what the frames were made with cannot change under them; a bad value is refused whole
+    with pytest.raises(OmninavError, match="bands"):
+        loc.change_settings({"bands": [[-10.0, 10.0]]})
+    with pytest.raises(OmninavError, match="shortlist"):
+        loc.change_settings({"shortlist": 0})
+    assert loc.search.shortlist == DEFAULTS["shortlist"]
     for i in range(25):
         assert set(before.index[i].tolist()) <= set(own.index[groups == groups[i]].ravel().tolist())
     assert np.all(m.score[:, 0] >= before.score[:, 0] - 1e-5)

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from omninav.aggregate import CONFIDENCE_INPUTS, Estimate, confidence, confidence_inputs
-from omninav.presets import current_confidence, resolve
+from omninav.presets import resolve
+from omninav.settings_upgrade import upgrade
 
 
 def _est(support: float, rival: float, agree: float = 1.0) -> Estimate:
@@ -22,23 +23,30 @@ def test_a_venue_modelled_before_the_features_were_named_reads_its_model() -> No
 
 def test_a_superseded_default_model_is_refreshed_and_any_other_kept() -> None:
     """A venue modelled when the default model was the one refit since answers with today's (the
-    confidence reads no feature: nothing to extract again); an admin's own model stays."""
+    confidence reads no feature: nothing to extract again); an admin's own model stays. Read as
+    the store reads a generation's settings.json (settings_upgrade.upgrade, migration 1)."""
     today = resolve("default")
+    base = {k: v for k, v in today.items() if not k.startswith("confidence_") and k != "version"}
     for old in (
-        {"confidence_coef": [-6.68, 10.731, 10.215], "x": 1},  # before confidence_features was a key
-        {"confidence_features": ["support", "margin"], "confidence_coef": [-6.68, 10.731, 10.215], "x": 1},
-        {"confidence_features": ["support", "margin"], "confidence_coef": [-3.45, 5.677, 9.197], "x": 1},
+        {"confidence_coef": [-6.68, 10.731, 10.215]},  # before confidence_features was a key
+        {"confidence_features": ["support", "margin"], "confidence_coef": [-6.68, 10.731, 10.215]},
+        {"confidence_features": ["support", "margin"], "confidence_coef": [-3.45, 5.677, 9.197]},
     ):
+        stored = {**base, **old}
         coef = list(old["confidence_coef"])
-        new = current_confidence(old)
+        new = upgrade(stored)
         assert new["confidence_coef"] == today["confidence_coef"] != old["confidence_coef"]
-        assert new["confidence_features"] == today["confidence_features"] and new["x"] == 1
-        assert old["confidence_coef"] == coef  # the venue's own dict untouched
-    own = {"confidence_features": ["support", "margin"], "confidence_coef": [-6.0, 10.0, 10.0]}
-    assert current_confidence(own) is own
-    other = {"confidence_features": ["support", "agree"], "confidence_coef": [-3.45, 5.677, 9.197]}
-    assert current_confidence(other) is other  # the old default's weights on other inputs: an own model
-    assert current_confidence(today) is today
+        assert new["confidence_features"] == today["confidence_features"] and new["bands"] == base["bands"]
+        assert stored["confidence_coef"] == coef  # the venue's own dict untouched
+    own = {**base, "confidence_features": ["support", "margin"], "confidence_coef": [-6.0, 10.0, 10.0]}
+    assert upgrade(own)["confidence_coef"] == [-6.0, 10.0, 10.0]
+    # the old default's weights on other inputs: an own model
+    other = {**base, "confidence_features": ["support", "agree"], "confidence_coef": [-3.45, 5.677, 9.197]}
+    assert upgrade(other)["confidence_coef"] == [-3.45, 5.677, 9.197]
+    # an own model from before the key was named reads the inputs it was fit on
+    unnamed = upgrade({**base, "confidence_coef": [-6.0, 10.0, 10.0]})
+    assert unnamed["confidence_features"] == ["support", "margin"]
+    assert upgrade(today) == today
 
 
 def test_the_default_model_grows_with_every_input_and_a_clip_of_one_matching_frame_is_not_sure() -> None:

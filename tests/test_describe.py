@@ -1,4 +1,4 @@
-"""The answer in words (server/describe.py), against the table of cases that the app's
+"""The answer in words (describe.py), against the table of cases that the app's
 directions.ts is also held to (tests/data/sentences.json, run by web/tests/sentences.test.ts)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from omninav.server import describe as words
+from omninav import describe as words
 
 TABLE = json.loads((Path(__file__).parent / "data" / "sentences.json").read_text())
 CASES = [(c, style) for c in TABLE["cases"] for style in c["say"]]

@@ -15,9 +15,10 @@ import pytest
 from omninav.lens import Catadioptric, Equirectangular, load_lens
 from omninav.synth import QUERY, build_scene, donut_lens
 from omninav.synth.families import FAMILIES, family_venue, make_family_dataset
+from omninav.synth.layouts import COMB_TEETH
 from omninav.synth.optics import REAL
 from omninav.synth.render import PanoGrid, world_panorama
-from omninav.synth.scene import COMB_TEETH, GRID, TEX_PPM, Lighting
+from omninav.synth.scene import GRID, TEX_PPM, Lighting
 from omninav.synth.walks import Perturb, default_routes, poses_from_track, render_frames, track_for
 from omninav.track import load_track
 

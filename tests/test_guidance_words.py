@@ -1,4 +1,4 @@
-"""The words of route guidance (server/describe.py), against the table of cases that the app's
+"""The words of route guidance (describe.py), against the table of cases that the app's
 directions.ts is also held to (tests/data/guidance.json, run by web/tests/guidance.test.ts)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from omninav.server import describe as words
+from omninav import describe as words
 
 TABLE = json.loads((Path(__file__).parent / "data" / "guidance.json").read_text())
 CASES = [(c, style) for c in TABLE["cases"] for style in c["say"]]

@@ -34,8 +34,9 @@ from omninav.quality import (
 )
 from omninav.store import FRAME_DTYPE, Generation, Store
 from omninav.synth import Dataset, donut_lens, make_dataset
+from omninav.synth.layouts import TWINS
 from omninav.synth.render import world_panorama
-from omninav.synth.scene import TWINS, build_scene, floorplan_image
+from omninav.synth.scene import build_scene, floorplan_image
 from omninav.synth.walks import grid_for
 from omninav.track import load_track
 

@@ -247,15 +247,16 @@ def test_a_walk_through_real_optics_still_matches_its_clean_self(synth: SimpleNa
 def photo(pyomniunwarp: tuple[bytes, Path]) -> SimpleNamespace:
     """The real photo (RGB), its lens profile (from the OCamCalib model beside it) and its board."""
     from omninav.calib import ocam as oc
+    from omninav.calib import ocam_file as ocf
     from omninav.calib.board import detect_board, parse_board
 
     data, calib = pyomniunwarp
     jpg = np.frombuffer(data, np.uint8)
     img = cv2.imdecode(jpg, cv2.IMREAD_COLOR)
     assert img is not None
-    cal = oc.read_ocamcalib_file(calib)
+    cal = ocf.read_ocamcalib_file(calib)
     assert cal.roi is not None and cal.crop_lr is not None
-    model = oc.read_ocamcalib(calib, offset=(cal.crop_lr[0], 0), image_size=(1920, 1080))
+    model = ocf.read_ocamcalib(calib, offset=(cal.crop_lr[0], 0), image_size=(1920, 1080))
     ring = SimpleNamespace(center=model.center, r_inner=cal.roi[1], r_outer=cal.roi[0])
     prof, _ = oc.to_profile(model, ring, 0, True)
     det = detect_board(img, parse_board("chess:9x6:0.03"), ring)

@@ -16,7 +16,7 @@ import pytest
 from omninav import route as rt
 from omninav import walkgraph as wg
 from omninav.demo import LANDMARKS
-from omninav.synth.scene import small_layout, twin_routes
+from omninav.synth.layouts import small_layout, twin_routes
 from test_walkgraph import default_model_route, dense
 
 

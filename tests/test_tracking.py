@@ -26,24 +26,15 @@ from omninav.errors import OmninavError
 from omninav.index import Matches
 from omninav.lens import load_lens
 from omninav.locate import Locator
+from omninav.lookalikes import node_frames
+from omninav.motion import Motion, parse_imu, parts, share
 from omninav.presets import resolve
 from omninav.synth import Dataset
-from omninav.synth.scene import TWIN_RING, twin_routes
+from omninav.synth.layouts import TWIN_RING, twin_routes
 from omninav.synth.walks import imu_for, track_for
 from omninav.track import parse_track
-from omninav.tracking import (
-    FIT_M,
-    MAX_STORED,
-    STEPS_WORK_S,
-    ClipAnswer,
-    Motion,
-    Tracker,
-    TrackState,
-    node_frames,
-    parse_imu,
-    parts,
-    share,
-)
+from omninav.tracking import FIT_M, STEPS_WORK_S, Tracker
+from omninav.tracking_state import MAX_STORED, ClipAnswer, TrackState
 from omninav.walkgraph import build
 
 CONF = resolve("default")
@@ -365,7 +356,7 @@ def test_a_sure_clip_breaks_a_tie_the_walk_cannot_but_never_overrules_the_walk(t
     ],
 )
 def test_bad_settings_of_the_clips_own_answer_are_refused(twin: Venue, key: str, bad: object) -> None:
-    with pytest.raises(ValueError, match=key):
+    with pytest.raises(OmninavError, match=key):
         Tracker(twin.graph, twin.xy, np.full(len(twin.xy), "1"), {**twin.conf, key: bad})
 
 
@@ -720,7 +711,7 @@ def doors(x: float) -> list[float]:
 
 
 def corridor_alikes(v: Venue, score: float) -> Matches:
-    """What the venue's own index says of the corridor's nodes (tracking.look_alikes): each
+    """What the venue's own index says of the corridor's nodes (lookalikes.look_alikes): each
     node's frame matches the same spot at every door with `score` (1: the same panorama)."""
     rows = node_frames(v.graph, v.xy, np.full(len(v.xy), "1"))
     idx = np.zeros((len(rows), K), np.int64)
@@ -820,7 +811,7 @@ def test_the_second_beliefs_weight_of_a_clip_falls_with_its_best_score() -> None
     off = Venue([(0.0, 0.0), (10.0, 0.0)], {"track_beta_ref": None})
     assert off.tracker.beta(0.3) == off.conf["track_beta"]
     for bad in (1.0, 1.5, -0.1):  # at 1 or more the weight would be 0 or turn the evidence over
-        with pytest.raises(ValueError, match="track_beta_ref"):
+        with pytest.raises(OmninavError, match="track_beta_ref"):
             Venue([(0.0, 0.0), (10.0, 0.0)], {"track_beta_ref": bad})
 
 

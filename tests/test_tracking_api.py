@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from conftest import db_url_for
+from omninav.describe import guidance_sentence
 from omninav.server import create_app
-from omninav.server.describe import guidance_sentence
 from omninav.server.venues_api import filing_name
 from omninav.spectrum import encode_binary
 from omninav.tracking import FORGET_S
@@ -106,7 +106,7 @@ def test_a_tracked_walk_continues_one_filter_whose_state_is_in_the_database(lab:
     assert row is not None and row.generation == app.extensions["omninav"].catalog.store.generation("lab")
     assert row.guide is None and len(row.state) > 0 and row.expires > row.updated
     # the state carries the clips' own confidence, as the answers gave it (the recent clips' rule)
-    from omninav.tracking import TrackState
+    from omninav.tracking_state import TrackState
 
     walk_graph = app.extensions["omninav"].runtimes.get("lab").walk().graph
     state = TrackState.from_bytes(row.state, walk_graph)

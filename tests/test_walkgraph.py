@@ -11,7 +11,7 @@ import pytest
 
 from omninav import walkgraph as wg
 from omninav.store import FRAME_DTYPE
-from omninav.synth.scene import default_layout, small_layout, twin_routes
+from omninav.synth.layouts import default_layout, small_layout, twin_routes
 from omninav.synth.walks import default_routes
 
 

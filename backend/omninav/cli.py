@@ -18,21 +18,16 @@ import click
 
 from .calib.commands import calib
 from .catalog import Catalog
+from .cli_context import catalog_of
+from .cli_server import SERVER_COMMANDS
 from .errors import OmninavError, read_json
-
-
-def _catalog(ctx: click.Context) -> Catalog:
-    """The catalogue the server of this data folder (and its omninav.cfg) uses."""
-    if "catalog" not in ctx.obj:
-        ctx.obj["catalog"] = Catalog.open(_server_conf(ctx))
-    return ctx.obj["catalog"]  # type: ignore[no-any-return]
 
 
 def _locator(ctx: click.Context, venue_id: str, device: str | None = None) -> Any:
     """A venue's frames loaded for answering, its answers naming its places."""
     from .locate import Locator
 
-    cat = _catalog(ctx)
+    cat = catalog_of(ctx)
     cat.venues.get(venue_id)
     floors = cat.floors.all(venue_id)
     return Locator(cat.store, venue_id, device, cat.places.all(venue_id), floors[0]["id"] if floors else None)
@@ -45,7 +40,7 @@ def _track_locator(ctx: click.Context, venue_id: str) -> Any:
     from .walkgraph import from_frames
 
     loc = _locator(ctx, venue_id)
-    video_floor = _catalog(ctx).videos.floor_list(venue_id, loc.gen.videos)
+    video_floor = catalog_of(ctx).videos.floor_list(venue_id, loc.gen.videos)
     loc.use_floors(video_floor, from_frames(loc.gen.frames, video_floor, loc.places))
     return loc
 
@@ -146,7 +141,7 @@ def venue_create(
                 check_place(p, i, {floor})
         except OmninavError as e:
             raise OmninavError(f"{places}: {e}") from None
-    cat = _catalog(ctx)
+    cat = catalog_of(ctx)
     cat.venues.create(venue_id, name, preset, floor, px_per_m=px_per_m)
     if plan is not None:
         cat.floors.set_plan(venue_id, floor, plan)
@@ -159,7 +154,7 @@ def venue_create(
 @click.pass_context
 def venue_list(ctx: click.Context) -> None:
     """List venues, one JSON object per line."""
-    cat = _catalog(ctx)
+    cat = catalog_of(ctx)
     for v in cat.venues.all():
         click.echo(json.dumps({"id": v["id"], "name": v["name"], "frames": cat.store.frame_count(v["id"])}))
 
@@ -171,7 +166,7 @@ def venue_list(ctx: click.Context) -> None:
 def venue_delete(ctx: click.Context, venue_id: str, yes: bool) -> None:
     """Delete a venue and everything of it: its jobs (cancelled), modelled frames, floor plans,
     places, lenses, videos and job results. Prints what went, as JSON."""
-    cat = _catalog(ctx)
+    cat = catalog_of(ctx)
     v = cat.venues.get(venue_id)  # (unknown venue: refused before the question)
     if not yes:
         n = len(cat.videos.all(venue_id))
@@ -201,7 +196,7 @@ def model(ctx: click.Context, venue_id: str, video: Path, track_path: Path, lens
     from .model_venue import VideoSource, model_videos
     from .track import load_track
 
-    cat = _catalog(ctx)
+    cat = catalog_of(ctx)
     # (unknown venue: refused here, before any work)
     settings = cat.venues.preset_settings(venue_id) if anew else cat.venues.settings(venue_id)
     check = (lambda: _check_anew(cat, venue_id, video.name)) if anew else None
@@ -319,7 +314,7 @@ def track(
     at least its last second, and the filter's memory of the walk before)."""
     from .evaluate import track_walk, walk_spectra
     from .lens import load_lens
-    from .tracking import load_imu
+    from .motion import load_imu
 
     lens = load_lens(lens_path) if lens_path else None
     imu = load_imu(imu_path) if imu_path is not None else None
@@ -349,7 +344,7 @@ def features(venue_id: str, clip: Path, lens_path: Path | None, out: Path | None
     from .spectrum import encode_binary, encode_json
 
     ctx = click.get_current_context()
-    cat = _catalog(ctx)
+    cat = catalog_of(ctx)
     conf = cat.venues.settings(venue_id)
     if lens_path:
         lens = load_lens(lens_path)  # its own errors name the file and the field
@@ -467,7 +462,7 @@ def quality(
     from .catalog.floors import decode_plan
     from .quality import quality_map, quality_png
 
-    cat = _catalog(ctx)
+    cat = catalog_of(ctx)
     cat.venues.get(venue_id)
     floors = {f["id"]: f for f in cat.floors.all(venue_id)}
     first = min(floors) if floors else "1"
@@ -514,7 +509,7 @@ def _evaluate_track(
 ) -> None:
     """evaluate --track-mode: the walk answered every `every` s alone and through the filter."""
     from .evaluate import evaluate_track, plot, query_spectra, track_summary
-    from .tracking import load_imu
+    from .motion import load_imu
 
     imu = load_imu(imu_path) if imu_path is not None else None
     loc = _track_locator(ctx, venue_id)
@@ -674,7 +669,7 @@ def demo(ctx: click.Context, quick: bool, venue_id: str | None) -> None:
     from .lens import load_lens
     from .track import load_track
 
-    cat = _catalog(ctx)
+    cat = catalog_of(ctx)
     # the quick and the full demo are different venues: never let one answer for the other
     venue_id = venue_id or ("demo-quick" if quick else "demo")
     src = render(cat.data, quick, log=lambda m: click.echo(m, err=True))
@@ -696,83 +691,9 @@ def demo(ctx: click.Context, quick: bool, venue_id: str | None) -> None:
     click.echo(f"plots: {src}/*.eval.png")
 
 
-def _server_conf(ctx: click.Context, **options: Any) -> dict[str, Any]:
-    """The settings (config.py), with the command line's options over them."""
-    return ctx.obj["load"]({**ctx.obj["overrides"], **options})  # type: ignore[no-any-return]
-
-
-@cli.command()
-@click.option("--host", help="Address to listen on (HOST; default 127.0.0.1, every interface with --https).")
-@click.option("--port", type=click.IntRange(1, 65535), help="Port (PORT; default 8000).")
-@click.option("--https", is_flag=True, default=None, help="HTTPS on the LAN, certificate from a local CA (HTTPS).")
-@click.option("--workers", type=click.IntRange(1, 64), help="Worker processes (WORKERS; default: cores + 1).")
-@click.option("--threads", type=click.IntRange(1, 256), help="Threads per worker (THREADS; default 4).")
-@click.option(
-    "--demo",
-    type=click.Choice(["full", "quick", "none"]),
-    help="The synthetic demo venue set up on first start (DEMO; default full).",
-)
-@click.pass_context
-def serve(
-    ctx: click.Context,
-    host: str | None,
-    port: int | None,
-    https: bool | None,
-    workers: int | None,
-    threads: int | None,
-    demo: str | None,
-) -> None:
-    """Run the server: the API and the web app (gunicorn, several workers). Each option overrides
-    its setting (omninav.cfg, OMNINAV_*; docs/operations.md, "Settings")."""
-    from .server.serve import default_workers
-    from .server.serve import serve as run
-
-    conf = _server_conf(ctx, HOST=host, PORT=port, HTTPS=https, WORKERS=workers, THREADS=threads, DEMO=demo)
-    host = conf["HOST"] or ("0.0.0.0" if conf["HTTPS"] else "127.0.0.1")
-    workers = conf["WORKERS"] or default_workers()
-    run(conf, host, conf["PORT"], conf["HTTPS"], workers, conf["THREADS"], conf["DEMO"], echo=click.echo)
-
-
-@cli.command("admin-token")
-@click.option("--reset", is_flag=True, help="Make a new admin token (the old one stops working).")
-@click.pass_context
-def admin_token(ctx: click.Context, reset: bool) -> None:
-    """Make the server's admin token (only its hash is kept, so a lost one is replaced, not shown)."""
-    from .catalog.db import Db
-    from .config import database_url
-    from .server.auth import ensure_token, set_token
-
-    db = Db(database_url(_server_conf(ctx)))
-    db.migrate()
-    token = set_token(db) if reset else ensure_token(db)
-    if token is None:
-        raise OmninavError("an admin token exists already; 'omninav admin-token --reset' replaces it")
-    click.echo(token)
-
-
-@cli.command("backup")
-@click.argument("dest", type=click.Path(path_type=Path))
-@click.option("--no-videos", is_flag=True, help="Leave the modelling videos out (re-modelling needs them again).")
-@click.pass_context
-def backup_cmd(ctx: click.Context, dest: Path, no_videos: bool) -> None:
-    """Back up the server's catalogue, venues, plans and videos into DEST, a new folder (safe while it serves)."""
-    from .server.backup import backup
-
-    click.echo(json.dumps(backup(_server_conf(ctx), dest, videos=not no_videos)))
-
-
-@cli.command("restore")
-@click.argument("src", type=click.Path(path_type=Path))
-@click.option("--force", is_flag=True, help="Replace the venues the target database and data folder already have.")
-@click.pass_context
-def restore_cmd(ctx: click.Context, src: Path, force: bool) -> None:
-    """Restore the backup SRC into this data folder and database (stop the server first)."""
-    from .server.backup import restore
-
-    click.echo(json.dumps(restore(_server_conf(ctx), src, force=force)))
-
-
 cli.add_command(calib)
+for command in SERVER_COMMANDS:
+    cli.add_command(command)
 
 
 def _say_warnings() -> None:

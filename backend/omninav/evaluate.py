@@ -21,9 +21,10 @@ from .heading import wrap_deg
 from .lens import Lens
 from .locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, Locator
 from .model_venue import Progress
+from .motion import Imu
 from .quality import AMBIGUOUS_MARGIN, RADIUS_M
 from .track import Track
-from .tracking import Imu, TrackPose, TrackState
+from .tracking_state import TrackPose, TrackState
 from .video import IMAGE_EXT, VideoInfo, iter_video
 
 

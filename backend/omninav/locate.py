@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -16,11 +16,14 @@ from .errors import OmninavError
 from .extract import Extractor, Extractors
 from .index import Index, Matches
 from .lens import Lens
-from .presets import setting
-from .store import Store, key_dims_for
+from .presets import FEATURE_KEYS
+from .settings import SearchSettings, check
+from .store import Store
 
 if TYPE_CHECKING:
-    from .tracking import ClipAnswer, Motion, Tracker, TrackPose, TrackState
+    from .motion import Motion
+    from .tracking import Tracker
+    from .tracking_state import ClipAnswer, TrackPose, TrackState
     from .walkgraph import WalkGraph
 
 EXTRACTORS = 8  # lenses whose remaps a Locator keeps
@@ -80,12 +83,13 @@ class Locator:
         self.generation = store.generation(venue_id)  # read first: a newer load is only ever refreshed again
         self.gen = store.load(venue_id)
         self.conf = self.gen.settings  # (a superseded confidence model is read as today's: store._read_settings)
+        self.search = SearchSettings.of(self.conf)  # the index's search parameters, read once
         self.xy = np.stack([self.gen.frames["x"], self.gen.frames["y"]], -1).astype(np.float64)
         self.index = Index(
             self.gen.spectra,
             self.gen.frames["heading"],
             device=device,
-            key_dims=key_dims_for(self.conf, len(self.gen.frames)),
+            key_dims=self.search.key_dims_for(len(self.gen.frames)),
             arrays=self.gen.arrays,
         )
         self._extractors = Extractors(self.conf, EXTRACTORS)
@@ -116,6 +120,19 @@ class Locator:
             raise OmninavError(f"unknown aggregation {agg!r} (use median or sequence)")
         return str(agg)
 
+    def change_settings(self, changes: Mapping[str, Any]) -> None:
+        """Search, aggregation or confidence settings changed for this Locator's answers (a bench's
+        `--set`, a test): checked, and the search parameters read again. Feature settings cannot
+        change (the venue's frames were made with them), nor the keys' projection (the index)."""
+        fixed = sorted(set(changes) & {*FEATURE_KEYS, "key_dims", "key_project_above"})
+        if fixed:
+            raise OmninavError(f"{', '.join(fixed)}: fixed when the venue was modelled")
+        conf = {**self.conf, **changes}
+        check(conf)
+        self.conf = conf
+        self.search = SearchSettings.of(conf)
+        self._extractors = Extractors(self.conf, EXTRACTORS)
+
     def search_clip(self, q_spec: np.ndarray, times: np.ndarray | None) -> tuple[Matches, np.ndarray]:
         """A clip's candidate matches (its last MAX_CLIP_S, at most MAX_CLIP_FRAMES) and their times,
         searched as every answer is: the frames of each second of the clip share their candidates
@@ -143,11 +160,11 @@ class Locator:
         # the frames less than MAX_CLIP_S before the last (50 at 10 frames/s), at most MAX_CLIP_FRAMES
         keep = max(1, min(MAX_CLIP_FRAMES, int(np.count_nonzero(times > times[-1] - MAX_CLIP_S + 1e-6))))
         q_spec, times = q_spec[-keep:], times[-keep:]
-        k = self.conf["candidates"]
-        if not setting(self.conf, "shared_candidates"):
+        k = self.search.candidates
+        if not self.search.shared_candidates:
             m = self.index.search(q_spec, k)
             return m, m, times
-        shortlist = int(setting(self.conf, "shortlist"))
+        shortlist = self.search.shortlist
         best, own = self.index.search_shared(q_spec, k, clip_groups(times), shortlist)
         both = Matches(*(np.concatenate([getattr(best, f), getattr(own, f)], axis=1) for f in MATCH_FIELDS))
         return best, both, times
@@ -187,17 +204,18 @@ class Locator:
         """A tracking filter over `graph` (each venue frame's floor: `floor`) with this venue's
         look-alikes (frame_matches, kept here); `conf` over the venue's settings. For a caller
         with its own graph (the server's runtime of a catalogue revision), the Locator unchanged."""
-        from .tracking import Tracker, look_alikes
+        from .lookalikes import look_alikes
+        from .tracking import Tracker
 
         conf = {**self.conf, **(conf or {})}
         return Tracker(graph, self.xy, floor, conf, look_alikes(self.frame_matches, graph, self.xy, floor, conf))
 
     def frame_matches(self, rows: np.ndarray, k: int) -> Matches:
-        """Venue frames' own matches in this venue's index (tracking.look_alikes: each walk graph
+        """Venue frames' own matches in this venue's index (lookalikes.look_alikes: each walk graph
         node's frame), kept per frame: a server's runtime is rebuilt on every catalogue change
         (places, floors) with the same Locator, and its new walk graph's nodes mostly sit on the
         same frames, so only frames not searched before are. Thread-safe (runtimes share it)."""
-        from .tracking import frame_search
+        from .lookalikes import frame_search
 
         rows = np.asarray(rows, np.int64)
         with self._frame_lock:
@@ -248,10 +266,10 @@ class Locator:
         when the part is the whole clip (`frames` frames), else the part's, from the part's first
         `candidates` matches a frame (of the tracker's evidence, clip_matches: the shared best, as
         a locate answers)."""
-        from .tracking import ClipAnswer
+        from .tracking_state import ClipAnswer
 
         agg = self._aggregation(aggregate)
-        k = self.conf["candidates"]
+        k = self.search.candidates
 
         def own(m: Matches, times: np.ndarray) -> ClipAnswer:
             if len(times) == frames:

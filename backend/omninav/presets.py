@@ -8,159 +8,21 @@ over the defaults, as hloc's `confs` do.
 from __future__ import annotations
 
 import copy
-import math
 from collections.abc import Mapping
 from typing import Any
 
 from .errors import OmninavError
+from .settings import check, defaults
+from .settings_upgrade import LATER_FEATURE_KEYS, VERSION
 
-DEFAULTS: dict[str, Any] = {
-    # Panorama: columns are azimuth clockwise from the lens's forward; rows are elevations.
-    "pano_width": 360,  # output columns (1 deg each): the curves' length
-    "oversample": 4,  # remap at 4x the columns, then average: anti-aliasing at the donut's rim
-    "row_step_deg": 1.0,
-    # Elevation bands (deg) over which each channel is summed column-wise (the paper's Eq. 3).
-    "bands": [[-20.0, 20.0]],
-    # Channels per band. H, S, I and their horizontal gradients are the paper's six curves;
-    # O1/O2 are opponent colours, added because hue is unstable at low saturation.
-    "channels": ["H", "S", "I", "dH", "dS", "dI"],
-    "gray_world": False,  # divide each colour channel by its frame mean: removes casts and gain
-    # after normalising, each curve becomes sd * tanh(curve / sd) (curves.soft_clip); None: off
-    "soft_clip_sd": None,
-    "band_channels": None,  # per band, its own channels (None: every band has `channels`)
-    # passes of level.py's tilt estimate from the frame's own upright edges, each frame unwarped
-    # through it (None or 0: as the lens sees it, every venue modelled before levelling)
-    "level_iters": None,
-    "n_harmonics": 32,  # leading FFT harmonics kept (1..K; the DC term carries no shape)
-    # Search
-    "candidates": 16,  # venue frames kept per query frame by the magnitude stage, then verified
-    # each frame of a clip's second verified against every candidate the magnitude stage kept for
-    # any frame of that second, keeping its `candidates` best (index.py, "Shared candidates"); a
-    # search setting, not a feature one: a venue modelled before it reads this default
-    "shared_candidates": True,
-    # with shared candidates, stage 1 shortlists this many a frame, every one of a second's
-    # shortlists verified, and each frame keeps its `candidates` best (index.py, "The shortlist";
-    # docs/benchlog.md): a search setting too, which a venue modelled before it reads as this
-    "shortlist": 32,
-    # Above `key_project_above` frames, stage 1 first shortlists with keys projected to
-    # `key_dims` dims (less memory traffic), then re-ranks the shortlist with all C*K magnitudes
-    "key_dims": 32,
-    "key_project_above": 2000,
-    "aggregate": "sequence",
-    # Frames of a 1 s clip come from places this close to each other and face within this of each
-    # other; frames further apart in time, as much more per second (aggregate.reach_m, gate_deg).
-    # How long a clip may be is the engine's (locate.MAX_CLIP_S), not a venue's: the
-    # "max_clip_frames" that venues modelled before clips of 5 s still store is not read.
-    "clip_radius_m": 1.5,
-    "heading_gate_deg": 35.0,
-    # logistic(w0 + w . inputs) -> P(within 2 m), inputs named in aggregate.CONFIDENCE_INPUTS;
-    # fit by bench/calibrate.py on the tuning families' answers (ring-bare's identical doors with
-    # them, seven seeds of it) and, weighing 3 % of them, their clips filmed where the venue was
-    # never modelled (all wrong: `--elsewhere-weight`, the least that calls no more of those sure
-    # than the model before), its intercept then moved to answer as many of the venue's own sure
-    # as the model before (`--cover preset`). The square root of the margin: a near tie between
-    # two places is not sure unless both match almost perfectly (docs/benchlog.md, "Ties").
-    # Models before it: SUPERSEDED_CONFIDENCE. Both weights positive: fits that gave an input a
-    # negative weight, or read the relative margin, answered a clip of one matching frame as sure
-    "confidence_features": ["support", "sqrt_margin"],
-    "confidence_coef": [-7.67, 9.761, 7.692],
-    # Modelling
-    "model_fps": 10.0,  # modelling frames sampled at this rate from the video
-    # Tracking while walking (tracking.py), read with these defaults by a venue modelled before:
-    # a venue frame's verified match counts for the walk graph's nodes within track_radius_m,
-    # track_dist_penalty less a metre away; a clip's mean best score near a node, times
-    # track_beta, is its log-likelihood, mixed with track_outlier of "this clip says nothing";
-    # walking is 0-track_max_mps along the graph (+ track_slack_m); when the phone counts steps,
-    # track_step_trust of the weight goes to about track_step_m a step (give or take
-    # track_step_sigma_m + 12 %), the rest to anywhere the steps could reach; track_uniform of a
-    # uniform belief is mixed in at every update; a move walking backwards from where the clip
-    # says the phone faces counts track_backward as much, one whose facing changed by more than
-    # track_turn_gate_deg other than the gyroscope says counts less; a lift's or stairs' node
-    # passes track_floor_change of its belief to the other floor an update; track_ambiguous:
-    # belief >= 3 m from the answer at which it says "not sure".
-    "track_radius_m": 1.5,
-    "track_dist_penalty": 0.05,
-    "track_beta": 25.0,
-    # in the second (cautious) belief, a clip whose best node scores below track_beta_ref counts
-    # (1 - ref) / (1 - best) as much: 0.85 is the tuning families' median best score; None: off
-    "track_beta_ref": 0.85,
-    "track_outlier": 0.02,
-    "track_max_mps": 1.8,
-    "track_slack_m": 1.0,
-    "track_step_m": 0.7,
-    "track_step_sigma_m": 0.5,
-    "track_step_trust": 0.9,
-    # a count of no steps is read as no count at all when the clip is best this far (m) from
-    # where the last clip was best: the phone counts none while its user moves on; None: off
-    # (on the tuning families' walks 1 m was one answer better than 2 m, 4 m worse; 2 m kept:
-    # the answer's own "near", and a phone held still is best a node away now and then)
-    "track_zero_steps_m": 2.0,
-    # a phone held still (its sensors: no step, little turn) whose clip is best where the last was
-    # films the same view again: the answer is no surer than that clip alone (tracking.py)
-    "track_still_cap": True,
-    # and without the sensors (or where they do not say the phone moved), a clip best where the
-    # last was and facing as it did there is taken as held still too (tracking.py)
-    "track_still_seen": True,
-    "track_uniform": 1e-3,
-    "track_backward": 0.3,
-    "track_turn_gate_deg": 45.0,
-    "track_floor_change": 0.05,
-    "track_ambiguous": 0.35,
-    # a place the venue's own model finds alike to another (its node's frame matches there with
-    # score s) keeps at least the other's log-likelihood less track_alike_cost * (1 - s) in the
-    # second (cautious) belief, whose confidence caps the answer's (tracking.py); None: off
-    "track_alike_cost": 10.0,
-    # logistic(w0 + w . inputs) -> P(filtered pose within 2 m), inputs named in
-    # aggregate.TRACK_CONFIDENCE_INPUTS; fit by bench/tracking.py on the tuning families' walks
-    "track_confidence_features": ["mass", "far", "young"],
-    "track_confidence_coef": [-0.436, 5.367, -2.68, 1.883],
-    # the answer is not "sure" (confidence held at track_doubt_cap) while the clips' own
-    # confidence, averaged over about the last track_recent_s seconds, is below track_recent_min
-    # (track_recent_min None: off), or when the clip alone is sure of another place (tracking.py,
-    # "The clip's own answer")
-    "track_recent_s": 1.0,
-    "track_recent_min": 0.5,
-    "track_doubt_cap": 0.79,
-    # when the clip alone is sure of another place and the belief holds that place at least
-    # track_clip_tie times as likely as the answer's, the answer is the clip's place (still not
-    # "sure": the two disagreed); None: off (tracking.py, "The clip's own answer"; chosen on the
-    # tuning families' walks among 0.25, 0.5 and 0.75)
-    "track_clip_tie": 0.5,
-    # the clip's own confidence as those two rules read it: the single clip's model they were
-    # chosen with, kept apart from confidence_* so that a refit of the single answers' model (it
-    # was refit with ring-bare) does not move the rules under them
-    "track_clip_confidence_features": ["support", "margin"],
-    "track_clip_confidence_coef": [-6.68, 10.731, 10.215],
-}
-
-# Confidence models once shipped as the default and refit since: a venue whose settings carry one
-# answers with the default's model now (current_confidence). The confidence reads no feature, so
-# nothing has to be extracted again; a model set otherwise (an admin's own fit) is kept.
-SUPERSEDED_CONFIDENCE: tuple[tuple[tuple[str, ...], tuple[float, ...]], ...] = (
-    (("support", "margin"), (-6.68, 10.731, 10.215)),  # before ring-bare
-    (("support", "margin"), (-3.45, 5.677, 9.197)),  # before the square root of the margin
-)
+# Every key's default, from the stages' typed settings (settings.py, docs/settings.md).
+DEFAULTS: dict[str, Any] = defaults()
 
 
 def setting(conf: Mapping[str, Any], key: str) -> Any:
-    """A venue's search or tracking setting: its own, else today's default (a venue modelled
-    before the key existed answers with the default, as DEFAULTS' comments say)."""
+    """A venue's setting: its own, else today's default. Settings read from a venue
+    (settings.upgrade) and made by `resolve` carry every key; a dict made by hand may not."""
     return conf.get(key, DEFAULTS[key])
-
-
-def current_confidence(conf: dict[str, Any]) -> dict[str, Any]:
-    """A venue's settings with a superseded default confidence model replaced by today's (the
-    venue's own dict is not changed)."""
-    names = tuple(conf.get("confidence_features", ("support", "margin")))  # before the key: these
-    coef = tuple(float(c) for c in conf.get("confidence_coef", ()))
-    for old_names, old_coef in SUPERSEDED_CONFIDENCE:
-        if names == old_names and coef == old_coef:
-            return {
-                **conf,
-                "confidence_features": list(DEFAULTS["confidence_features"]),
-                "confidence_coef": list(DEFAULTS["confidence_coef"]),
-            }
-    return conf
 
 
 PRESETS: dict[str, dict[str, Any]] = {
@@ -224,101 +86,17 @@ TWO_BANDS: dict[str, Any] = {"bands": [[-25.0, 0.0], [0.0, 25.0]], "band_channel
 
 
 def resolve(name: str = "default", overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    """A preset over the defaults, with `overrides` over both, checked (settings.check) and
+    stamped with the preset's name and the settings' format version."""
     if name not in PRESETS:
         raise OmninavError(f"unknown preset {name!r} (known: {', '.join(sorted(PRESETS))})")
     conf = copy.deepcopy(DEFAULTS)
     conf.update(copy.deepcopy(PRESETS[name]))
     conf.update(copy.deepcopy(overrides or {}))
     conf["preset"] = name
-    _check_confidence(conf)
-    _check_switches(conf)
-    _check_soft_clip(conf)
-    _check_band_channels(conf)
-    _check_level(conf)
-    _check_shortlist(conf)
+    conf["version"] = VERSION
+    check(conf)
     return conf
-
-
-SWITCHES = ("shared_candidates", "track_still_cap", "track_still_seen")  # settings that are true or false
-
-
-def _check_switches(conf: dict[str, Any]) -> None:
-    """true or false: a string such as "false" would read as true."""
-    for key in SWITCHES:
-        v = conf.get(key)
-        if not isinstance(v, bool):
-            raise OmninavError(f"{key} must be true or false; got {v!r}")
-
-
-MAX_SHORTLIST = 256  # the second's verification grows with it: 10 frames x 256 rows a clip at most
-
-
-def _check_shortlist(conf: dict[str, Any]) -> None:
-    """A whole number of venue frames, 1-MAX_SHORTLIST (one below `candidates` is `candidates`)."""
-    v = conf.get("shortlist")
-    if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_SHORTLIST:
-        raise OmninavError(f"shortlist must be a whole number of venue frames, 1-{MAX_SHORTLIST}; got {v!r}")
-
-
-def _check_level(conf: dict[str, Any]) -> None:
-    """None (off) or a whole number of passes 0-4: more buys nothing (docs/benchlog.md) and
-    costs an unwarp each, on the phone too."""
-    n = conf.get("level_iters")
-    if n is None:
-        return
-    if not (isinstance(n, int) and not isinstance(n, bool) and 0 <= n <= 4):
-        raise OmninavError(f"level_iters must be a whole number of passes from 0 to 4, or null (off); got {n!r}")
-
-
-def _check_soft_clip(conf: dict[str, Any]) -> None:
-    """None (off) or a finite number of standard deviations > 0: anything else would clip one way
-    here and another on the phone, or give the same features two settings ids."""
-    sd = conf.get("soft_clip_sd")
-    if sd is None:
-        return
-    ok = isinstance(sd, (int, float)) and not isinstance(sd, bool) and math.isfinite(sd) and sd > 0
-    if not ok:
-        raise OmninavError(f"soft_clip_sd must be a number of standard deviations > 0, or null (off); got {sd!r}")
-
-
-def _check_band_channels(conf: dict[str, Any]) -> None:
-    """None, or one non-empty list of distinct known channels per band: anything else would make
-    curves here that the phone cannot make, or a record whose curves do not say which is which."""
-    from .curves import CHANNELS
-
-    per = conf.get("band_channels")
-    if per is None:
-        return
-
-    def band(c: Any) -> bool:
-        names = isinstance(c, (list, tuple)) and all(isinstance(x, str) for x in c)
-        return names and len(c) > 0 and len(set(c)) == len(c) and set(c) <= set(CHANNELS)
-
-    ok = isinstance(per, (list, tuple)) and len(per) == len(conf["bands"]) and all(band(c) for c in per)
-    if not ok:
-        raise OmninavError(
-            f"band_channels must be null or one list of distinct channels ({', '.join(CHANNELS)}) per band "
-            f"({len(conf['bands'])}); got {per!r}"
-        )
-
-
-def _check_confidence(conf: dict[str, Any]) -> None:
-    """A confidence model that could not be evaluated would fail every locate: refuse it here."""
-    from .aggregate import CONFIDENCE_INPUTS, TRACK_CONFIDENCE_INPUTS
-
-    _check_model(conf, "confidence", CONFIDENCE_INPUTS, "confidence inputs")
-    _check_model(conf, "track_confidence", TRACK_CONFIDENCE_INPUTS, "tracking confidence inputs")
-    _check_model(conf, "track_clip_confidence", CONFIDENCE_INPUTS, "confidence inputs (track_clip_confidence)")
-
-
-def _check_model(conf: dict[str, Any], prefix: str, known: Mapping[str, Any], what: str) -> None:
-    """`<prefix>_features` all in `known`, and `<prefix>_coef` an intercept and one weight each."""
-    names = conf[f"{prefix}_features"]
-    unknown = [n for n in names if n not in known]
-    if unknown:
-        raise OmninavError(f"unknown {what} {unknown} (known: {', '.join(known)})")
-    if len(conf[f"{prefix}_coef"]) != 1 + len(names):
-        raise OmninavError(f"{prefix}_coef needs {1 + len(names)} weights (an intercept and one per input)")
 
 
 # The settings that change what a feature record contains: a record made with other values of
@@ -327,14 +105,13 @@ FEATURE_KEYS = (
     "pano_width", "oversample", "row_step_deg", "bands", "channels", "gray_world", "n_harmonics", "soft_clip_sd",
     "band_channels", "level_iters",
 )  # fmt: skip
-# Keys added after venues were modelled without them: they count in the settings id only when set,
-# so a record for such a venue keeps the id it had (and a venue's settings need not carry them).
-_LATER_KEYS = ("soft_clip_sd", "band_channels", "level_iters")
 
 
 def feature_keys(conf: dict[str, Any]) -> list[str]:
-    """The FEATURE_KEYS a record for a venue with `conf` depends on (a later key only where set), sorted."""
-    return sorted(k for k in FEATURE_KEYS if k not in _LATER_KEYS or conf.get(k) is not None)
+    """The FEATURE_KEYS a record for a venue with `conf` depends on, sorted: a key added after
+    venues were modelled without it (settings.LATER_FEATURE_KEYS) counts only where set, so a
+    record for such a venue keeps the id it had."""
+    return sorted(k for k in FEATURE_KEYS if k not in LATER_FEATURE_KEYS or conf.get(k) is not None)
 
 
 def settings_id(conf: dict[str, Any]) -> int:

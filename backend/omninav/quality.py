@@ -38,8 +38,8 @@ import numpy as np
 from .aggregate import AGGREGATORS
 from .index import Index, Matches
 from .model_venue import Progress
-from .presets import setting
-from .store import Generation, key_dims_for
+from .settings import SearchSettings
+from .store import Generation
 
 RADIUS_M = 2.0  # an answer this close to the walk is right
 CLIP_S = 1.0  # a segment: the frames of 1 s of the walk, located as one clip
@@ -95,7 +95,8 @@ def quality_map(
     spectra: np.ndarray = gen.spectra
     if not np.array_equal(order, np.arange(n_frames)):
         frames, spectra, arrays = frames[order], np.asarray(spectra)[order], None
-    index = Index(spectra, frames["heading"], device=device, key_dims=key_dims_for(conf, n_frames), arrays=arrays)
+    search = SearchSettings.of(conf)
+    index = Index(spectra, frames["heading"], device=device, key_dims=search.key_dims_for(n_frames), arrays=arrays)
     xy = np.stack([frames["x"], frames["y"]], -1).astype(np.float64)
     t = frames["t"].astype(np.float64)
     vid = frames["video"]
@@ -103,9 +104,7 @@ def quality_map(
     segs = _segments(frames, n)
     walked = _walked(xy, vid)
     aggregate = AGGREGATORS[conf["aggregate"]]
-    k = conf["candidates"]
-    shared = setting(conf, "shared_candidates")
-    shortlist = int(setting(conf, "shortlist"))
+    k, shared, shortlist = search.candidates, search.shared_candidates, search.shortlist
     chunk = max(n, min(CHUNK_FRAMES, CHUNK_CELLS // max(n_frames, 1)))
     total = sum(len(r) for r in segs)
     out: list[dict[str, Any]] = []

@@ -166,7 +166,7 @@ class Route:
 
 
 class Pose(Protocol):
-    """What the guide needs of a pose (tracking.TrackPose has it)."""
+    """What the guide needs of a pose (tracking_state.TrackPose has it)."""
 
     @property
     def x(self) -> float: ...
@@ -476,7 +476,7 @@ def guide(
     sentence is in `style`; floors are named by `floor_names` (default "floor <id>"). Arrival is
     said as a fact from `sure`, and only if no more than a third of the answers of the last
     `settle_s` were low (0: not asked; bench/guided.py measures the rules before)."""
-    from .server.describe import guidance_sentence  # the words: pure, shared with the app
+    from .describe import guidance_sentence  # the words: pure, shared with the app
 
     ok = state is not None and _valid(state, graph, place, place_node)
     st: dict[str, Any] = dict(state) if state is not None and ok else new_state(graph, place)

@@ -29,7 +29,8 @@ import numpy as np
 from .errors import Conflict, OmninavError
 from .index import index_arrays
 from .lens import Lens, lens_from_dict
-from .presets import current_confidence
+from .settings import SearchSettings
+from .settings_upgrade import upgrade
 
 INDEX_ARRAYS = ("keys", "keys_t", "basis")
 VENUE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
@@ -77,15 +78,15 @@ class Generation:
 
 
 def key_dims_for(settings: dict[str, Any], n_frames: int) -> int:
-    """Projected stage-1 keys only pay off on large venues (presets.py: key_project_above)."""
-    return int(settings.get("key_dims", 0)) if n_frames > settings.get("key_project_above", 0) else 0
+    """Projected stage-1 keys only pay off on large venues (settings.SearchSettings)."""
+    return SearchSettings.of(settings).key_dims_for(n_frames)
 
 
 def _read_settings(g: Path) -> dict[str, Any]:
-    """A generation's settings.json as every reader takes it: a confidence model that was once the
-    default and has been refit since is read as today's (presets.current_confidence; the file, and
-    the frames, stay as they were modelled)."""
-    return current_confidence(json.loads((g / "settings.json").read_text()))
+    """A generation's settings.json as every reader takes it: in today's format, checked
+    (settings_upgrade.upgrade: a venue modelled by an earlier release read through the migrations; the
+    file, and the frames, stay as they were modelled)."""
+    return upgrade(json.loads((g / "settings.json").read_text()))
 
 
 class Store:

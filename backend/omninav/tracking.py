@@ -1,161 +1,43 @@
 """Tracking while walking: a filter over the walk graph's nodes, fed clip after clip.
 
-An HMM over the nodes of the venue's walk graph (walkgraph.py), run forward (the belief after
-each clip; no smoothing: the answer is the pose now, from the evidence up to now). Why an HMM and
-not a particle filter: the walkable space *is* the graph (nodes ~1 m apart along the modelling
-walks), so a belief over its few hundred to few thousand nodes is exact where particles would be a
-sample of it. Every node keeps its probability, so a look-alike corridor 40 m away keeps what it
-is owed until the walk rules it out: a particle filter loses such a mode when no particle happens
-to sit there. And the per-update cost is fixed and small (a sparse transition and a sparse
-emission), with a state of a few hundred bytes (at most ~21 KB) that a server can keep per phone.
+An HMM over the nodes of the venue's walk graph (walkgraph.py), run forward: the belief after
+each clip, from the evidence up to now. The walkable space *is* the graph (nodes about a metre
+apart along the modelling walks), so a belief over its few hundred to few thousand nodes is exact
+where particles would sample it, and a look-alike corridor 40 m away keeps what it is owed until
+the walk rules it out; each update costs a sparse transition and a sparse emission.
 
-- **Transition** (walking): from node i to node j in dt seconds with probability by their graph
-  distance d: any d up to `track_max_mps` * dt + `track_slack_m` (0-1.8 m/s; a stop is d = 0),
-  falling off beyond. With the phone's step count the distance walked is about steps *
-  `track_step_m`: a d near it counts up to 1 / (1 - `track_step_trust`) times as much as any other
-  d within reach. The steps sharpen, never forbid: a count that is wrong (a phone held steady, a
-  slow walker or a wheelchair counting no steps, a stalled sensor feed; a person who turned back
-  walked more than d) costs a few answers, since clips that agree win against it (one clip moves
-  the odds by up to 1 / `track_outlier`, more). A count of none while the clip is best
-  `track_zero_steps_m` or more from where the last clip was best is read as no count at all: the
-  phone is held steady, or rolls, while its user moves on (each such zero pulled the belief back
-  towards standing still, and a walk fell behind by a door or two; chosen on the tuning families'
-  walks, docs/benchlog.md). A phone whose counter counted STEPS_WORK_N steps in one update
-  within the last STEPS_WORK_S works, and keeps its zeros: it is standing (at a stop in a
-  corridor of identical doors its clip is now and then best a door on, and dropping those zeros
-  cost answers there). A blank clip (best nowhere) and a change of floor (a lift's ride counts
-  no steps, truly) keep the zero too. A little of a uniform belief is mixed in at every update
-  (`track_uniform`), so that a wrong lock-in is undone by evidence, never by luck.
-- **Emission** (the clip): each query frame's verified candidate matches (index.Matches, with
-  scores), the best one within `track_radius_m` of a node counting for that node; a node without
-  one counts the frame's worst kept score (it was not among the best). The mean over the clip's
-  last second, tempered by `track_beta`, is the log-likelihood: exp(beta * (E - max E)), mixed
-  with `track_outlier` of "this clip says nothing" so one bad clip cannot overturn a track.
-- **A longer clip** (`update_clip`): the emission reads a second, so a clip of several seconds
-  (what the phone filmed since its last request: the app's guided walk sends 2 s) is walked
-  second by second, in parts of about a second, the phone's steps and turn shared among them by
-  time. Answered from its last second alone, the seconds before it would be lost, as if the
-  phone had not filmed them (on the held-out families, updates every 2.5 s from 1 s clips were
-  right 3.6 points less often than every 1 s; 2 s clips get 2.4 of them back).
-- **Look-alikes** (`track_alike_cost`): the clips' evidence is not independent from one second
-  to the next. In a corridor of identical doors, the query's light or its camera makes a wrong
-  door score a little better than the right one for many seconds running, and compounded clip
-  after clip that made the belief as sure of the wrong door as of a right one. So the venue's
-  own model says which places look alike: each node's nearest modelling frame is searched in
-  the venue's index like a query frame, and a node whose frames it matches (3 m or more away)
-  is its look-alike, as alike as the score (1 = the same panorama). A second belief runs beside
-  the first, the same in every way but that a look-alike b of a node a never gets less
-  log-likelihood than a's less `track_alike_cost` * (1 - score): in it, a clip cannot tell two
-  places apart by more than the model can, and only the walk (and places the model finds
-  distinct) can. The answer is the first belief's (its small differences between look-alikes
-  are right more often than not); its confidence is the lower of the two beliefs' at that
-  answer, and it is ambiguous when either is split. Why two beliefs and not one: one belief
-  with the look-alikes' floor said "not sure" in the right places but also chose among tied
-  look-alikes by chance, and lost a tenth of the answers within 2 m on a repetitive corridor.
-  The cost is a second transition per update and a second belief in the state.
-- **Clips that match poorly** (`track_beta_ref`): a clip whose best node scores well below what
-  a clip in the model's own conditions does (another hour's daylight on glass, people, a tilted
-  phone) differs from every place by its conditions about as much as by place, and the same
-  conditions favour the same wrong spot for many seconds running (an open hall's other side). In
-  the second belief such a clip counts (1 - ref) / (1 - best) as much (ref: the tuning families'
-  median best score): the main belief, and so the answer, is unchanged; its confidence is not
-  stood by until the walk and clips that match well agree. The second belief runs for this
-  alone where a venue has no look-alikes.
-- **A phone held still** (`track_still_cap`): an HMM takes each clip as new evidence, but a
-  phone held on one spot films the same view again and again, and compounded every second a
-  moderate match to a place the user is not at (a room nobody filmed, another floor built like
-  the modelled one) became a sure answer within seconds: on the families' walks filmed where
-  the venue was never modelled, held still with the phone's sensors on, 90 of 246 spots ended
-  sure of a wrong place, 29 of 54 in a building like the modelled one (bench/elsewhere.py).
-  Held still, the walk adds nothing the clip does not say, so the answer is no surer than the
-  clip alone: the confidence a locate without a session gives it (ClipAnswer.alone, the venue's
-  own model; the rules' older model of the clip, which the cap first read, said more than the
-  user would hear from "Where am I?" for the same clip when it matched well, and less when it
-  matched poorly).
-  Held still: the phone's sensors say it has not moved since the last update (no step, a turn
-  under STILL_TURN_DEG) *and* the clip is best at the node the last one was. The node is the
-  guard: a wheelchair, or a phone whose step counter has stalled while its user walks, counts
-  no steps either, but each of its clips is best somewhere new. Without sensors, or where they
-  do not say the phone moved (no step counted and no gyroscope, say), the clip says it
-  (`track_still_seen`): best at the node the last one was *and* facing there as the last clip
-  did, within STILL_TURN_DEG (the clip's own heading standing in for the gyroscope). A user
-  walking along a corridor faces alike from one second to the next, but is best at the next
-  node; one who turns where they stand faces another way. Sensors that say it moved (a step, a
-  turn) overrule the clip. The belief itself still gathers the repeated clips:
-  the first update that is not held (a step, a turn, another best node) answers with its full
-  confidence again. Tried first, and not kept: counting a held clip's
-  evidence a fifth as much; on the held-out families a fresh start held still inside the venue
-  then said "not sure" 21 % of the time instead of 8 % (docs/benchlog.md).
-- **Facing**: the clip also says where the phone faces at each node (its best match's heading
-  there). A move that walks backwards from that counts less (`track_backward`): people walk the
-  way they hold the phone, and a corridor of repeating doors no longer lets the track slide back
-  a door. With the gyroscope's turn, a move i -> j whose facing changed by other than the turn
-  counts less: checked per hypothesis, against the facing the last clip gave *that* node (one
-  global "previous heading" would lock in a wrong answer, whose heading is wrong too).
-- **Pose**: the node whose 1.5 m neighbourhood holds the most belief; position and heading from
-  aggregate.sequence on the clip's matches near that node only (those facing the gyroscope's way,
-  if the others face elsewhere), so the answer is as precise as a single clip's where it is right.
-  Without a match near that node the heading is the gyroscope's (the last answer's plus the turn
-  since); without a gyroscope it is unknown and the answer "not sure" (confidence held below 0.5).
-- **Confidence**: logistic on the belief's mass within 2 m of the answer and its mass 3 m or more
-  away (`track_confidence_features`/`_coef` in presets.py, fit by bench/tracking.py on the tuning
-  families' walks only). `ambiguous` when at least `track_ambiguous` of the belief lies 3 m or
-  more from the answer: the answer says "not sure" (confidence held below 0.5) and the walk that
-  follows resolves it.
-- **The clip's own answer** (`ClipAnswer`: what the same clip answers alone). The beliefs'
-  confidence says how far the walk has ruled the other places out; it cannot see the clips
-  themselves doubt it. The answer is not stood by (its confidence held at `track_doubt_cap`,
-  below the app's "sure", 0.8) when:
-  - *recent clips are unsure* (`track_recent_min`): the clips' own confidence, averaged over
-    about the last `track_recent_s` seconds, is below `track_recent_min`. The clips have stopped
-    matching the model anywhere well (an open hall in another light, a bare corridor), which is
-    when a belief drifts with the conditions' favourite wrong spot while staying sure;
-  - *a sure clip says elsewhere*: the clip alone is sure (aggregate.SURE, the app's 0.8) of a place
-    FAR_M or more from the answer (or on another floor). Two calibrated sources that disagree
-    are the split evidence the answer must not be sure of; the walk settles it in a few seconds.
-  Chosen on the tuning families' walks (docs/benchlog.md, "Recent clips" and "A sure clip
-  elsewhere"), with the single clip's confidence model of then (support and margin): the clip's
-  confidence here is `track_clip_confidence_*`, not the venue's `confidence_*`, which was refit
-  since and gives other numbers to the same clips.
-  And where the answer is (`track_clip_tie`, `Tracker.tie_node`): when a sure clip says
-  elsewhere and the belief holds the clip's place at least `track_clip_tie` times as likely as
-  the answer's (1.5 m neighbourhoods), the answer is the clip's place, held below sure all the
-  same. In a corridor of identical doors the belief splits between two doors 4 m apart for
-  seconds at a time, and the walk's slightly likelier door was the wrong one about as often as
-  not, while the sure clip of the moment, which reads how its frames follow one another, was
-  mostly right. A sure clip of a place the walk has all but ruled out (a look-alike corridor
-  20 m away) moves nothing: ruling those out is what the walk is for. Chosen on the tuning
-  families' walks (docs/benchlog.md, "A sure clip breaks a split belief").
+- **Transition**: walking 0-`track_max_mps` along the graph, sharpened by the phone's steps and
+  gyroscope turn (motion.py) and by which way the clips say the phone faces.
+- **Emission**: each query frame's verified matches near a node, the clip's last second tempered
+  by `track_beta` and mixed with `track_outlier`.
+- **A second, cautious belief** beside the first: look-alike places (lookalikes.py) cannot be told
+  apart by more than the venue's own model can, and poorly matching clips count less.
+- **Pose and confidence**: the node whose 1.5 m neighbourhood holds the most belief, placed and
+  headed by the clip's matches there; the confidence is the lower of the two beliefs', held below
+  "sure" when the clips doubt it (recent clips unsure, a sure clip elsewhere) or the phone is held
+  still (no surer than its clip alone).
+
+The state between updates is tracking_state.py's. The model rule by rule, with its settings, is
+docs/tracking.md.
 """
 
 from __future__ import annotations
 
 import functools
-import struct
-import zlib
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, fields, replace
+from dataclasses import fields, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse  # type: ignore[import-untyped]
-from scipy.spatial import cKDTree  # type: ignore[import-untyped]
 
-from .aggregate import (
-    SPAN_S,
-    SURE,
-    TRACK_CONFIDENCE_INPUTS,
-    Estimate,
-    confidence,
-    confidence_inputs,
-    logistic,
-    reach_m,
-    sequence,
-)
+from .aggregate import SPAN_S, SURE, Estimate, reach_m, sequence
 from .heading import wrap_deg
 from .index import Matches
-from .presets import setting
-from .walkgraph import nearest_on_floor
+from .motion import Motion, faces_as_before, parts, sensors_moved, sensors_still, share
+from .settings import TrackingSettings
+from .tracking_state import ClipAnswer, TrackPose, TrackState, track_confidence
+from .walkgraph import csr_rows, csr_spans, pairs_within
 
 if TYPE_CHECKING:
     from .walkgraph import WalkGraph
@@ -169,19 +51,7 @@ LIMIT_M = 8.0  # graph distances are kept up to this; a longer gap is walked in 
 FIT_M = 2.0  # the clip's matches within this of the answer's node place it and give its heading
 FORGET_S = 120.0  # after this long without an update, start over
 AMBIGUOUS_CAP = 0.45  # the confidence of an ambiguous answer: below the app's "not sure" (0.5)
-MAX_STORED = 1500  # nodes a serialised state keeps one by one (the most probable) ...
-STORE_REL = 1e-6  # ... those with at least this share of the most probable's belief; a broader
-# belief (a young one on a big graph) is kept whole instead, never cut to the lowest-numbered
-ALIKE_K = 64  # candidates of each node's frame searched for its look-alikes (a corridor's doors)
-ALIKE_CELLS = 1 << 24  # node frames x venue frames scored per pass of that search (64 MB of float32)
-ALIKE_FRAMES = 128  # and at most this many node frames a pass (each re-ranks 8 x ALIKE_K full keys)
 ALIKE_MAX_NATS = 8.0  # a look-alike this far below (in log-likelihood) can never matter: not kept
-MAGIC = b"ONT2"  # the nodes kept one by one
-MAGIC_ALL = b"ONTA"  # every node's belief and facing (zlib: a flat or broad belief packs small)
-ALIKE, ALIKE_ALL = b"AS", b"AW"  # then the second belief: its nodes one by one, or whole
-RECENT = b"RC"  # then the recent clips' mean confidence (float64)
-BEST = b"BN"  # then the node the last clip matched best (uint32)
-STEPPED = b"ST"  # then when the phone last counted a step (float64 seconds)
 # a step counter that counted a step this recently (s) works, and its count of none is a stop:
 # kept whatever the clips say (track_zero_steps_m is for a phone that counts nothing while its
 # user moves on). Longer than a stop at a door or a junction, shorter than a walk along a corridor.
@@ -189,72 +59,6 @@ STEPS_WORK_S = 30.0
 # ... counted this many in one update: a walker's second holds one or two, a few seconds' more;
 # a phone held steady (or a wheelchair over a threshold) counts the odd false step, one at a time
 STEPS_WORK_N = 2
-HEADER = "<4sdIfIB"  # magic, t, updates, heading (NaN: none), nodes of the graph, length of its key
-
-
-def _number(v: Any) -> bool:
-    """A finite real number (not a bool, not a string that looks like one)."""
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
-
-
-@dataclass(frozen=True)
-class ClipAnswer:
-    """What the clip of an update answers alone (Locator.track: its aggregate Estimate): its
-    calibrated confidence as the rules read it, and where (x, y and the venue frame row, whose
-    floor it is; None: not given, the "sure clip elsewhere" rule then does not apply); `alone`,
-    the confidence a locate without a session answers for it (None: not given, `confidence`
-    stands in)."""
-
-    confidence: float
-    x: float | None = None
-    y: float | None = None
-    row: int | None = None
-    alone: float | None = None
-
-    @staticmethod
-    def of(e: Estimate, conf: dict[str, Any]) -> ClipAnswer:
-        """What a clip's aggregate Estimate answers, with its calibrated confidence as the rules
-        read it: `track_clip_confidence_*`, the single clip's model they were chosen with (the
-        venue's own `confidence_*` answers the single clip, and may be a later refit: `alone`)."""
-        names = setting(conf, "track_clip_confidence_features")
-        c = logistic(setting(conf, "track_clip_confidence_coef"), confidence_inputs(e, names))
-        return ClipAnswer(c, e.x, e.y, e.venue_row, confidence(e, conf))
-
-    @property
-    def said(self) -> float:
-        """The clip's confidence as the user would hear it alone ("Where am I?")."""
-        return self.confidence if self.alone is None else self.alone
-
-
-@dataclass(frozen=True)
-class Motion:
-    """The phone's own sensors between the previous update and this one."""
-
-    steps: int | None = None  # steps detected (DeviceMotion), None = unknown
-    turn_deg: float | None = None  # gyroscope yaw change, clockwise +, None = unknown
-
-
-STILL_TURN_DEG = 10.0  # a phone that counted no step and turned less than this has not moved
-
-
-def _still(motion: Motion) -> bool:
-    """Whether the phone's sensors say it has not moved since the last update (no step, little
-    turn); unknown (no sensors) is not still."""
-    return motion.steps == 0 and motion.turn_deg is not None and abs(motion.turn_deg) < STILL_TURN_DEG
-
-
-def _moved(motion: Motion) -> bool:
-    """Whether the phone's sensors say it moved since the last update (a step, or a turn of
-    STILL_TURN_DEG or more); unknown is not moved."""
-    return bool(motion.steps) or (motion.turn_deg is not None and abs(motion.turn_deg) >= STILL_TURN_DEG)
-
-
-def _faces_as_before(facing: np.ndarray, before: np.ndarray | None, node: int) -> bool:
-    """Whether the clip faces at `node` as the last clip did there, within STILL_TURN_DEG (what
-    the clip says of a turn where no gyroscope does)."""
-    if before is None or len(before) != len(facing) or not (np.isfinite(facing[node]) and np.isfinite(before[node])):
-        return False
-    return abs(float(wrap_deg(facing[node] - before[node]))) < STILL_TURN_DEG
 
 
 def _clip_times(matches: Matches, times: np.ndarray) -> np.ndarray:
@@ -263,282 +67,6 @@ def _clip_times(matches: Matches, times: np.ndarray) -> np.ndarray:
     if len(times) != matches.index.shape[0] or len(times) == 0:
         raise ValueError(f"{matches.index.shape[0]} frames of matches need as many frame times, got {len(times)}")
     return times
-
-
-def parts(times: np.ndarray, span: float = SPAN_S) -> list[np.ndarray]:
-    """A clip's frame times (ascending) -> its frames cut into consecutive parts of about `span` s
-    each (index arrays, in time order; the last part ends with the clip's last frame).
-
-    The filter's evidence is a second of clip (its emission reads the last SPAN_S of an update), so
-    a longer clip, everything a phone filmed since its previous request, is walked second by
-    second rather than answered from its last second alone: the seconds before count, as they
-    would had the phone asked every second. Parts of equal length (a 2 s clip: two of 1 s; 1.5 s:
-    two of 0.75 s; 1.4 s: one, whose update reads its last second) rather than whole seconds and
-    a sliver of a few frames."""
-    t = np.asarray(times, np.float64)
-    if len(t) < 2 or not np.isfinite(t).all():  # (times not numbers: one part, as a short clip)
-        return [np.arange(len(t))]
-    dt = float(np.median(np.diff(t)))
-    length = float(t[-1] - t[0]) + max(dt, 0.0)  # each frame stands for a frame interval
-    # parts of 0.67-1.33 spans: never a sliver (every update counts as a whole clip's evidence, so
-    # many short parts would count the same seconds more than once)
-    k = max(1, int(np.floor(length / span + 0.5)))
-    if k == 1:
-        return [np.arange(len(t))]
-    # the part of each frame: by its time from the clip's end, k equal parts
-    which = np.clip(k - 1 - np.floor((t[-1] - t) * k / length + 1e-9).astype(np.int64), 0, k - 1)
-    cut = [idx for idx in (np.flatnonzero(which == i) for i in range(k)) if len(idx)]
-    # frames far apart in time (a gap in a video's timestamps) can leave a part of a frame or two:
-    # it joins the part after it (the last part, the one before), never an update of its own
-    big = max(len(c) for c in cut)
-    out: list[np.ndarray] = []
-    carry = np.zeros(0, np.int64)
-    for c in cut:
-        c = np.concatenate([carry, c])
-        carry = c if 2 * len(c) < big else np.zeros(0, np.int64)
-        if not len(carry):
-            out.append(c)
-    if len(carry):
-        out = [*out[:-1], np.concatenate([out[-1], carry])] if out else [carry]
-    return out
-
-
-def share(motion: Motion, dts: list[float]) -> list[Motion]:
-    """The phone's motion over several updates, dts apart, shared among them in proportion to
-    time: steps as whole steps (the rounding carried), the turn as a share of it. A phone sends
-    one reading per request; the sensors' own timing within it is not sent (a turn made in the
-    request's last half second is spread over its parts: the filter's turn gate is soft, 20° a
-    step, for that reason among others)."""
-    w = np.maximum(np.asarray(dts, np.float64), 0.0)
-    frac = w / w.sum() if w.sum() > 0 else np.full(len(w), 1.0 / max(len(w), 1))
-    steps: list[int | None] = [None] * len(w)
-    if motion.steps is not None:
-        cum = np.round(np.cumsum(frac) * max(int(motion.steps), 0)).astype(np.int64)
-        steps = [int(v) for v in np.diff(np.r_[0, cum])]
-    turns: list[float | None] = [None] * len(w)
-    if motion.turn_deg is not None:
-        turns = [float(motion.turn_deg) * float(f) for f in frac]
-    return [Motion(s, d) for s, d in zip(steps, turns, strict=True)]
-
-
-@dataclass
-class TrackState:
-    """Everything the filter remembers between updates: small, serialisable (to_bytes)."""
-
-    t: float  # seconds (the caller's clock) of the last update
-    belief: np.ndarray  # (N,) float64 over the graph's nodes, sums to 1
-    graph_key: str
-    updates: int
-    heading: float | None = None  # the last answer's heading
-    # (N,) where the last clip says the phone faced at each node (NaN: it did not say): the
-    # gyroscope's turn is checked against it node by node, never against one global heading
-    facing: np.ndarray | None = None
-
-    # (N,) the second, cautious belief (look-alikes: Tracker.with_alikes; poor clips tempered:
-    # Tracker.beta; the answer's confidence is also read from it); None when the venue has no
-    # look-alikes and its settings turn the tempering off
-    alike: np.ndarray | None = None
-    # the clips' own confidence, averaged over about the last track_recent_s seconds (None: no
-    # clip said, or a state saved before it existed: the next clip's starts it)
-    recent: float | None = None
-    # the node the last clip's evidence was best at (None: a state saved before it existed)
-    best: int | None = None
-    # when the phone last counted STEPS_WORK_N or more steps in one update (None: not in this
-    # belief's life, or a state saved before it existed): its counter works, and its zeros are
-    # stops (Tracker.zero_read_as_none)
-    stepped: float | None = None
-
-    def to_bytes(self) -> bytes:
-        """A header with the graph's key, the belief (float16 relative to the largest) and facing
-        (float16 degrees), then the second (cautious) belief if any (b"AS" or b"AW" and the same, without
-        facing), the recent clips' mean if any (b"RC", float64), the node the last clip was best at
-        if any (b"BN", uint32), when the phone last counted a step if it did (b"ST", float64), in
-        that order, and a CRC-32. A belief's nodes with at least
-        STORE_REL of the largest, when there are at most MAX_STORED of them: each one's index
-        (uint32), belief and facing, 8 bytes a node (6 without facing); more than that (a young
-        belief, flat over much of a big graph): every node's, zlib-compressed, so that the state
-        says as much of every part of the building as of the one that happens to be numbered
-        first."""
-        p = np.asarray(self.belief, np.float64)
-        face = np.full(len(p), np.nan) if self.facing is None else np.asarray(self.facing, np.float64)
-        key = self.graph_key.encode()
-        # the last clip's best node keeps its facing even where the belief there is too small to
-        # keep: the next update compares its clip's facing with it (track_still_seen)
-        whole, part = _pack(p, face, self.best)
-        head = struct.pack(
-            HEADER,
-            MAGIC_ALL if whole else MAGIC,
-            self.t,
-            self.updates,
-            np.nan if self.heading is None else self.heading,
-            len(p),
-            len(key),
-        )
-        body = head + key + part
-        if self.alike is not None:
-            whole, part = _pack(np.asarray(self.alike, np.float64), None)
-            body += (ALIKE_ALL if whole else ALIKE) + part
-        if self.recent is not None:
-            body += RECENT + struct.pack("<d", self.recent)
-        if self.best is not None:
-            body += BEST + struct.pack("<I", self.best)
-        if self.stepped is not None:
-            body += STEPPED + struct.pack("<d", self.stepped)
-        return body + struct.pack("<I", zlib.crc32(body))
-
-    @staticmethod
-    def from_bytes(b: bytes, graph: WalkGraph) -> TrackState | None:
-        """A state saved by to_bytes, or None: corrupt, or saved against another graph. A state
-        saved without the second belief (or before it existed) reads with `alike` None (the
-        next update starts it as the belief); one without the recent clips' confidence with
-        `recent` None; one without the last clip's best node with `best` None; one without the
-        time of the last step counted with `stepped` None."""
-        try:
-            if len(b) < 4 or zlib.crc32(b[:-4]) != struct.unpack("<I", b[-4:])[0]:
-                return None
-            b = b[:-4]
-            magic, t, updates, heading, n, klen = struct.unpack_from(HEADER, b, 0)
-            off = struct.calcsize(HEADER)
-            key = b[off : off + klen].decode()
-            off += klen
-            if magic not in (MAGIC, MAGIC_ALL) or key != graph.key or n != len(graph.xy) or not np.isfinite(t):
-                return None
-            got = _unpack(b, off, n, magic == MAGIC_ALL, True)
-            if got is None:
-                return None
-            belief, facing, off = got
-            alike, recent = None, None
-            if b[off : off + len(ALIKE)] in (ALIKE, ALIKE_ALL):
-                tag = b[off : off + len(ALIKE)]
-                got = _unpack(b, off + len(tag), n, tag == ALIKE_ALL, False)
-                if got is None:
-                    return None
-                alike, off = got[0], got[2]
-            if b[off : off + len(RECENT)] == RECENT:
-                (recent,) = struct.unpack_from("<d", b, off + len(RECENT))
-                off += len(RECENT) + 8
-                if not 0.0 <= recent <= 1.0:
-                    return None
-            best = None
-            if b[off : off + len(BEST)] == BEST:
-                (best,) = struct.unpack_from("<I", b, off + len(BEST))
-                off += len(BEST) + 4
-                if best >= n:
-                    return None
-            stepped = None
-            if b[off : off + len(STEPPED)] == STEPPED:
-                (stepped,) = struct.unpack_from("<d", b, off + len(STEPPED))
-                off += len(STEPPED) + 8
-                if not np.isfinite(stepped):
-                    return None
-            if off != len(b):
-                return None
-        except (struct.error, UnicodeDecodeError, ValueError, zlib.error):
-            return None
-        h = float(heading) if np.isfinite(heading) else None
-        return TrackState(float(t), belief, key, int(updates), h, facing, alike, recent, best, stepped)
-
-
-def _pack(p: np.ndarray, face: np.ndarray | None, also: int | None = None) -> tuple[bool, bytes]:
-    """A belief (and facing): whether it is kept whole, and its bytes (TrackState.to_bytes);
-    node `also` is kept whatever its belief."""
-    big = max(float(p.max()), 1e-300) if len(p) else 1.0
-    keep = np.flatnonzero(p >= STORE_REL * big)
-    if also is not None and 0 <= also < len(p):
-        keep = np.union1d(keep, [also])
-    if len(keep) > MAX_STORED:
-        rel = np.where(p >= STORE_REL * big, p / big, 0.0).astype("<f2")
-        raw = rel.tobytes() + (b"" if face is None else face.astype("<f2").tobytes())
-        return True, zlib.compress(raw)  # (its end: where the zlib stream ends)
-    out = struct.pack("<I", len(keep)) + keep.astype("<u4").tobytes() + (p[keep] / big).astype("<f2").tobytes()
-    return False, out + (b"" if face is None else face[keep].astype("<f2").tobytes())
-
-
-def _unpack(b: bytes, off: int, n: int, whole: bool, facing: bool) -> tuple[np.ndarray, np.ndarray, int] | None:
-    """_pack's bytes at `off` -> (belief (N,) summing to 1, facing (N,) NaN where unsaid, the
-    offset after them), or None where they do not make a belief of n nodes."""
-    per = 4 if facing else 2
-    if whole:
-        z = zlib.decompressobj()
-        raw = z.decompress(b[off:], per * n + 1)
-        if len(raw) != per * n or not z.eof:
-            return None
-        m, idx, off = n, np.arange(n), len(b) - len(z.unused_data)
-        rel = np.frombuffer(raw, "<f2", n, 0).astype(np.float64)
-        face = np.frombuffer(raw, "<f2", n, 2 * n).astype(np.float64) if facing else np.full(n, np.nan)
-    else:
-        (m,) = struct.unpack_from("<I", b, off)
-        off += 4
-        size = (4 + per) * m
-        if len(b) < off + size:  # (what follows, if anything, is the caller's to read)
-            return None
-        idx = np.frombuffer(b, "<u4", m, off).astype(np.int64)
-        rel = np.frombuffer(b, "<f2", m, off + 4 * m).astype(np.float64)
-        face = np.frombuffer(b, "<f2", m, off + 6 * m).astype(np.float64) if facing else np.full(m, np.nan)
-        off += size
-    if m == 0 or (idx >= n).any() or not np.isfinite(rel).all() or (rel < 0).any() or rel.sum() <= 0:
-        return None
-    belief = np.zeros(n)
-    belief[idx] = rel
-    out = np.full(n, np.nan)
-    out[idx] = face
-    return belief / belief.sum(), out, off
-
-
-@dataclass(frozen=True)
-class TrackPose:
-    """The filtered pose at the update's time."""
-
-    x: float
-    y: float
-    floor: str
-    heading: float  # degrees clockwise from plan up, [0, 360)
-    confidence: float  # P(within 2 m): the lower of the two beliefs' (track_confidence of each)
-    node: int
-    ambiguous: bool  # a belief is split between places >= 3 m apart: say "not sure"
-    spread_m: float  # RMS distance of the belief from the answer (other floors count 50 m)
-    mass: float = 0.0  # belief within NEAR_M of the answer
-    far: float = 0.0  # belief FAR_M or more from it
-    updates: int = 1  # clips (seconds of a longer clip: update_clip) the belief has seen since it (re)started
-    # False: no match near the answer said where the phone faces, nor the gyroscope (heading is a
-    # stand-in: the last answer's, else 0; confidence held below 0.5 as an ambiguous answer's)
-    heading_known: bool = True
-    # the second (cautious) belief's mass within NEAR_M of the answer and FAR_M or more from it
-    # (None: the tracker runs no second belief)
-    alike_mass: float | None = None
-    alike_far: float | None = None
-    restarted: bool = False  # the belief started over in this update (no state, or one it cannot go on from)
-
-
-def track_confidence(pose: Any, conf: Mapping[str, Any]) -> float:
-    """Calibrated P(within 2 m) of a filtered pose: logistic on `track_confidence_features`."""
-    names = setting(conf, "track_confidence_features")
-    w = setting(conf, "track_confidence_coef")
-    return logistic(w, [TRACK_CONFIDENCE_INPUTS[n](pose) for n in names])
-
-
-def _pairs_within(a: np.ndarray, b: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(i, j, distance) for every point a[i] within r of b[j]."""
-    if len(a) == 0 or len(b) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
-    m = cKDTree(a).sparse_distance_matrix(cKDTree(b), r, output_type="coo_matrix")
-    return m.row.astype(np.int64), m.col.astype(np.int64), m.data.astype(np.float64)
-
-
-def _spans(indptr: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The positions of rows' entries in a CSR layout (`indptr`), row after row in their order,
-    and how many each row has."""
-    lo = indptr[rows]
-    count = indptr[rows + 1] - lo
-    return np.arange(int(count.sum())) + np.repeat(lo - (np.cumsum(count) - count), count), count
-
-
-def _rows_of(m: scipy.sparse.csr_matrix, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The entries of some rows of a CSR matrix, as m[rows] holds them: each entry's position in
-    `rows`, its column and its value (a gather by the matrix's own arrays: SciPy's row indexing
-    builds a matrix, at 10x the cost, for the three arrays read from it)."""
-    at, count = _spans(m.indptr, rows)
-    return np.repeat(np.arange(len(rows)), count), m.indices[at], m.data[at]
 
 
 def _none() -> None:
@@ -571,43 +99,6 @@ def _compact(m: Matches, use: np.ndarray, pad: int) -> tuple[Matches, np.ndarray
     return Matches(*out), at
 
 
-def node_frames(graph: WalkGraph, venue_xy: np.ndarray, venue_floor: np.ndarray) -> np.ndarray:
-    """(N,) int64: each node's nearest venue frame on its floor (any floor's, if its has none)."""
-    return nearest_on_floor(graph.xy, graph.floor, venue_xy, venue_floor)
-
-
-def frame_search(
-    search: Callable[[np.ndarray, int], Matches], spectra: np.ndarray
-) -> Callable[[np.ndarray, int], Matches]:
-    """Venue frame rows -> their matches in the venue's own index (`search`: index.Index.search),
-    searched in passes of at most ALIKE_FRAMES rows and ALIKE_CELLS row x venue frame scores:
-    bounded memory on any venue."""
-    spec = np.asarray(spectra)
-
-    def run(rows: np.ndarray, k: int) -> Matches:
-        step = max(1, min(ALIKE_FRAMES, ALIKE_CELLS // max(1, len(spec))))
-        parts = [search(spec[rows[s : s + step]], k) for s in range(0, len(rows), step)]
-        return Matches(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(Matches)))
-
-    return run
-
-
-def look_alikes(
-    search_rows: Callable[[np.ndarray, int], Matches],
-    graph: WalkGraph,
-    venue_xy: np.ndarray,
-    venue_floor: np.ndarray,
-    conf: Mapping[str, Any],
-    k: int = ALIKE_K,
-) -> Matches | None:
-    """(N, k) matches of each node's nearest modelling frame searched in the venue's own index
-    (`search_rows`: frame_search, or Locator.frame_matches, which keeps them): what the Tracker
-    takes as `alike`. None when the venue's settings turn look-alikes off, or without nodes."""
-    if setting(conf, "track_alike_cost") is None or len(graph.xy) == 0:
-        return None
-    return search_rows(node_frames(graph, venue_xy, venue_floor), k)
-
-
 class Tracker:
     """The filter of one walk graph and one venue generation: what can be precomputed is, once."""
 
@@ -620,45 +111,27 @@ class Tracker:
         alike: Matches | None = None,
     ):
         """venue_xy (V, 2), venue_floor (V,): every venue frame's position and floor (the index's
-        rows); conf: the venue's settings (tracking keys read with presets.py's defaults);
+        rows); conf: the venue's settings (its tracking keys: settings.TrackingSettings);
         alike: look_alikes() of this graph and venue (without it, no place is a look-alike)."""
         self.graph = graph
         self.conf = dict(conf)
         self.n = n = len(graph.xy)
         if n == 0:
             raise ValueError("a walk graph without nodes cannot be tracked on")
-        ref = setting(conf, "track_beta_ref")
-        if ref is not None and not 0.0 <= float(ref) < 1.0:  # 1 or more would turn the evidence over
-            raise ValueError(f"track_beta_ref must be in [0, 1) or None, got {ref!r}")
-        self.beta_ref = None if ref is None else float(ref)  # (beta; None: no tempering)
-        # the rules of the clip's own answer: a bad value would fail every tracked locate, or write
-        # states that cannot be read back (a mean outside [0, 1]): refused here, like track_beta_ref
-        tau, low, cap = (setting(conf, k) for k in ("track_recent_s", "track_recent_min", "track_doubt_cap"))
-        if not (_number(tau) and float(tau) > 0):
-            raise ValueError(f"track_recent_s must be a number of seconds > 0, got {tau!r}")
-        if low is not None and not (_number(low) and 0.0 <= float(low) <= 1.0):
-            raise ValueError(f"track_recent_min must be in [0, 1] or None (off), got {low!r}")
-        if not (_number(cap) and 0.0 <= float(cap) <= 1.0):
-            raise ValueError(f"track_doubt_cap must be in [0, 1], got {cap!r}")
-        self.recent_s = float(tau)
-        self.recent_min = None if low is None else float(low)
-        self.doubt_cap = float(cap)
-        tie = setting(conf, "track_clip_tie")
-        # (above 1 it could never hold: the answer's neighbourhood is the one with the most belief)
-        if tie is not None and not (_number(tie) and 0.0 < float(tie) <= 1.0):
-            raise ValueError(f"track_clip_tie must be in (0, 1] or None (off), got {tie!r}")
-        self.clip_tie = None if tie is None else float(tie)
-        zero = setting(conf, "track_zero_steps_m")
-        if zero is not None and not (_number(zero) and float(zero) > 0):
-            raise ValueError(f"track_zero_steps_m must be a number of metres > 0 or None (off), got {zero!r}")
-        self.zero_steps_m = None if zero is None else float(zero)
+        self.ts = ts = TrackingSettings.of(conf)  # checked: OmninavError naming a bad key
+        self.beta_ref = None if ts.track_beta_ref is None else float(ts.track_beta_ref)  # (beta; None: none)
+        self.recent_s = float(ts.track_recent_s)
+        self.recent_min = None if ts.track_recent_min is None else float(ts.track_recent_min)
+        self.doubt_cap = float(ts.track_doubt_cap)
+        self.clip_tie = None if ts.track_clip_tie is None else float(ts.track_clip_tie)
+        self.zero_steps_m = None if ts.track_zero_steps_m is None else float(ts.track_zero_steps_m)
         self.xy = np.asarray(graph.xy, np.float64)
         self.floor = np.asarray(graph.floor).astype(str)
         vxy = np.asarray(venue_xy, np.float64)
         vfl = np.asarray(venue_floor).astype(str)
         self.venue_xy = vxy
         self.venue_floor = vfl
-        radius = float(setting(conf, "track_radius_m"))
+        radius = float(ts.track_radius_m)
         # venue frame -> nodes within radius (same floor); node -> nodes within PLACE_M / NEAR_M
         fr, fc, fd = self._by_floor(vxy, vfl, self.xy, self.floor, radius)
         # data: the distance + 1 (an explicit 0 could be dropped by a later sparse operation)
@@ -704,7 +177,7 @@ class Tracker:
         (1 - score), the best score of b's frames among a's node frame's matches, either way
         round: symmetric), and where each b's run starts (for one reduceat per update)."""
         none = np.zeros(0, np.int64)
-        cost = setting(self.conf, "track_alike_cost")
+        cost = self.ts.track_alike_cost
         if alike is None or cost is None:
             return none, none, np.zeros(0), none
         if float(cost) < 0 or len(alike.index) != self.n:
@@ -713,7 +186,7 @@ class Tracker:
         # a matched frame is its nearest node's look-alike only (not every node within reach: the
         # score says how alike *that* spot is, and a step away the panorama is another one)
         node = self.graph.snap(self.venue_xy, self.venue_floor)  # every venue frame's, once
-        near = np.hypot(*(self.xy[node] - self.venue_xy).T) <= float(setting(self.conf, "track_radius_m"))
+        near = np.hypot(*(self.xy[node] - self.venue_xy).T) <= float(self.ts.track_radius_m)
         rows = np.asarray(alike.index).ravel()
         ok = near[rows]
         r = np.flatnonzero(ok)
@@ -757,7 +230,7 @@ class Tracker:
         out: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         for f in np.unique(fa):
             ia, ib = np.flatnonzero(fa == f), np.flatnonzero(fb == f)
-            i, j, d = _pairs_within(a[ia], b[ib], r)
+            i, j, d = pairs_within(a[ia], b[ib], r)
             out.append((ia[i], ib[j], d))
         if not out:
             return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
@@ -783,9 +256,9 @@ class Tracker:
         last clip said the phone faced at each node, the gyroscope's turn since): a move i -> j
         whose facing changed by other than the turn counts less (by how much more than
         `track_turn_gate_deg` it is off), hypothesis by hypothesis."""
-        vmax = float(setting(self.conf, "track_max_mps"))
-        slack = float(setting(self.conf, "track_slack_m"))
-        step_m = float(setting(self.conf, "track_step_m"))
+        vmax = float(self.ts.track_max_mps)
+        slack = float(self.ts.track_slack_m)
+        step_m = float(self.ts.track_step_m)
         dt = max(0.0, dt)
         parts = max(1, int(np.ceil((vmax * dt + slack) / (LIMIT_M - 1.0))))
         walked = None if steps is None else max(0, steps) * step_m / parts
@@ -804,8 +277,8 @@ class Tracker:
             # feed) or a walker who turned back (more walked than the graph distance) keeps the
             # flat part, so that clips that agree win within a few updates (one clip moves the odds
             # by up to 1 / track_outlier, more than the steps' 1 / (1 - trust))
-            sig = 0.12 * walked + float(setting(self.conf, "track_step_sigma_m"))
-            trust = float(setting(self.conf, "track_step_trust"))
+            sig = 0.12 * walked + float(self.ts.track_step_sigma_m)
+            trust = float(self.ts.track_step_trust)
             g = np.subtract(d, walked)
             g /= sig
             g *= g
@@ -815,7 +288,7 @@ class Tracker:
             g += 1 - trust
             k *= g
         np.maximum(k, 1e-12, out=k)
-        k[self._via] = float(setting(self.conf, "track_floor_change"))
+        k[self._via] = float(self.ts.track_floor_change)
         rowsum = np.add.reduceat(k, self.t_indptr[:-1])
         k /= np.repeat(rowsum, self.t_count)  # (entries in row order: a row's sum repeated, not gathered)
         kk = k
@@ -826,7 +299,7 @@ class Tracker:
             h = np.deg2rad(facing)
             fs, fc = np.sin(h)[self.t_col[e]], np.cos(h)[self.t_col[e]]
             fwd = self.t_dx[e] * fs - self.t_dy[e] * fc
-            back = float(setting(self.conf, "track_backward")) ** (parts == 1)
+            back = float(self.ts.track_backward) ** (parts == 1)
             kk = k.copy()
             sel = e[fwd < -1.0 * parts]
             kk[sel] = k[sel] * back
@@ -834,7 +307,7 @@ class Tracker:
                 b = np.deg2rad(turn[0] + turn[1])
                 rows = self.t_row[e]
                 cos_off = fc * np.cos(b)[rows] + fs * np.sin(b)[rows]
-                gate = float(setting(self.conf, "track_turn_gate_deg"))
+                gate = float(self.ts.track_turn_gate_deg)
                 bad = np.flatnonzero(cos_off < np.cos(np.deg2rad(gate)))  # NaN: no change
                 off = np.degrees(np.arccos(np.clip(cos_off[bad], -1.0, 1.0)))
                 kk[e[bad]] *= np.maximum(np.exp(-0.5 * ((off - gate) / 20.0) ** 2), 0.1)  # soft, floored
@@ -853,7 +326,7 @@ class Tracker:
     def _into(self, nodes: np.ndarray) -> np.ndarray:
         """The entries (in (row, col) order) whose column is one of `nodes`: the reversed entries
         of their rows (t_rev), as _walk reads them."""
-        into: np.ndarray = self.t_rev[_spans(self.t_indptr, nodes)[0]]
+        into: np.ndarray = self.t_rev[csr_spans(self.t_indptr, nodes)[0]]
         return into
 
     def _walk(self, w: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -896,9 +369,9 @@ class Tracker:
         q, k = idx.shape
         bg = sc.min(axis=1)  # a node that none of a frame's candidates is near: as its worst kept
         b = np.repeat(bg[:, None], self.n, axis=1)
-        r, nodes, dist = _rows_of(self.f2n, idx.ravel())
+        r, nodes, dist = csr_rows(self.f2n, idx.ravel())
         # a match counts for a node less the further it is from it: the emission peaks where it is
-        val = sc.ravel()[r] - float(setting(self.conf, "track_dist_penalty")) * (dist - 1.0)
+        val = sc.ravel()[r] - float(self.ts.track_dist_penalty) * (dist - 1.0)
         np.maximum.at(b, (r // k, nodes), val)
         # the facing: the best-scoring match near each node among the latest frames
         facing = np.full(self.n, np.nan)
@@ -915,7 +388,7 @@ class Tracker:
         """The second belief's evidence weight for a clip whose best node scores `best`:
         track_beta, times (1 - track_beta_ref) / (1 - best) below track_beta_ref (the scores of
         a clip that matches poorly differ by its conditions as much as by place)."""
-        beta = float(setting(self.conf, "track_beta"))
+        beta = float(self.ts.track_beta)
         if self.beta_ref is None or best >= self.beta_ref:
             return beta
         return beta * (1.0 - self.beta_ref) / max(1.0 - best, 1e-6)
@@ -976,7 +449,7 @@ class Tracker:
             turn = None
             if motion.turn_deg is not None and state.facing is not None and len(state.facing) == self.n:
                 turn = (state.facing, float(motion.turn_deg))
-            eps = float(setting(self.conf, "track_uniform"))
+            eps = float(self.ts.track_uniform)
             both = state.belief
             if twin:  # both beliefs walk alike: one pass (a state saved without it starts it as the belief)
                 a = state.alike if state.alike is not None and len(state.alike) == self.n else state.belief
@@ -995,19 +468,19 @@ class Tracker:
             last = functools.partial(_turned, state.heading if heading is None else heading, motion.turn_deg)
         # one clip can be an outlier (people in the way, a turn, a look-alike): it moves the odds
         # between two places by at most 1 / track_outlier
-        rho = float(setting(self.conf, "track_outlier"))
+        rho = float(self.ts.track_outlier)
         # held still: the clip is best at the node the last one was (a wheelchair, or a phone that
         # counts no steps while its user walks, reaches other nodes' views), and the sensors
         # counted no step and little turn, or, where they do not say it moved, the clip faces as
         # the last one did there: "A phone held still" above
         held = False
-        still_cap = setting(self.conf, "track_still_cap")
+        still_cap = self.ts.track_still_cap
         if still_cap and not fresh and state is not None and best is not None and state.best == best:
             # the sensors say so; or, where they do not say it moved (none, or none that
             # answered), the clip does: best where the last was and facing as it did there
-            seen = setting(self.conf, "track_still_seen") and not _moved(motion)
-            held = _still(motion) or bool(seen and _faces_as_before(facing, state.facing, best))
-        log_lik = float(setting(self.conf, "track_beta")) * (e - e.max())
+            seen = self.ts.track_still_seen and not sensors_moved(motion)
+            held = sensors_still(motion) or bool(seen and faces_as_before(facing, state.facing, best))
+        log_lik = float(self.ts.track_beta) * (e - e.max())
         post = prior * ((1 - rho) * np.exp(log_lik) + rho)
         post /= post.sum()
         post_a = None
@@ -1238,7 +711,7 @@ class Tracker:
         x, y, h, known = self._fit(node, matches, times, t_now, guess, last)
         dx = np.where(on, np.hypot(self.xy[:, 0] - x, self.xy[:, 1] - y), 50.0)
         spread = float(np.sqrt((p * np.minimum(dx, 50.0) ** 2).sum()))
-        ambiguous = max(far, alike_far or 0.0) >= float(setting(self.conf, "track_ambiguous"))
+        ambiguous = max(far, alike_far or 0.0) >= float(self.ts.track_ambiguous)
         pose = TrackPose(x, y, str(self.floor[node]), h, 0.0, node, ambiguous, spread, mass, far, updates, known)
         pose = replace(pose, alike_mass=alike_mass, alike_far=alike_far)
         c = track_confidence(pose, self.conf)
@@ -1297,7 +770,7 @@ class Tracker:
 
         e = fit(near)
         if predicted is not None:  # facing away from the gyroscope's heading: its matches, if any
-            gate = float(setting(self.conf, "track_turn_gate_deg"))
+            gate = float(self.ts.track_turn_gate_deg)
             ok = near & (np.abs(wrap_deg(m.heading - predicted)) <= gate)
             if abs(wrap_deg(e.heading - predicted)) > gate and (ok & (m.score > 0)).any():
                 e = fit(ok)
@@ -1306,49 +779,3 @@ class Tracker:
         if dd > FIT_M:  # never further from the node than its neighbourhood
             x, y = nx + (x - nx) * FIT_M / dd, ny + (y - ny) * FIT_M / dd
         return float(x), float(y), float(e.heading % 360.0), True
-
-
-@dataclass(frozen=True)
-class Imu:
-    """A walk's phone motion (imu.json, docs/formats.md): each detected step's time, and the
-    gyroscope's yaw integrated since the start, clockwise + (degrees), at its sample times."""
-
-    steps: np.ndarray  # (S,) seconds, increasing
-    yaw_t: np.ndarray  # (Y,) seconds, increasing
-    yaw_deg: np.ndarray  # (Y,)
-
-    def motion(self, t0: float, t1: float) -> Motion:
-        """What the phone measured between two moments: steps in (t0, t1], the yaw change."""
-        steps = int(np.count_nonzero((self.steps > t0) & (self.steps <= t1)))
-        turn = None
-        if len(self.yaw_t):
-            turn = float(np.interp(t1, self.yaw_t, self.yaw_deg) - np.interp(t0, self.yaw_t, self.yaw_deg))
-        return Motion(steps, turn)
-
-
-def parse_imu(d: Any, where: str = "imu") -> Imu:
-    from .errors import OmninavError
-
-    if not isinstance(d, dict):
-        raise OmninavError(f"{where}: an imu file must be a JSON object")
-    try:
-        steps = np.asarray(d.get("steps", []), np.float64).reshape(-1)
-        yaw = d.get("yaw") or {"t": [], "deg": []}
-        yt = np.asarray(yaw["t"], np.float64).reshape(-1)
-        yd = np.asarray(yaw["deg"], np.float64).reshape(-1)
-    except (TypeError, ValueError, KeyError) as e:
-        shape = "'steps' must be a list of times, 'yaw' {'t': [...], 'deg': [...]}"
-        raise OmninavError(f"{where}: {shape} ({e})") from None
-    if len(yt) != len(yd):
-        raise OmninavError(f"{where}: 'yaw' needs as many 'deg' as 't' ({len(yd)} and {len(yt)})")
-    if not (np.isfinite(steps).all() and np.isfinite(yt).all() and np.isfinite(yd).all()):
-        raise OmninavError(f"{where}: times and angles must be finite numbers")
-    if (np.diff(steps) < 0).any() or (np.diff(yt) <= 0).any():
-        raise OmninavError(f"{where}: step and yaw times must be increasing")
-    return Imu(steps, yt, yd)
-
-
-def load_imu(path: Any) -> Imu:
-    from .errors import read_json
-
-    return parse_imu(read_json(path, "imu file"), where=str(path))

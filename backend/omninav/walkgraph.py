@@ -306,3 +306,27 @@ def attach(graph: WalkGraph, places: Sequence[Mapping[str, Any]], max_m: float =
         if d[k] <= max_m:
             out[place_key(p)] = int(on[k])
     return out
+
+
+def pairs_within(a: np.ndarray, b: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(i, j, distance) for every point a[i] within r of b[j]."""
+    if len(a) == 0 or len(b) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+    m = cKDTree(a).sparse_distance_matrix(cKDTree(b), r, output_type="coo_matrix")
+    return m.row.astype(np.int64), m.col.astype(np.int64), m.data.astype(np.float64)
+
+
+def csr_spans(indptr: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The positions of rows' entries in a CSR layout (`indptr`), row after row in their order,
+    and how many each row has."""
+    lo = indptr[rows]
+    count = indptr[rows + 1] - lo
+    return np.arange(int(count.sum())) + np.repeat(lo - (np.cumsum(count) - count), count), count
+
+
+def csr_rows(m: scipy.sparse.csr_matrix, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The entries of some rows of a CSR matrix, as m[rows] holds them: each entry's position in
+    `rows`, its column and its value (a gather by the matrix's own arrays: SciPy's row indexing
+    builds a matrix, at 10x the cost, for the three arrays read from it)."""
+    at, count = csr_spans(m.indptr, rows)
+    return np.repeat(np.arange(len(rows)), count), m.indices[at], m.data[at]

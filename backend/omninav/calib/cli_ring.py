@@ -197,9 +197,9 @@ def _profile(ctx: click.Context, target: str, lens_name: str | None) -> tuple[An
     p = Path(target)
     if p.suffix.lower() == ".json" or p.is_file():
         return load_lens(p), str(p)
-    from ..cli import _catalog
+    from ..cli_context import catalog_of
 
-    cat = _catalog(ctx)
+    cat = catalog_of(ctx)
     cat.venues.get(target)  # NotFound: names the venue
     if lens_name is not None:
         return cat.lenses.get(target, lens_name), f"{target}'s lens {lens_name!r}"
@@ -229,7 +229,8 @@ def check_cmd(
 ) -> None:
     """Does this video fit this lens profile? Exit 0: it fits (perhaps once corrected), 1: it does not."""
     from ..lens import Catadioptric
-    from .ring import NoRing, find_ring, fit_lens
+    from .lens_fit import fit_lens
+    from .ring import NoRing, find_ring
 
     lens, what = _profile(ctx, target, lens_name)
     frames = read_frames(list(media), max_frames)

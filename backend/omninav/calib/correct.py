@@ -3,7 +3,7 @@
 A clip-on lens never sits where it sat when its profile was made; a few pixels of centre turn into
 heading error and, past a few more, wrong places. The engine's own extraction paths (`omninav
 locate`/`features`/`evaluate` on frames or videos, modelling, and the server's frames/video locate)
-find the ring in a clip's first frames (`ring.corrected_lens`) and extract every frame of the clip
+find the ring in a clip's first frames (`lens_fit.corrected_lens`) and extract every frame of the clip
 through the profile moved to that ring. The phone does the same in its worker (web/src/worker/ring.ts).
 
 The first `FIRST` frames are held back until the ring is known, so a clip still costs one decoded
@@ -19,7 +19,7 @@ from typing import Any, Generic, TypeVar
 import numpy as np
 
 from ..lens import Catadioptric, Lens
-from .ring import TOO_FAR_SHARE, LensFit, corrected_lens, scaled_lens
+from .lens_fit import TOO_FAR_SHARE, LensFit, corrected_lens, scaled_lens
 
 log = logging.getLogger("omninav.calib")
 

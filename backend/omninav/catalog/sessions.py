@@ -1,7 +1,7 @@
 """Tracking sessions: what the filter and the route guide remember of one phone's walk.
 
 A phone that tracks sends an opaque session id it made (random per walk) with each locate; the
-server keeps, per venue and id, the filter's state (tracking.TrackState.to_bytes: a few KB), the
+server keeps, per venue and id, the filter's state (tracking_state.TrackState.to_bytes: a few KB), the
 route guide's state (a small JSON dict, route.guide) and the live generation they were made on.
 They live in the catalogue database, not in a worker's memory, so the next request continues the
 walk whichever worker answers it, and after a restart; nothing else is kept (no address, no

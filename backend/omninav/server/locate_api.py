@@ -34,16 +34,18 @@ from ..aggregate import SURE
 from ..calib.correct import ClipLens
 from ..catalog import Catalog
 from ..catalog.sessions import Session, check_session_id
+from ..describe import DEFAULT_STYLE, Style, describe
 from ..errors import Conflict, NotFound, OmninavError
 from ..extract import Extractor
 from ..locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, Locator, answer_heading, frame_floors
 from ..media import decode_image, iter_sampled, probe_image, probe_mp4, same_size, sampled_count
+from ..motion import Motion
 from ..presets import n_curves
 from ..route import guide
 from ..spectrum import HEADER_BYTES, decode_binary, decode_json, record_bytes_per_frame
-from ..tracking import Motion, Tracker, TrackState
+from ..tracking import Tracker
+from ..tracking_state import TrackState
 from ..walkgraph import WalkGraph, attach, from_frames
-from .describe import DEFAULT_STYLE, Style, describe
 from .http import ApiError, client_address, json_body
 from .plan import annotate
 

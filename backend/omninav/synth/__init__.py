@@ -10,7 +10,8 @@ import cv2
 import numpy as np
 
 from ..lens import Catadioptric, Equirectangular, Lens
-from .scene import Point, Scene, build_scene, floorplan_image
+from .layouts import Point
+from .scene import Scene, build_scene, floorplan_image
 from .walks import (
     MODELLING,
     QUERY,

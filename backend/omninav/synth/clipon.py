@@ -63,7 +63,7 @@ def geometries(scale: float = 1.0) -> dict[str, Catadioptric]:
 def reclip(lens: Catadioptric, shift: tuple[float, float] = (0.0, 0.0), scale: float = 1.0) -> Catadioptric:
     """The lens as clipped on again: its centre moved by `shift` px and its picture `scale` times
     larger (elevation(r) becomes elevation(r / scale)). The result's centre and radii are the
-    ring a finder should measure. (The same arithmetic as the engine's `calib.ring.scaled_lens`,
+    ring a finder should measure. (The same arithmetic as the engine's `calib.lens_fit.scaled_lens`,
     written again on purpose: the renderer's truth must not come from the code it tests.)"""
     return dataclasses.replace(
         lens,

@@ -26,8 +26,9 @@ import numpy as np
 from ..lens import Catadioptric, Equirectangular, Lens
 from . import Dataset, dataset_files, donut_lens, equirect_lens
 from .clipon import geometries, resized
+from .layouts import Point
 from .optics import MILD, REAL
-from .scene import COOL, DEFAULT_DECOR, NEUTRAL, WARM, Decor, Lighting, Point, Scene, build_scene
+from .scene import COOL, DEFAULT_DECOR, NEUTRAL, WARM, Decor, Lighting, Scene, build_scene
 from .walks import (
     MODELLING,
     QUERY,
@@ -50,7 +51,7 @@ class Family:
     name: str
     split: str  # "tuning" | "held-out"
     describe: str  # one sentence for docs/benchmarks.md
-    layout: str  # a layout of synth.scene.LAYOUTS (its own modelling and query routes)
+    layout: str  # a layout of synth.layouts.LAYOUTS (its own modelling and query routes)
     model_lens: Lens  # the camera the venue is modelled with
     query_lens: Lens  # the donut the user films with
     decor: Decor = DEFAULT_DECOR

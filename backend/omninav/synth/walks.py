@@ -19,9 +19,10 @@ import cv2
 import numpy as np
 
 from ..lens import Lens
+from .layouts import Point
 from .optics import Optics, OpticsSim
 from .render import CameraModel, PanoGrid, camera_frame, tilt_rotation, world_panorama
-from .scene import GRID, Person, Point, Scene, random_people
+from .scene import GRID, Person, Scene, random_people
 
 if TYPE_CHECKING:
     from ..track import Track

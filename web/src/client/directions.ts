@@ -2,7 +2,7 @@
  * The answer in words, in the user's chosen style: the words the user hears are made here, on the
  * phone, so that every style works offline too (Repeat, a changed style). Bearings come from the
  * server relative to the user's heading, clockwise, in (-180, 180]. The server's `sentence` is
- * the same sentence in the default style (backend/omninav/server/describe.py); one table of cases,
+ * the same sentence in the default style (backend/omninav/describe.py); one table of cases,
  * tests/data/sentences.json, holds both to the same words. Pure functions: the same words go to
  * speech and to the screen.
  */
@@ -193,7 +193,7 @@ export function change(last: Said | null, a: Said, style: Style, floorName?: str
   return said[0].toUpperCase() + said.slice(1);
 }
 
-// --- route guidance: the words of backend/omninav/server/describe.py's guidance_sentence and
+// --- route guidance: the words of backend/omninav/describe.py's guidance_sentence and
 // preview_sentence, held to the same sentences by one table, tests/data/guidance.json.
 
 /** A bearing within this of straight ahead is "straight ahead": no turn. */

@@ -825,7 +825,7 @@ export function medianRing(rings: (Ring | null)[]): Ring | null {
   };
 }
 
-/** What a ring says about a lens profile (ring.py's `LensFit`). */
+/** What a ring says about a lens profile (lens_fit.py's `LensFit`). */
 export type Verdict = 'same' | 'corrected' | 'too_far' | 'cut' | 'no_ring';
 export interface LensFit {
   verdict: Verdict;
@@ -876,7 +876,7 @@ export function scaledLens(lens: CatadioptricLens, d: [number, number], s: numbe
 }
 
 /**
- * Does the profile fit the ring the frames show (ring.py's fit_lens)? Compared with the ring the
+ * Does the profile fit the ring the frames show (lens_fit.py's fit_lens)? Compared with the ring the
  * profile was made with (`lens.ring`, else its centre and radii): d = centre moved, s = outer
  * radius now / then; cut, too far (10 %), the same (under 0.25 px and 0.2 %), else corrected.
  */

@@ -19,7 +19,7 @@ import math
 from collections.abc import Mapping
 from typing import Any, Literal
 
-from ..aggregate import SURE
+from .aggregate import SURE
 
 NEAR_M = 10.0  # a landmark further than this is not "near"
 # nor one nearer than this "near ... at 3 o'clock": the user is *at* it. Under a metre the way to

@@ -1,0 +1,97 @@
+"""A venue's settings as an earlier release stored them, read as today's: numbered migrations.
+
+`settings.json` carries a `version` (none: 0, every venue modelled before it). `upgrade` applies
+each migration after the stored version, in order, then checks the result (settings.check); the
+stored file is never rewritten, so a venue modelled today and one modelled a year ago read the
+same way. A change to the settings' meaning adds a migration and raises VERSION.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable, Mapping
+from dataclasses import fields
+from typing import Any
+
+from .errors import OmninavError
+from .settings import AggregationSettings, ModellingSettings, SearchSettings, TrackingSettings, check, defaults
+
+VERSION = 3  # the settings' format today
+
+
+# Confidence models once shipped as the default and refit since: a venue whose settings carry one
+# answers with today's. The confidence reads no feature, so nothing has to be extracted again; a
+# model set otherwise (an admin's own fit) is kept.
+SUPERSEDED_CONFIDENCE: tuple[tuple[tuple[str, ...], tuple[float, ...]], ...] = (
+    (("support", "margin"), (-6.68, 10.731, 10.215)),  # before ring-bare
+    (("support", "margin"), (-3.45, 5.677, 9.197)),  # before the square root of the margin
+)
+# Feature keys added after venues were modelled without them: such a venue's features were made
+# with the key off, and its records keep the settings id they had (presets.settings_id counts a
+# key only when it is set).
+LATER_FEATURE_KEYS = ("soft_clip_sd", "band_channels", "level_iters")
+# Keys a venue stored that nothing reads any more: a clip's length is the engine's
+# (locate.MAX_CLIP_S) since clips of 5 s.
+RETIRED_KEYS = ("max_clip_frames",)
+RENAMED_KEYS = {"track_recent_cap": "track_doubt_cap"}  # old name: new name
+
+
+def _to_1_confidence(conf: dict[str, Any]) -> dict[str, Any]:
+    """1: a confidence model without `confidence_features` reads (support, margin), as it was
+    fit; a superseded default model is read as today's."""
+    if "confidence_coef" in conf:
+        conf.setdefault("confidence_features", ["support", "margin"])  # before the key: these
+    names = tuple(conf.get("confidence_features", ()))
+    coef = tuple(float(c) for c in conf.get("confidence_coef", ()))
+    d = defaults()
+    if (names, coef) in SUPERSEDED_CONFIDENCE:
+        conf["confidence_features"] = list(d["confidence_features"])
+        conf["confidence_coef"] = list(d["confidence_coef"])
+    return conf
+
+
+def _to_2_later_features(conf: dict[str, Any]) -> dict[str, Any]:
+    """2: feature keys added later are null (off) where the venue's features were made without
+    them; keys nothing reads are dropped, renamed keys take their new names."""
+    for k in LATER_FEATURE_KEYS:
+        conf.setdefault(k, None)
+    for k in RETIRED_KEYS:
+        conf.pop(k, None)
+    for old, new in RENAMED_KEYS.items():
+        if old in conf:
+            conf.setdefault(new, conf.pop(old))
+    return conf
+
+
+def _to_3_search_and_tracking(conf: dict[str, Any]) -> dict[str, Any]:
+    """3: search, aggregation and tracking keys a venue modelled before them lacks take today's
+    defaults (they change no feature: the venue answers as a new one searches and tracks), but
+    for `key_dims`, 0: a venue without it searched with whole keys, and still does."""
+    conf.setdefault("key_dims", 0)
+    d = defaults()
+    for cls in (SearchSettings, AggregationSettings, ModellingSettings, TrackingSettings):
+        for f in fields(cls):
+            conf.setdefault(f.name, copy.deepcopy(d[f.name]))
+    return conf
+
+
+MIGRATIONS: tuple[Callable[[dict[str, Any]], dict[str, Any]], ...] = (
+    _to_1_confidence,
+    _to_2_later_features,
+    _to_3_search_and_tracking,
+)
+assert len(MIGRATIONS) == VERSION
+
+
+def upgrade(stored: Mapping[str, Any]) -> dict[str, Any]:
+    """A generation's stored settings -> today's format (VERSION), checked: each migration after
+    the stored `version` (none: 0), in order. The stored file is not changed."""
+    conf = copy.deepcopy(dict(stored))
+    v = conf.get("version", 0)
+    if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v <= VERSION:
+        raise OmninavError(f"settings version {v!r}: this release reads versions 0-{VERSION}")
+    for step in MIGRATIONS[v:]:
+        conf = step(conf)
+    conf["version"] = VERSION
+    check(conf)
+    return conf
