@@ -1,7 +1,7 @@
 """The quality map on the twin venue (docs/benchlog.md, "Quality map"): what the map says against
 what an independent walk finds, for the default preset and the same with one setting changed.
 
-The twin venue (scene.py `twin`, half-resolution donut, 10 fps; as tests/test_quality.py builds
+The twin venue (scene.py `twin`, half-resolution donut, 10 fps; as tests/engine/test_quality.py builds
 it): a ring whose west and east corridors are one corridor turned half round. Per seed and
 setting: the map's green / amber / red segments, how many of the twins' straight middles it
 flags, whether the segments outside the twins are green, the query walk's clips within 2 m and

@@ -4,7 +4,7 @@ behave on real pictures as on synthetic ones.
 The real imagery (fetched with pip into --cache, nothing committed):
 - the donut photo of the MIT-licensed PyPI package pyomniunwarp 0.2.5 (data/example.jpg, 1920x1080,
   a convex mirror seen from below by a phone, an office and a chessboard around it) and the
-  OCamCalib model shipped beside it (the lens profile, as tests/test_calib_real.py converts it);
+  OCamCalib model shipped beside it (the lens profile, as tests/calib/test_calib_real.py converts it);
 - the real city panorama in the MIT-licensed PyPI package FisheyeWarping 1.0.1's sdist
   (doc/101-panorama.jpg, 1000x307), re-projected through the synthetic donut lens: real textures,
   noise and compression, a real place, seen through an ideal lens.

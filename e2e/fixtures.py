@@ -461,7 +461,7 @@ def walk(out: Path, name: str, fps: int = 10, scale: float = 0.5) -> None:
 def age(data: Path, venue: str) -> None:
     """Make a modelled venue's live generation say what an omninav from before the soft clipping
     wrote (its feature settings without `soft_clip_sd`, so another settings id than the preset's),
-    as tests/test_model_anew.py's venue does, for the admin page's "Model anew" (admin-anew.spec.ts).
+    as tests/server/test_model_anew.py's venue does, for the admin page's "Model anew" (admin-anew.spec.ts).
     Its spectra stay as they are: the spec models the venue anew before any phone locates there."""
     from omninav.store import Store
 

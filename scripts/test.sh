@@ -17,8 +17,8 @@ npm test -w web --silent
 # (the API fuzzing runs on its own: schemathesis makes its cases as the test runs, one item per
 # operation, and xdist's module-by-module scheduling runs that item without its cases)
 jobs="${OMNINAV_TEST_JOBS:-2}"
-.venv/bin/python -m pytest -n "$jobs" --dist loadfile --ignore=tests/test_fuzz_api.py "$@"
-.venv/bin/python -m pytest tests/test_fuzz_api.py
-OMNINAV_TEST_DB=postgres .venv/bin/python -m pytest -n "$jobs" --dist loadfile tests/test_server.py tests/test_jobs.py tests/test_admin_api.py tests/test_tracking_api.py tests/test_model_anew.py  # again on a real PostgreSQL
+.venv/bin/python -m pytest -n "$jobs" --dist loadfile --ignore=tests/server/test_fuzz_api.py "$@"
+.venv/bin/python -m pytest tests/server/test_fuzz_api.py
+OMNINAV_TEST_DB=postgres .venv/bin/python -m pytest -n "$jobs" --dist loadfile tests/server/test_server.py tests/server/test_jobs.py tests/server/test_admin_api.py tests/server/test_tracking_api.py tests/server/test_model_anew.py  # again on a real PostgreSQL
 bash scripts/chromium.sh
 npx playwright test -c e2e/playwright.config.ts

@@ -26,7 +26,7 @@ from omninav.track import load_track
 OMNINAV = str(Path(sys.executable).with_name("omninav"))
 # The apps the tests make do not warm their venues in the background (WARM_VENUES): a build
 # racing a test's edits, monkeypatches and deleted folders would make results depend on timing.
-# tests/test_warm_venues.py turns it on where that is what it tests; the e2e server keeps it on.
+# tests/server/test_warm_venues.py turns it on where that is what it tests; the e2e server keeps it on.
 os.environ.setdefault("OMNINAV_WARM_VENUES", "off")
 
 

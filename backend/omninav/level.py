@@ -27,8 +27,9 @@ t * sin(d - a) / cos^2(el) degrees of azimuth per degree of elevation. So:
      upright map.
 
 Measured on the renderer's tilted frames: under a degree left of tilts up to 8 degrees after
-two passes, about what a phone's gravity would give (tests/test_level.py). Small pure functions, NumPy: the phone's
-worker (web/src/worker/level.ts) does the same arithmetic, in doubles, on the same panorama bytes.
+two passes, about what a phone's gravity would give (tests/engine/test_level.py). Small pure
+functions, NumPy: the phone's worker (web/src/worker/level.ts) does the same arithmetic, in
+doubles, on the same panorama bytes.
 """
 
 from __future__ import annotations

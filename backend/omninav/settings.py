@@ -17,7 +17,7 @@ against them (and what relates fields: one channel list per band, a weight per c
 and refuses unknown keys, with a message that names the key. settings_upgrade.py brings the
 settings of a venue modelled by an earlier release to today's format by numbered migrations,
 once, where `settings.json` is read (store.py). docs/settings.md is generated from the fields
-(settings_doc.py; tests/test_settings.py keeps it current).
+(settings_doc.py; tests/engine/test_settings.py keeps it current).
 
 Notes
 -----

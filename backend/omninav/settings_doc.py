@@ -1,6 +1,6 @@
 """docs/settings.md, generated from the typed settings' own documentation (settings.py), the
 presets (presets.py) and the migrations (settings_upgrade.py):
-`python -m omninav.settings_doc > docs/settings.md`; tests/test_settings.py fails when the page is
+`python -m omninav.settings_doc > docs/settings.md`; tests/engine/test_settings.py fails when the page is
 not current.
 """
 
@@ -28,7 +28,7 @@ def markdown(presets: Mapping[str, Mapping[str, Any]] | None = None) -> str:
         "# Venue settings",
         "",
         "Generated from `backend/omninav/settings.py` by `python -m omninav.settings_doc > docs/settings.md`;",
-        "tests/test_settings.py fails when this page is not current. Every venue stores the settings it",
+        "tests/engine/test_settings.py fails when this page is not current. Every venue stores the settings it",
         f"was modelled with (`settings.json` of each generation, format version {VERSION}); a preset",
         "(`presets.py`) sets some of them; a venue modelled by an earlier release is read through the",
         "numbered migrations of `settings_upgrade.upgrade`.",

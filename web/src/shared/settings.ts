@@ -16,7 +16,7 @@ export interface FeatureSettings {
 }
 
 /**
- * The feature settings this app knows how to apply (presets.py `FEATURE_KEYS`; tests/test_server.py
+ * The feature settings this app knows how to apply (presets.py `FEATURE_KEYS`; tests/server/test_server.py
  * holds the two lists together). A venue whose records depend on another key was modelled by a
  * newer server than this app was built for: its records would carry the venue's settings id but
  * other curves, and be answered wrongly without anyone knowing (record.ts's recordMismatch).

@@ -14,7 +14,7 @@ from omninav.settings import STAGES, Rule, SearchSettings, TrackingSettings, che
 from omninav.settings_doc import markdown
 from omninav.settings_upgrade import VERSION, upgrade
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_the_settings_page_is_generated_from_the_fields_and_current() -> None:

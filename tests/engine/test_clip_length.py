@@ -179,7 +179,7 @@ def test_the_benches_keep_the_answers_of_each_search_apart(monkeypatch):
     and the shortlist's are not read for them, nor they for it."""
     from pathlib import Path
 
-    monkeypatch.syspath_prepend(str(Path(__file__).parents[1] / "bench"))
+    monkeypatch.syspath_prepend(str(Path(__file__).parents[2] / "bench"))
     from families import SEARCH_KEYS, search_tag
 
     assert "shortlist" in SEARCH_KEYS  # a --set shortlist reaches the search, not a new venue

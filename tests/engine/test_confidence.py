@@ -90,7 +90,7 @@ def test_the_refit_keeps_the_share_it_is_told_and_never_fits_a_held_out_family(m
     preset's boldness), and --extra takes more seeds of tuning families only."""
     from pathlib import Path
 
-    monkeypatch.syspath_prepend(str(Path(__file__).parents[1] / "bench"))
+    monkeypatch.syspath_prepend(str(Path(__file__).parents[2] / "bench"))
     from calibrate import cover, extra_seeds
 
     rng = np.random.default_rng(0)

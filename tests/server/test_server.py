@@ -588,7 +588,7 @@ def test_the_app_knows_every_feature_key():
     """The app refuses a venue whose records depend on a key it does not know (record.ts): its list
     must hold every key the engine has, or a venue modelled with a new one would be answered from
     curves made without it."""
-    ts = (Path(__file__).resolve().parents[1] / "web" / "src" / "shared" / "settings.ts").read_text()
+    ts = (Path(__file__).resolve().parents[2] / "web" / "src" / "shared" / "settings.ts").read_text()
     block = re.search(r"KNOWN_FEATURE_KEYS: readonly \(keyof FeatureSettings\)\[\] = \[(.*?)\];", ts, re.S)
     assert block, "settings.ts no longer declares KNOWN_FEATURE_KEYS"
     assert re.findall(r"'(\w+)'", block.group(1)) == list(FEATURE_KEYS)

@@ -19,7 +19,7 @@ from scipy.optimize import least_squares  # type: ignore[import-untyped]
 
 from omninav.calib.ocam import fit_ocam
 
-DATA = Path(__file__).parent / "data" / "real" / "opencv_omni_calib_data.xml"
+DATA = Path(__file__).parents[1] / "data" / "real" / "opencv_omni_calib_data.xml"
 
 
 @dataclass(frozen=True)

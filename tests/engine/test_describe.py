@@ -11,7 +11,7 @@ import pytest
 
 from omninav import describe as words
 
-TABLE = json.loads((Path(__file__).parent / "data" / "sentences.json").read_text())
+TABLE = json.loads((Path(__file__).parents[1] / "data" / "sentences.json").read_text())
 CASES = [(c, style) for c in TABLE["cases"] for style in c["say"]]
 
 

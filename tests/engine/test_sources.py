@@ -16,7 +16,7 @@ from omninav.presets import resolve
 
 @pytest.fixture
 def bench(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.syspath_prepend(str(Path(__file__).parents[1] / "bench"))
+    monkeypatch.syspath_prepend(str(Path(__file__).parents[2] / "bench"))
 
 
 def _clips(near: list[bool], sure_far: list[bool] | None = None) -> dict[str, np.ndarray]:

@@ -3,7 +3,7 @@ of a walk video, the quality map of a modelled venue, the evaluation of a walk; 
 job with progress, cancel and the event stream of a modelling job, its result a JSON file served by
 the API; and the refusals that say what is missing (4xx).
 
-As in tests/test_jobs.py, the app runs no job thread: each test runs the job runner's steps itself
+As in tests/server/test_jobs.py, the app runs no job thread: each test runs the job runner's steps itself
 (run_next), on a real SQLite database, with the small synthetic venue (a 23 s walk at 10 fps)."""
 
 from __future__ import annotations
