@@ -6,7 +6,7 @@ query walk with every perturbation of issue 2 (lateral offsets up to 0.5 m, came
 shift, sensor noise, MPEG-4 compression). Each configuration models the venue through the real
 modelling path and evaluates 1 s clips (10 frames at 10 fps) of the query walk.
 
-    python bench/accuracy.py [--seed 0] [--root DIR] [--cross-device] [--only default]
+    python -m bench.accuracy [--seed 0] [--root DIR] [--cross-device] [--only default]
 """
 
 from __future__ import annotations
@@ -16,15 +16,13 @@ import sys
 import time
 from pathlib import Path
 
+from bench.common import machine
+from bench.venues import cached_venue
 from omninav.evaluate import Evaluation, evaluate, plot
 from omninav.lens import load_lens
 from omninav.presets import TWO_BANDS, resolve
 from omninav.synth import equirect_lens, make_dataset
 from omninav.track import load_track
-
-sys.path.insert(0, str(Path(__file__).parent))
-from families import cached_venue  # noqa: E402
-from search_speed import machine  # noqa: E402
 
 O = ["I", "O1", "O2", "dI", "dO1", "dO2"]
 CONFIGS = [  # label, preset, overrides, aggregation

@@ -11,8 +11,8 @@ runs in a throwaway venv of its own, fed the corners through an .npz:
 
     python3.11 -m venv /tmp/contrib-venv
     /tmp/contrib-venv/bin/pip install opencv-contrib-python-headless numpy scipy
-    .venv/bin/python bench/calib_compare.py                 # boards rendered and detected (board.py)
-    .venv/bin/python bench/calib_compare.py --corners       # corners projected, 0.3 px noise, 40 views
+    .venv/bin/python -m bench.calib_compare                 # boards rendered and detected (board.py)
+    .venv/bin/python -m bench.calib_compare --corners       # corners projected, 0.3 px noise, 40 views
 
 Both fits see the same views and hold out the same ones (every 4th). Printed per lens geometry:
 the largest and median elevation error over the true ring (deg), the centre error (px), the held-out

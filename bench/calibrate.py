@@ -2,7 +2,7 @@
 
 P(answer within 2 m) = logistic(w . [1, inputs]), the inputs named by presets.py's
 `confidence_features` (or --features, any of aggregate.CONFIDENCE_INPUTS). The weights are fit by
-L2-regularised log-loss on every answer of the tuning families (bench/families.py's cached rows,
+L2-regularised log-loss on every answer of the tuning families (bench/venues.py's cached rows,
 at several clip lengths, so that the fit sees the harder short clips and the app's 3 s ones), then
 applied unchanged to the held-out families. Printed for both splits, for the preset's weights and
 the refit: the reliability table (answers binned by confidence against the share within 2 m), the
@@ -26,7 +26,7 @@ with confidence >= 0.8 as the preset's model does: a log-loss fit on clips this 
 refit keeps the preset's boldness and changes only which answers it trusts (a fixed point: the
 preset refit so answers the same share).
 
-    python bench/calibrate.py [--seeds 0,1] [--held-out-seeds 0,1,2,3] [--clips 0.5,1,2,3]
+    python -m bench.calibrate [--seeds 0,1] [--held-out-seeds 0,1,2,3] [--clips 0.5,1,2,3]
                               [--features support,margin,...] [--extra ring-bare:3,4,5,6]
                               [--cover preset|SHARE] [--elsewhere E.json --elsewhere-weight W]
                               [--look-alike-prior W] [--png docs/reliability.png]
@@ -36,19 +36,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize
 
+from bench.common import machine
+from bench.scoring import cover, fit
+from bench.venues import extra_seeds, family_names, rows_for
 from omninav.aggregate import SURE, confidence, confidence_inputs
 from omninav.presets import resolve
-
-sys.path.insert(0, str(Path(__file__).parent))
-from families import FAMILIES, family_names, rows_for  # noqa: E402
-from search_speed import machine  # noqa: E402
 
 BINS = (0.0, 0.2, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0001)
 
@@ -68,24 +65,6 @@ def look_alikes(rows: list[dict[str, Any]], names: list[str]) -> tuple[np.ndarra
     return x, np.full(len(rows), 0.5)
 
 
-def fit(x: np.ndarray, y: np.ndarray, l2: float = 1e-4, weight: np.ndarray | None = None) -> np.ndarray:
-    wt = np.ones(len(y)) if weight is None else weight
-
-    def loss(w: np.ndarray) -> float:
-        z = x @ w
-        return float(np.sum(wt * (np.logaddexp(0, z) - y * z)) / wt.sum() + l2 * np.sum(w[1:] ** 2))
-
-    return np.asarray(minimize(loss, np.zeros(x.shape[1]), method="BFGS").x)
-
-
-def cover(x: np.ndarray, w: np.ndarray, share: float) -> np.ndarray:
-    """w with its intercept moved so that `share` of the answers x get confidence >= SURE."""
-    z = x @ w
-    out = w.copy()
-    out[0] += np.log(SURE / (1.0 - SURE)) - float(np.quantile(z, 1.0 - share))
-    return out
-
-
 def cover_share(spec: str | None) -> float | None:
     """--cover: None (no cover, or "preset": the preset's own share, known once the rows are)."""
     if spec is None or spec == "preset":
@@ -97,26 +76,6 @@ def cover_share(spec: str | None) -> float | None:
     if not 0.0 < share < 1.0:
         raise SystemExit(f"--cover {spec}: 'preset' or a share between 0 and 1 (0.89, not 89)")
     return share
-
-
-def extra_seeds(specs: list[str], seeds: list[int]) -> list[tuple[str, int]]:
-    """--extra FAMILY:S1,S2 -> (family, seed) pairs; only tuning families may be fit on, and a
-    seed already fit on (`seeds`, every tuning family's) is not counted twice."""
-    out = []
-    for spec in specs:
-        fam, _, more = spec.partition(":")
-        if fam not in FAMILIES:
-            raise SystemExit(f"--extra {spec}: unknown family {fam!r} (known: {', '.join(FAMILIES)})")
-        if FAMILIES[fam].split != "tuning":
-            raise SystemExit(f"--extra {spec}: {fam} is held out (the held-out families are never fit on)")
-        try:
-            got = [int(v) for v in more.split(",") if v.strip()]
-        except ValueError:
-            raise SystemExit(f"--extra {spec}: seeds are whole numbers, FAMILY:3,4") from None
-        if not got or set(got) & set(seeds):
-            raise SystemExit(f"--extra {spec}: name seeds beyond --seeds {seeds}, FAMILY:3,4")
-        out += [(fam, v) for v in got]
-    return out
 
 
 def elsewhere_rows(path: Path | None) -> dict[str, list[dict[str, Any]]]:

@@ -11,26 +11,23 @@ configuration unless another places clearly more of the half within 2 m), the se
 scored; beside them, each configuration fixed for every venue, on the same second halves.
 `one-band-levelled` has the settings of the `wide` preset.
 
-    python bench/choose.py [--configs default,one-band-levelled] [--seeds 0,1,2]
+    python -m bench.choose [--configs default,one-band-levelled] [--seeds 0,1,2]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from bench import foreign
+from bench.common import machine
+from bench.scoring import conf_of, scores, summary
+from bench.venues import rows_for
 from omninav.choose import pick
 from omninav.synth.families import FAMILIES
-
-sys.path.insert(0, str(Path(__file__).parent))
-import foreign  # noqa: E402
-from families import rows_for  # noqa: E402
-from scoring import conf_of, scores, summary  # noqa: E402
-from search_speed import machine  # noqa: E402
 
 
 def halves(s: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:

@@ -15,9 +15,9 @@ confident-wrong (confidence >= 0.8 and further than 2 m, as a share of all clips
 app's policy: a 1 s answer, and when it is not sure, the 3 s clip that ends 2 s later (the same
 frames and 20 more); the row after it asks for more below confidence 0.8 instead, for comparison.
 
-    python bench/clip_length.py                       # data/bench-venue-0 and data/bench-venue-twin-0
-    python bench/clip_length.py --root DIR [--layout twin] [--seed 0]
-    python bench/clip_length.py --family long-bare [--family ...] [--seed 0]
+    python -m bench.clip_length                       # data/bench-venue-0 and data/bench-venue-twin-0
+    python -m bench.clip_length --root DIR [--layout twin] [--seed 0]
+    python -m bench.clip_length --family long-bare [--family ...] [--seed 0]
 """
 
 from __future__ import annotations
@@ -32,6 +32,8 @@ from typing import Any
 
 import numpy as np
 
+from bench.common import machine
+from bench.venues import dataset, venue
 from omninav.aggregate import SURE, confidence
 from omninav.evaluate import query_spectra
 from omninav.heading import wrap_deg
@@ -42,10 +44,6 @@ from omninav.synth.scene import Scene
 from omninav.synth.walks import Perturb, Pose, render_frames, write_video
 from omninav.track import load_track
 from omninav.video import VideoInfo, iter_video
-
-sys.path.insert(0, str(Path(__file__).parent))
-from families import dataset, venue  # noqa: E402
-from search_speed import machine  # noqa: E402
 
 LENGTHS_S = (0.3, 0.5, 1.0, 2.0, 3.0, 5.0)
 FPS = 10.0
@@ -69,7 +67,7 @@ class Walk:
 
 def modelled(root: Path) -> Locator:
     """The venue modelled from root's modelling walk with the default settings, cached as
-    bench/families.py caches it (answers scored with today's confidence model)."""
+    bench/venues.py caches it (answers scored with today's confidence model)."""
     return venue(root, "default")
 
 

@@ -20,7 +20,7 @@ per split and kind, over the seconds after the first 5: the share of answers giv
 the share said "not sure" (confidence < 0.5, what the app says as "not sure"). The venue's own
 walks, the same way, beside them (the share of sure answers a user inside the venue gets).
 
-    python bench/elsewhere.py [--families all|tuning|held-out|NAME,...] [--seeds 0,1] [--set KEY=JSON]
+    python -m bench.elsewhere [--families all|tuning|held-out|NAME,...] [--seeds 0,1] [--set KEY=JSON]
                               [--json OUT]
 """
 
@@ -35,14 +35,12 @@ from typing import Any
 
 import numpy as np
 
+from bench.common import machine
+from bench.tracking import SKIP_S, Walk, graph_tracker, run, venues, walk
+from bench.venues import dataset, family_names, settings
 from omninav.aggregate import SURE
 from omninav.motion import Imu
 from omninav.synth.families import FAMILIES
-
-sys.path.insert(0, str(Path(__file__).parent))
-from families import dataset, family_names, settings  # noqa: E402
-from search_speed import machine  # noqa: E402
-from tracking import SKIP_S, Walk, graph_tracker, run, venues, walk  # noqa: E402
 
 LOW = 0.5  # below it the app says "not sure" (config.py LOW_CONFIDENCE)
 STILL_AT_S = (10.0, 30.0, 50.0)  # where along a walk the phone is held still

@@ -12,7 +12,7 @@ Venues are cached under data/foreign/<venue>/ by what is modelled (a changed def
 venue, never a stale one), answers with their confidence inputs by venue and search, so a
 confidence refit is judged without running anything again (bench/calibrate.py reads the rows).
 
-    python bench/foreign.py [--pack DIR] [--venues inst21,var22h] [--configs default,paper]
+    python -m bench.foreign [--pack DIR] [--venues inst21,var22h] [--configs default,paper]
                             [--set KEY=JSON ...] [--json OUT]
 """
 
@@ -20,22 +20,19 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from bench.ablation import CONFIGS, elevation_off
+from bench.common import machine
+from bench.scoring import conf_of, scores, summary
+from bench.venues import cached_venue, search_tag, settings
 from omninav.aggregate import confidence
 from omninav.heading import wrap_deg
 from omninav.lens import load_lens
 from omninav.locate import Locator, clip_frames
-
-sys.path.insert(0, str(Path(__file__).parent))
-from ablation import CONFIGS, elevation_off  # noqa: E402
-from families import cached_venue, search_tag, settings  # noqa: E402
-from scoring import conf_of, scores, summary  # noqa: E402
-from search_speed import machine  # noqa: E402
 
 PACK = Path(__file__).resolve().parents[1].parent / "shared" / "foreign"
 DATA = Path("data") / "foreign"

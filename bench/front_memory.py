@@ -3,24 +3,21 @@ each sending all but the last byte of a 32 MB locate body, four rounds, against 
 `npm start` runs it. Prints nginx's resident memory (master and worker) before, at each round's
 peak and 60 s after, the disk the bodies took, and another client's locate latency meanwhile.
 
-    python bench/front_memory.py [--rounds 4] [--after 60]
+    python -m bench.front_memory [--rounds 4] [--after 60]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import sys
 import tempfile
 import time
 import urllib.error
 import urllib.request
 from pathlib import Path
 
+from bench.common import machine
 from omninav.devserver import ServeProcess, unfinished_bodies
-
-sys.path.insert(0, str(Path(__file__).parent))
-from search_speed import machine  # noqa: E402
 
 MB = 1 << 20
 

@@ -41,7 +41,7 @@ wrong, and so is every "probably at"; "You may be outside the mapped area" (`not
 there. And each family's whole walk with stops guided towards its last stop (a minute and more:
 long enough for `not_here`, which is wrong in the venue).
 
-    python bench/guided.py [--families all|tuning|held-out|NAME,...] [--seeds 0,1] [--json OUT] [--set KEY=JSON]
+    python -m bench.guided [--families all|tuning|held-out|NAME,...] [--seeds 0,1] [--json OUT] [--set KEY=JSON]
 """
 
 from __future__ import annotations
@@ -57,6 +57,9 @@ from typing import Any
 
 import numpy as np
 
+from bench.common import machine
+from bench.tracking import Walk, graph_tracker, stops_walk, venue_graph, venues, walk, walk_imu
+from bench.venues import dataset, family_names, settings
 from omninav import route as rt
 from omninav import walkgraph as wg
 from omninav.aggregate import SURE, confidence, sequence
@@ -64,11 +67,6 @@ from omninav.locate import Locator
 from omninav.motion import Imu
 from omninav.synth.families import FAMILIES
 from omninav.tracking import Tracker
-
-sys.path.insert(0, str(Path(__file__).parent))
-from families import dataset, family_names, settings  # noqa: E402
-from search_speed import machine  # noqa: E402
-from tracking import Walk, graph_tracker, stops_walk, venue_graph, venues, walk, walk_imu  # noqa: E402
 
 EVERY_S = 2.5  # the app's guided loop: a request every 2.5 s ...
 FILM_S = 2.0  # ... filming 2 s (its first request 1 s)

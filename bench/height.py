@@ -24,19 +24,21 @@ estimate), then answered per delta. Printed, per family and pooled by split:
   - `per walk` (the delta with the highest mean support over the whole walk: a phone that learns
     its user's height over a session).
 
-    python bench/height.py [--families ring-offices,hall-daylight] [--places 12]
-    python bench/height.py --accuracy [--families tuning|held-out|NAME,...] [--seeds 0,1]
+    python -m bench.height [--families ring-offices,hall-daylight] [--places 12]
+    python -m bench.height --accuracy [--families tuning|held-out|NAME,...] [--seeds 0,1]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from bench.common import machine
+from bench.families import HEAD, line
+from bench.venues import dataset, family_names, summarise, venue
 from omninav.calib.correct import ClipLens
 from omninav.evaluate import evaluate_spectra
 from omninav.extract import Extractor
@@ -50,10 +52,6 @@ from omninav.synth.walks import grid_for, poses_from_track, walk_heading
 from omninav.track import load_track, parse_track
 from omninav.unwarp import UnwarpMap, build_map
 from omninav.video import VideoInfo, iter_video
-
-sys.path.insert(0, str(Path(__file__).parent))
-from families import HEAD, dataset, family_names, line, summarise, venue  # noqa: E402
-from search_speed import machine  # noqa: E402
 
 DELTAS = (-0.10, -0.05, 0.0, 0.05, 0.10)
 MODEL_H = 1.35  # every family's modelling walk (synth.walks.MODELLING)

@@ -8,20 +8,22 @@ profile's own place). Every clip is located twice from the same frames: through 
 is, and through the profile corrected for where the clip's ring sits (what `omninav locate`, the
 server and, in its worker, the phone do).
 
-    python bench/lens_shift.py [--clips 60] [--shifts 0,3,6,10] [--seed 0] [--layout twin]
+    python -m bench.lens_shift [--clips 60] [--shifts 0,3,6,10] [--seed 0] [--layout twin]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from bench.accuracy import dataset
+from bench.common import machine
+from bench.venues import cached_venue
 from omninav.calib.correct import FIRST, ClipLens
 from omninav.calib.lens_fit import corrected_lens
 from omninav.extract import Extractor
@@ -31,11 +33,6 @@ from omninav.presets import resolve
 from omninav.synth import QUERY, make_dataset
 from omninav.synth.scene import build_scene
 from omninav.synth.walks import poses_from_track, render_frames
-
-sys.path.insert(0, str(Path(__file__).parent))
-from accuracy import dataset  # noqa: E402
-from families import cached_venue  # noqa: E402
-from search_speed import machine  # noqa: E402
 
 
 def main() -> None:

@@ -10,7 +10,7 @@ the same run: the video modelled in this process with the default preset and wit
 while another process keeps one core busy (a server's other worker: modelling extracts on one
 thread a core, video.extract_threads).
 
-    python bench/model_speed.py [--seconds 40] [--no-api]
+    python -m bench.model_speed [--seconds 40] [--no-api]
 """
 
 from __future__ import annotations
@@ -26,6 +26,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from bench.common import machine
+from bench.server_load import one_core_busy
 from omninav.lens import load_lens
 from omninav.model_venue import model_video
 from omninav.presets import resolve
@@ -41,10 +43,6 @@ from omninav.synth.walks import (
 )
 from omninav.track import load_track
 from omninav.video import extract_threads
-
-sys.path.insert(0, str(Path(__file__).parent))
-from search_speed import machine  # noqa: E402
-from server_load import one_core_busy  # noqa: E402
 
 
 def render(root: Path, seconds: float) -> None:

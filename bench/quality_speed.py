@@ -5,11 +5,11 @@ For each venue size N it times, in the same run on the same generation:
     without itself, all clips in one batched search, then aggregated and scored),
   - `locate`: the plain Locator.estimate of the same N/10 clips, one call per clip (what the
     server would do answering them as phone requests; no exclusion, no scoring).
-The venue is synthetic: the spectra of a smooth random walk (search_speed.venue), placed along a
+The venue is synthetic: the spectra of a smooth random walk (common.random_spectra), placed along a
 serpentine walk at 1.2 m/s and 10 fps, cut into 5-minute videos, written and loaded through the
 store as a modelled venue is (so the index arrays are precomputed and memory-mapped).
 
-    python bench/quality_speed.py [--sizes 1000,5000,20000] [--device cpu|gpu] [--shortlists 16,32]
+    python -m bench.quality_speed [--sizes 1000,5000,20000] [--device cpu|gpu] [--shortlists 16,32]
 
 `--shortlists`: the search's stage-1 shortlist a frame (index.py, "The shortlist"), one row each in
 the same run; by default the default preset's.
@@ -18,20 +18,18 @@ the same run; by default the default preset's.
 from __future__ import annotations
 
 import argparse
-import os
-import sys
 import tempfile
 import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(__file__))
+from bench.common import machine
+from bench.common import random_spectra as venue
 from omninav.locate import Locator  # noqa: E402
 from omninav.presets import n_curves, resolve  # noqa: E402
 from omninav.quality import CLIP_S, quality_map  # noqa: E402
 from omninav.store import FRAME_DTYPE, Generation, Store  # noqa: E402
 from omninav.synth import donut_lens  # noqa: E402
-from search_speed import machine, venue  # noqa: E402
 
 FPS = 10.0
 SPEED = 1.2

@@ -9,14 +9,13 @@ flags, whether the segments outside the twins are green, the query walk's clips 
 the query walk's right answers (10th percentile / median / 90th, and how many fall below the
 rule's margin), printed as markdown with the machine.
 
-    python bench/quality_twin.py [--seeds 5,7] [--set soft_clip_sd=null] [--out DIR]
+    python -m bench.quality_twin [--seeds 5,7] [--set soft_clip_sd=null] [--out DIR]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -24,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from bench.common import machine
 from omninav.evaluate import evaluate_walk
 from omninav.lens import load_lens
 from omninav.locate import Locator
@@ -35,9 +35,6 @@ from omninav.synth import Dataset, make_dataset
 from omninav.synth.layouts import TWINS
 from omninav.synth.scene import build_scene
 from omninav.track import load_track
-
-sys.path.insert(0, str(Path(__file__).parent))
-from search_speed import machine  # noqa: E402
 
 Area = list[float]
 

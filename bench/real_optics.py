@@ -19,7 +19,7 @@ phase-correlation score (what the index verifies with) between a frame and the s
 another exposure (gain, tone curve, white balance, highlight clipping, noise, JPEG), real against
 synthetic, per preset.
 
-    python bench/real_optics.py [--cache data/cache/real-optics] [--frames 12]
+    python -m bench.real_optics [--cache data/cache/real-optics] [--frames 12]
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from bench.common import machine
 from omninav.calib import ocam as oc
 from omninav.calib import ocam_file as ocf
 from omninav.extract import Extractor
@@ -56,9 +57,6 @@ from omninav.synth.optics import (
 )
 from omninav.synth.render import CameraModel, PanoGrid, camera_frame, world_panorama
 from omninav.synth.walks import default_routes, grid_for
-
-sys.path.insert(0, str(Path(__file__).parent))
-from search_speed import machine  # noqa: E402
 
 PHOTO = "pyomniunwarp==0.2.5"
 PANO = "FisheyeWarping==1.0.1"

@@ -2,22 +2,17 @@
 synth/clipon.py's two geometries): the board renders of synth/calibration.py (four geometries, a
 bare hard-edged ring, a board in view) and a fisheye without a dark centre; the truth is the lens.
 
-    python bench/ring_heldout.py
+    python -m bench.ring_heldout
 """
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 
+from bench.common import machine
 from omninav.calib.board import parse_board
 from omninav.calib.ring import find_ring_frame
 from omninav.synth.calibration import LENS_GEOMETRIES, board_video, fisheye_lens
-
-sys.path.insert(0, str(Path(__file__).parent))
-from search_speed import machine  # noqa: E402
 
 FISHEYE = fisheye_lens()
 

@@ -1,26 +1,23 @@
 """Scores of a source's clips, the same for every bench: per-clip outcomes, their summary, the
 adoption rule's verdict on one source (docs/benchmarks.md, "Accuracy on three sources"), the reliability table.
 
-Rows are what bench/families.py and bench/foreign.py cache for every answer: its error, its
+Rows are what bench/venues.py and bench/foreign.py cache for every answer: its error, its
 heading error and its confidence inputs (rescored with the configuration's model).
 """
 
 from __future__ import annotations
 
 import math
-import sys
-from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.optimize import minimize  # type: ignore[import-untyped]
 
+from bench.ablation import CONFIGS
+from bench.venues import rescore
 from omninav.aggregate import SURE
 from omninav.choose import paired_se
 from omninav.presets import resolve
-
-sys.path.insert(0, str(Path(__file__).parent))
-from ablation import CONFIGS  # noqa: E402
-from families import rescore  # noqa: E402
 
 
 def conf_of(config: str) -> dict[str, Any]:
@@ -97,4 +94,40 @@ def reliability(s: dict[str, np.ndarray]) -> list[tuple[int, float]]:
     for lo, hi in zip(BINS[:-1], BINS[1:], strict=True):
         m = (s["confidence"] >= lo) & (s["confidence"] < hi)
         out.append((int(m.sum()), float(s["near"][m].mean()) if m.any() else math.nan))
+    return out
+
+
+def elevation_cost(r: dict[str, Any]) -> np.ndarray:
+    """Per turn, how much of the turned photo's score a lens 2 degrees off in elevation (the worse
+    way) takes away: scores of two feature sets are on scales of their own, their costs are not."""
+    cost: np.ndarray = r["turned"] - np.minimum(r["elev -2°"], r["elev +2°"])
+    return cost
+
+
+def real_verdict(base: dict[str, Any], cand: dict[str, Any]) -> str:
+    """'loses' where the elevation cost grows by more than twice its paired standard error over the
+    turns, or the heading error grows by more than 0.5 degrees; 'wins' the other way."""
+    d = elevation_cost(cand) - elevation_cost(base)
+    se = float(np.std(d, ddof=1)) / math.sqrt(len(d))
+    dh = cand["heading_deg"] - base["heading_deg"]
+    if float(np.mean(d)) > 2 * se or dh > 0.5:
+        return "loses"
+    return "wins" if float(np.mean(d)) < -2 * se or dh < -0.5 else "same"
+
+
+def fit(x: np.ndarray, y: np.ndarray, l2: float = 1e-4, weight: np.ndarray | None = None) -> np.ndarray:
+    wt = np.ones(len(y)) if weight is None else weight
+
+    def loss(w: np.ndarray) -> float:
+        z = x @ w
+        return float(np.sum(wt * (np.logaddexp(0, z) - y * z)) / wt.sum() + l2 * np.sum(w[1:] ** 2))
+
+    return np.asarray(minimize(loss, np.zeros(x.shape[1]), method="BFGS").x)
+
+
+def cover(x: np.ndarray, w: np.ndarray, share: float) -> np.ndarray:
+    """w with its intercept moved so that `share` of the answers x get confidence >= SURE."""
+    z = x @ w
+    out = w.copy()
+    out[0] += np.log(SURE / (1.0 - SURE)) - float(np.quantile(z, 1.0 - share))
     return out

@@ -17,7 +17,7 @@ Printed per venue: each configuration's self-check score beside its accuracy on 
 queries (bench/families.py's query walk, or the foreign pack's clips), the pick, and whether the
 pick is the configuration that answered the real queries best.
 
-    python bench/self_check.py [--configs default,one-band-soft] [--families held-out] [--seeds 0]
+    python -m bench.self_check [--configs default,one-band-soft] [--families held-out] [--seeds 0]
                                [--foreign] [--every 3]
 """
 
@@ -31,6 +31,10 @@ from typing import Any
 
 import numpy as np
 
+from bench import foreign
+from bench.common import machine
+from bench.scoring import conf_of, scores
+from bench.venues import dataset, family_names, rows_for, venue
 from omninav.aggregate import AGGREGATORS
 from omninav.extract import Extractor
 from omninav.lens import Lens, direction_to_pixel, load_lens
@@ -41,12 +45,6 @@ from omninav.synth.families import FAMILIES
 from omninav.synth.optics import reexpose
 from omninav.unwarp import UnwarpMap
 from omninav.video import VideoInfo, iter_video
-
-sys.path.insert(0, str(Path(__file__).parent))
-import foreign  # noqa: E402
-from families import dataset, family_names, rows_for, venue  # noqa: E402
-from scoring import conf_of, scores  # noqa: E402
-from search_speed import machine  # noqa: E402
 
 ELEV_DEG = 2.0  # lens profile off by up to this
 HEIGHT_DELTA = 0.08  # tan(elevation) shifted by up to this (0.24 m at walls 3 m away)

@@ -16,7 +16,7 @@ that falls behind is charged for the queue it causes (no coordinated omission).
 The per-client rate limit is switched off (OMNINAV_LOCATE_RATE=0): the load comes from one
 address. The client runs on the same machine and takes some of its cores.
 
-    python bench/server_load.py [--seconds 20] [--rate 200] [--workers N] [--video-only]
+    python -m bench.server_load [--seconds 20] [--rate 200] [--workers N] [--video-only]
 """
 
 from __future__ import annotations
@@ -25,7 +25,6 @@ import argparse
 import http.client
 import json
 import multiprocessing
-import sys
 import tempfile
 import threading
 import time
@@ -36,7 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).parent))
+from bench.common import machine
+from bench.common import random_spectra as venue
 from omninav.devserver import ServeProcess  # noqa: E402
 from omninav.extract import Extractor  # noqa: E402
 from omninav.lens import load_lens  # noqa: E402
@@ -44,7 +44,6 @@ from omninav.presets import resolve, settings_id  # noqa: E402
 from omninav.spectrum import encode_binary  # noqa: E402
 from omninav.store import FRAME_DTYPE, Generation, Store  # noqa: E402
 from omninav.video import VideoInfo, iter_video  # noqa: E402
-from search_speed import machine, venue  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 N_FRAMES = 8000

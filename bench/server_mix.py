@@ -31,7 +31,7 @@ a building's Wi-Fi have addresses of their own: nginx limits requests in progres
 requests stay under it, but the presses' addresses are reused across phases. The client runs on the
 same machine.
 
-    python bench/server_mix.py [--seconds 40] [--phones 100] [--presses 20] [--slow 50] [--idle 50]
+    python -m bench.server_mix [--seconds 40] [--phones 100] [--presses 20] [--slow 50] [--idle 50]
                                [--streams 8] [--tracked [--period 4] [--guided 20]]
 """
 
@@ -44,7 +44,6 @@ import math
 import os
 import select
 import socket
-import sys
 import threading
 import time
 from collections import Counter
@@ -55,12 +54,10 @@ from typing import Any
 import cv2
 import numpy as np
 
+from bench.common import machine
+from bench.server_load import REPO, load, query_spectra, start_server, summary
 from omninav.spectrum import encode_binary
 from omninav.store import Store
-
-sys.path.insert(0, str(Path(__file__).parent))
-from search_speed import machine  # noqa: E402
-from server_load import REPO, load, query_spectra, start_server, summary  # noqa: E402
 
 LOCATE = "/api/venues/bench8k/locate"
 GOAL = "Goal"  # the place guided phones walk to (set on the bench venue by `main`)

@@ -27,7 +27,7 @@ walk of 0.25 m steps far from the real frames, random spectra) so that the filte
 graph of ~2,000 more nodes, as a large building's: what a tracked update costs grows with the
 graph, not with the clip.
 
-    python bench/server_track.py [--root data/bench-venue-0] [--clips 40] [--pad 8000] [--threads 1]
+    python -m bench.server_track [--root data/bench-venue-0] [--clips 40] [--pad 8000] [--threads 1]
 
 `--threads`: BLAS threads of this process (default 1, what `omninav serve` gives each worker;
 0: the library's default).
@@ -39,15 +39,14 @@ import argparse
 import json
 import shutil
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).parent))
-from accuracy import dataset, run  # noqa: E402
+from bench.accuracy import dataset, run
+from bench.common import machine, pin_threads, random_spectra
 from omninav.calib.correct import clip_spectra  # noqa: E402
 from omninav.extract import Extractor  # noqa: E402
 from omninav.lens import load_lens  # noqa: E402
@@ -56,8 +55,6 @@ from omninav.spectrum import encode_binary  # noqa: E402
 from omninav.store import FRAME_DTYPE, Generation, Store  # noqa: E402
 from omninav.track import load_track  # noqa: E402
 from omninav.video import VideoInfo, iter_video  # noqa: E402
-from search_speed import machine, pin_threads  # noqa: E402
-from search_speed import venue as random_spectra  # noqa: E402
 
 TOKEN = "bench-token"
 ADMIN = {"Authorization": f"Bearer {TOKEN}"}

@@ -21,7 +21,7 @@ The feature record located is the e2e clip (`data/e2e/clip/clip.y4m`, 20 frames,
 tests; extracted with `omninav features` and the e2e quick demo's lens); without it, a synthetic
 record of 20 frames of the first venue's own spectra with noise (it costs the same to locate).
 
-    python bench/sizing.py [--frames real,1500,8000,20000] [--workers 1,2] [--repeat 1] [--json OUT] [--work DIR]
+    python -m bench.sizing [--frames real,1500,8000,20000] [--workers 1,2] [--repeat 1] [--json OUT] [--work DIR]
 
 Run from the repository root. `--work DIR` keeps the venues and the record there (its `v-*` folders
 are made anew on every run); by default they go to a temporary folder, removed at the end. About 40 s
@@ -45,16 +45,14 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).parent))
+from bench.common import machine, random_spectra
+from bench.server_mix import cpu_s, descendants, gunicorn_workers
+from bench.tracking import serpentine
 from omninav.devserver import ServeProcess  # noqa: E402
 from omninav.presets import n_curves, resolve  # noqa: E402
 from omninav.spectrum import encode_binary  # noqa: E402
 from omninav.store import FRAME_DTYPE, Generation, Store  # noqa: E402
 from omninav.synth import donut_lens  # noqa: E402
-from search_speed import machine  # noqa: E402
-from search_speed import venue as random_spectra  # noqa: E402
-from server_mix import cpu_s, descendants, gunicorn_workers  # noqa: E402
-from tracking import serpentine  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 OMNINAV = str(Path(sys.executable).with_name("omninav"))

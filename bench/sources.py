@@ -22,8 +22,8 @@ photo, whose scores are on each feature set's own scale, a loss is a larger elev
 score a lens 2 degrees off takes away) by more than twice its paired standard error over the
 photo's eight turns, or a heading error 0.5 degrees worse.
 
-    python bench/sources.py [--configs default,two-bands-shared] [--seeds 0,1,2] [--pack DIR]
-    python bench/sources.py --ladder [--seeds 0]   # every change since the paper, each judged
+    python -m bench.sources [--configs default,two-bands-shared] [--seeds 0,1,2] [--pack DIR]
+    python -m bench.sources --ladder [--seeds 0]   # every change since the paper, each judged
                                                    # against the rung before it
 """
 
@@ -31,27 +31,23 @@ from __future__ import annotations
 
 import argparse
 import functools
-import math
-import sys
 from pathlib import Path
 from typing import Any
 
 import cv2
 import numpy as np
 
+from bench import foreign
+from bench.ablation import LADDER, elevation_off
+from bench.common import machine
+from bench.real_optics import real_photo
+from bench.scoring import BINS, clip_verdict, conf_of, elevation_cost, real_verdict, reliability, scores, summary
+from bench.venues import rows_for
 from omninav.extract import Extractor
 from omninav.heading import relative_heading, wrap_deg
 from omninav.lens import Catadioptric
 from omninav.synth.families import FAMILIES
 from omninav.synth.optics import reexpose
-
-sys.path.insert(0, str(Path(__file__).parent))
-import foreign  # noqa: E402
-from ablation import LADDER, elevation_off  # noqa: E402
-from families import rows_for  # noqa: E402
-from real_optics import real_photo  # noqa: E402
-from scoring import BINS, clip_verdict, conf_of, reliability, scores, summary  # noqa: E402
-from search_speed import machine  # noqa: E402
 
 TURNS = (23.0, 71.0, 118.0, 167.0, 204.0, 251.0, 299.0, 337.0)  # the photo turned about its lens axis
 SHOT = {"gain": 0.6, "tone": 0.8, "wb": (0.9, 1.0, 1.12), "noise": 3.0, "jpeg": 60}  # real_optics' "all"
@@ -120,24 +116,6 @@ def real(config: str, cache: Path) -> dict[str, Any]:
     out["turned"] = np.array(res)
     out["heading_deg"] = float(np.median(herr))
     return out
-
-
-def elevation_cost(r: dict[str, Any]) -> np.ndarray:
-    """Per turn, how much of the turned photo's score a lens 2 degrees off in elevation (the worse
-    way) takes away: scores of two feature sets are on scales of their own, their costs are not."""
-    cost: np.ndarray = r["turned"] - np.minimum(r["elev -2°"], r["elev +2°"])
-    return cost
-
-
-def real_verdict(base: dict[str, Any], cand: dict[str, Any]) -> str:
-    """'loses' where the elevation cost grows by more than twice its paired standard error over the
-    turns, or the heading error grows by more than 0.5 degrees; 'wins' the other way."""
-    d = elevation_cost(cand) - elevation_cost(base)
-    se = float(np.std(d, ddof=1)) / math.sqrt(len(d))
-    dh = cand["heading_deg"] - base["heading_deg"]
-    if float(np.mean(d)) > 2 * se or dh > 0.5:
-        return "loses"
-    return "wins" if float(np.mean(d)) < -2 * se or dh < -0.5 else "same"
 
 
 # ---- the report -------------------------------------------------------------------------------

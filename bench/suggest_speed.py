@@ -6,19 +6,19 @@ floor), `suggest_waypoints` at its default 10 fps and at 5 fps, and, as the base
 the same video with its true track (`model_video`, features at the preset's 10 fps). It also prints
 how far each suggestion is from the true corner or stop.
 
-    python bench/suggest_speed.py [--root data/bench-suggest-speed] [--repeat 3]
+    python -m bench.suggest_speed [--root data/bench-suggest-speed] [--repeat 3]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import cv2
 
+from bench.common import machine
 from omninav.lens import load_lens
 from omninav.model_venue import model_video
 from omninav.store import Store
@@ -26,9 +26,6 @@ from omninav.suggest import suggest_waypoints
 from omninav.synth import MODELLING, build_scene, donut_lens
 from omninav.synth.walks import render_walk, track_for, walk_events, write_json
 from omninav.track import load_track
-
-sys.path.insert(0, str(Path(__file__).parent))
-from search_speed import machine  # noqa: E402
 
 ROUTE = [(15.0, 3.0), (27.0, 3.0), (27.0, 23.0), (39.0, 23.0)]
 

@@ -21,8 +21,8 @@ and query walks, --seeds) answered twice: every query frame unwarped as it is, a
 tilt the renderer gave it (the upper bound again). Both through the lens where the renderer put
 it (its re-clipping shift), so that the two differ by the tilt alone. Printed like families.py.
 
-    python bench/tilt.py [--families tuning|NAME,...] [--places 25] [--set KEY=JSON]
-    python bench/tilt.py --accuracy [--families tuning|held-out|NAME,...] [--seeds 0,1]
+    python -m bench.tilt [--families tuning|NAME,...] [--places 25] [--set KEY=JSON]
+    python -m bench.tilt --accuracy [--families tuning|held-out|NAME,...] [--seeds 0,1]
 """
 
 from __future__ import annotations
@@ -31,12 +31,13 @@ import argparse
 import copy
 import dataclasses
 import json
-import sys
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from bench.common import machine
+from bench.families import HEAD, line
+from bench.venues import dataset, family_names, summarise, venue
 from omninav.evaluate import evaluate_spectra
 from omninav.extract import Extractor
 from omninav.heading import relative_heading
@@ -49,10 +50,6 @@ from omninav.synth.walks import grid_for, poses_from_track, walk_heading
 from omninav.track import load_track, parse_track
 from omninav.unwarp import UnwarpMap
 from omninav.video import VideoInfo, iter_video
-
-sys.path.insert(0, str(Path(__file__).parent))
-from families import HEAD, dataset, family_names, line, summarise, venue  # noqa: E402
-from search_speed import machine  # noqa: E402
 
 TILTS = (3.0, 5.0, 8.0)
 CORRECTED = (5.0, 8.0)

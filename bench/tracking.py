@@ -1,6 +1,6 @@
 """Tracking while walking (issue 14): the filter's answers per second beside single clips'.
 
-For every venue family and seed (bench/families.py renders, models and caches them), a walk's
+For every venue family and seed (bench/venues.py renders, models and caches them), a walk's
 spectra are extracted once (cached beside it) and each clip searched as a locate searches it
 (Locator.clip_matches: each second's frames share their candidates); then every 1 s and every 2.5 s (the phone's
 pace) the 1 s clip ending there is answered twice: alone (aggregate.sequence, what a locate
@@ -20,7 +20,7 @@ time of an update, on the families and on made-up venues of up to 20,000 frames.
 `--fit` fits the filter's confidence (presets.py track_confidence_coef) on the TUNING families'
 walks only (started afresh, every 1 s and 2.5 s, with and without IMU), then judges it on both.
 
-    python bench/tracking.py [--families all] [--seeds 0,1] [--walks query,stops] [--fit]
+    python -m bench.tracking [--families all] [--seeds 0,1] [--walks query,stops] [--fit]
                              [--set track_beta=20] [--json OUT] [--threads 1]
 """
 
@@ -39,6 +39,8 @@ from typing import Any
 
 import numpy as np
 
+from bench.common import machine, pin_threads
+from bench.venues import CONFIDENCE_KEYS, SEARCH_KEYS, dataset, family_names, settings, venue
 from omninav.aggregate import SURE, TRACK_CONFIDENCE_INPUTS, confidence, sequence
 from omninav.evaluate import query_spectra
 from omninav.heading import wrap_deg
@@ -53,10 +55,6 @@ from omninav.synth.walks import imu_for, poses_from_track, render_frames, with_s
 from omninav.track import load_track
 from omninav.tracking import Tracker
 from omninav.walkgraph import WalkGraph, from_frames
-
-sys.path.insert(0, str(Path(__file__).parent))
-from families import CONFIDENCE_KEYS, SEARCH_KEYS, dataset, family_names, settings, venue  # noqa: E402
-from search_speed import machine, pin_threads  # noqa: E402
 
 SKIP_S = 5.0  # the figures count the seconds after the first 5 of a walk
 
@@ -304,7 +302,8 @@ def calibration_rows(names: list[str], seeds: list[int], over: dict[str, Any]) -
 def fit_confidence(over: dict[str, Any]) -> None:
     """Fit track_confidence_coef on the tuning families (the main belief's inputs); judge it on
     the held-out ones as the answer takes it: the lower of the two beliefs' confidence."""
-    from calibrate import fit, reliability
+    from bench.calibrate import reliability
+    from bench.scoring import fit
 
     names = list(DEFAULTS["track_confidence_features"])
     data = {split: calibration_rows(family_names(split), [0, 1], over) for split in ("tuning", "held-out")}

@@ -19,7 +19,7 @@ PATH = re.compile(
     r"(?<![\w/.-])((?:docs|calib|bench|tests|web|e2e|backend|scripts|\.ci)/[\w./-]*\w"
     r"\.(?:md|py|ts|mjs|cjs|json|sh|html|xml|toml))"
 )
-EXAMPLES = {"bench/x.py"}  # a placeholder in a sentence ("bench/x.py imports it"), not a file
+EXAMPLES = {"bench/NAME.py", "bench/NAME.mjs"}  # placeholders in sentences, not files
 BINARY = (".png", ".jpg", ".y4m", ".mp4", ".npy", ".gz", ".wasm", ".ico", ".pgm", ".woff2")
 
 

@@ -4,7 +4,7 @@ The live tests (tests/), the benchmarks (bench/) and anyone scripting against a 
 need the same thing: start the command `npm start` runs on a data directory, wait until it answers
 `/api/health`, and later stop every process it made (nginx, gunicorn arbiters and workers, job
 runner). It lives in the package, rather than in tests/ or bench/, because the package is installed
-(editable) into `.venv`, so pytest and `.venv/bin/python bench/x.py` both import it with no
+(editable) into `.venv`, so pytest and `.venv/bin/python -m bench.x` both import it with no
 `sys.path` edits; it is not part of the server (nothing under `omninav.server` imports it) and uses
 only the standard library. The JavaScript side (e2e, bench/web_extract.mjs) has its own, e2e/server.cjs.
 

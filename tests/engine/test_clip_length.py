@@ -174,13 +174,10 @@ def test_each_second_of_a_clip_shares_its_candidates(loc, small_ds):
 
 
 def test_the_benches_keep_the_answers_of_each_search_apart(monkeypatch):
-    """bench/families.py caches a venue's answers under a name that says how its clips were
+    """bench/venues.py caches a venue's answers under a name that says how its clips were
     searched: the answers of the search before the shortlist keep their names (and their figures),
     and the shortlist's are not read for them, nor they for it."""
-    from pathlib import Path
-
-    monkeypatch.syspath_prepend(str(Path(__file__).parents[2] / "bench"))
-    from families import SEARCH_KEYS, search_tag
+    from bench.venues import SEARCH_KEYS, search_tag
 
     assert "shortlist" in SEARCH_KEYS  # a --set shortlist reaches the search, not a new venue
     conf = resolve("default")

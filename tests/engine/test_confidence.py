@@ -88,10 +88,8 @@ def test_a_tie_between_two_places_is_not_sure_unless_both_match_almost_perfectly
 def test_the_refit_keeps_the_share_it_is_told_and_never_fits_a_held_out_family(monkeypatch: pytest.MonkeyPatch) -> None:
     """bench/calibrate.py: --cover moves the intercept to the share of answers called sure (the
     preset's boldness), and --extra takes more seeds of tuning families only."""
-    from pathlib import Path
-
-    monkeypatch.syspath_prepend(str(Path(__file__).parents[2] / "bench"))
-    from calibrate import cover, extra_seeds
+    from bench.scoring import cover
+    from bench.venues import extra_seeds
 
     rng = np.random.default_rng(0)
     x = np.c_[np.ones(500), rng.uniform(0, 1, 500), rng.uniform(0, 0.3, 500)]

@@ -3,8 +3,6 @@ holds a place where the default's narrow bands let go (docs/benchmarks.md, "Accu
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -44,8 +42,7 @@ def test_wide_holds_a_place_that_a_lens_off_in_elevation_or_another_height_moves
     """The same place, read through a lens profile 2 degrees off or filmed 0.2 m lower, loses a
     fraction of what it loses with the default's five narrow bands; another place 3 m on scores as
     low with either (what is given up is the narrow bands' hold on look-alikes, not all of it)."""
-    monkeypatch.syspath_prepend(str(Path(__file__).parents[2] / "bench"))
-    from ablation import elevation_off
+    from bench.ablation import elevation_off
 
     lens = donut_lens(0.5)
     v = (build_scene(5, "small"), lens, grid_for(lens, 1440), CameraModel.create(lens))

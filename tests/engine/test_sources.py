@@ -5,18 +5,12 @@ the foreign pack's README says, and the ladder of changes the ablation reads."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from omninav.lens import Catadioptric, Equirectangular
 from omninav.presets import resolve
-
-
-@pytest.fixture
-def bench(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.syspath_prepend(str(Path(__file__).parents[2] / "bench"))
 
 
 def _clips(near: list[bool], sure_far: list[bool] | None = None) -> dict[str, np.ndarray]:
@@ -39,8 +33,8 @@ def test_paired_noise_counts_only_the_clips_the_two_answer_differently() -> None
     assert paired_se(a, c) == pytest.approx(math.sqrt(6) / 60)
 
 
-def test_a_candidate_loses_a_source_only_beyond_its_noise(bench: None) -> None:
-    from scoring import clip_verdict
+def test_a_candidate_loses_a_source_only_beyond_its_noise() -> None:
+    from bench.scoring import clip_verdict
 
     base = [True] * 50 + [False] * 10
     one_lost = [False] + base[1:]
@@ -59,8 +53,8 @@ def test_a_candidate_loses_a_source_only_beyond_its_noise(bench: None) -> None:
         clip_verdict(_clips(base), other)
 
 
-def test_clips_are_scored_as_the_foreign_packs_readme_says(bench: None) -> None:
-    from scoring import scores, summary
+def test_clips_are_scored_as_the_foreign_packs_readme_says() -> None:
+    from bench.scoring import scores, summary
 
     conf = {"confidence_features": ["support", "sqrt_margin"], "confidence_coef": [-7.67, 9.761, 7.692]}
     sure = {"support": 0.95, "rival": 0.3, "agree": 1.0}  # confidence well above 0.8
@@ -80,8 +74,8 @@ def test_clips_are_scored_as_the_foreign_packs_readme_says(bench: None) -> None:
     assert list(scores([family_row], conf)["id"]) == ["long-bare/1/40"]
 
 
-def test_the_real_photo_judges_the_elevation_cost_and_the_heading(bench: None) -> None:
-    from sources import elevation_cost, real_verdict
+def test_the_real_photo_judges_the_elevation_cost_and_the_heading() -> None:
+    from bench.scoring import elevation_cost, real_verdict
 
     turns = np.full(8, 0.93)
 
@@ -97,8 +91,8 @@ def test_the_real_photo_judges_the_elevation_cost_and_the_heading(bench: None) -
     assert real_verdict(base, photo(0.04, heading=0.8, seed=1)) == "loses"  # 0.7 degrees worse
 
 
-def test_a_lens_off_in_elevation_reads_every_radius_that_much_higher(bench: None) -> None:
-    from ablation import elevation_off
+def test_a_lens_off_in_elevation_reads_every_radius_that_much_higher() -> None:
+    from bench.ablation import elevation_off
 
     lens = Catadioptric((960, 720), (480.0, 360.0), 100.0, 340.0, (-80.0, 0.5, -0.001))
     off = elevation_off(lens, 2.0)
@@ -110,11 +104,11 @@ def test_a_lens_off_in_elevation_reads_every_radius_that_much_higher(bench: None
     assert elevation_off(pano, 2.0) is pano  # a 360 camera has no elevation profile to be off
 
 
-def test_the_ladder_adds_one_change_a_rung(bench: None) -> None:
+def test_the_ladder_adds_one_change_a_rung() -> None:
     """bench/ablation.py: the rungs resolve to valid settings, each differs from the one before it
     in the settings its name says (the ablation table's reading), and the bench's name for the
     wide preset has its settings."""
-    from ablation import CONFIGS, LADDER
+    from bench.ablation import CONFIGS, LADDER
 
     conf = {name: resolve(p, over) for name, (p, over) in CONFIGS.items()}
 
