@@ -16,7 +16,7 @@ from typing import Any
 import pytest
 
 from omninav.locate import Locator
-from omninav.server.locate_api import Runtime, Runtimes
+from omninav.server.runtimes import Runtime, Runtimes
 from omninav.spectrum import encode_binary
 from server_helpers import ADMIN, Api, clip_spectra, query_clip
 from test_tracking_api import make_app

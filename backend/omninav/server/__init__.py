@@ -21,8 +21,8 @@ from ..config import load_config
 from .auth import set_token
 from .http import CSP, ApiError, install_error_handlers
 from .jobs import Jobs
-from .locate_api import Runtimes
 from .ratelimit import RateLimiter
+from .runtimes import Runtimes
 
 
 @dataclass

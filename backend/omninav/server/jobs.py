@@ -1,10 +1,6 @@
 """Background jobs: queued in the database, run by a job runner (a background thread of a server
-process, or a dedicated process that calls `run_forever`). Each job has a kind:
-
-    model      model videos into the venue's next generation (model_venue.py)
-    suggest    suggested waypoints of one video: where the walker turned or stopped (suggest.py)
-    quality    the quality map of the venue's live generation (quality.py)
-    evaluate   an evaluation walk located against the live generation (evaluate.py)
+process, or a dedicated process that calls `run_forever`). Each job has a kind (model, suggest,
+quality, evaluate); what each kind takes and runs is job_kinds.py's, the queue is this module's.
 
 A modelling job commits a generation; the others write a result, one JSON file per job
 (DATA/results/<venue>/<job id>.json, named in jobs.result), renamed into place in the job's final
@@ -35,7 +31,6 @@ from __future__ import annotations
 import errno
 import json
 import logging
-import math
 import os
 import socket
 import threading
@@ -53,7 +48,7 @@ from ..catalog.videos import Videos
 from ..errors import Conflict, NotFound, OmninavError
 from ..model_venue import Progress, model_videos
 from ..store import write_beside
-from ..track import parse_track
+from .job_kinds import analyse, check_analysis, doing, plain, videos_to_model
 
 log = logging.getLogger("omninav.jobs")
 ACTIVE = ("queued", "running")
@@ -65,7 +60,6 @@ MAX_ATTEMPTS = 3  # a job is claimed at most this often
 BACKOFF_S = 2.0  # wait before attempt n+1: BACKOFF_S * 2**(n-1), i.e. 2 s, 4 s, 8 s...
 DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
 STOPPED = "the server stopped while this job ran; the venue kept its previous frames"
-KINDS = ("model", "suggest", "quality", "evaluate")
 
 
 class Cancelled(Exception):
@@ -123,16 +117,6 @@ def result_file(venue_id: str, job_id: str) -> str:
     return f"{RESULTS}/{venue_id}/{job_id}.json"
 
 
-def doing(kind: str, target: str | None) -> str:
-    """What a job of this kind does, for the messages that name a busy job."""
-    return {
-        "model": "modelling",
-        "suggest": f"suggesting waypoints for video {target!r}",
-        "quality": "making the quality map",
-        "evaluate": f"evaluating video {target!r}",
-    }.get(kind, kind)
-
-
 def job_doc(r: dict[str, Any]) -> dict[str, Any]:
     done, total, fps = r["frames_done"], r["frames_total"], r["fps"]
     eta = (total - done) / fps if r["state"] == "running" and fps > 0 and total >= done else None
@@ -158,29 +142,6 @@ def job_doc(r: dict[str, Any]) -> dict[str, Any]:
         "error": r["error"],  # the last error: on a job queued again, why its last attempt ended
         "result_url": f"/api/admin/jobs/{r['id']}/result" if r["state"] == "done" and r["result"] else None,
     }
-
-
-def _tracked(v: dict[str, Any]) -> bool:
-    return json.loads(v["track"]) is not None
-
-
-def _check_uploaded(v: dict[str, Any]) -> None:
-    if v["status"] not in ("ready", "modelled"):
-        raise Conflict(f"video {v['name']!r} is not completely uploaded ({v['received']} of {v['size']} bytes)")
-
-
-def _plain(x: Any) -> Any:
-    """The engine's result as plain JSON values: NumPy scalars and arrays as numbers and lists,
-    a number that is not finite (no JSON number) as null."""
-    if isinstance(x, dict):
-        return {str(k): _plain(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    if hasattr(x, "tolist"):  # a NumPy array or scalar
-        return _plain(x.tolist())
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
 
 
 def _write_beside(path: Path, text: str) -> Path:
@@ -234,57 +195,6 @@ class Jobs:
         self.reap()
         return self.db.all("SELECT * FROM jobs WHERE venue = :v ORDER BY created DESC", v=venue_id)
 
-    def _check_videos(self, venue_id: str, names: Any, anew: bool = False) -> list[str]:
-        """The names of the videos to model (default: every uploaded modelling walk with a track,
-        not modelled yet; `anew`: every one, modelled or not, and no other choice: the new
-        generation holds only the job's videos)."""
-        vids = self.cat.videos.all(venue_id)
-        if anew:
-            walks = [v for v in vids if v["role"] == "model" and v["status"] in ("ready", "modelled")]
-            every: list[str] = [v["name"] for v in walks if _tracked(v)]
-            if not every:
-                known = {v["name"] for v in vids}
-                by_cli = [n for n in self.cat.store.modelled_videos(venue_id) if n not in known]
-                how = (
-                    f"its frames are from {', '.join(map(repr, by_cli))}, modelled by the command line: "
-                    "omninav model ... --anew"
-                    if by_cli
-                    else "upload a modelling walk and tag its track first"
-                )
-                raise Conflict(f"venue {venue_id!r} has no uploaded modelling video with a track to model anew ({how})")
-            # the new generation holds only these: refuse rather than drop another walk's frames
-            # (modelled by the command line, or registered again and still uploading)
-            if lost := [n for n in self.cat.store.modelled_videos(venue_id) if n not in every]:
-                raise Conflict(
-                    f"modelling anew would drop the frames of {', '.join(map(repr, lost))}: it models only "
-                    "uploaded modelling videos with a track; upload and tag them first"
-                )
-            if gone := [n for n in every if not (self.cat.videos.dir(venue_id) / n).is_file()]:
-                raise Conflict(
-                    f"video {gone[0]!r} has no uploaded file here (a backup restored without videos?): "
-                    "upload it again before modelling anew"
-                )
-            return every
-        if names is None:
-            ready = [v for v in vids if v["status"] == "ready" and v["role"] == "model"]
-            names = [v["name"] for v in ready if _tracked(v)]
-            if not names:
-                untagged = [v["name"] for v in ready if not _tracked(v)]
-                why = f" (video {untagged[0]!r} has no track yet)" if untagged else ""
-                raise Conflict(f"venue {venue_id!r} has no uploaded video waiting to be modelled{why}")
-        if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
-            raise OmninavError("'videos' must be a non-empty list of video names")
-        by_name = {v["name"]: v for v in vids}
-        for n in names:
-            if n not in by_name:
-                raise NotFound(f"venue {venue_id!r} has no video {n!r}")
-            _check_uploaded(by_name[n])
-            if by_name[n]["role"] != "model":
-                raise Conflict(f"video {n!r} is an evaluation walk: it is evaluated, not modelled")
-            if not _tracked(by_name[n]):
-                raise Conflict(f"video {n!r} has no track yet")
-        return list(dict.fromkeys(names))
-
     def submit(self, venue_id: str, names: Any, anew: bool = False) -> dict[str, Any]:
         """Queue a modelling job (`anew`: every modelling video, with the venue's preset as this
         server defines it now; see model_venue.model_videos). The database's
@@ -292,7 +202,7 @@ class Jobs:
         and inserting after would let two through."""
         self.cat.venues.get(venue_id)
         self.reap()
-        names = self._check_videos(venue_id, names, anew)
+        names = videos_to_model(self.cat, venue_id, names, anew)
         job_id = uuid.uuid4().hex[:16]
         for _ in range(3):
             try:
@@ -323,7 +233,7 @@ class Jobs:
         a track), the venue modelled (quality, evaluate)."""
         self.cat.venues.get(venue_id)
         self.reap()
-        self._check_analysis(venue_id, kind, target)
+        check_analysis(self.cat, venue_id, kind, target)
         job_id = uuid.uuid4().hex[:16]
         row = {
             "id": job_id,
@@ -347,24 +257,6 @@ class Jobs:
             raise Conflict(f"venue {venue_id!r} is busy with other jobs; try again")
         self.wake.set()
         return self.get(job_id)
-
-    def _check_analysis(self, venue_id: str, kind: str, target: str | None) -> None:
-        if kind not in KINDS or kind == "model":
-            raise OmninavError(f"unknown kind of analysis job {kind!r}")
-        if kind in ("suggest", "evaluate"):
-            if target is None:
-                raise OmninavError(f"a {kind} job needs a video")
-            v = self.cat.videos.get(venue_id, target)
-            _check_uploaded(v)
-            if kind == "evaluate":
-                if v["role"] != "evaluation":
-                    raise Conflict(
-                        f"video {target!r} is a modelling walk; evaluate a walk uploaded with role 'evaluation'"
-                    )
-                if not _tracked(v):
-                    raise Conflict(f"video {target!r} has no track yet: tag its waypoints first")
-        if kind in ("quality", "evaluate") and self.cat.store.generation(venue_id) is None:
-            raise Conflict(f"venue {venue_id!r} has no modelled frames yet: model the venue first")
 
     def _busy(self, venue_id: str, kind: str, target: str | None) -> None:
         """After the one-active-job indexes refused an insert: say which job is in the way (the
@@ -637,10 +529,10 @@ class Jobs:
         jid, venue, kind = job["id"], job["venue"], job["kind"]
         tmp: Path | None = None
         try:
-            result = self._analyse(job, self._progress(jid))
+            result = analyse(self.cat, job, self._progress(jid), self.device)
             self._check_cancel(jid)  # a cancel that came after the engine's last progress call
             rel = result_file(venue, jid)
-            result = _plain(result)
+            result = plain(result)
             tmp = _write_beside(self.cat.data / rel, json.dumps(result, allow_nan=False))
             self._done_analysis(job, rel, tmp, result)
         except Lost:
@@ -655,40 +547,6 @@ class Jobs:
         finally:
             if tmp is not None:  # not renamed into place: this attempt publishes nothing
                 tmp.unlink(missing_ok=True)
-
-    def _analyse(self, job: dict[str, Any], progress: Progress) -> dict[str, Any]:
-        """Run the engine's function of the job's kind; its result (JSON-able)."""
-        cat, venue, target = self.cat, job["venue"], job["target"]
-        if job["kind"] == "quality":
-            from ..quality import quality_map
-
-            number, _ = cat.venues.modelled(venue)  # read first: a newer load is only ever refreshed again
-            gen = cat.store.load(venue)  # the live generation (Conflict: not modelled)
-            q = quality_map(
-                gen, cat.places.all(venue), cat.videos.floors(venue), device=self.device or "cpu", progress=progress
-            )
-            if q.get("generation") is None:  # the engine sees frames, not which generation they are
-                q["generation"] = number
-            return q
-        v = cat.videos.get(venue, target)
-        path = cat.videos.dir(venue) / v["name"]
-        if v["status"] not in ("ready", "modelled") or not path.is_file():
-            raise OmninavError(f"video {target!r} has no uploaded file")
-        lens = cat.lenses.get(venue, v["lens"])
-        if job["kind"] == "suggest":
-            from ..suggest import suggest_waypoints
-
-            return suggest_waypoints(path, lens, progress=progress)
-        if job["kind"] == "evaluate":
-            from ..evaluate import evaluate_walk
-            from ..locate import Locator
-
-            if not _tracked(v):
-                raise OmninavError(f"video {target!r} has no track")
-            places = [p for p in cat.places.all(venue) if p["floor"] == v["floor"]]
-            loc = Locator(cat.store, venue, device=self.device, places=places, floor=v["floor"])
-            return evaluate_walk(loc, path, parse_track(json.loads(v["track"])), lens, progress=progress)
-        raise OmninavError(f"job {job['id']} is of an unknown kind {job['kind']!r}")
 
     def _done_analysis(self, job: dict[str, Any], rel: str, tmp: Path, result: dict[str, Any]) -> None:
         """The job done with its result, in one transaction that is also the last ownership check:

@@ -5,7 +5,7 @@
  */
 import type { Evaluation, EvaluationClip, Video } from './types';
 import { at, clock, percent } from './quality-view';
-import { isSure } from '../client/directions';
+import { isSure } from '../shared/sure';
 
 /** Videos that can be evaluated: role 'evaluation' (tracked or not: the screen says which lack a track). */
 export const evaluationVideos = (videos: Video[]): Video[] => videos.filter((v) => v.role === 'evaluation');

@@ -7,6 +7,9 @@
  * speech and to the screen.
  */
 import type { Answer, Guidance, RoutePreview } from '../shared/api-types';
+import { SURE, isSure } from '../shared/sure';
+
+export { SURE, isSure };
 
 export type { Answer };
 
@@ -14,14 +17,6 @@ export type Style = 'clock' | 'sides' | 'degrees';
 
 export const DEFAULT_STYLE: Style = 'clock';
 export const UNSURE = 'Not sure where you are; turn slowly and try again.';
-/**
- * An answer under this confidence, though not "not sure", is said as "You are probably ...": the
- * confidence's promise (docs/formats.md: at least 80 % of the answers at or above it within 2 m)
- * and the one under which "Where am I?" films on. Under it a fifth of the answers or more were further than 2 m off
- * on the venue families we never tuned on, against 1-2 % above it (docs/benchlog.md, "Said as
- * probably"); a place heard as a fact is walked to.
- */
-export const SURE = 0.8;
 /**
  * Once said as sure, the gist stays sure until the confidence falls under this, as AT_LEAVE_M does
  * for "at": a user standing still whose answers wobble about SURE is not told "probably" and
@@ -103,12 +98,6 @@ function metres(d: number): string {
 
 /** The nearest place when it is near enough to name, else null. */
 const nearOf = (a: Pick<Answer, 'nearest'>) => (a.nearest && a.nearest.distance_m <= NEAR_M ? a.nearest : null);
-
-/**
- * Whether an answer that is not "not sure" is said as sure ("You are ...") rather than "probably"
- * (NaN: probably): the one test of the line, for the sentence, the gist, the plan and the admin.
- */
-export const isSure = (a: { confidence: number }): boolean => a.confidence >= SURE;
 
 /** What the sentence is made from: the answer's words, and whether it is sure. */
 export type Said = Pick<Answer, 'floor' | 'area' | 'nearest' | 'facing' | 'low_confidence' | 'confidence'>;

@@ -6,7 +6,7 @@
  * (shapes and outlines differ too). It knows nothing of the phone's session, so that any page that
  * shows a plan (the app, the admin pages) draws it the same way.
  */
-import { isSure } from '../directions';
+import { isSure } from '../../shared/sure';
 
 /** What the view needs of a floor (a venue document's floor is one). */
 export interface PlanFloor {
