@@ -5,8 +5,8 @@ Places are points with a name; a place with an `area` [x0, y0, x1, y1] is also a
 
 The phone makes the words the user hears (web/src/client/directions.ts), in the user's chosen
 style and offline too; the answer's `sentence` is the same sentence in the default style, for API
-clients. Both are pinned by one table of cases, tests/data/sentences.json, which also holds the
-thresholds below: change a word or a number there and in both languages.
+clients. Both read the thresholds and fixed sentences from one file, words.json, and are pinned by one
+table of cases, tests/data/sentences.json, which holds the thresholds too.
 
 Route guidance (route.py makes the numbers: bearing, metres, what is at the end) is worded here
 too, by `guidance_sentence` and `preview_sentence`, pinned with the app's words by
@@ -15,20 +15,24 @@ tests/data/guidance.json in the same way.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any, Literal
 
 from .aggregate import SURE
 
-NEAR_M = 10.0  # a landmark further than this is not "near"
+# the thresholds and fixed sentences, read with the phone (directions.ts) from one file
+WORDS: dict[str, Any] = json.loads((Path(__file__).parent / "words.json").read_text())
+NEAR_M = float(WORDS["near_m"])  # a landmark further than this is not "near"
 # nor one nearer than this "near ... at 3 o'clock": the user is *at* it. Under a metre the way to
 # it is noise (the answer's own error is about that), and, said every few seconds to someone
 # standing there, it turned round the clock and was said again each time
-AT_M = 1.0
-FACING_M = 30.0  # nor one this far "faced"
-FACING_DEG = 30.0  # and "facing" means within this angle of the heading
-UNSURE = "Not sure where you are; turn slowly and try again."
+AT_M = float(WORDS["at_m"])
+FACING_M = float(WORDS["facing_m"])  # nor one this far "faced"
+FACING_DEG = float(WORDS["facing_deg"])  # and "facing" means within this angle of the heading
+UNSURE: str = WORDS["unsure"]
 # An answer under SURE (aggregate.py's: the confidence's promise in docs/formats.md, of the answers
 # at or above it at least 80 % within 2 m, and the app's "film on" line), though not "not sure",
 # is said as "You are probably ...": under it a fifth to two fifths of the answers are further than 2 m off on the
@@ -65,7 +69,7 @@ def clock_hour(bearing: float) -> int:
 
 
 # the sides style's sector limits: straight ahead | ahead on a side | beside | behind on a side | behind
-SECTOR_DEG = (15.0, 60.0, 120.0, 165.0)
+SECTOR_DEG: tuple[float, ...] = tuple(float(v) for v in WORDS["sector_deg"])
 
 
 def sector(bearing: float) -> int:
@@ -192,9 +196,10 @@ def describe(
 # Pinned with the app's directions.ts by one table, tests/data/guidance.json.
 
 STRAIGHT_DEG = SECTOR_DEG[0]  # a bearing within this of straight ahead is "straight ahead": no turn
-AROUND_DEG = 150.0  # the sides style's turn beyond this is "Turn around", not "Turn sharp left" at 161
-GUIDE_UNSURE = "Not sure where you are yet; keep walking slowly."
-GUIDE_NOT_HERE = "You may be outside the mapped area; keep walking slowly, or stop guidance."
+# the sides style's turn beyond this is "Turn around", not "Turn sharp left" at 161
+AROUND_DEG = float(WORDS["around_deg"])
+GUIDE_UNSURE: str = WORDS["guide_unsure"]
+GUIDE_NOT_HERE: str = WORDS["guide_not_here"]
 
 
 def turn_phrase(bearing: float, style: Style) -> str | None:

@@ -17,13 +17,13 @@ import numpy as np
 
 from ..errors import OmninavError
 from ..lens import Catadioptric, Lens
-from .ring import NoRing, Ring, find_ring, visible_share
+from .ring import CONSTANTS, NoRing, Ring, find_ring, visible_share
 
-# fit_lens thresholds (the phone keeps the same: ring.ts)
-STILL_PX = 0.25
-STILL_SCALE = 0.002
-TOO_FAR_SHARE = 0.10
-CUT_MARGIN = 0.02
+# fit_lens thresholds, read with the phone's port (ring.ts) from ring_constants.json
+STILL_PX = float(CONSTANTS["STILL_PX"])
+STILL_SCALE = float(CONSTANTS["STILL_SCALE"])
+TOO_FAR_SHARE = float(CONSTANTS["TOO_FAR_SHARE"])
+CUT_MARGIN = float(CONSTANTS["CUT_MARGIN"])
 
 
 @dataclass(frozen=True)

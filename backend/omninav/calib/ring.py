@@ -136,9 +136,11 @@ when the lens was clipped on a few pixels off (calib/README.md; the decisions of
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import cv2
@@ -146,32 +148,36 @@ import numpy as np
 
 from ..errors import OmninavError, Unusable
 
-COARSE_MAX = 640
-COARSE_SIGMA = 1.5
-CANNY = (20, 50)
-CANNY_FAINT = (8, 20)
-VOTE_STEP = 3
-VOTE_EVERY = 3
-VOTE_BOX = 15
-OUTER_WINDOWS = (3, 1)
-MIN_VOTES = 30
-RADIAL_COS = 0.9
-N_BINS = 360
-MIN_COVERAGE = 0.5
-OUTER_PICK = 0.8
-FINE_SIGMA = 1.0
-N_PROFILES = 360
-PROFILE_STEP = 0.25
-MIN_EDGE = 2.0
-MIN_SHARE = 0.5
-EDGE_BIAS_PX = 0.0
-N_VISIBLE = 3600
-MIN_SIDE = 64
-SCENE_SHARE = 0.3
-SCENE_SMOOTH = 2
-GAP = (0.05, 3.0)
-TEXTURE_FLOOR = 0.05
-SURE_TEXTURE = 1.25  # texture_ratio below it: the annulus called the scene hardly stands out (unsure)
+# The constants, shared with the phone's port (web/src/worker/ring.ts) through one file:
+# ring_constants.json. What each does is in the docstring above.
+CONSTANTS: dict[str, Any] = json.loads((Path(__file__).parent / "ring_constants.json").read_text())
+COARSE_MAX = int(CONSTANTS["COARSE_MAX"])
+COARSE_SIGMA = float(CONSTANTS["COARSE_SIGMA"])
+CANNY: tuple[int, int] = (int(CONSTANTS["CANNY"][0]), int(CONSTANTS["CANNY"][1]))
+CANNY_FAINT: tuple[int, int] = (int(CONSTANTS["CANNY_FAINT"][0]), int(CONSTANTS["CANNY_FAINT"][1]))
+VOTE_STEP = int(CONSTANTS["VOTE_STEP"])
+VOTE_EVERY = int(CONSTANTS["VOTE_EVERY"])
+VOTE_BOX = int(CONSTANTS["VOTE_BOX"])
+OUTER_WINDOWS: tuple[int, ...] = tuple(int(v) for v in CONSTANTS["OUTER_WINDOWS"])
+MIN_VOTES = int(CONSTANTS["MIN_VOTES"])
+RADIAL_COS = float(CONSTANTS["RADIAL_COS"])
+N_BINS = int(CONSTANTS["N_BINS"])
+MIN_COVERAGE = float(CONSTANTS["MIN_COVERAGE"])
+OUTER_PICK = float(CONSTANTS["OUTER_PICK"])
+FINE_SIGMA = float(CONSTANTS["FINE_SIGMA"])
+N_PROFILES = int(CONSTANTS["N_PROFILES"])
+PROFILE_STEP = float(CONSTANTS["PROFILE_STEP"])
+MIN_EDGE = float(CONSTANTS["MIN_EDGE"])
+MIN_SHARE = float(CONSTANTS["MIN_SHARE"])
+EDGE_BIAS_PX = float(CONSTANTS["EDGE_BIAS_PX"])
+N_VISIBLE = int(CONSTANTS["N_VISIBLE"])
+MIN_SIDE = int(CONSTANTS["MIN_SIDE"])
+SCENE_SHARE = float(CONSTANTS["SCENE_SHARE"])
+SCENE_SMOOTH = int(CONSTANTS["SCENE_SMOOTH"])
+GAP: tuple[float, float] = (float(CONSTANTS["GAP"][0]), float(CONSTANTS["GAP"][1]))
+TEXTURE_FLOOR = float(CONSTANTS["TEXTURE_FLOOR"])
+# texture_ratio below it: the annulus called the scene hardly stands out (unsure)
+SURE_TEXTURE = float(CONSTANTS["SURE_TEXTURE"])
 
 
 class NoRing(Unusable):

@@ -8,6 +8,8 @@
  */
 import type { Answer, Guidance, RoutePreview } from '../shared/api-types';
 import { SURE, isSure } from '../shared/sure';
+// the thresholds and fixed sentences, read with the engine's describe.py from one file
+import W from '../../../backend/omninav/words.json';
 
 export { SURE, isSure };
 
@@ -16,7 +18,7 @@ export type { Answer };
 export type Style = 'clock' | 'sides' | 'degrees';
 
 export const DEFAULT_STYLE: Style = 'clock';
-export const UNSURE = 'Not sure where you are; turn slowly and try again.';
+export const UNSURE: string = W.unsure;
 /**
  * Once said as sure, the gist stays sure until the confidence falls under this, as AT_LEAVE_M does
  * for "at": a user standing still whose answers wobble about SURE is not told "probably" and
@@ -24,12 +26,12 @@ export const UNSURE = 'Not sure where you are; turn slowly and try again.';
  */
 export const SURE_LEAVE = 0.7;
 /** A place further than this (metres) is not "near". */
-export const NEAR_M = 10;
+export const NEAR_M: number = W.near_m;
 /**
  * Nor one nearer than this "near ... at 3 o'clock": the user is *at* it (under a metre the way to
  * it is noise, and said every few seconds to someone standing there it turned round the clock).
  */
-export const AT_M = 1;
+export const AT_M: number = W.at_m;
 
 /** Any angle -> (-180, 180], computed as Python's float % does, so both sides agree to the bit. */
 export function signed(b: number): number {
@@ -53,7 +55,7 @@ export function clockHour(bearing: number): number {
 }
 
 /** The sides style's sector limits: straight ahead | ahead on a side | beside | behind on a side | behind. */
-export const SECTOR_DEG = [15, 60, 120, 165] as const;
+export const SECTOR_DEG = W.sector_deg as [number, number, number, number];
 
 /**
  * The sides style's sector of a bearing: 0 straight ahead, 1 ahead on a side, 2 beside, 3 behind on
@@ -188,11 +190,11 @@ export function change(last: Said | null, a: Said, style: Style, floorName?: str
 /** A bearing within this of straight ahead is "straight ahead": no turn. */
 export const STRAIGHT_DEG = SECTOR_DEG[0];
 /** The sides style's turn beyond this is "Turn around", not "Turn sharp left" at 161 degrees. */
-export const AROUND_DEG = 150;
-export const GUIDE_UNSURE = 'Not sure where you are yet; keep walking slowly.';
+export const AROUND_DEG: number = W.around_deg;
+export const GUIDE_UNSURE: string = W.guide_unsure;
 /** The same, when a place was just chosen: the user has not been asked to walk yet. */
 export const GUIDE_UNSURE_CHOSEN = 'Not sure where you are yet; press Start and walk slowly.';
-export const GUIDE_NOT_HERE = 'You may be outside the mapped area; keep walking slowly, or stop guidance.';
+export const GUIDE_NOT_HERE: string = W.guide_not_here;
 
 /** What a guidance sentence is made from: the answer's `guidance` (its `to` may carry the place's `say`). */
 export type Guided = Pick<Guidance, 'kind' | 'bearing_deg' | 'walk_m' | 'until' | 'floor_change'> &

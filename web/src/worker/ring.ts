@@ -9,6 +9,7 @@
 import type { CatadioptricLens, Lens } from '../shared/lens';
 import type { Look } from '../shared/protocol';
 import type { Cv, CvMat } from './extract';
+import C from '../../../backend/omninav/calib/ring_constants.json';
 
 /** A Mat that can give a window of itself. */
 interface RingMat extends CvMat {
@@ -49,32 +50,33 @@ export interface Ring {
   texture_ratio?: number;
 }
 
-// ring.py's constants (its docstring says what each does)
-export const COARSE_MAX = 640;
-const COARSE_SIGMA = 1.5;
-const CANNY: [number, number] = [20, 50];
-const CANNY_FAINT: [number, number] = [8, 20]; // A8's second look for a dim scene's inner edge
-const VOTE_STEP = 3;
-const VOTE_EVERY = 3;
-const VOTE_BOX = 15;
-const OUTER_WINDOWS = [3, 1];
-const MIN_VOTES = 30;
-const RADIAL_COS = 0.9;
-const N_BINS = 360;
-const MIN_COVERAGE = 0.5;
-const OUTER_PICK = 0.8;
-const FINE_SIGMA = 1.0;
-const N_PROFILES = 360;
-const PROFILE_STEP = 0.25;
-const MIN_EDGE = 2.0;
-const MIN_SHARE = 0.5;
-const EDGE_BIAS_PX = 0.0;
-const N_VISIBLE = 3600;
-const MIN_SIDE = 64;
-const SCENE_SHARE = 0.3;
-const SCENE_SMOOTH = 2;
-const GAP: [number, number] = [0.05, 3];
-const TEXTURE_FLOOR = 0.05;
+// ring.py's constants, read from the one file both languages read (ring.py's docstring says what
+// each does)
+export const COARSE_MAX: number = C.COARSE_MAX;
+const COARSE_SIGMA: number = C.COARSE_SIGMA;
+const CANNY = C.CANNY as [number, number];
+const CANNY_FAINT = C.CANNY_FAINT as [number, number]; // A8's second look for a dim scene's inner edge
+const VOTE_STEP: number = C.VOTE_STEP;
+const VOTE_EVERY: number = C.VOTE_EVERY;
+const VOTE_BOX: number = C.VOTE_BOX;
+const OUTER_WINDOWS: number[] = C.OUTER_WINDOWS;
+const MIN_VOTES: number = C.MIN_VOTES;
+const RADIAL_COS: number = C.RADIAL_COS;
+const N_BINS: number = C.N_BINS;
+const MIN_COVERAGE: number = C.MIN_COVERAGE;
+const OUTER_PICK: number = C.OUTER_PICK;
+const FINE_SIGMA: number = C.FINE_SIGMA;
+const N_PROFILES: number = C.N_PROFILES;
+const PROFILE_STEP: number = C.PROFILE_STEP;
+const MIN_EDGE: number = C.MIN_EDGE;
+const MIN_SHARE: number = C.MIN_SHARE;
+const EDGE_BIAS_PX: number = C.EDGE_BIAS_PX;
+const N_VISIBLE: number = C.N_VISIBLE;
+const MIN_SIDE: number = C.MIN_SIDE;
+const SCENE_SHARE: number = C.SCENE_SHARE;
+const SCENE_SMOOTH: number = C.SCENE_SMOOTH;
+const GAP = C.GAP as [number, number];
+const TEXTURE_FLOOR: number = C.TEXTURE_FLOOR;
 /** Pixels around the coarse circle that the sub-pixel stage may read (its profiles reach 6 px out). */
 const WINDOW_MARGIN = 12;
 
@@ -840,10 +842,10 @@ export interface LensFit {
 }
 
 // issue 12's decisions, as ring.py has them
-export const STILL_PX = 0.25;
-export const STILL_SCALE = 0.002;
-export const TOO_FAR_SHARE = 0.1;
-export const CUT_MARGIN = 0.02;
+export const STILL_PX: number = C.STILL_PX;
+export const STILL_SCALE: number = C.STILL_SCALE;
+export const TOO_FAR_SHARE: number = C.TOO_FAR_SHARE;
+export const CUT_MARGIN: number = C.CUT_MARGIN;
 
 /** "moved 6.2 px (right 5.0, down 3.7) and is 0.4 % larger" (ring.py's _moved_words). */
 function movedWords(dx: number, dy: number, s: number): string {
