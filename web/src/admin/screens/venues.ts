@@ -31,7 +31,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     ['default', 'default (recommended)'],
     ['wide', 'wide (one wide band: for a building where the default’s evaluation walk misses)'],
     ['paper', 'paper (as published)'],
-    ['six', 'six (fewer harmonics, faster)'],
+    ['six', 'six (the paper’s six curves over one band)'],
   ])
     preset.append(new Option(label, v));
   const create = el(
