@@ -15,6 +15,7 @@ import threading
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from omninav.lens import load_lens
@@ -189,3 +190,16 @@ def pg() -> Postgres:
 def pg_url(pg: Postgres, request: pytest.FixtureRequest) -> str:
     """A fresh, empty PostgreSQL database for this test module."""
     return pg.url("m_" + hashlib.sha1(request.module.__name__.encode()).hexdigest()[:20])
+
+
+def smooth_pano(rows: int, width: int, seed: int = 0) -> np.ndarray:
+    """A random but smooth colour panorama (low harmonics in azimuth and elevation), uint8."""
+    rng = np.random.default_rng(seed)
+    a = np.linspace(0, 2 * np.pi, width, endpoint=False)
+    e = np.linspace(0, 1, rows)[:, None]
+    img = np.zeros((rows, width, 3))
+    for c in range(3):
+        for k in range(1, 9):
+            img[..., c] += rng.normal() * np.cos(k * a + rng.uniform(0, 6.3))[None, :] * (1 + e * rng.normal())
+    img = (img - img.min()) / (img.max() - img.min())
+    return (40 + 180 * img).astype(np.uint8)

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from omninav.errors import OmninavError
-from omninav.presets import DEFAULTS, PRESETS, resolve, settings_id
+from omninav.presets import DEFAULTS, PRESETS, feature_keys, resolve, settings_id
 from omninav.settings import STAGES, Rule, SearchSettings, TrackingSettings, check, defaults, rules
 from omninav.settings_doc import markdown
 from omninav.settings_upgrade import VERSION, upgrade
@@ -109,3 +109,57 @@ def test_the_tracking_settings_fill_what_a_venue_lacks_with_todays_defaults() ->
     assert t.track_beta == 30.0 and t.track_outlier == DEFAULTS["track_outlier"]
     with pytest.raises(OmninavError, match="track_beta_ref"):
         TrackingSettings.of({"track_beta_ref": 1.0})
+
+
+@pytest.mark.parametrize("bad", [0, 0.0, -1.0, False, True, "1.25", float("nan"), float("inf")])
+def test_soft_clip_settings_are_refused_unless_a_positive_number_or_null(bad):
+    with pytest.raises(OmninavError, match="soft_clip_sd"):
+        resolve("default", {"soft_clip_sd": bad})
+    assert resolve("default", {"soft_clip_sd": None})["soft_clip_sd"] is None
+    assert resolve("default", {"soft_clip_sd": 2})["soft_clip_sd"] == 2
+
+
+@pytest.mark.parametrize("bad", [None, 0, 1, "false", "true"])
+def test_shared_candidates_is_true_or_false_and_not_a_feature_setting(bad):
+    with pytest.raises(OmninavError, match="shared_candidates"):
+        resolve("default", {"shared_candidates": bad})
+    on, off = resolve("default"), resolve("default", {"shared_candidates": False})
+    assert on["shared_candidates"] is True and resolve("paper")["shared_candidates"] is False
+    # how a clip is searched is the server's: the phone's features, and their settings id, are the same
+    assert settings_id(on) == settings_id(off) and "shared_candidates" not in feature_keys(on)
+
+
+@pytest.mark.parametrize("bad", [None, 0, 257, 32.0, "32", True])
+def test_the_shortlist_is_a_whole_number_of_frames_and_not_a_feature_setting(bad):
+    with pytest.raises(OmninavError, match="shortlist"):
+        resolve("default", {"shortlist": bad})
+    wide, narrow = resolve("default"), resolve("default", {"shortlist": 16})
+    assert wide["shortlist"] == 32 and narrow["shortlist"] == 16
+    assert settings_id(wide) == settings_id(narrow) and "shortlist" not in feature_keys(wide)
+
+
+@pytest.mark.parametrize("key", ["track_still_cap", "track_still_seen"])
+@pytest.mark.parametrize("bad", [None, 0, 1, "false"])
+def test_the_held_still_rules_are_true_or_false_and_not_feature_settings(key, bad):
+    with pytest.raises(OmninavError, match=key):
+        resolve("default", {key: bad})
+    on, off = resolve("default"), resolve("default", {key: False})
+    assert on[key] is True and settings_id(on) == settings_id(off)
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        [["I"]],
+        [["I"], []],
+        [["I"], ["I", "I"]],
+        [["I"], ["X"]],
+        "I",
+        [["I"], "dI"],
+        [["I"], ["dI"], ["O1"]],
+        [[["I"]], ["dI"]],
+    ],
+)
+def test_band_channels_are_refused_unless_one_list_of_known_distinct_channels_per_band(bad):
+    with pytest.raises(OmninavError, match="band_channels"):
+        resolve("six", {"bands": [[-20.0, 0.0], [0.0, 20.0]], "band_channels": bad})
