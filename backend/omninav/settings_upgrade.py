@@ -13,7 +13,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import fields
 from typing import Any
 
-from .errors import OmninavError
+from .errors import Conflict, OmninavError
 from .settings import AggregationSettings, ModellingSettings, SearchSettings, TrackingSettings, check, defaults
 
 VERSION = 3  # the settings' format today
@@ -88,8 +88,13 @@ def upgrade(stored: Mapping[str, Any]) -> dict[str, Any]:
     the stored `version` (none: 0), in order. The stored file is not changed."""
     conf = copy.deepcopy(dict(stored))
     v = conf.get("version", 0)
-    if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v <= VERSION:
-        raise OmninavError(f"settings version {v!r}: this release reads versions 0-{VERSION}")
+    if not isinstance(v, int) or isinstance(v, bool) or v < 0:
+        raise OmninavError(f"settings version {v!r}: not a version (this release reads 0-{VERSION})")
+    if v > VERSION:  # modelled by a later release, then read by this one (a server rolled back)
+        raise Conflict(
+            f"the venue's settings are of version {v}, from a later release of omninav; this release "
+            f"reads versions 0-{VERSION}: run the later release, or model the venue anew with this one"
+        )
     for step in MIGRATIONS[v:]:
         conf = step(conf)
     conf["version"] = VERSION

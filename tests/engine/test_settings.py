@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from omninav.errors import OmninavError
+from omninav.errors import Conflict, OmninavError
 from omninav.presets import DEFAULTS, PRESETS, feature_keys, resolve, settings_id
 from omninav.settings import STAGES, Rule, SearchSettings, TrackingSettings, check, defaults, rules
 from omninav.settings_doc import markdown
@@ -93,6 +93,12 @@ def test_each_migration_starts_from_the_version_it_is_stored_with() -> None:
 def test_settings_of_a_later_release_or_no_version_number_are_refused(version: object) -> None:
     with pytest.raises(OmninavError, match="version"):
         upgrade({**resolve("default"), "version": version})
+
+
+def test_a_venue_of_a_later_release_is_a_conflict_that_says_what_to_do() -> None:
+    """A server rolled back after modelling: the venue's answer is a 409 naming the way out."""
+    with pytest.raises(Conflict, match="later release.*model the venue anew"):
+        upgrade({**resolve("default"), "version": VERSION + 1})
 
 
 def test_the_search_parameters_are_read_once_and_project_keys_only_on_large_venues() -> None:
