@@ -1,13 +1,14 @@
 """Fit the confidence model on the tuning families; judge it on the held-out ones.
 
-P(answer within 2 m) = logistic(w . [1, inputs]), the inputs named by presets.py's
+P(answer within 2 m) = logistic(w . [1, inputs]), the inputs named by the settings'
 `confidence_features` (or --features, any of aggregate.CONFIDENCE_INPUTS). The weights are fit by
 L2-regularised log-loss on every answer of the tuning families (bench/venues.py's cached rows,
 at several clip lengths, so that the fit sees the harder short clips and the app's 3 s ones), then
 applied unchanged to the held-out families. Printed for both splits, for the preset's weights and
 the refit: the reliability table (answers binned by confidence against the share within 2 m), the
 share answered with confidence >= 0.8 and how many of those were further than 2 m. --png draws the
-preset's model's reliability diagram. A refit goes into presets.py's `confidence_coef` only when
+preset's model's reliability diagram. A refit becomes the default (settings.py's
+`confidence_coef`, the model it replaces added to settings_upgrade.SUPERSEDED_CONFIDENCE) only when
 it does better on the held-out families as well: fewer of the answers it calls sure wrong, and no
 more clips filmed elsewhere called sure (docs/benchlog.md says what was tried; the model since
 "Ties" has the worse held-out Brier, modest about the venues' own clips).

@@ -5,7 +5,7 @@ narrow bands of intensity tell our renderer's identical doors apart and lose on 
 one wide band does the opposite. A building can say which it is: the admin films an evaluation
 walk (the admin page's evaluation walks, `omninav evaluate`), and the venue is answered with the
 configuration that locates that walk best. Measured here without running anything again (the
-answers of bench/families.py and bench/foreign.py): each venue's queries in time order, the first
+answers of bench/venues.py and bench/foreign.py): each venue's queries in time order, the first
 half is the evaluation walk that chooses (choose.pick, as `omninav choose-preset` does: the first
 configuration unless another places clearly more of the half within 2 m), the second half is
 scored; beside them, each configuration fixed for every venue, on the same second halves.

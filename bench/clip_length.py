@@ -219,7 +219,7 @@ def main() -> None:
     ap.add_argument("--layout", default=None, help="the root's layout (default: twin if its name says so)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument(
-        "--family", action="append", help="a venue family (synth.families; rendered as bench/families.py does)"
+        "--family", action="append", help="a venue family (synth.families; rendered as bench/venues.py does)"
     )
     a = ap.parse_args()
     print(f"machine: {machine()}")

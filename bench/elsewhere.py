@@ -5,7 +5,7 @@ only against places the venue knows. A user also walks where the admin never fil
 the corridor, another wing, another floor built like the modelled one. Nothing in the venue is
 right then, and every answer given as sure (confidence >= 0.8, the app's "sure") is wrong.
 
-For each venue family and seed (bench/families.py renders and models them; bench/tracking.py's
+For each venue family and seed (bench/venues.py renders and models them; bench/tracking.py's
 walk spectra are reused), the venue is asked about query walks filmed elsewhere:
 
   look-alike   the same family's other seed: another building of the same kind (the same decor

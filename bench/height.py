@@ -14,10 +14,10 @@ place is rendered at 1.35 m and at HEIGHTS, and 3 m further along at HEIGHTS too
 against the 1.35 m frame (heading.relative_heading, as the search scores a match) at every delta.
 Printed: the mean score per height and delta, for the same place and the place 3 m on.
 
-`--accuracy`: every family's 1 s clips (bench/families.py's venues and query walks, levelled as
+`--accuracy`: every family's 1 s clips (bench/venues.py's venues and query walks, levelled as
 the default preset is), each query frame extracted at every delta of DELTAS (one decode, one tilt
 estimate), then answered per delta. Printed, per family and pooled by split:
-  - `as is` (delta 0: bench/families.py's default rows, to the clip);
+  - `as is` (delta 0: bench/venues.py's default rows, to the clip);
   - `true h` (the delta nearest (h_query - 1.35) / 3 m: knowing the height);
   - `per clip` (the delta whose answer has the highest support: what a server could do with a
     record per delta, at as many times the search);

@@ -14,7 +14,7 @@ best. Measured, not used: it could not tell the configurations apart (docs/decis
 building's evaluation walk does (choose.py).
 
 Printed per venue: each configuration's self-check score beside its accuracy on the venue's real
-queries (bench/families.py's query walk, or the foreign pack's clips), the pick, and whether the
+queries (bench/venues.py's query walk, or the foreign pack's clips), the pick, and whether the
 pick is the configuration that answered the real queries best.
 
     python -m bench.self_check [--configs default,one-band-soft] [--families held-out] [--seeds 0]

@@ -2,7 +2,7 @@
 
 A change to features, search, aggregation or confidence is judged on three sources, side by side:
 
-- **own**: our renderer's held-out families (bench/families.py, 1 s clips, the seeds given),
+- **own**: our renderer's held-out families (bench/venues.py, 1 s clips, the seeds given),
   pooled; never tuned on, but drawn by the same code that drew the tuning families;
 - **foreign**: the foreign pack (bench/foreign.py: each venue modelled and located as `omninav
   model` and `omninav locate` do), venues from a renderer nobody on the team wrote;

@@ -16,7 +16,7 @@ no people: only the one change):
 Each is scored against the upright frame as the search scores a match (heading.relative_heading
 on the quantised spectra: a cosine, 1 = the same panorama). Printed: mean, p10 and min per change.
 
-`--accuracy`: what it buys where it counts. The families' 1 s clips (bench/families.py's venues
+`--accuracy`: what it buys where it counts. The families' 1 s clips (bench/venues.py's venues
 and query walks, --seeds) answered twice: every query frame unwarped as it is, and through the
 tilt the renderer gave it (the upper bound again). Both through the lens where the renderer put
 it (its re-clipping shift), so that the two differ by the tilt alone. Printed like families.py.
@@ -61,7 +61,7 @@ def family_scores(
 ) -> dict[str, list[float]]:
     v = family_venue(name, seed)
     lens = v.family.query_lens
-    conf = resolve("default", overrides)  # what every family is modelled and queried with (bench/families.py)
+    conf = resolve("default", overrides)  # what every family is modelled and queried with (bench/venues.py)
     ext = Extractor(lens, conf)
     grid = grid_for(lens, pano_width(lens))
     cam = CameraModel.create(lens)

@@ -17,7 +17,7 @@ of walking a fresh start takes to its first confident answer (and whether it was
 worst case (long-bare's walk starts in the middle of a 60 m corridor of identical doors); the CPU
 time of an update, on the families and on made-up venues of up to 20,000 frames.
 
-`--fit` fits the filter's confidence (presets.py track_confidence_coef) on the TUNING families'
+`--fit` fits the filter's confidence (settings.py's track_confidence_coef) on the TUNING families'
 walks only (started afresh, every 1 s and 2.5 s, with and without IMU), then judges it on both.
 
     python -m bench.tracking [--families all] [--seeds 0,1] [--walks query,stops] [--fit]

@@ -460,7 +460,8 @@ def walk(out: Path, name: str, fps: int = 10, scale: float = 0.5) -> None:
 
 def age(data: Path, venue: str) -> None:
     """Make a modelled venue's live generation say what an omninav from before the soft clipping
-    wrote (its feature settings without `soft_clip_sd`, so another settings id than the preset's),
+    wrote (its feature settings without `soft_clip_sd`, so another settings id than the preset's,
+    and without a format version: read through the migrations, settings_upgrade.py),
     as tests/server/test_model_anew.py's venue does, for the admin page's "Model anew" (admin-anew.spec.ts).
     Its spectra stay as they are: the spec models the venue anew before any phone locates there."""
     from omninav.store import Store
@@ -473,7 +474,7 @@ def age(data: Path, venue: str) -> None:
     settings = json.loads(path.read_text())
     if "soft_clip_sd" not in settings:
         sys.exit(f"{path} has no soft_clip_sd: aged already, or the preset changed (update this fixture)")
-    old = {k: v for k, v in settings.items() if k != "soft_clip_sd"}
+    old = {k: v for k, v in settings.items() if k not in ("soft_clip_sd", "version")}  # (nor a version)
     if settings_id(old) == settings_id(resolve("default")):
         sys.exit("without soft_clip_sd the settings id is the preset's: this fixture no longer ages a venue")
     path.write_text(json.dumps(old, indent=1))

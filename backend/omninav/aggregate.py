@@ -197,7 +197,7 @@ CONFIDENCE_INPUTS: dict[str, Callable[[Estimate | Mapping[str, Any]], float]] = 
 
 # What the tracking filter's confidence model may read from a pose (tracking_state.TrackPose, or a row
 # of bench/tracking.py with its fields); here, beside the clip's, so that checking a venue's
-# settings (presets.py) does not load the filter
+# settings (settings.py) does not load the filter
 TRACK_CONFIDENCE_INPUTS: dict[str, Callable[[Any], float]] = {
     "mass": lambda p: field_of(p, "mass"),
     "far": lambda p: field_of(p, "far"),

@@ -36,7 +36,7 @@ def _locator(ctx: click.Context, venue_id: str, device: str | None = None) -> An
 def _track_locator(ctx: click.Context, venue_id: str) -> Any:
     """A venue's Locator for tracking: its walk graph with each modelling video on its own floor
     (the catalogue's) and the venue's places (lifts and stairs join floors), as the server builds
-    it (server/locate_api.py), so that walks of two floors at the same x, y stay apart."""
+    it (server/runtimes.py), so that walks of two floors at the same x, y stay apart."""
     from .walkgraph import from_frames
 
     loc = _locator(ctx, venue_id)

@@ -132,6 +132,7 @@ class Locator:
         self.conf = conf
         self.search = SearchSettings.of(conf)
         self._extractors = Extractors(self.conf, EXTRACTORS)
+        self._tracker = None  # (it keeps its own copy of the settings: the next one reads these)
 
     def search_clip(self, q_spec: np.ndarray, times: np.ndarray | None) -> tuple[Matches, np.ndarray]:
         """A clip's candidate matches (its last MAX_CLIP_S, at most MAX_CLIP_FRAMES) and their times,

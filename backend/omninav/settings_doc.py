@@ -12,7 +12,7 @@ from dataclasses import fields
 from typing import Any
 
 from .settings import STAGES, Rule, field_default
-from .settings_upgrade import MIGRATIONS, VERSION
+from .settings_upgrade import MIGRATIONS, VERSION, current_confidence
 
 
 def _default_text(v: Any) -> str:
@@ -53,6 +53,7 @@ def markdown(presets: Mapping[str, Mapping[str, Any]] | None = None) -> str:
     for i, step in enumerate(MIGRATIONS, 1):
         doc = " ".join((step.__doc__ or "").split())
         out.append(f"- {doc}" if doc.startswith(f"{i}:") else f"- {i}: {doc}")
+    out.append(f"- {' '.join((current_confidence.__doc__ or '').split())}")
     out.append("")
     return "\n".join(out)
 

@@ -1,9 +1,12 @@
 """A venue's settings as an earlier release stored them, read as today's: numbered migrations.
 
 `settings.json` carries a `version` (none: 0, every venue modelled before it). `upgrade` applies
-each migration after the stored version, in order, then checks the result (settings.check); the
-stored file is never rewritten, so a venue modelled today and one modelled a year ago read the
-same way. A change to the settings' meaning adds a migration and raises VERSION.
+each migration after the stored version, in order, then the rules of every read (a superseded
+default confidence model read as today's: `current_confidence`), then checks the result
+(settings.check); the stored file is never rewritten, so a venue modelled today and one modelled a
+year ago read the same way. A change to the settings' meaning adds a migration and raises
+VERSION; a refit of the default confidence model adds the model it replaces to
+SUPERSEDED_CONFIDENCE, which reaches venues of every version.
 """
 
 from __future__ import annotations
@@ -20,9 +23,11 @@ VERSION = 3  # the settings' format today
 
 
 # Confidence models once shipped as the default and refit since: a venue whose settings carry one
-# answers with today's. The confidence reads no feature, so nothing has to be extracted again; a
-# model set otherwise (an admin's own fit) is kept.
+# answers with today's, whatever its version (`current_confidence`, on every read: a refit adds
+# the model it replaces here, and every venue modelled with that one follows). The confidence reads
+# no feature, so nothing has to be extracted again; a model set otherwise (an own fit) is kept.
 SUPERSEDED_CONFIDENCE: tuple[tuple[tuple[str, ...], tuple[float, ...]], ...] = (
+    (("support", "margin", "agree"), (-6.0, 6.0, 25.0, 2.0)),  # the first release's
     (("support", "margin"), (-6.68, 10.731, 10.215)),  # before ring-bare
     (("support", "margin"), (-3.45, 5.677, 9.197)),  # before the square root of the margin
 )
@@ -37,14 +42,21 @@ RENAMED_KEYS = {"track_recent_cap": "track_doubt_cap"}  # old name: new name
 
 
 def _to_1_confidence(conf: dict[str, Any]) -> dict[str, Any]:
-    """1: a confidence model without `confidence_features` reads (support, margin), as it was
-    fit; a superseded default model is read as today's."""
-    if "confidence_coef" in conf:
-        conf.setdefault("confidence_features", ["support", "margin"])  # before the key: these
+    """1: a confidence model without `confidence_features` reads the inputs it was fit on:
+    (support, margin), or with a fourth weight (the first release's) (support, margin, agree)."""
+    if "confidence_coef" in conf and "confidence_features" not in conf:
+        first = len(conf["confidence_coef"]) == 4
+        conf["confidence_features"] = ["support", "margin", "agree"] if first else ["support", "margin"]
+    return conf
+
+
+def current_confidence(conf: dict[str, Any]) -> dict[str, Any]:
+    """On every read, after the migrations: a superseded default confidence model is read as
+    today's (SUPERSEDED_CONFIDENCE)."""
     names = tuple(conf.get("confidence_features", ()))
     coef = tuple(float(c) for c in conf.get("confidence_coef", ()))
-    d = defaults()
     if (names, coef) in SUPERSEDED_CONFIDENCE:
+        d = defaults()
         conf["confidence_features"] = list(d["confidence_features"])
         conf["confidence_coef"] = list(d["confidence_coef"])
     return conf
@@ -85,7 +97,8 @@ assert len(MIGRATIONS) == VERSION
 
 def upgrade(stored: Mapping[str, Any]) -> dict[str, Any]:
     """A generation's stored settings -> today's format (VERSION), checked: each migration after
-    the stored `version` (none: 0), in order. The stored file is not changed."""
+    the stored `version` (none: 0), in order, then `current_confidence`. The stored file is not
+    changed."""
     conf = copy.deepcopy(dict(stored))
     v = conf.get("version", 0)
     if not isinstance(v, int) or isinstance(v, bool) or v < 0:
@@ -97,6 +110,7 @@ def upgrade(stored: Mapping[str, Any]) -> dict[str, Any]:
         )
     for step in MIGRATIONS[v:]:
         conf = step(conf)
+    conf = current_confidence(conf)
     conf["version"] = VERSION
     check(conf)
     return conf

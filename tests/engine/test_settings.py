@@ -12,7 +12,7 @@ from omninav.errors import Conflict, OmninavError
 from omninav.presets import DEFAULTS, PRESETS, feature_keys, resolve, settings_id
 from omninav.settings import STAGES, Rule, SearchSettings, TrackingSettings, check, defaults, rules
 from omninav.settings_doc import markdown
-from omninav.settings_upgrade import VERSION, upgrade
+from omninav.settings_upgrade import SUPERSEDED_CONFIDENCE, VERSION, upgrade
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -80,13 +80,29 @@ def test_a_venue_of_an_earlier_release_is_read_through_the_migrations() -> None:
 
 
 def test_each_migration_starts_from_the_version_it_is_stored_with() -> None:
-    """A venue stored at version 2 skips migrations 1 and 2: its own model of (support, margin)
-    is not taken for the superseded default's."""
+    """A venue stored at version 1 skips migration 1: its model of named inputs stays its own;
+    one of version 0 without the inputs named reads the ones it was fit on."""
     today = resolve("default")
-    stored = {**today, "version": 2, "confidence_features": ["support", "margin"]}
-    stored["confidence_coef"] = [-6.68, 10.731, 10.215]
-    assert upgrade(stored)["confidence_coef"] == [-6.68, 10.731, 10.215]
-    assert upgrade({**stored, "version": 0})["confidence_coef"] == DEFAULTS["confidence_coef"]
+    own = {**today, "version": 1, "confidence_features": ["support", "margin"], "confidence_coef": [-6.0, 9.0, 9.0]}
+    assert upgrade(own)["confidence_coef"] == [-6.0, 9.0, 9.0]
+    unnamed = {k: v for k, v in today.items() if k not in ("version", "confidence_features")}
+    assert upgrade({**unnamed, "confidence_coef": [-6.0, 9.0, 9.0]})["confidence_features"] == ["support", "margin"]
+    first = upgrade({**unnamed, "confidence_coef": [-5.0, 6.0, 20.0, 2.0]})  # the first release's own shape
+    assert first["confidence_features"] == ["support", "margin", "agree"]
+
+
+def test_a_superseded_default_model_is_refreshed_whatever_the_version() -> None:
+    """A refit adds the model it replaces to SUPERSEDED_CONFIDENCE: venues modelled with it, of
+    today's version too, answer with the new one (the first release's included)."""
+    today = resolve("default")
+    for names, coef in SUPERSEDED_CONFIDENCE:
+        for version in (0, VERSION):
+            stored = {**today, "version": version, "confidence_features": list(names), "confidence_coef": list(coef)}
+            assert upgrade(stored)["confidence_coef"] == DEFAULTS["confidence_coef"]
+    first = {k: v for k, v in today.items() if k not in ("version", "confidence_features")}
+    assert (
+        upgrade({**first, "confidence_coef": [-6.0, 6.0, 25.0, 2.0]})["confidence_coef"] == DEFAULTS["confidence_coef"]
+    )
 
 
 @pytest.mark.parametrize("version", [VERSION + 1, -1, "3", True])

@@ -1,5 +1,5 @@
 // The pieces of the answer in words. The whole sentences, in every style, are pinned by the table
-// that the server's describe.py is held to as well (sentences.test.ts, tests/data/sentences.json).
+// that the engine's describe.py is held to as well (sentences.test.ts, tests/data/sentences.json).
 import { describe as group, expect, it } from 'vitest';
 import {
   SURE,

@@ -1,4 +1,4 @@
-// The words of route guidance, against the table that the server's describe.py is held to as well
+// The words of route guidance, against the table that the engine's describe.py is held to as well
 // (tests/data/guidance.json, run by tests/engine/test_guidance_words.py): the app says each instruction in
 // the user's style; the server's `guidance.sentence` is the same sentence in the default style.
 import { readFileSync } from 'node:fs';

@@ -1,4 +1,4 @@
-// The words the user hears, against the table that the server's describe.py is held to as well
+// The words the user hears, against the table that the engine's describe.py is held to as well
 // (tests/data/sentences.json, run by tests/engine/test_describe.py): the app phrases an answer in the
 // user's style; the server's `sentence` is the same sentence in the default style.
 import { readFileSync } from 'node:fs';

@@ -847,7 +847,7 @@ export const STILL_SCALE: number = C.STILL_SCALE;
 export const TOO_FAR_SHARE: number = C.TOO_FAR_SHARE;
 export const CUT_MARGIN: number = C.CUT_MARGIN;
 
-/** "moved 6.2 px (right 5.0, down 3.7) and is 0.4 % larger" (ring.py's _moved_words). */
+/** "moved 6.2 px (right 5.0, down 3.7) and is 0.4 % larger" (lens_fit.py's _moved_words). */
 function movedWords(dx: number, dy: number, s: number): string {
   const parts: string[] = [];
   if (Math.abs(dx) >= 0.05) parts.push(`${dx > 0 ? 'right' : 'left'} ${Math.abs(dx).toFixed(1)}`);
