@@ -123,7 +123,8 @@ class Locator:
     def change_settings(self, changes: Mapping[str, Any]) -> None:
         """Search, aggregation or confidence settings changed for this Locator's answers (a bench's
         `--set`, a test): checked, and the search parameters read again. Feature settings cannot
-        change (the venue's frames were made with them), nor the keys' projection (the index)."""
+        change (the venue's frames were made with them, and so are the Locator's extractors), nor
+        the keys' projection (the index)."""
         fixed = sorted(set(changes) & {*FEATURE_KEYS, "key_dims", "key_project_above"})
         if fixed:
             raise OmninavError(f"{', '.join(fixed)}: fixed when the venue was modelled")
@@ -131,7 +132,6 @@ class Locator:
         check(conf)
         self.conf = conf
         self.search = SearchSettings.of(conf)
-        self._extractors = Extractors(self.conf, EXTRACTORS)
         self._tracker = None  # (it keeps its own copy of the settings: the next one reads these)
 
     def search_clip(self, q_spec: np.ndarray, times: np.ndarray | None) -> tuple[Matches, np.ndarray]:

@@ -11,17 +11,18 @@ import copy
 from collections.abc import Mapping
 from typing import Any
 
+from . import settings
 from .errors import OmninavError
-from .settings import check, defaults
+from .settings import check
 from .settings_upgrade import LATER_FEATURE_KEYS, VERSION
 
-# Every key's default, from the stages' typed settings (settings.py, docs/settings.md).
-DEFAULTS: dict[str, Any] = defaults()
+# Every key's default: the stages' typed settings' (settings.py, docs/settings.md).
+DEFAULTS: dict[str, Any] = settings.DEFAULTS
 
 
 def setting(conf: Mapping[str, Any], key: str) -> Any:
     """A venue's setting: its own, else today's default. Settings read from a venue
-    (settings.upgrade) and made by `resolve` carry every key; a dict made by hand may not."""
+    (settings_upgrade.upgrade) and made by `resolve` carry every key; a dict made by hand may not."""
     return conf.get(key, DEFAULTS[key])
 
 

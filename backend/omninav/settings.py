@@ -32,7 +32,7 @@ import copy
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import MISSING, dataclass, field, fields
-from typing import Any
+from typing import Any, TypeVar, cast
 
 from .errors import OmninavError
 
@@ -274,8 +274,7 @@ class SearchSettings:
     @staticmethod
     def of(conf: Mapping[str, Any]) -> SearchSettings:
         """A venue's search settings (its own, else the defaults), checked."""
-        out: SearchSettings = _of(SearchSettings, conf)
-        return out
+        return _of(SearchSettings, conf)
 
     def key_dims_for(self, n_frames: int) -> int:
         """Projected stage-1 keys pay off only on large venues: 0 (none) below key_project_above."""
@@ -608,8 +607,7 @@ class TrackingSettings:
     @staticmethod
     def of(conf: Mapping[str, Any]) -> TrackingSettings:
         """A venue's tracking settings (its own, else the defaults), checked."""
-        out: TrackingSettings = _of(TrackingSettings, conf)
-        return out
+        return _of(TrackingSettings, conf)
 
 
 STAGES: tuple[tuple[type, str], ...] = (
@@ -627,23 +625,29 @@ def field_default(f: Any) -> Any:
     return f.default if f.default is not MISSING else f.default_factory()
 
 
+# Every key's Rule and stage, and every key's default as one flat dict (presets.DEFAULTS): made
+# once, read by every check (a venue's settings are checked on every read of settings.json).
+RULES: dict[str, tuple[Rule, type]] = {f.name: (f.metadata["rule"], cls) for cls, _ in STAGES for f in fields(cls)}
+DEFAULTS: dict[str, Any] = {f.name: field_default(f) for cls, _ in STAGES for f in fields(cls)}
+
+
 def rules() -> dict[str, tuple[Rule, type]]:
     """Every key, its Rule and the stage that owns it."""
-    return {f.name: (f.metadata["rule"], cls) for cls, _ in STAGES for f in fields(cls)}
+    return dict(RULES)
 
 
 def defaults() -> dict[str, Any]:
-    """Every stage's defaults as one flat dict (presets.DEFAULTS)."""
-    out: dict[str, Any] = {}
-    for cls, _ in STAGES:
-        for f in fields(cls):
-            out[f.name] = copy.deepcopy(field_default(f))
-    return out
+    """Every stage's defaults as one flat dict, a copy the caller may change."""
+    return copy.deepcopy(DEFAULTS)
 
 
-def _of(cls: Any, conf: Mapping[str, Any]) -> Any:
+Stage = TypeVar("Stage")
+
+
+def _of(cls: type[Stage], conf: Mapping[str, Any]) -> Stage:
+    """The stage's settings of `conf` (its own, else the defaults), each checked against its Rule."""
     kw = {}
-    for f in fields(cls):
+    for f in fields(cast(Any, cls)):
         rule = f.metadata["rule"]
         if f.name in conf:
             v = conf[f.name]
@@ -656,8 +660,7 @@ def _of(cls: Any, conf: Mapping[str, Any]) -> Any:
 def check(conf: Mapping[str, Any]) -> None:
     """Every key known and within its range, and what relates keys consistent; an OmninavError
     that names the key otherwise. A settings dict that passes answers every locate."""
-    known = rules()
-    unknown = sorted(k for k in conf if k not in known and k not in OWN_KEYS)
+    unknown = sorted(k for k in conf if k not in RULES and k not in OWN_KEYS)
     if unknown:
         raise OmninavError(f"unknown settings {unknown} (known: docs/settings.md)")
     for cls, _ in STAGES:
@@ -679,7 +682,7 @@ def _check_band_channels(conf: Mapping[str, Any]) -> None:
     if not names(channels):
         raise OmninavError(f"channels must be distinct channels of {', '.join(CHANNELS)}; got {channels!r}")
     per = conf.get("band_channels")
-    bands = conf.get("bands", FeatureSettings().bands)
+    bands = conf.get("bands", DEFAULTS["bands"])
     if per is not None and not (len(per) == len(bands) and all(names(c) for c in per)):
         raise OmninavError(
             f"band_channels must be null or one list of distinct channels ({', '.join(CHANNELS)}) per band "
@@ -691,7 +694,7 @@ def _check_confidence(conf: Mapping[str, Any]) -> None:
     """A confidence model that could not be evaluated would fail every locate: refused here."""
     from .aggregate import CONFIDENCE_INPUTS, TRACK_CONFIDENCE_INPUTS
 
-    d = defaults()
+    d = DEFAULTS
     for prefix, known, what in (
         ("confidence", CONFIDENCE_INPUTS, "confidence inputs"),
         ("track_confidence", TRACK_CONFIDENCE_INPUTS, "tracking confidence inputs"),

@@ -17,7 +17,7 @@ from dataclasses import fields
 from typing import Any
 
 from .errors import Conflict, OmninavError
-from .settings import AggregationSettings, ModellingSettings, SearchSettings, TrackingSettings, check, defaults
+from .settings import DEFAULTS, AggregationSettings, ModellingSettings, SearchSettings, TrackingSettings, check
 
 VERSION = 3  # the settings' format today
 
@@ -56,9 +56,8 @@ def current_confidence(conf: dict[str, Any]) -> dict[str, Any]:
     names = tuple(conf.get("confidence_features", ()))
     coef = tuple(float(c) for c in conf.get("confidence_coef", ()))
     if (names, coef) in SUPERSEDED_CONFIDENCE:
-        d = defaults()
-        conf["confidence_features"] = list(d["confidence_features"])
-        conf["confidence_coef"] = list(d["confidence_coef"])
+        conf["confidence_features"] = list(DEFAULTS["confidence_features"])
+        conf["confidence_coef"] = list(DEFAULTS["confidence_coef"])
     return conf
 
 
@@ -80,10 +79,9 @@ def _to_3_search_and_tracking(conf: dict[str, Any]) -> dict[str, Any]:
     defaults (they change no feature: the venue answers as a new one searches and tracks), but
     for `key_dims`, 0: a venue without it searched with whole keys, and still does."""
     conf.setdefault("key_dims", 0)
-    d = defaults()
     for cls in (SearchSettings, AggregationSettings, ModellingSettings, TrackingSettings):
         for f in fields(cls):
-            conf.setdefault(f.name, copy.deepcopy(d[f.name]))
+            conf.setdefault(f.name, copy.deepcopy(DEFAULTS[f.name]))
     return conf
 
 

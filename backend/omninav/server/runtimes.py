@@ -20,7 +20,7 @@ from ..locate import Locator, frame_floors
 from ..tracking import Tracker
 from ..walkgraph import WalkGraph, attach, from_frames
 
-log = logging.getLogger("omninav.calib")
+log = logging.getLogger("omninav.server")
 
 
 @dataclass(frozen=True)
