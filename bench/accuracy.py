@@ -21,8 +21,8 @@ from bench.venues import cached_venue
 from omninav.evaluate import Evaluation, evaluate, plot
 from omninav.lens import load_lens
 from omninav.presets import TWO_BANDS, resolve
-from omninav.synth import equirect_lens, make_dataset
-from omninav.track import load_track
+from omninav.synth import equirect_lens, make_dataset, upgrade_names
+from omninav.walk_path import load_walk_path
 
 O = ["I", "O1", "O2", "dI", "dO1", "dO2"]
 CONFIGS = [  # label, preset, overrides, aggregation
@@ -45,13 +45,18 @@ def dataset(root: Path, seed: int, equirect: bool = False) -> Path:
         print(f"rendering {root} ...", file=sys.stderr, flush=True)
         make_dataset(root, seed=seed, model_lens=equirect_lens() if equirect else None)
         print(f"rendered in {time.perf_counter() - t:.0f} s", file=sys.stderr, flush=True)
-    return root
+    return upgrade_names(root)
 
 
 def run(root: Path, label: str, preset: str, over: dict, agg: str, tag: str, clip_s: float = 1.0) -> Evaluation:
     loc = cached_venue(root, tag, {**resolve(preset), **over})
     ev = evaluate(
-        loc, root / "query.mp4", load_track(root / "query_track.json"), load_lens(root / "lens.json"), agg, clip_s
+        loc,
+        root / "query.mp4",
+        load_walk_path(root / "query_walk_path.json"),
+        load_lens(root / "lens.json"),
+        agg,
+        clip_s,
     )
     plot(ev, loc, root / f"{loc.venue_id}-{agg}.png", title=label)
     return ev

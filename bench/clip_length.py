@@ -42,8 +42,8 @@ from omninav.locate import Locator
 from omninav.synth import QUERY, build_scene, make_dataset
 from omninav.synth.scene import Scene
 from omninav.synth.walks import Perturb, Pose, render_frames, write_video
-from omninav.track import load_track
 from omninav.video import VideoInfo, iter_video
+from omninav.walk_path import load_walk_path
 
 LENGTHS_S = (0.3, 0.5, 1.0, 2.0, 3.0, 5.0)
 FPS = 10.0
@@ -85,8 +85,8 @@ def walking(root: Path, loc: Locator) -> Walk:
     key = f"{loc.venue_id}/{loc.generation}/query"
 
     def make() -> dict[str, np.ndarray]:
-        track, lens = load_track(root / "query_track.json"), load_lens(root / "lens.json")
-        spec, t, xy, hd, _ = query_spectra(loc, root / "query.mp4", track, lens)
+        walk_path, lens = load_walk_path(root / "query_walk_path.json"), load_lens(root / "lens.json")
+        spec, t, xy, hd, _ = query_spectra(loc, root / "query.mp4", walk_path, lens)
         return {"spec": spec, "t": t, "xy": xy, "heading": hd}
 
     z = _cached(root / "bench-data" / "clip-length-walk.npz", key, make)
@@ -99,9 +99,9 @@ def stand_poses(root: Path, seed: int) -> list[Pose]:
     """Stands along the query walk: the place it passes every STAND_EVERY_S, any heading, a slow
     turn either way, the query walk's camera height and a slowly varying tilt."""
     rng = np.random.default_rng(seed + 77)
-    track = load_track(root / "query_track.json")
-    times = np.arange(STAND_EVERY_S / 2, track.times[-1], STAND_EVERY_S)
-    xy, _, ok = track.pose_at(times)
+    walk_path = load_walk_path(root / "query_walk_path.json")
+    times = np.arange(STAND_EVERY_S / 2, walk_path.times[-1], STAND_EVERY_S)
+    xy, _, ok = walk_path.pose_at(times)
     per = int(round(STAND_S * FPS))
     poses: list[Pose] = []
     for s, (x, y) in enumerate(xy[ok]):

@@ -46,7 +46,7 @@ def modelled(pack: Path, venue: str, tag: str, conf: dict[str, Any]) -> Locator:
     """The pack venue's walk modelled with `conf` (as `omninav model` does), once per settings."""
     src = pack / venue
     lens = "model_lens.json" if (src / "model_lens.json").is_file() else "lens.json"
-    return cached_venue(src, tag, conf, lens=lens, track="track.json", store=DATA / venue / "bench-data")
+    return cached_venue(src, tag, conf, lens=lens, walk_path="track.json", store=DATA / venue / "bench-data")
 
 
 def query_spectra(

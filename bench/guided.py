@@ -30,7 +30,7 @@ Per split and phone, over the destinations:
                   (median and worst, right arrivals);
   off the route   "You are off the route" said per destination, by the tracked guide and by the
                   guide fed the truth.
-The rules side by side from the same answers: arrival said as a fact from 0.8 on a track that
+The rules side by side from the same answers: arrival said as a fact from 0.8 once tracking
 has settled (no more than a third of the last 30 s of answers low: the guide now), from 0.8 alone,
 and from 0.5 (the guide before `probably_arrived`: every pose it acts on).
 
@@ -74,7 +74,7 @@ APPROACH_M = 30.0  # the guidance starts this much walking before the stop
 GO_ON_S = 5.0  # the guidance runs on this long after the walker leaves the stop
 RIGHT_M = 3.0  # an arrival said with the walker this near the place is right (ARRIVE_M + 1 m of pose)
 LOW = 0.5  # config.py LOW_CONFIDENCE: the guide's own "not sure" line, as the server passes it
-# arrival said as a fact: (from this confidence, on a track settled over this many seconds; 0: not asked)
+# arrival said as a fact: (from this confidence, with tracking settled over this many seconds; 0: not asked)
 RULES = {"0.8, settled (now)": (SURE, rt.SETTLE_S), "0.8": (SURE, 0.0), "0.5 (before)": (LOW, 0.0)}
 
 
@@ -90,9 +90,9 @@ class Truth:
     ambiguous: bool = False
 
 
-def stops(track: dict[str, Any]) -> list[tuple[float, float, float, float]]:
-    """The walk's stops from its track: (x, y, t arrived, t left) where a waypoint is repeated."""
-    wps = track["waypoints"]
+def stops(walk_path: dict[str, Any]) -> list[tuple[float, float, float, float]]:
+    """The walk's stops from its walk path: (x, y, t arrived, t left) where a waypoint is repeated."""
+    wps = walk_path["waypoints"]
     return [
         (float(a["x"]), float(a["y"]), float(a["t"]), float(b["t"]))
         for a, b in zip(wps, wps[1:], strict=False)

@@ -48,10 +48,10 @@ from omninav.level import estimate_tilt, tilt_map
 from omninav.presets import resolve
 from omninav.synth.families import family_venue, pano_width
 from omninav.synth.render import CameraModel, camera_frame, world_panorama
-from omninav.synth.walks import grid_for, poses_from_track, walk_heading
-from omninav.track import load_track, parse_track
+from omninav.synth.walks import grid_for, poses_from_walk_path, walk_heading
 from omninav.unwarp import UnwarpMap, build_map
 from omninav.video import VideoInfo, iter_video
+from omninav.walk_path import load_walk_path, parse_walk_path
 
 DELTAS = (-0.10, -0.05, 0.0, 0.05, 0.10)
 MODEL_H = 1.35  # every family's modelling walk (synth.walks.MODELLING)
@@ -94,7 +94,9 @@ def accuracy(names: list[str], seeds: list[int]) -> None:
             root = dataset(name, seed)
             loc = venue(root, "default")
             v = family_venue(name, seed)
-            h = poses_from_track(v.query_track, v.family.query_perturb, np.random.default_rng(seed + 3))[0].cam_h
+            h = poses_from_walk_path(v.query_walk_path, v.family.query_perturb, np.random.default_rng(seed + 3))[
+                0
+            ].cam_h
             # the deltas and the query path (v2: through the re-clipped lens) in the name: a cache
             # made otherwise is never read as this one
             tag = "_".join(f"{d:+.2f}" for d in DELTAS)
@@ -105,7 +107,7 @@ def accuracy(names: list[str], seeds: list[int]) -> None:
             else:
                 spec, t, idx = walk(loc, root / "query.mp4", load_lens(root / "lens.json"), loc.conf)
                 np.savez(cache, spec=spec, t=t, idx=idx)
-            xy, hd, ok = load_track(root / "query_track.json").pose_at(t)
+            xy, hd, ok = load_walk_path(root / "query_walk_path.json").pose_at(t)
             per = []
             for k in range(len(DELTAS)):
                 rows = evaluate_spectra(
@@ -163,7 +165,7 @@ def scores(names: list[str], places: int) -> None:
         heights = Heights(lens, conf)
         grid = grid_for(lens, pano_width(lens))
         cam = CameraModel.create(lens)
-        tr = parse_track(v.model_track)
+        tr = parse_walk_path(v.model_walk_path)
         rng = np.random.default_rng(5)
         out: dict[tuple[float, str], list[np.ndarray]] = {}
         for t in np.sort(rng.uniform(2.0, tr.times[-1] - 5.0, places)):

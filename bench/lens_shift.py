@@ -32,7 +32,7 @@ from omninav.lens import load_lens
 from omninav.presets import resolve
 from omninav.synth import QUERY, make_dataset
 from omninav.synth.scene import build_scene
-from omninav.synth.walks import poses_from_track, render_frames
+from omninav.synth.walks import poses_from_walk_path, render_frames
 
 
 def main() -> None:
@@ -53,10 +53,10 @@ def main() -> None:
     loc = cached_venue(root, "lens-shift", resolve("default"), lens="lens.json")
     conf = loc.conf
     scene = build_scene(a.seed, a.layout)
-    track = json.loads((root / "query_track.json").read_text())
-    n = int(round(track["fps"]))  # a 1 s clip (the query walk is rendered at the venue's 10 fps)
+    walk_path = json.loads((root / "query_walk_path.json").read_text())
+    n = int(round(walk_path["fps"]))  # a 1 s clip (the query walk is rendered at the venue's 10 fps)
     look = replace(QUERY, lens_shift_px=0.0)
-    poses = poses_from_track(track, look, np.random.default_rng(a.seed + 7))
+    poses = poses_from_walk_path(walk_path, look, np.random.default_rng(a.seed + 7))
     starts = np.linspace(0, len(poses) - n, a.clips).astype(int)
     plain = Extractor(lens, conf)
     print(f"machine: {machine()}")

@@ -35,14 +35,14 @@ from omninav.store import Store
 from omninav.synth import MODELLING, build_scene, donut_lens
 from omninav.synth.walks import (
     default_routes,
-    poses_from_track,
+    poses_from_walk_path,
     render_frames,
-    track_for,
+    walk_path_for,
     write_json,
     write_video,
 )
-from omninav.track import load_track
 from omninav.video import extract_threads
+from omninav.walk_path import load_walk_path
 
 
 def render(root: Path, seconds: float) -> None:
@@ -51,11 +51,11 @@ def render(root: Path, seconds: float) -> None:
     root.mkdir(parents=True, exist_ok=True)
     scene = build_scene(0)
     route, _ = default_routes(scene)
-    track = track_for(route, [1.2], 30.0)
-    track["waypoints"] = [w for w in track["waypoints"] if w["t"] <= seconds + 25]
-    poses = poses_from_track(track, MODELLING, np.random.default_rng(0))[: int(seconds * 30)]
+    walk_path = walk_path_for(route, [1.2], 30.0)
+    walk_path["waypoints"] = [w for w in walk_path["waypoints"] if w["t"] <= seconds + 25]
+    poses = poses_from_walk_path(walk_path, MODELLING, np.random.default_rng(0))[: int(seconds * 30)]
     lens = donut_lens()
-    write_json(root / "track30.json", track)
+    write_json(root / "walk_path30.json", walk_path)
     write_json(root / "lens.json", lens.to_dict())
     frames = (f for _, f in render_frames(scene, lens, poses, MODELLING, 1))
     write_video(root / "model30.mp4", frames, 30.0, lens.image_size)
@@ -89,8 +89,8 @@ def main() -> None:
                 "model",
                 "speed",
                 str(video),
-                "--track",
-                str(a.root / "track30.json"),
+                "--walk-path",
+                str(a.root / "walk_path30.json"),
                 "--lens",
                 str(a.root / "lens.json"),
             ],
@@ -109,15 +109,19 @@ def main() -> None:
         f"{out['frames_added']} frames modelled, {out['frames_added'] / wall:.1f} frames/s"
     )
     with tempfile.TemporaryDirectory() as d:
-        st, track, lens = Store(Path(d)), load_track(a.root / "track30.json"), load_lens(a.root / "lens.json")
+        st, walk_path, lens = (
+            Store(Path(d)),
+            load_walk_path(a.root / "walk_path30.json"),
+            load_lens(a.root / "lens.json"),
+        )
         took = {}
         for tag, over in (("unlevelled", {"level_iters": None}), ("default (levelled)", {})):
             t = time.perf_counter()
-            model_video(st, tag.split()[0], video, track, lens, settings=resolve("default", over))
+            model_video(st, tag.split()[0], video, walk_path, lens, settings=resolve("default", over))
             took[tag] = time.perf_counter() - t
         with one_core_busy():
             t = time.perf_counter()
-            model_video(st, "busy", video, track, lens, settings=resolve("default"))
+            model_video(st, "busy", video, walk_path, lens, settings=resolve("default"))
             took["default, one core busy"] = time.perf_counter() - t
         extra = 1000 * (took["default (levelled)"] - took["unlevelled"]) / out["frames_added"]
         each = ", ".join(f"{k} {v:.2f} s = {dur / v:.1f}x real time" for k, v in took.items())
@@ -160,8 +164,10 @@ def through_api(root: Path, video: Path, omninav: str) -> dict:
         call("PUT", "/api/admin/venues/speed/floors/1", {"px_per_m": 20.0})
         call("PUT", "/api/admin/venues/speed/lenses/default", json.loads((root / "lens.json").read_text()))
         data = video.read_bytes()
-        track = json.loads((root / "track30.json").read_text())
-        v = call("POST", "/api/admin/venues/speed/videos", {"name": video.name, "size": len(data), "track": track})
+        walk_path = json.loads((root / "walk_path30.json").read_text())
+        v = call(
+            "POST", "/api/admin/venues/speed/videos", {"name": video.name, "size": len(data), "walk_path": walk_path}
+        )
         t = time.perf_counter()
         piece = 8 << 20
         for a in range(0, len(data), piece):

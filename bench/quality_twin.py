@@ -34,7 +34,7 @@ from omninav.store import Store
 from omninav.synth import Dataset, make_dataset
 from omninav.synth.layouts import TWINS
 from omninav.synth.scene import build_scene
-from omninav.track import load_track
+from omninav.walk_path import load_walk_path
 
 Area = list[float]
 
@@ -53,7 +53,7 @@ def margins(m: np.ndarray) -> str:
 def measure(ds: Dataset, seed: int, settings: dict[str, Any], root: Path) -> dict[str, Any]:
     st = Store(root)
     lens = load_lens(ds.root / "model_lens.json")
-    model_video(st, "twin", ds.model_video, load_track(ds.model_track), lens, settings=settings)
+    model_video(st, "twin", ds.model_video, load_walk_path(ds.model_walk_path), lens, settings=settings)
     q = quality_map(st.load("twin"), ds.scene.places, {})
     twins = [build_scene(seed, "twin").places[i]["area"] for i in TWINS]
     middles = [[x0, y0 + 3.4, x1, y1 - 3.4] for x0, y0, x1, y1 in twins]  # test_quality.py's
@@ -61,7 +61,7 @@ def measure(ds: Dataset, seed: int, settings: dict[str, Any], root: Path) -> dic
     count = {v: sum(s["verdict"] == v for s in segs) for v in ("green", "amber", "red")}
     flagged = [s["verdict"] != "green" for s in segs if any(_inside(s["points"][-1], c) for c in middles)]
     rest = [s["verdict"] == "green" for s in segs if not any(_inside(s["points"][-1], t) for t in twins)]
-    walk = evaluate_walk(Locator(st, "twin"), ds.query_video, load_track(ds.query_track), load_lens(ds.lens))
+    walk = evaluate_walk(Locator(st, "twin"), ds.query_video, load_walk_path(ds.query_walk_path), load_lens(ds.lens))
     clips = walk["clips"]
     right = np.array([c["answer"]["margin"] for c in clips if c["error_m"] <= RADIUS_M])
     return {

@@ -258,10 +258,10 @@ class Admin:
             raise RuntimeError(f"{method} {path}: {r.status} {doc.get('error', raw[:200])}")
         return doc
 
-    def upload(self, venue: str, name: str, video: Path, track: dict, stop: threading.Event | None = None) -> int:
+    def upload(self, venue: str, name: str, video: Path, walk_path: dict, stop: threading.Event | None = None) -> int:
         """Announce the video and send it in Content-Range pieces; -> bytes sent (less when stopped)."""
         size = video.stat().st_size
-        v = self.call("POST", f"/api/admin/venues/{venue}/videos", {"name": name, "size": size, "track": track})
+        v = self.call("POST", f"/api/admin/venues/{venue}/videos", {"name": name, "size": size, "walk_path": walk_path})
         sent = 0
         with open(video, "rb") as f:
             while sent < size and not (stop and stop.is_set()):
@@ -286,13 +286,13 @@ def job_venue(adm: Admin, copies: int) -> list[str]:
             "PUT", f"/api/admin/venues/{JOB_VENUE}/lenses/default", json.loads((SRC / "model_lens.json").read_text())
         )
     have = {v["name"]: v["status"] for v in adm.call("GET", f"/api/admin/venues/{JOB_VENUE}/videos")["videos"]}
-    track = json.loads((SRC / "model_track.json").read_text())
+    walk_path = json.loads((SRC / "model_walk_path.json").read_text())
     names = [f"walk{k}.mp4" for k in range(1, copies + 1)]
     for n in names:
         if have.get(n) not in ("ready", "modelled"):
             if n in have:
                 adm.call("DELETE", f"/api/admin/venues/{JOB_VENUE}/videos/{n}")
-            adm.upload(JOB_VENUE, n, SRC / "model.mp4", track)
+            adm.upload(JOB_VENUE, n, SRC / "model.mp4", walk_path)
     for j in adm.call("GET", f"/api/admin/venues/{JOB_VENUE}/jobs")["jobs"]:  # a run cut short left one?
         if j["state"] in ("queued", "running"):
             adm.call("POST", f"/api/admin/jobs/{j['id']}/cancel")
@@ -360,7 +360,7 @@ class Uploader(threading.Thread):
     def __init__(self, port: int, video: Path):
         super().__init__(daemon=True)
         self.adm, self.video = Admin(port), video
-        self.track = json.loads((SRC / "model_track.json").read_text())
+        self.walk_path = json.loads((SRC / "model_walk_path.json").read_text())
         self.stop = threading.Event()
         self.sent = 0
         self.complete = 0
@@ -372,7 +372,7 @@ class Uploader(threading.Thread):
         while not self.stop.is_set():
             name = f"upload-{os.getpid()}-{k}.mp4"
             try:
-                got = self.adm.upload(JOB_VENUE, name, self.video, self.track, self.stop)
+                got = self.adm.upload(JOB_VENUE, name, self.video, self.walk_path, self.stop)
                 self.sent += got
                 self.complete += got == self.video.stat().st_size
             except (OSError, http.client.HTTPException, RuntimeError) as e:

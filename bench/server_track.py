@@ -53,8 +53,8 @@ from omninav.lens import load_lens  # noqa: E402
 from omninav.server import create_app  # noqa: E402
 from omninav.spectrum import encode_binary  # noqa: E402
 from omninav.store import FRAME_DTYPE, Generation, Store  # noqa: E402
-from omninav.track import load_track  # noqa: E402
 from omninav.video import VideoInfo, iter_video  # noqa: E402
+from omninav.walk_path import load_walk_path  # noqa: E402
 
 TOKEN = "bench-token"
 ADMIN = {"Authorization": f"Bearer {TOKEN}"}
@@ -96,7 +96,7 @@ def clips(
     (clip_frames every `every` frames)."""
     info = VideoInfo(root / "query.mp4")
     lens = load_lens(root / "lens.json")
-    tr = load_track(root / "query_track.json")
+    tr = load_walk_path(root / "query_walk_path.json")
     frames: list[np.ndarray] = []
     out = []
     for i, f in iter_video(info):
@@ -141,7 +141,7 @@ def main() -> None:
             }
         )
         c = app.test_client()
-        goal = json.loads((root / "query_track.json").read_text())["waypoints"][-1]
+        goal = json.loads((root / "query_walk_path.json").read_text())["waypoints"][-1]
         places = [{"name": "Goal", "x": goal["x"], "y": goal["y"], "kind": "room"}]
         for vid in ("bench", "big"):
             assert c.post("/api/admin/venues", json={"id": vid, "name": vid}, headers=ADMIN).status_code == 201

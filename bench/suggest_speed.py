@@ -3,7 +3,7 @@
 Renders (once, cached) a walk through the default synthetic venue at 30 fps, 960x720 (the
 full-size donut), with two corners and a 3 s stop, then times in one run: decoding alone (the
 floor), `suggest_waypoints` at its default 10 fps and at 5 fps, and, as the baseline, modelling
-the same video with its true track (`model_video`, features at the preset's 10 fps). It also prints
+the same video with its true walk path (`model_video`, features at the preset's 10 fps). It also prints
 how far each suggestion is from the true corner or stop.
 
     python -m bench.suggest_speed [--root data/bench-suggest-speed] [--repeat 3]
@@ -24,8 +24,8 @@ from omninav.model_venue import model_video
 from omninav.store import Store
 from omninav.suggest import suggest_waypoints
 from omninav.synth import MODELLING, build_scene, donut_lens
-from omninav.synth.walks import render_walk, track_for, walk_events, write_json
-from omninav.track import load_track
+from omninav.synth.walks import render_walk, walk_events, walk_path_for, write_json
+from omninav.walk_path import load_walk_path
 
 ROUTE = [(15.0, 3.0), (27.0, 3.0), (27.0, 23.0), (39.0, 23.0)]
 
@@ -34,11 +34,11 @@ def render(root: Path) -> None:
     if (root / "walk30.mp4").exists():
         return
     root.mkdir(parents=True, exist_ok=True)
-    track = track_for(ROUTE, [1.3], 30.0, stops={2: 3.0})
+    walk_path = walk_path_for(ROUTE, [1.3], 30.0, stops={2: 3.0})
     lens = donut_lens()
-    write_json(root / "track30.json", track)
+    write_json(root / "walk_path30.json", walk_path)
     write_json(root / "lens.json", lens.to_dict())
-    render_walk(root / "walk30.mp4", build_scene(0), lens, track, MODELLING, seed=1, turn_s=1.0)
+    render_walk(root / "walk30.mp4", build_scene(0), lens, walk_path, MODELLING, seed=1, turn_s=1.0)
 
 
 def main() -> None:
@@ -70,7 +70,7 @@ def main() -> None:
                 runs[rate] = (secs, r)
         with tempfile.TemporaryDirectory() as d:
             t = time.perf_counter()
-            m = model_video(Store(Path(d)), "bench", video, load_track(a.root / "track30.json"), lens)
+            m = model_video(Store(Path(d)), "bench", video, load_walk_path(a.root / "walk_path30.json"), lens)
             model_s, frames = min(model_s, time.perf_counter() - t), m.frames
 
     print(f"machine: {machine()}")
@@ -87,7 +87,7 @@ def main() -> None:
         f"{model_s * per_min:.1f} s per minute of video, {frames / model_s:.1f} frames/s ({frames} frames)"
     )
     print(f"suggest (10 fps) / modelling time: {runs[10.0][0] / model_s:.2f}")
-    turns, stops = walk_events(load_track_dict(a.root / "track30.json"))
+    turns, stops = walk_events(load_walk_path_dict(a.root / "walk_path30.json"))
     for rate, (_, r) in runs.items():
         sug = r["suggestions"]
         parts = []
@@ -105,7 +105,7 @@ def main() -> None:
         print(f"{rate:.0f} fps, {len(sug)} suggestions (start/end included): " + "; ".join(parts))
 
 
-def load_track_dict(path: Path) -> dict:
+def load_walk_path_dict(path: Path) -> dict:
     import json
 
     return dict(json.loads(path.read_text()))

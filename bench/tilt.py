@@ -46,10 +46,10 @@ from omninav.level import tilted_map  # the engine's: a direction the donut does
 from omninav.presets import resolve
 from omninav.synth.families import FAMILIES, family_venue, pano_width
 from omninav.synth.render import CameraModel, camera_frame, tilt_rotation, world_panorama
-from omninav.synth.walks import grid_for, poses_from_track, walk_heading
-from omninav.track import load_track, parse_track
+from omninav.synth.walks import grid_for, poses_from_walk_path, walk_heading
 from omninav.unwarp import UnwarpMap
 from omninav.video import VideoInfo, iter_video
+from omninav.walk_path import load_walk_path, parse_walk_path
 
 TILTS = (3.0, 5.0, 8.0)
 CORRECTED = (5.0, 8.0)
@@ -65,7 +65,7 @@ def family_scores(
     ext = Extractor(lens, conf)
     grid = grid_for(lens, pano_width(lens))
     cam = CameraModel.create(lens)
-    tr = parse_track(v.model_track)
+    tr = parse_walk_path(v.model_walk_path)
     rng = np.random.default_rng(5)
 
     def shot(x: float, y: float, hd: float, h: float = 1.35, rot: np.ndarray | None = None) -> np.ndarray:
@@ -77,7 +77,7 @@ def family_scores(
         return e
 
     out: dict[str, list[float]] = {}
-    speed = 1.2  # the modelling walk's m/s, near enough: "along" is what the track says at t + d / speed
+    speed = 1.2  # the modelling walk's m/s, near enough: "along" is what the walk path says at t + d / speed
     for t in np.sort(rng.uniform(2.0, tr.times[-1] - 5.0, places)):
         ts = np.array([t, *(t + d / speed for d in ALONG_M)])
         xy, _, ok = tr.pose_at(ts)
@@ -118,7 +118,7 @@ def accuracy(names: list[str], seeds: list[int], overrides: dict[str, Any]) -> N
             pert = v.family.query_perturb
             # the query walk's poses and lens as synth.families.make_family_dataset rendered them
             # (its seeds: seed + 3 for the poses, seed + 4 for render_frames' draws, the shift first)
-            poses = poses_from_track(v.query_track, pert, np.random.default_rng(seed + 3))
+            poses = poses_from_walk_path(v.query_walk_path, pert, np.random.default_rng(seed + 3))
             lens = load_lens(root / "lens.json")
             ang = np.random.default_rng(seed + 4).uniform(0.0, 2.0 * np.pi)
             if isinstance(lens, Catadioptric):
@@ -134,7 +134,7 @@ def accuracy(names: list[str], seeds: list[int], overrides: dict[str, Any]) -> N
                 tilted.map = tilted_map(lens, ext.map, tilt_rotation(p.tilt, p.tilt_dir)) if p.tilt else ext.map
                 spec["untilted"].append(tilted.spectrum(frame))
             t = np.array([p.t for p in poses[: len(spec["as is"])]])
-            xy, hd, ok = load_track(root / "query_track.json").pose_at(t)
+            xy, hd, ok = load_walk_path(root / "query_walk_path.json").pose_at(t)
             for how, frames in spec.items():
                 sp = np.stack(frames)[ok]
                 idx = np.flatnonzero(ok)

@@ -51,9 +51,9 @@ from omninav.lookalikes import ALIKE_K, frame_search, look_alikes
 from omninav.motion import Imu, Motion, parse_imu
 from omninav.presets import DEFAULTS, n_curves, resolve
 from omninav.synth.families import FAMILIES, _jpeg, family_venue, pano_width
-from omninav.synth.walks import imu_for, poses_from_track, render_frames, with_stops, write_video
-from omninav.track import load_track
+from omninav.synth.walks import imu_for, poses_from_walk_path, render_frames, with_stops, write_video
 from omninav.tracking import Tracker
+from omninav.walk_path import load_walk_path
 from omninav.walkgraph import WalkGraph, from_frames
 
 SKIP_S = 5.0  # the figures count the seconds after the first 5 of a walk
@@ -113,15 +113,17 @@ def stops_walk(root: Path, family: str, seed: int) -> str:
             t0 = time.perf_counter()
             v = family_venue(family, seed)
             fam = v.family
-            track = with_stops(json.loads((root / "query_track.json").read_text()), np.random.default_rng(seed + 50))
+            walk_path = with_stops(
+                json.loads((root / "query_walk_path.json").read_text()), np.random.default_rng(seed + 50)
+            )
             lens = load_lens(root / "lens.json")
-            poses = poses_from_track(track, fam.query_perturb, np.random.default_rng(seed + 53))
+            poses = poses_from_walk_path(walk_path, fam.query_perturb, np.random.default_rng(seed + 53))
             frames = (
                 f for _, f in render_frames(v.query_scene, lens, poses, fam.query_perturb, seed + 54, pano_width(lens))
             )
             part = video.with_name(f"{name}.part.mp4")
-            write_video(part, _jpeg(frames, fam.query_jpeg), float(track["fps"]), lens.image_size)
-            (root / f"{name}_track.json").write_text(json.dumps(track, indent=1))
+            write_video(part, _jpeg(frames, fam.query_jpeg), float(walk_path["fps"]), lens.image_size)
+            (root / f"{name}_track.json").write_text(json.dumps(walk_path, indent=1))
             part.rename(video)
             print(f"rendered {video} in {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
     return name
@@ -136,7 +138,7 @@ def walk(root: Path, loc: Locator, name: str = "query") -> Walk:
         if str(z["key"]) == key:
             return Walk(z["t"], z["xy"], z["heading"], z["spec"])
     spec, t, xy, hd, _ = query_spectra(
-        loc, root / f"{name}.mp4", load_track(root / f"{name}_track.json"), load_lens(root / "lens.json")
+        loc, root / f"{name}.mp4", load_walk_path(root / f"{name}_track.json"), load_lens(root / "lens.json")
     )
     np.savez(cache, key=key, t=t, xy=xy, heading=hd, spec=spec)
     return Walk(t, xy, hd, spec)
@@ -146,8 +148,8 @@ def walk_imu(root: Path, name: str = "query", seed: int = 0) -> Imu:
     """The walk's imu.json (made once, deterministically, beside it)."""
     path = root / f"{name}_imu.json"
     if not path.exists():
-        track = json.loads((root / f"{name}_track.json").read_text())
-        path.write_text(json.dumps(imu_for(track, np.random.default_rng(seed + 77))))
+        walk_path = json.loads((root / f"{name}_track.json").read_text())
+        path.write_text(json.dumps(imu_for(walk_path, np.random.default_rng(seed + 77))))
     return parse_imu(json.loads(path.read_text()))
 
 

@@ -25,8 +25,9 @@ from omninav.locate import Locator
 from omninav.model_venue import model_video
 from omninav.presets import resolve
 from omninav.store import Store
+from omninav.synth import upgrade_names
 from omninav.synth.families import FAMILIES, make_family_dataset
-from omninav.track import load_track
+from omninav.walk_path import load_walk_path
 
 DATA = Path("data") / "families"
 
@@ -72,7 +73,7 @@ def dataset(family: str, seed: int) -> Path:
             make_family_dataset(part, family, seed)
             part.rename(root)
             print(f"rendered {root} in {time.perf_counter() - t:.0f} s", file=sys.stderr, flush=True)
-    return root
+    return upgrade_names(root)
 
 
 def venue(root: Path, config: str, overrides: dict[str, Any] | None = None) -> Locator:
@@ -102,10 +103,10 @@ def cached_venue(
     tag: str,
     settings: dict[str, Any],
     lens: str = "model_lens.json",
-    track: str = "model_track.json",
+    walk_path: str = "model_walk_path.json",
     store: Path | None = None,
 ) -> Locator:
-    """root's model.mp4 (walked along root/`track`, through root/`lens`) modelled with `settings`
+    """root's model.mp4 (walked along root/`walk_path`, through root/`lens`) modelled with `settings`
     into `store` (default root/bench-data), once per settings: the venue id is `tag` and a hash of
     what is modelled, so a changed default is another venue, never a stale one (bench/accuracy.py,
     bench/lens_shift.py and bench/foreign.py cache their venues here too)."""
@@ -114,7 +115,7 @@ def cached_venue(
     if st.generation(vid) is None:
         t = time.perf_counter()
         model_video(
-            st, vid, root / "model.mp4", load_track(root / track), load_lens(root / lens), settings=settings
+            st, vid, root / "model.mp4", load_walk_path(root / walk_path), load_lens(root / lens), settings=settings
         )  # fmt: skip
         print(f"modelled {root.name} as {vid} in {time.perf_counter() - t:.0f} s", file=sys.stderr, flush=True)
     loc = Locator(st, vid, device="cpu")
@@ -133,7 +134,7 @@ def rows_for(
     todo = [c for c in clips if f"{c:g}" not in have]
     if todo:
         spec = query_spectra(
-            loc, root / "query.mp4", load_track(root / "query_track.json"), load_lens(root / "lens.json")
+            loc, root / "query.mp4", load_walk_path(root / "query_walk_path.json"), load_lens(root / "lens.json")
         )
         agg = CONFIGS[config][2]
         for c in todo:

@@ -72,7 +72,7 @@ test('Model anew: the modelling screen offers it, runs it, and a phone takes the
       size: statSync(walk).size,
       lens: 'donut',
       role: 'model',
-      track: truth.walk.track,
+      walk_path: truth.walk.walk_path,
     });
     const put = await fetch(`${srv.url}/api/admin/venues/${VENUE}/videos/walk.mp4/content`, {
       method: 'PUT',

@@ -1,5 +1,5 @@
 // The issue's headline: an admin builds a venue entirely through the admin page, from nothing to
-// a checked map (sign in, venue, plan and scale, places, lens, a resumable video upload, the track
+// a checked map (sign in, venue, plan and scale, places, lens, a resumable video upload, the walk path
 // tagged from the suggested waypoints, modelling, the quality map, an evaluation walk); then the
 // PHONE APP on that venue, with the fake camera, answers within 2 m and 10 degrees. The inputs are
 // e2e/fixtures.py `admin`, a render of the quick demo's building (the fake camera's clip was filmed
@@ -13,11 +13,11 @@ import {
   adminFile,
   adminTruth,
   chooseVideos,
-  expectSavedTrackNear,
+  expectSavedWalkPathNear,
   clickPlanAt,
   modelAndWait,
   planSizeM,
-  saveTrack,
+  saveWalkPath,
   tagBySuggestions,
   waitUploadedAndSuggested,
 } from './admin-steps';
@@ -122,7 +122,7 @@ test('an admin builds a venue entirely through the page; the phone app answers t
   });
   await page.goto(`${base()}/admin`);
   const a = new Admin(page);
-  let trackOps = 0;
+  let walkPathOps = 0;
 
   await test.step('sign in and create the venue', async () => {
     await a.fill(page.getByLabel('Admin token'), TOKEN);
@@ -191,7 +191,7 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     await expect(page.getByRole('list', { name: 'Still to do for this venue' }).getByRole('link')).toHaveText([
       'Add the lens profile of the modelling camera',
       'Upload a modelling walk',
-      'Tag the walk’s track (where the walker was)',
+      'Tag the walk path (where the walker was)',
       'Model the tagged walks',
       'Compute the quality map',
       'Upload an evaluation walk, tag it and evaluate it',
@@ -236,20 +236,20 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     expect((await videoDoc('walk.mp4')).status).toBe('ready');
   });
 
-  await test.step('the track: each suggested waypoint accepted, the plan clicked where the walk was', async () => {
-    await a.click(nav(page, 'Track'));
+  await test.step('the walk path: each suggested waypoint accepted, the plan clicked where the walk was', async () => {
+    await a.click(nav(page, 'Walk path'));
     a.ops++;
     await page.getByLabel('Video', { exact: true }).selectOption('walk.mp4');
-    const clicks = await tagBySuggestions(page, truth.walk.track);
+    const clicks = await tagBySuggestions(page, truth.walk.walk_path);
     // the walk's start, its corner, its end: one click each, and few spurious ones
-    expect(clicks).toBeGreaterThanOrEqual(truth.walk.track.waypoints.length);
-    expect(clicks).toBeLessThanOrEqual(2 * truth.walk.track.waypoints.length);
-    await saveTrack(page, 'walk.mp4');
+    expect(clicks).toBeGreaterThanOrEqual(truth.walk.walk_path.waypoints.length);
+    expect(clicks).toBeLessThanOrEqual(2 * truth.walk.walk_path.waypoints.length);
+    await saveWalkPath(page, 'walk.mp4');
     console.log(
-      `walk.mp4 saved waypoints: at most ${(await expectSavedTrackNear(VENUE, 'walk.mp4', truth.walk.track)).toFixed(2)} m off`,
+      `walk.mp4 saved waypoints: at most ${(await expectSavedWalkPathNear(VENUE, 'walk.mp4', truth.walk.walk_path)).toFixed(2)} m off`,
     );
-    trackOps = 1 + clicks + 1; // "Tag the suggestions in order", a plan click each, "Save the track"
-    a.ops += trackOps;
+    walkPathOps = 1 + clicks + 1; // "Tag the suggestions in order", a plan click each, "Save the walk path"
+    a.ops += walkPathOps;
     // the walked corridors all have areas: modelling is next, said in a region of its own beside the save's words
     const todo = page.getByRole('list', { name: 'Still to do for this venue' }).getByRole('link');
     await expect(todo).toHaveText([
@@ -258,7 +258,7 @@ test('an admin builds a venue entirely through the page; the phone app answers t
       'Upload an evaluation walk, tag it and evaluate it',
     ]);
     await expect(todo.first()).toHaveAttribute('href', /\/modelling$/);
-    await expect(say(page)).toContainText('Track of walk.mp4 saved');
+    await expect(say(page)).toContainText('Walk path of walk.mp4 saved');
     await expect(page.locator('#steps-news')).toHaveText('3 steps left for this venue: Model the tagged walks.');
     // a walked corridor without its area (taken away by another admin): the checklist asks for it
     type P = { id: string; name: string; floor: string; x: number; y: number; area?: number[] };
@@ -335,13 +335,13 @@ test('an admin builds a venue entirely through the page; the phone app answers t
     a.ops += 2;
     await chooseVideos(page, [adminFile('eval.mp4')], { role: 'evaluation' });
     await a.waiting(() => waitUploadedAndSuggested(page, 'eval.mp4'));
-    await a.click(nav(page, 'Track'));
+    await a.click(nav(page, 'Walk path'));
     a.ops++;
     await page.getByLabel('Video', { exact: true }).selectOption('eval.mp4');
-    const clicks = await tagBySuggestions(page, truth.eval.track);
-    await saveTrack(page, 'eval.mp4');
+    const clicks = await tagBySuggestions(page, truth.eval.walk_path);
+    await saveWalkPath(page, 'eval.mp4');
     console.log(
-      `eval.mp4 saved waypoints: at most ${(await expectSavedTrackNear(VENUE, 'eval.mp4', truth.eval.track)).toFixed(2)} m off`,
+      `eval.mp4 saved waypoints: at most ${(await expectSavedWalkPathNear(VENUE, 'eval.mp4', truth.eval.walk_path)).toFixed(2)} m off`,
     );
     a.ops += clicks + 2;
     await a.click(nav(page, 'Evaluation'));
@@ -389,12 +389,12 @@ test('an admin builds a venue entirely through the page; the phone app answers t
         admin_operations: a.ops,
         walk_s: truth.walk.duration_s,
         walk_bytes: statSync(adminFile('walk.mp4')).size,
-        track_operations_with_suggestions: trackOps,
-        track_operations_per_video_minute_with_suggestions: trackOps / minutes,
+        walk_path_operations_with_suggestions: walkPathOps,
+        walk_path_operations_per_video_minute_with_suggestions: walkPathOps / minutes,
         // without suggestions, the admin steps through the video a second at a time ("Forward 1 s")
         // to find the corners on the panorama, then clicks the plan at each, and saves
-        track_operations_per_video_minute_without_suggestions:
-          (Math.ceil(truth.walk.duration_s) + truth.walk.track.waypoints.length + 1) / minutes,
+        walk_path_operations_per_video_minute_without_suggestions:
+          (Math.ceil(truth.walk.duration_s) + truth.walk.walk_path.waypoints.length + 1) / minutes,
         share_green: shareGreen,
         evaluation_within_2m: within2,
       },

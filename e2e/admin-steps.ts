@@ -16,7 +16,7 @@ export interface TruthWaypoint {
   x: number;
   y: number;
 }
-export interface TruthTrack {
+export interface TruthWalkPath {
   fps?: number;
   waypoints: TruthWaypoint[];
 }
@@ -24,8 +24,8 @@ export interface AdminTruth {
   plan: { size_px: [number, number]; px_per_m: number };
   scale: { a_px: [number, number]; b_px: [number, number]; distance_m: number };
   places: { name: string; x?: number; y?: number; area?: [number, number, number, number] }[];
-  walk: { track: TruthTrack; frames: number; duration_s: number };
-  eval: { track: TruthTrack; frames: number; duration_s: number };
+  walk: { walk_path: TruthWalkPath; frames: number; duration_s: number };
+  eval: { walk_path: TruthWalkPath; frames: number; duration_s: number };
 }
 
 export const adminTruth = (): AdminTruth => JSON.parse(readFileSync(adminFile('admin.json'), 'utf8')) as AdminTruth;
@@ -149,10 +149,10 @@ export async function waitUploadedAndSuggested(page: Page, name: string, timeout
   expect(again).toEqual([]);
 }
 
-/** Where a truth track has the walker at `t` (linear between waypoints, clamped to its ends). */
-export function truthAt(track: TruthTrack, t: number): { x: number; y: number } {
-  const fps = track.fps ?? 30;
-  const w = track.waypoints.map((p) => ({ t: p.t ?? (p.frame ?? 0) / fps, x: p.x, y: p.y }));
+/** Where a truth walk path has the walker at `t` (linear between waypoints, clamped to its ends). */
+export function truthAt(walkPath: TruthWalkPath, t: number): { x: number; y: number } {
+  const fps = walkPath.fps ?? 30;
+  const w = walkPath.waypoints.map((p) => ({ t: p.t ?? (p.frame ?? 0) / fps, x: p.x, y: p.y }));
   if (t <= w[0].t) return w[0];
   for (let i = 1; i < w.length; i++)
     if (t <= w[i].t) {
@@ -203,10 +203,10 @@ export function planSizeM(truth = adminTruth()): [number, number] {
 }
 
 /**
- * On the track screen of a video: accept the suggestions in order, clicking the plan where the
+ * On the walk path screen of a video: accept the suggestions in order, clicking the plan where the
  * walker truly was at each suggested moment; -> how many plan clicks it took.
  */
-export async function tagBySuggestions(page: Page, track: TruthTrack, sizeM = planSizeM()): Promise<number> {
+export async function tagBySuggestions(page: Page, walkPath: TruthWalkPath, sizeM = planSizeM()): Promise<number> {
   // what the status region says, as a screen reader hears it: each text it is given
   await page.evaluate(() => {
     const w = window as unknown as { heard: string[] };
@@ -222,8 +222,8 @@ export async function tagBySuggestions(page: Page, track: TruthTrack, sizeM = pl
     const current = page.locator('#suggestions button[aria-current="true"]');
     if ((await current.count()) === 0) break;
     const t = Number(await current.getAttribute('data-t'));
-    const at = truthAt(track, t);
-    await clickPlanAt(page, '#track-plan', at.x, at.y, sizeM);
+    const at = truthAt(walkPath, t);
+    await clickPlanAt(page, '#walk-path-plan', at.x, at.y, sizeM);
     // the click is taken: that suggestion is tagged (and the next one, if any, is current)
     await expect(page.locator(`#suggestions li.tagged button[data-t="${t}"]`)).toHaveCount(1);
   }
@@ -237,18 +237,18 @@ export async function tagBySuggestions(page: Page, track: TruthTrack, sizeM = pl
 }
 
 /**
- * The track the server keeps for a video: each waypoint where the walker truly was at its time,
+ * The walk path the server keeps for a video: each waypoint where the walker truly was at its time,
  * within `tolM` (the clicks land where they were aimed, the snapping to corridor lines moves them
  * little); -> the largest distance. A click measured against a moving plan would land metres off
  * and make every later figure (modelling, evaluation) wrong for a reason those steps cannot name.
  */
-export async function expectSavedTrackNear(
+export async function expectSavedWalkPathNear(
   venue: string,
   name: string,
-  truth: TruthTrack,
+  truth: TruthWalkPath,
   tolM = 1.0,
 ): Promise<number> {
-  const saved = await adminApi<TruthTrack>('GET', `/api/admin/venues/${venue}/videos/${name}/track`);
+  const saved = await adminApi<TruthWalkPath>('GET', `/api/admin/venues/${venue}/videos/${name}/walk-path`);
   const fps = saved.fps ?? 30;
   const off = saved.waypoints.map((p) => {
     const t = p.t ?? (p.frame ?? 0) / fps;
@@ -261,12 +261,12 @@ export async function expectSavedTrackNear(
   return worst;
 }
 
-/** Save the track on the track screen and wait for the server's yes. */
-export async function saveTrack(page: Page, name: string): Promise<void> {
-  await page.getByRole('button', { name: 'Save the track' }).click();
-  await expect(page.locator('#track-status')).toContainText(`Track of ${name} saved`);
+/** Save the walk path on the walk path screen and wait for the server's yes. */
+export async function saveWalkPath(page: Page, name: string): Promise<void> {
+  await page.getByRole('button', { name: 'Save the walk path' }).click();
+  await expect(page.locator('#walk-path-status')).toContainText(`Walk path of ${name} saved`);
   // disabled while it saved, the button has the focus back, not the page
-  await expect(page.getByRole('button', { name: 'Save the track' })).toBeFocused();
+  await expect(page.getByRole('button', { name: 'Save the walk path' })).toBeFocused();
 }
 
 /** On the modelling screen: model the waiting videos and watch the progress bar reach 100 %. */

@@ -1,7 +1,7 @@
-// The admin page's videos, track and modelling screens against the real server: a walk video
+// The admin page's videos, walk path and modelling screens against the real server: a walk video
 // uploaded in pieces, paused and resumed, its connection cut and the page reloaded, then resumed
 // from the server's `received` when the file is chosen again (no byte sent twice); refused videos
-// say why (here, before any byte goes; or the server's reason); the track tagged by accepting the
+// say why (here, before any byte goes; or the server's reason); the walk path tagged by accepting the
 // suggested waypoints and clicking the plan; a stale save refused; the venue modelled to 100 %.
 import { execFileSync } from 'node:child_process';
 import { mkdirSync, readFileSync, statSync, writeFileSync } from 'node:fs';
@@ -16,7 +16,7 @@ import {
   modelAndWait,
   openScreen,
   planSizeM,
-  saveTrack,
+  saveWalkPath,
   signIn,
   tagBySuggestions,
   uploadBar,
@@ -35,8 +35,8 @@ interface VideoDoc {
   size: number;
   received: number;
   status: string;
-  tracked: boolean;
-  track: { waypoints: unknown[] } | null;
+  has_walk_path: boolean;
+  walk_path: { waypoints: unknown[] } | null;
 }
 const videoDoc = (name: string) => adminApi<VideoDoc>('GET', `/api/admin/venues/${VENUE}/videos/${name}`);
 
@@ -194,35 +194,35 @@ test('a video the lens cannot read is refused here at once; one the server refus
   await expectNoAxeViolations(page, 'the videos screen with refusals');
 });
 
-test('the track is tagged by accepting the suggestions, saved (a stale save refused), and modelled to 100 %', async ({
+test('the walk path is tagged by accepting the suggestions, saved (a stale save refused), and modelled to 100 %', async ({
   page,
 }) => {
   const truth = adminTruth();
   await signIn(page);
-  await openScreen(page, VENUE, 'track', 'video=walk.mp4');
+  await openScreen(page, VENUE, 'walk-path', 'video=walk.mp4');
   await expect(page.locator('img[alt^="Unwrapped panorama of walk.mp4 at"]')).toBeVisible();
   await expect(page.locator('img[alt^="Camera frame of walk.mp4 at"]')).toBeVisible();
   const suggestions = await page.locator('#suggestions button').count();
   expect(suggestions).toBeGreaterThan(1);
 
-  const clicks = await tagBySuggestions(page, truth.walk.track);
+  const clicks = await tagBySuggestions(page, truth.walk.walk_path);
   // one click per suggestion: a start, one corner, an end (and few spurious ones)
   expect(clicks).toBe(suggestions);
-  const corners = truth.walk.track.waypoints.length;
+  const corners = truth.walk.walk_path.waypoints.length;
   expect(clicks).toBeLessThanOrEqual(2 * corners);
   await expect(page.locator('#waypoints tbody tr')).toHaveCount(await page.locator('#waypoints tbody tr').count());
-  await expectNoAxeViolations(page, 'the track screen');
-  await saveTrack(page, 'walk.mp4');
+  await expectNoAxeViolations(page, 'the walk path screen');
+  await saveWalkPath(page, 'walk.mp4');
   const saved = await videoDoc('walk.mp4');
-  expect(saved.tracked).toBe(true);
+  expect(saved.has_walk_path).toBe(true);
 
   // another admin changes the venue meanwhile: the next save is refused, and says why
   await adminApi('PATCH', `/api/admin/venues/${VENUE}`, { name: 'Renamed in another tab' });
-  await page.getByRole('button', { name: 'Save the track' }).click();
+  await page.getByRole('button', { name: 'Save the walk path' }).click();
   await expect(page.locator('#alert')).toContainText('changed since you opened it');
   await page.getByRole('button', { name: 'Reload the venue' }).click();
   await expect(page.locator('img[alt^="Unwrapped panorama of walk.mp4 at"]')).toBeVisible();
-  await saveTrack(page, 'walk.mp4');
+  await saveWalkPath(page, 'walk.mp4');
 
   await openScreen(page, VENUE, 'modelling');
   await expect(page.locator('#model-start')).toHaveText('Model 1 video');
@@ -236,7 +236,7 @@ test('the track is tagged by accepting the suggestions, saved (a stale save refu
 test('waypoints can be typed, deleted and downloaded; the video plays and steps by keyboard', async ({ page }) => {
   const sizeM = planSizeM();
   await signIn(page);
-  await openScreen(page, VENUE, 'track', 'video=walk.mp4');
+  await openScreen(page, VENUE, 'walk-path', 'video=walk.mp4');
   await expect(page.locator('img[alt^="Unwrapped panorama of walk.mp4 at"]')).toBeVisible();
   const rows = page.locator('#waypoints tbody tr');
   const n = await rows.count();
@@ -254,7 +254,7 @@ test('waypoints can be typed, deleted and downloaded; the video plays and steps 
 
   // a click off the corridor lines with snapping off stays where it was clicked
   await page.getByLabel(/^Snap to the corridor lines/).uncheck();
-  await clickPlanAt(page, '#track-plan', 10, 2.7, sizeM);
+  await clickPlanAt(page, '#walk-path-plan', 10, 2.7, sizeM);
   await expect(rows).toHaveCount(n + 1);
   const y = Number(await page.getByLabel('Waypoint 2 y in metres').inputValue());
   expect(Math.abs(y - 2.7)).toBeLessThan(0.2);
@@ -270,19 +270,19 @@ test('waypoints can be typed, deleted and downloaded; the video plays and steps 
   await page.keyboard.press('Tab');
   await expect(page.getByRole('button', { name: 'Go to waypoint 2 (0:05.0)' })).toBeFocused();
   await expect(page.locator('.pm-waypoint[aria-label^="Waypoint 2 at 0:05.0: x 9.50 m, y 2.00 m"]')).toHaveCount(1);
-  await expect(page.locator('#track-dirty')).toHaveText('Unsaved changes.');
+  await expect(page.locator('#walk-path-dirty')).toHaveText('Unsaved changes.');
 
-  // the download is the track as it stands
-  const [download] = await Promise.all([page.waitForEvent('download'), page.locator('#track-download').click()]);
-  expect(download.suggestedFilename()).toBe('walk.mp4.track.json');
-  const track = JSON.parse(readFileSync(await download.path(), 'utf8')) as { waypoints: { t: number; x: number }[] };
-  expect(track.waypoints).toHaveLength(n + 1);
-  expect(track.waypoints[1]).toEqual({ t: 5, x: 9.5, y: 2 });
+  // the download is the walk path as it stands
+  const [download] = await Promise.all([page.waitForEvent('download'), page.locator('#walk-path-download').click()]);
+  expect(download.suggestedFilename()).toBe('walk.mp4.walk_path.json');
+  const walkPath = JSON.parse(readFileSync(await download.path(), 'utf8')) as { waypoints: { t: number; x: number }[] };
+  expect(walkPath.waypoints).toHaveLength(n + 1);
+  expect(walkPath.waypoints[1]).toEqual({ t: 5, x: 9.5, y: 2 });
 
-  // deleted again: the track is as saved
+  // deleted again: the walk path is as saved
   await page.getByRole('button', { name: 'Delete waypoint 2' }).click();
   await expect(rows).toHaveCount(n);
-  await expect(page.locator('#track-dirty')).toHaveText('Saved.');
+  await expect(page.locator('#walk-path-dirty')).toHaveText('Saved.');
 
   // play moves the time on; pause stops it
   await page.getByRole('button', { name: 'Play' }).click();

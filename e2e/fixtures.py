@@ -247,14 +247,14 @@ ADMIN_PLACES = [
 
 def admin(out: Path) -> None:
     """The admin page's inputs (plan.png, lens.json, walk.mp4, eval.mp4) and admin.json: the truth
-    (each walk's track, corners and duration), the places to draw and the scale's two plan pixels.
+    (each walk's walk path, corners and duration), the places to draw and the scale's two plan pixels.
     Deterministic, and small: two walks of about 20 s at 480 x 360."""
     from omninav.synth.scene import floorplan_image
-    from omninav.synth.walks import MODELLING, poses_from_track, track_for, write_video
+    from omninav.synth.walks import MODELLING, poses_from_walk_path, walk_path_for, write_video
 
     out.mkdir(parents=True, exist_ok=True)
     # rendered once (about 25 s on two cores), again when what it is made from changes
-    recipe = json.dumps([ADMIN_WALK, ADMIN_EVAL, ADMIN_PLACES, 1])
+    recipe = json.dumps([ADMIN_WALK, ADMIN_EVAL, ADMIN_PLACES, 2])  # 2: the truth's walk_path key
     if (out / "admin.json").exists() and json.loads((out / "admin.json").read_text()).get("recipe") == recipe:
         return
     scene = build_scene(0, "small")
@@ -269,11 +269,11 @@ def admin(out: Path) -> None:
         ("walk.mp4", ADMIN_WALK, 1.2, MODELLING, 21),
         ("eval.mp4", ADMIN_EVAL, 1.0, look, 31),
     ):
-        track = track_for(route, [speed], fps)
-        poses = poses_from_track(track, perturb, np.random.default_rng(seed), turn_s=1.5)
+        walk_path = walk_path_for(route, [speed], fps)
+        poses = poses_from_walk_path(walk_path, perturb, np.random.default_rng(seed), turn_s=1.5)
         frames = (f for _, f in render_frames(scene, lens, poses, perturb, seed + 1))
         n = write_video(out / name, frames, fps, lens.image_size)
-        walks[name] = {"track": track, "frames": n, "duration_s": (n - 1) / fps}
+        walks[name] = {"walk_path": walk_path, "frames": n, "duration_s": (n - 1) / fps}
     (out / "admin.json").write_text(
         json.dumps(
             {
@@ -424,11 +424,11 @@ def walk_poses(name: str, fps: float, rng: np.random.Generator) -> list[Pose]:
 
 def walk(out: Path, name: str, fps: int = 10, scale: float = 0.5) -> None:
     """OUT/NAME.y4m (the walk WALKS[NAME] for the fake camera, at `fps`) and OUT/NAME.json: its
-    truth (its positions as a track in docs/formats.md's form, for `omninav evaluate`; the pose,
+    truth (its positions as a walk path in docs/formats.md's form, for `omninav evaluate`; the pose,
     heading included, every half second; each step's start time). Rendered once (about 30 s on two
     cores), again when its recipe changes; the truth is written last, so a cut-off render is redone."""
     out.mkdir(parents=True, exist_ok=True)
-    recipe = json.dumps([WALKS[name], WALK_SPEED, TURN_S, repr(WALK_LOOK), fps, scale, 1])
+    recipe = json.dumps([WALKS[name], WALK_SPEED, TURN_S, repr(WALK_LOOK), fps, scale, 2])  # 2: walk_path
     truth_path = out / f"{name}.json"
     if (out / f"{name}.y4m").exists() and truth_path.exists():
         if json.loads(truth_path.read_text()).get("recipe") == recipe:
@@ -449,7 +449,7 @@ def walk(out: Path, name: str, fps: int = 10, scale: float = 0.5) -> None:
                 "frames": n,
                 "duration_s": (n - 1) / fps,
                 "size": list(lens.image_size),
-                "track": {"fps": fps, "waypoints": wps, "heading_offset_deg": 0.0},
+                "walk_path": {"fps": fps, "waypoints": wps, "heading_offset_deg": 0.0},
                 "poses": [[round(p.t, 2), round(p.x, 3), round(p.y, 3), round(p.heading, 1)] for p in half],
                 "marks": marks,
             },

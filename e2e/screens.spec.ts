@@ -165,12 +165,12 @@ async function modelFromDemoVideo(id: string): Promise<void> {
     type: 'image/png',
   });
   await admin(`/venues/${id}/lenses/donut`, 'PUT', JSON.parse(readFileSync(resolve(src, 'model_lens.json'), 'utf8')));
-  const track = JSON.parse(readFileSync(resolve(src, 'model_track.json'), 'utf8'));
+  const walkPath = JSON.parse(readFileSync(resolve(src, 'model_walk_path.json'), 'utf8'));
   await admin(`/venues/${id}/videos`, 'POST', {
     name: 'walk.mp4',
     floor: '1',
     size: video.length,
-    track,
+    walk_path: walkPath,
     lens: 'donut',
   });
   await admin(`/venues/${id}/videos/walk.mp4/content`, 'PUT', null, { raw: video });

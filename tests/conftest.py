@@ -22,7 +22,7 @@ from omninav.lens import load_lens
 from omninav.model_venue import model_video
 from omninav.store import Store
 from omninav.synth import Dataset, equirect_lens, make_dataset
-from omninav.track import load_track
+from omninav.walk_path import load_walk_path
 
 OMNINAV = str(Path(sys.executable).with_name("omninav"))
 # The apps the tests make do not warm their venues in the background (WARM_VENUES): a build
@@ -43,7 +43,11 @@ def modelled(small_ds: Dataset, tmp_path_factory: pytest.TempPathFactory) -> tup
     alone, no catalogue (the catalogue's own tests build theirs through it)."""
     st = Store(tmp_path_factory.mktemp("store"))
     model_video(
-        st, "lab", small_ds.model_video, load_track(small_ds.model_track), load_lens(small_ds.root / "model_lens.json")
+        st,
+        "lab",
+        small_ds.model_video,
+        load_walk_path(small_ds.model_walk_path),
+        load_lens(small_ds.root / "model_lens.json"),
     )
     return st, "lab"
 
@@ -108,7 +112,7 @@ def run_cli(*args: str, data: Path | None = None, check: bool = False) -> subpro
 def cli_model(ds: Dataset, venue_id: str, data: Path) -> subprocess.CompletedProcess:
     """`omninav model` of a synthetic dataset's modelling walk into a venue, as a user would."""
     model_lens = ds.root / "model_lens.json"
-    args = ["model", venue_id, str(ds.model_video), "--track", str(ds.model_track), "--lens", str(model_lens)]
+    args = ["model", venue_id, str(ds.model_video), "--walk-path", str(ds.model_walk_path), "--lens", str(model_lens)]
     return run_cli(*args, data=data, check=True)
 
 

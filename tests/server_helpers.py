@@ -16,8 +16,8 @@ from omninav.calib.correct import clip_spectra as clip_lens_spectra
 from omninav.extract import Extractor
 from omninav.lens import load_lens
 from omninav.server.venues_api import openapi_doc
-from omninav.track import load_track
 from omninav.video import VideoInfo, iter_video
+from omninav.walk_path import load_walk_path
 
 TOKEN = "test-admin-token"
 ADMIN = {"Authorization": f"Bearer {TOKEN}"}
@@ -87,7 +87,7 @@ def query_clip(ds: Any, start: int, n: int = 10) -> tuple[list[np.ndarray], tupl
         if i >= start + n:
             break
         frames.append(f)
-    tr = load_track(ds.query_track)
+    tr = load_walk_path(ds.query_walk_path)
     xy, h, _ = tr.pose_at(np.array([(start + n - 1) / tr.fps]))
     return frames, (float(xy[0, 0]), float(xy[0, 1]), float(h[0]))
 

@@ -3,12 +3,13 @@
 import json
 import shutil
 
+import click
 import cv2
 import numpy as np
 import pytest
 
 from conftest import cli_model, run_cli
-from omninav.track import load_track
+from omninav.walk_path import load_walk_path
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +58,7 @@ def clips(small_ds, tmp_path_factory):
         if not ok:
             break
         frames.append(f)
-    tr = load_track(small_ds.query_track)
+    tr = load_walk_path(small_ds.query_walk_path)
     truth = {}
     a, b = 40, 120  # clips end at frames a+9 and b+9
     vw = cv2.VideoWriter(str(d / "q1.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 10, (480, 360))
@@ -97,13 +98,13 @@ def test_locate_median_baseline_runs(cli_venue, clips, small_ds):
 
 
 def evaluate_args(ds, plot):
-    """`omninav evaluate` on the venue's query walk, with its track and lens, plot to `plot`."""
+    """`omninav evaluate` on the venue's query walk, with its walk path and lens, plot to `plot`."""
     return [
         "evaluate",
         "lab",
         str(ds.query_video),
-        "--track",
-        str(ds.query_track),
+        "--walk-path",
+        str(ds.query_walk_path),
         "--lens",
         str(ds.lens),
         "--plot",
@@ -157,13 +158,13 @@ def _bad_inputs(small_ds, tmp):
     empty = tmp / "empty"
     empty.mkdir(exist_ok=True)
     m = ["model", "lab", str(small_ds.model_video)]
-    t, l = ["--track", str(small_ds.model_track)], ["--lens", str(small_ds.root / "model_lens.json")]
+    t, l = ["--walk-path", str(small_ds.model_walk_path)], ["--lens", str(small_ds.root / "model_lens.json")]
     return [
         (["model", "lab", str(tmp / "nope.mp4"), *t, *l], "video not found"),
         (["model", "lab", str(junk), *t, *l], "not a readable video"),
-        ([*m, "--track", str(bad_track), *l], "increasing time"),
+        ([*m, "--walk-path", str(bad_track), *l], "increasing time"),
         ([*m, *t, "--lens", str(bad_lens)], "r_outer"),
-        ([*m, "--track", str(tmp / "none.json"), *l], "track file not found"),
+        ([*m, "--walk-path", str(tmp / "none.json"), *l], "walk path file not found"),
         (["model", "nowhere", str(small_ds.model_video), *t, *l], "unknown venue"),
         (["locate", "nowhere", str(junk)], "unknown venue"),
         (["locate", "lab", str(tmp / "nope.mp4")], "clip not found"),
@@ -210,7 +211,7 @@ def test_a_long_clip_is_located_by_its_last_frames(cli_venue, small_ds, tmp_path
     with the pose at its last frame."""
     p = run_cli("locate", "lab", str(small_ds.query_video), "--lens", str(small_ds.lens), data=cli_venue, check=True)
     a = json.loads(p.stdout)
-    tr = load_track(small_ds.query_track)
+    tr = load_walk_path(small_ds.query_walk_path)
     assert np.hypot(a["x"] - tr.xy[-1, 0], a["y"] - tr.xy[-1, 1]) < 2.0
 
 
@@ -254,8 +255,10 @@ def test_a_plot_path_in_a_missing_folder_is_one_clear_line(cli_venue, small_ds, 
 def test_record_and_lens_errors_name_the_file_and_the_problem(cli_venue, clips, small_ds):
     """Found by hand: a JSON file that is no record, and a --lens that is no lens profile."""
     d, _ = clips
-    p = run_cli("locate", "lab", str(small_ds.model_track), data=cli_venue)
-    assert p.returncode != 0 and str(small_ds.model_track) in p.stderr and "not an omninav feature record" in p.stderr
+    p = run_cli("locate", "lab", str(small_ds.model_walk_path), data=cli_venue)
+    assert (
+        p.returncode != 0 and str(small_ds.model_walk_path) in p.stderr and "not an omninav feature record" in p.stderr
+    )
     p = run_cli("features", "lab", str(d / "q2"), "--lens", str(small_ds.floorplan), data=cli_venue)
     assert p.returncode != 0 and "lens profile is not readable JSON" in p.stderr and "give --lens" not in p.stderr
 
@@ -310,16 +313,24 @@ def test_model_anew_brings_a_venue_modelled_before_its_preset_improved_up_to_dat
     run_cli("venue", "create", "lab", *plan, data=data, check=True)
     cat = Catalog.open(load_config({"DATA": str(data)}))
     lens = small_ds.root / "model_lens.json"
-    track, old = load_track(small_ds.model_track), {**resolve("default"), "soft_clip_sd": None}
-    model_video(cat.store, "lab", small_ds.model_video, track, load_lens(lens), settings=old)
+    walk_path, old = load_walk_path(small_ds.model_walk_path), {**resolve("default"), "soft_clip_sd": None}
+    model_video(cat.store, "lab", small_ds.model_video, walk_path, load_lens(lens), settings=old)
     other = tmp_path / "second-walk.mp4"
     shutil.copy(small_ds.model_video, other)
-    model_video(cat.store, "lab", other, track, load_lens(lens), settings=old)
+    model_video(cat.store, "lab", other, walk_path, load_lens(lens), settings=old)
     frames, live = cat.store.frame_count("lab"), cat.store.generation("lab")
     now = settings_id(resolve("default"))
     assert settings_id(cat.store.settings("lab")) != now
 
-    anew = ["model", "lab", str(small_ds.model_video), "--track", str(small_ds.model_track), "--lens", str(lens)]
+    anew = [
+        "model",
+        "lab",
+        str(small_ds.model_video),
+        "--walk-path",
+        str(small_ds.model_walk_path),
+        "--lens",
+        str(lens),
+    ]
     p = run_cli(*anew, "--anew", data=data)
     assert p.returncode != 0 and "would drop the frames of 'second-walk.mp4'" in p.stderr, p.stderr
     assert "Traceback" not in p.stderr and cat.store.generation("lab") == live  # nothing changed
@@ -339,7 +350,41 @@ def test_model_anew_brings_a_venue_modelled_before_its_preset_improved_up_to_dat
     shutil.copy(small_ds.model_video, evaluation)
     cat.videos.add_file("lab", evaluation, "1", "donut", None, role="evaluation")  # not a modelling walk
     run_cli(*anew, "--anew", data=data, check=True)
-    cat.videos.add_file("lab", other, "1", "donut", json.loads(small_ds.model_track.read_text()))
+    cat.videos.add_file("lab", other, "1", "donut", json.loads(small_ds.model_walk_path.read_text()))
     p = run_cli(*anew, "--anew", data=data)
     assert p.returncode != 0 and "has uploaded modelling videos ('second-walk.mp4')" in p.stderr, p.stderr
     assert "/api/admin/venues/lab/jobs" in p.stderr
+
+
+def test_a_renamed_option_keeps_its_old_name_for_a_release(tmp_path):
+    """`--walk-path` was `--track`: the old name still works and says the new one; both at once,
+    or neither, is a usage error naming the new one."""
+    from click.testing import CliRunner
+
+    from omninav.cli_context import renamed_path_option
+
+    @click.command()
+    @renamed_path_option("--walk-path", "--track", "walk_path_file", help="walk_path.json")
+    def cmd(walk_path_file):
+        click.echo(f"read {walk_path_file.name}")
+
+    run = CliRunner().invoke
+    new, old = run(cmd, ["--walk-path", "a.json"]), run(cmd, ["--track", "b.json"])
+    assert new.exit_code == 0 and new.stdout == "read a.json\n" and new.stderr == ""
+    assert old.exit_code == 0 and old.stdout == "read b.json\n"
+    assert "--track is now --walk-path" in old.stderr
+    both, neither = run(cmd, ["--walk-path", "a.json", "--track", "b.json"]), run(cmd, [])
+    assert both.exit_code == 2 and "give --walk-path only" in both.stderr
+    assert neither.exit_code == 2 and "Missing option '--walk-path'" in neither.stderr
+    assert "--track" not in run(cmd, ["--help"]).stdout  # hidden: the help shows one name
+
+
+def test_model_reads_the_old_track_flag(cli_venue, small_ds, tmp_path):
+    """The real command under its old flag: the same check, one line more on stderr."""
+    lens = ["--lens", str(small_ds.root / "model_lens.json")]
+    p = run_cli(
+        "model", "lab", str(tmp_path / "nope.mp4"), "--track", str(small_ds.model_walk_path), *lens, data=cli_venue
+    )
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode != 0 and len(lines) == 2, p.stderr
+    assert "--track is now --walk-path" in lines[0] and "video not found" in lines[1]

@@ -7,7 +7,7 @@ import cv2
 
 from conftest import run_cli
 from omninav.lens import load_lens
-from omninav.track import load_track
+from omninav.walk_path import load_walk_path
 
 
 def test_demo_quick_prints_both_methods(tmp_path):
@@ -31,7 +31,7 @@ def test_synth_writes_a_complete_dataset(tmp_path):
     assert json.loads(p.stdout)["px_per_m"] == 20.0
     lens = load_lens(out / "lens.json")
     assert lens.image_size == (480, 360)
-    assert load_track(out / "query_track.json").times[-1] > 10
+    assert load_walk_path(out / "query_walk_path.json").times[-1] > 10
     cap = cv2.VideoCapture(str(out / "query.mp4"))
     ok, frame = cap.read()
     assert ok and frame.shape == (360, 480, 3)

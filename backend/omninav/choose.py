@@ -29,7 +29,7 @@ from .locate import Locator
 from .model_venue import model_video
 from .presets import PRESETS, resolve
 from .store import Store
-from .track import Track
+from .walk_path import WalkPath
 
 CANDIDATES = ("default", "wide")
 
@@ -71,10 +71,10 @@ def pick(near: Mapping[str, np.ndarray]) -> str:
 
 def compare_presets(
     walk: Path,
-    track: Track,
+    walk_path: WalkPath,
     lens: Lens,
     eval_video: Path,
-    eval_track: Track,
+    eval_walk_path: WalkPath,
     eval_lens: Lens | None,
     presets: Sequence[str] = CANDIDATES,
     progress: Callable[[str], None] | None = None,
@@ -88,13 +88,13 @@ def compare_presets(
         for name in names:
             if progress:
                 progress(f"modelling {walk.name} with the {name} preset")
-            r = model_video(st, name, walk, track, lens, settings=resolve(name))
+            r = model_video(st, name, walk, walk_path, lens, settings=resolve(name))
             if progress:
                 progress(f"locating {eval_video.name} against it")
-            ev = evaluate(Locator(st, name), eval_video, eval_track, eval_lens)
+            ev = evaluate(Locator(st, name), eval_video, eval_walk_path, eval_lens)
             s = ev.summary()
             if not s.get("clips"):
-                raise OmninavError(f"{eval_video}: no clip of the evaluation walk lies within its track")
+                raise OmninavError(f"{eval_video}: no clip of the evaluation walk lies within its walk path")
             near[name] = np.array([row["err_m"] <= 2.0 for row in ev.rows])
             out.append({"preset": name, "venue_frames": r.total_frames, **s})
     return out, pick(near)

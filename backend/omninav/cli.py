@@ -18,7 +18,7 @@ import click
 
 from .calib.commands import calib
 from .catalog import Catalog
-from .cli_context import catalog_of
+from .cli_context import catalog_of, renamed_path_option
 from .cli_server import SERVER_COMMANDS
 from .errors import OmninavError, read_json
 
@@ -181,7 +181,7 @@ def venue_delete(ctx: click.Context, venue_id: str, yes: bool) -> None:
 @cli.command()
 @click.argument("venue_id", metavar="VENUE")
 @click.argument("video", type=click.Path(path_type=Path))
-@click.option("--track", "track_path", required=True, type=click.Path(path_type=Path), help="track.json")
+@renamed_path_option("--walk-path", "--track", "walk_path_file", help="walk_path.json")
 @click.option("--lens", "lens_path", required=True, type=click.Path(path_type=Path), help="lens.json")
 @click.option(
     "--anew",
@@ -190,11 +190,11 @@ def venue_delete(ctx: click.Context, venue_id: str, yes: bool) -> None:
     "modelled before the preset improved): its frames replace all the venue's.",
 )
 @click.pass_context
-def model(ctx: click.Context, venue_id: str, video: Path, track_path: Path, lens_path: Path, anew: bool) -> None:
-    """Model VENUE from a panoramic VIDEO walked along TRACK."""
+def model(ctx: click.Context, venue_id: str, video: Path, walk_path_file: Path, lens_path: Path, anew: bool) -> None:
+    """Model VENUE from a panoramic VIDEO walked along its walk path (the recorder's positions over time)."""
     from .lens import load_lens
     from .model_venue import VideoSource, model_videos
-    from .track import load_track
+    from .walk_path import load_walk_path
 
     cat = catalog_of(ctx)
     # (unknown venue: refused here, before any work)
@@ -202,10 +202,10 @@ def model(ctx: click.Context, venue_id: str, video: Path, track_path: Path, lens
     check = (lambda: _check_anew(cat, venue_id, video.name)) if anew else None
     if check:
         check()
-    track, lens = load_track(track_path), load_lens(lens_path)
+    walk_path, lens = load_walk_path(walk_path_file), load_lens(lens_path)
     bar = Progress(f"modelling {video.name}{' anew' if anew else ''}")
     try:
-        sources = [VideoSource(video, track, lens)]
+        sources = [VideoSource(video, walk_path, lens)]
         (r,) = model_videos(cat.store, venue_id, sources, bar, before_commit=check, settings=settings, anew=anew)
     finally:
         bar.close()
@@ -370,7 +370,7 @@ def features(venue_id: str, clip: Path, lens_path: Path | None, out: Path | None
 @cli.command()
 @click.argument("venue_id", metavar="VENUE")
 @click.argument("video", type=click.Path(path_type=Path))
-@click.option("--track", "track_path", required=True, type=click.Path(path_type=Path))
+@renamed_path_option("--walk-path", "--track", "walk_path_file", help="walk_path.json")
 @click.option("--lens", "lens_path", required=True, type=click.Path(path_type=Path))
 @click.option("--aggregate", type=click.Choice(["median", "sequence"]))
 @click.option("--plot", "plot_path", type=click.Path(path_type=Path), help="PNG (default: VIDEO.eval.png).")
@@ -401,7 +401,7 @@ def evaluate(
     ctx: click.Context,
     venue_id: str,
     video: Path,
-    track_path: Path,
+    walk_path_file: Path,
     lens_path: Path,
     aggregate: str | None,
     plot_path: Path | None,
@@ -412,13 +412,13 @@ def evaluate(
     every: float,
     imu_path: Path | None,
 ) -> None:
-    """Cut a second walk into clips (1 s unless --clip-s), locate each, report accuracy against its TRACK."""
+    """Cut a second walk into clips (1 s unless --clip-s), locate each, report accuracy against its walk path."""
     from .evaluate import evaluate as run
     from .evaluate import plot, walk_result
     from .lens import load_lens
-    from .track import load_track
+    from .walk_path import load_walk_path
 
-    track, lens = load_track(track_path), load_lens(lens_path)
+    walk_path, lens = load_walk_path(walk_path_file), load_lens(lens_path)
     out = plot_path or video.with_suffix(".eval.png")
     if not out.parent.is_dir():  # fail before the work, not after
         raise OmninavError(f"{out.parent}: folder for the plot does not exist")
@@ -430,10 +430,10 @@ def evaluate(
                 "--track-mode answers the walk since the last answer (at least 1 s) with the venue's "
                 "aggregation: no --clips, --clip-s, --aggregate"
             )
-        _evaluate_track(ctx, venue_id, video, track, lens, out, as_json, every, imu_path)
+        _evaluate_track(ctx, venue_id, video, walk_path, lens, out, as_json, every, imu_path)
         return
     loc = _locator(ctx, venue_id)
-    ev = run(loc, video, track, lens, aggregate, clip_s)
+    ev = run(loc, video, walk_path, lens, aggregate, clip_s)
     s = ev.summary()
     plot(ev, loc, out)
     s["plot"] = str(out)
@@ -500,7 +500,7 @@ def _evaluate_track(
     ctx: click.Context,
     venue_id: str,
     video: Path,
-    track: Any,
+    walk_path: Any,
     lens: Any,
     out: Path,
     as_json: bool,
@@ -515,7 +515,7 @@ def _evaluate_track(
     loc = _track_locator(ctx, venue_id)
     bar = Progress(f"reading {video.name}")
     try:
-        spec = query_spectra(loc, video, track, lens, bar)
+        spec = query_spectra(loc, video, walk_path, lens, bar)
     finally:
         bar.close()
     single, tracked = evaluate_track(loc, *spec, every=every, imu=imu)
@@ -549,10 +549,10 @@ def _table(rows: list[tuple[str, dict[str, Any]]], confident: bool = False) -> s
 
 @cli.command("choose-preset")
 @click.argument("walk", type=click.Path(path_type=Path))
-@click.option("--track", "track_path", required=True, type=click.Path(path_type=Path), help="The walk's track.json.")
+@renamed_path_option("--walk-path", "--track", "walk_path_file", help="The walk's walk_path.json.")
 @click.option("--lens", "lens_path", required=True, type=click.Path(path_type=Path), help="The walk's lens.json.")
 @click.option("--eval", "eval_path", required=True, type=click.Path(path_type=Path), help="An evaluation walk (video).")
-@click.option("--eval-track", "eval_track_path", required=True, type=click.Path(path_type=Path), help="Its track.")
+@renamed_path_option("--eval-walk-path", "--eval-track", "eval_walk_path_file", help="Its walk path.")
 @click.option("--eval-lens", "eval_lens_path", type=click.Path(path_type=Path), help="Its lens (default: --lens).")
 @click.option(
     "--presets", help="Presets to choose among, comma-separated, the one to keep first (default: default,wide)."
@@ -560,10 +560,10 @@ def _table(rows: list[tuple[str, dict[str, Any]]], confident: bool = False) -> s
 @click.option("--json", "as_json", is_flag=True, help="Print each preset's summary and the choice as JSON.")
 def choose_preset(
     walk: Path,
-    track_path: Path,
+    walk_path_file: Path,
     lens_path: Path,
     eval_path: Path,
-    eval_track_path: Path,
+    eval_walk_path_file: Path,
     eval_lens_path: Path | None,
     presets: str | None,
     as_json: bool,
@@ -574,8 +574,8 @@ def choose_preset(
 
     from .choose import CANDIDATES, check_presets, compare_presets
     from .lens import load_lens
-    from .track import load_track
     from .video import VideoInfo
+    from .walk_path import load_walk_path
 
     asked = [p.strip() for p in presets.split(",") if p.strip()] if presets is not None else list(CANDIDATES)
     names = check_presets(asked)  # every check before the minutes of modelling
@@ -583,13 +583,17 @@ def choose_preset(
         raise OmninavError("--eval must be another walk than the one modelled: a walk finds itself anywhere")
     VideoInfo(walk)
     info = VideoInfo(eval_path)
-    track, lens, eval_track = load_track(track_path), load_lens(lens_path), load_track(eval_track_path)
+    walk_path, lens, eval_walk_path = (
+        load_walk_path(walk_path_file),
+        load_lens(lens_path),
+        load_walk_path(eval_walk_path_file),
+    )
     eval_lens = load_lens(eval_lens_path) if eval_lens_path else lens
-    # the track's times are its frames over its fps, as `evaluate` reads them
-    if not eval_track.pose_at(np.arange(max(info.frames, 1)) / eval_track.fps)[2].any():
-        raise OmninavError(f"{eval_path}: no frame lies within the times of {eval_track_path}")
+    # the walk path's times are its frames over its fps, as `evaluate` reads them
+    if not eval_walk_path.pose_at(np.arange(max(info.frames, 1)) / eval_walk_path.fps)[2].any():
+        raise OmninavError(f"{eval_path}: no frame lies within the times of {eval_walk_path_file}")
     say = None if as_json else (lambda m: click.echo(m, err=True))
-    results, chosen = compare_presets(walk, track, lens, eval_path, eval_track, eval_lens, names, say)
+    results, chosen = compare_presets(walk, walk_path, lens, eval_path, eval_walk_path, eval_lens, names, say)
     if as_json:
         click.echo(json.dumps({"presets": results, "chosen": chosen}))
         return
@@ -648,7 +652,7 @@ def _suggestion_table(r: dict[str, Any]) -> str:
 @click.option("--fps", default=10.0, show_default=True)
 @click.option("--model-lens", type=click.Choice(["donut", "equirect"]), default="donut", show_default=True)
 def synth(out: Path, seed: int, layout: str, scale: float, fps: float, model_lens: str) -> None:
-    """Render a synthetic venue into OUT: modelling and query videos, tracks, lens, floor plan."""
+    """Render a synthetic venue into OUT: modelling and query videos, walk paths, lens, floor plan."""
     from .synth import equirect_lens, make_dataset
 
     ml = equirect_lens() if model_lens == "equirect" else None
@@ -667,7 +671,7 @@ def demo(ctx: click.Context, quick: bool, venue_id: str | None) -> None:
     from .evaluate import evaluate as run
     from .evaluate import plot
     from .lens import load_lens
-    from .track import load_track
+    from .walk_path import load_walk_path
 
     cat = catalog_of(ctx)
     # the quick and the full demo are different venues: never let one answer for the other
@@ -683,7 +687,9 @@ def demo(ctx: click.Context, quick: bool, venue_id: str | None) -> None:
             finally:
                 bar.close()
         loc = _locator(ctx, vid)
-        ev = run(loc, src / "query.mp4", load_track(src / "query_track.json"), load_lens(src / "lens.json"), agg)
+        ev = run(
+            loc, src / "query.mp4", load_walk_path(src / "query_walk_path.json"), load_lens(src / "lens.json"), agg
+        )
         plot(ev, loc, src / f"{vid}.eval.png")
         label = "omninav (sequence)" if preset == "default" else "paper (I curve, median)"
         rows.append((label, ev.summary()))

@@ -15,7 +15,7 @@ from typing import Any
 from .catalog import Catalog
 from .errors import Conflict
 from .model_venue import Progress, model_videos
-from .synth import make_dataset
+from .synth import make_dataset, upgrade_names
 from .synth.scene import build_scene
 
 VENUE = "demo"
@@ -43,12 +43,12 @@ def source_dir(data: Path, quick: bool) -> Path:
 
 
 def render(data: Path, quick: bool, log: Any = print) -> Path:
-    """The rendered synthetic venue (rendered on first use): videos, tracks, lenses, plan."""
+    """The rendered synthetic venue (rendered on first use): videos, walk paths, lenses, plan."""
     src = source_dir(data, quick)
     if not (src / "query.mp4").exists():
         log(f"rendering the synthetic demo venue into {src} (first use only) ...")
         make_dataset(src, seed=0, layout="small" if quick else "default", scale=0.5 if quick else 1.0)
-    return src
+    return upgrade_names(src)
 
 
 def ensure_demo(
@@ -71,8 +71,8 @@ def ensure_demo(
     cat.floors.set_plan(venue_id, "1", (src / "floorplan.png").read_bytes())
     cat.places.add(venue_id, demo_places(build_scene(0, layout).places, layout), replace=True)
     cat.lenses.put(venue_id, "donut", json.loads((src / "model_lens.json").read_text()))
-    track = json.loads((src / "model_track.json").read_text())
-    cat.videos.add_file(venue_id, src / VIDEO, "1", "donut", track)
+    walk_path = json.loads((src / "model_walk_path.json").read_text())
+    cat.videos.add_file(venue_id, src / VIDEO, "1", "donut", walk_path)
     return True
 
 

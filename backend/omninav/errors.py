@@ -34,7 +34,7 @@ class Conflict(OmninavError):
 
 
 class Unusable(OmninavError):
-    """Well-formed but unusable content: a plan that is no image, a track off the plan."""
+    """Well-formed but unusable content: a plan that is no image, a walk path off the plan."""
 
 
 class TooLarge(OmninavError):

@@ -1,7 +1,7 @@
 """Evaluate a venue against an independently recorded walk (`omninav evaluate`).
 
 The walk is cut into consecutive 1 s clips; each is located and compared with the walk's own
-track at the clip's last frame. The plot follows the paper's Fig. 6c: query frame against matched
+walk path at the clip's last frame. The plot follows the paper's Fig. 6c: query frame against matched
 venue frame, with the ground truth and the band of venue frames within 2 m of it.
 """
 
@@ -23,9 +23,9 @@ from .locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, Locator
 from .model_venue import Progress
 from .motion import Imu
 from .quality import AMBIGUOUS_MARGIN, RADIUS_M
-from .track import Track
 from .tracking_state import TrackPose, TrackState
 from .video import IMAGE_EXT, VideoInfo, iter_video
+from .walk_path import WalkPath
 
 
 @dataclass
@@ -52,13 +52,13 @@ class Evaluation:
 
 
 def query_spectra(
-    loc: Locator, video: Path, track: Track, lens: Lens | None, progress: Progress | None = None
+    loc: Locator, video: Path, walk_path: WalkPath, lens: Lens | None, progress: Progress | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Sampled frames of a walk -> spectra (F, C, K), times, true xy, true heading, frame index."""
-    spec, t, idx = walk_spectra(loc, video, lens, progress, track.fps)
-    xy, hd, ok = track.pose_at(t)
+    spec, t, idx = walk_spectra(loc, video, lens, progress, walk_path.fps)
+    xy, hd, ok = walk_path.pose_at(t)
     if not ok.any():
-        raise OmninavError(f"{video}: no frame lies within the track's waypoints")
+        raise OmninavError(f"{video}: no frame lies within the walk path's waypoints")
     return spec[ok], t[ok], xy[ok], hd[ok], idx[ok]
 
 
@@ -96,7 +96,7 @@ def walk_spectra(
     specs.extend(clip.flush())
     if not specs:
         raise OmninavError(f"{video}: no frames")
-    t = np.array(idx) / vfps  # the video's rate: a track's fps only counts its own frame numbers
+    t = np.array(idx) / vfps  # the video's rate: a walk path's fps only counts its own frame numbers
     return np.stack(specs), t, np.array(idx)
 
 
@@ -112,14 +112,14 @@ def _image(path: Path) -> np.ndarray:
 def evaluate(
     loc: Locator,
     video: Path,
-    track: Track,
+    walk_path: WalkPath,
     lens: Lens | None = None,
     aggregate: str | None = None,
     clip_s: float = 1.0,
     progress: Progress | None = None,
     tail: bool = False,
 ) -> Evaluation:
-    spec, t, xy, hd, idx = query_spectra(loc, video, track, lens, progress)
+    spec, t, xy, hd, idx = query_spectra(loc, video, walk_path, lens, progress)
     return evaluate_spectra(loc, spec, t, xy, hd, idx, aggregate, clip_s, tail)
 
 
@@ -177,19 +177,19 @@ LOW_CONFIDENCE = 0.5  # config.py's default: below it the app says "not sure"
 def evaluate_walk(
     loc: Locator,
     video: Path,
-    track: Track,
+    walk_path: WalkPath,
     lens: Lens,
     progress: Progress | None = None,
     low_confidence: float = LOW_CONFIDENCE,
 ) -> dict[str, Any]:
     """An evaluation walk for the admin page: every 1 s clip's truth and answer, and the summary.
 
-    A clip's truth and answer are at its last frame (where the track puts the walker then), and the
+    A clip's truth and answer are at its last frame (where the walk path puts the walker then), and the
     walk's last part-second is a clip too (`tail`); `heading_error_deg` is absolute, in [0, 180].
     Each answer also carries `margin` ((support - rival) / support, as the quality map's), and the
     summary `share_green`: the share of clips within 2 m with a margin of at least
     AMBIGUOUS_MARGIN, the quality map's green measured on an independent walk."""
-    return walk_result(evaluate(loc, video, track, lens, progress=progress, tail=True), low_confidence)
+    return walk_result(evaluate(loc, video, walk_path, lens, progress=progress, tail=True), low_confidence)
 
 
 def walk_result(ev: Evaluation, low_confidence: float = LOW_CONFIDENCE) -> dict[str, Any]:

@@ -1,7 +1,7 @@
-"""Modelling (`omninav model`): panoramic videos + their tracks -> the venue's frames and spectra.
+"""Modelling (`omninav model`): panoramic videos + their walk paths -> the venue's frames and spectra.
 
 Frames are sampled at the preset's `model_fps` (from a 30 fps video, every third), placed by
-linear interpolation of the track's waypoints and headed along the direction of travel. The result
+linear interpolation of the walk path's waypoints and headed along the direction of travel. The result
 joins the frames of the venue's other modelling videos in a new generation (store.py), atomically:
 one generation for all videos of a run, so a run that stops half way (error, cancel, kill) leaves
 the venue exactly as it was.
@@ -25,8 +25,8 @@ from .extract import Extractors
 from .lens import Lens
 from .presets import resolve
 from .store import FRAME_DTYPE, Generation, Store
-from .track import Track
 from .video import VideoInfo, extract_threads, in_order, iter_video, on_pool
+from .walk_path import WalkPath
 
 log = logging.getLogger("omninav.calib")
 POSE_BLOCK = 1024  # sampled frames whose poses are looked up in one call
@@ -38,7 +38,7 @@ Progress = Callable[[int, int, float], None]
 @dataclass
 class VideoSource:
     video: Path  # its file name is the video's name in the venue
-    track: Track
+    walk_path: WalkPath
     lens: Lens
 
 
@@ -68,22 +68,22 @@ class _Plan:
 
 
 def _plan(src: VideoSource, settings: dict[str, Any]) -> _Plan:
-    """Check a video against its lens and track before any work: errors come first, not last."""
+    """Check a video against its lens and walk path before any work: errors come first, not last."""
     info = VideoInfo(src.video, label=src.video.name)
     w, h = src.lens.image_size
     if (info.width, info.height) != (w, h):
         raise OmninavError(
             f"{src.video.name}: frames are {info.width}x{info.height} but the lens profile is for {w}x{h}"
         )
-    track = src.track
-    # a frame's time is its number over the VIDEO's rate: a track's `fps` only says what its own
-    # `frame` numbers count in (docs/formats.md), and a track tagged in seconds may not give one
-    vfps = info.fps if info.fps > 0 else track.fps
+    walk_path = src.walk_path
+    # a frame's time is its number over the VIDEO's rate: a walk path's `fps` only says what its own
+    # `frame` numbers count in (docs/formats.md), and a walk path tagged in seconds may not give one
+    vfps = info.fps if info.fps > 0 else walk_path.fps
     stride = max(1, int(round(vfps / settings["model_fps"])))
-    first = max(0, int(np.ceil(track.times[0] * vfps - 1e-6)))
-    last = int(np.floor(track.times[-1] * vfps + 1e-6))
+    first = max(0, int(np.ceil(walk_path.times[0] * vfps - 1e-6)))
+    last = int(np.floor(walk_path.times[-1] * vfps + 1e-6))
     if info.frames and first >= info.frames:
-        raise OmninavError(f"{src.video.name}: the track starts after the video ends ({info.frames} frames)")
+        raise OmninavError(f"{src.video.name}: the walk path starts after the video ends ({info.frames} frames)")
     expected = (min(last, info.frames - 1 if info.frames else last) - first) // stride + 1
     return _Plan(src, info, vfps, stride, first, last, expected)
 
@@ -93,7 +93,7 @@ def _extract(
 ) -> tuple[np.ndarray, np.ndarray]:
     """One video's sampled frames -> (rows FRAME_DTYPE without `video`, spectra).
 
-    Each frame is decoded once (on the reader thread, up to the track's last frame) and extracted
+    Each frame is decoded once (on the reader thread, up to the walk path's last frame) and extracted
     on `pool`, at most `ahead` frames in flight; the spectra come back in frame order."""
     # the lens as it sat in this video: a walk filmed after the lens was clipped on again is
     # extracted through the profile moved to its ring, as every query clip is (calib/correct.py)
@@ -102,7 +102,7 @@ def _extract(
     seen = -1
 
     def posed() -> Iterator[tuple[tuple[float, float, float, float, int], np.ndarray]]:
-        """The sampled frames that the track covers, each with its row (x, y, heading, t, frame);
+        """The sampled frames that the walk path covers, each with its row (x, y, heading, t, frame);
         the poses are looked up POSE_BLOCK sampled frames a call, not frame by frame."""
         nonlocal seen
         at = -POSE_BLOCK  # the first sampled frame (counted from p.first) of the block looked up
@@ -112,7 +112,7 @@ def _extract(
             if not at <= k < at + POSE_BLOCK:
                 at = k
                 t = (p.first + p.stride * np.arange(at, at + POSE_BLOCK)) / p.vfps
-                xy, hd, ok = p.src.track.pose_at(t)
+                xy, hd, ok = p.src.walk_path.pose_at(t)
             if ok[k - at]:
                 yield (xy[k - at, 0], xy[k - at, 1], hd[k - at], t[k - at], i), frame
 
@@ -125,7 +125,7 @@ def _extract(
     _check_complete(p, seen)
     if not rows:
         raise OmninavError(
-            f"{p.src.video.name}: no frame of the video lies between the track's first and last waypoint"
+            f"{p.src.video.name}: no frame of the video lies between the walk path's first and last waypoint"
         )
     new = np.zeros(len(rows), FRAME_DTYPE)
     arr = np.array(rows, np.float64)
@@ -240,12 +240,12 @@ def model_video(
     store: Store,
     venue_id: str,
     video: Path,
-    track: Track,
+    walk_path: WalkPath,
     lens: Lens,
     progress: Progress | None = None,
     settings: dict[str, Any] | None = None,
 ) -> ModelResult:
-    return model_videos(store, venue_id, [VideoSource(video, track, lens)], progress, settings=settings)[0]
+    return model_videos(store, venue_id, [VideoSource(video, walk_path, lens)], progress, settings=settings)[0]
 
 
 def remove_video(store: Store, venue_id: str, name: str) -> int:

@@ -1,6 +1,6 @@
 """Suggested waypoints (`omninav suggest-waypoints`): where a walk video turned and stopped.
 
-Tagging a track means clicking the plan at the moments that matter: the corners and the places the
+Tagging a walk path means clicking the plan at the moments that matter: the corners and the places the
 walker stood. This module finds those moments in the video alone, so the admin page can offer them.
 
 Turns. The rotation between consecutive sampled frames is a circular shift of their curves (the

@@ -1,6 +1,6 @@
 """The walkable space of a venue as a graph: where a person can walk, and how far it is.
 
-Built from the venue's modelling walks (a modelling track's positions in time order, one walk per
+Built from the venue's modelling walks (a modelling walk path's positions in time order, one walk per
 video, with its floor): every walk is cut at its corners (Douglas-Peucker) and resampled every
 ~`spacing_m` along each straight stretch, so that corners and junctions are nodes and a route's
 turns fall where the corridor turns. A point within half a spacing of a node already made on its

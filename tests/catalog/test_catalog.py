@@ -78,9 +78,9 @@ def test_a_busy_video_is_found_by_its_exact_name(cat: Catalog, small_ds) -> None
     cat.venues.create("v", "V", px_per_m=20.0)
     cat.floors.set_plan("v", "1", small_ds.floorplan.read_bytes())
     cat.lenses.put("v", "default", json.loads(small_ds.lens.read_text()))
-    track = json.loads(small_ds.model_track.read_text())
+    walk_path = json.loads(small_ds.model_walk_path.read_text())
     for name in ("a_b.mp4", "axb.mp4"):
-        cat.videos.create("v", {"name": name, "size": 10, "track": track}, 100)
+        cat.videos.create("v", {"name": name, "size": 10, "walk_path": walk_path}, 100)
     from omninav.server.jobs import Jobs
 
     cat.db.run("UPDATE videos SET status = 'ready', received = size WHERE venue = 'v'")

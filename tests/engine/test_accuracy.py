@@ -15,11 +15,11 @@ from omninav.model_venue import model_video
 from omninav.presets import resolve
 from omninav.store import Store
 from omninav.synth import make_dataset
-from omninav.track import load_track
+from omninav.walk_path import load_walk_path
 
 
 def _eval(st, vid, ds, agg=None):
-    return evaluate(Locator(st, vid), ds.query_video, load_track(ds.query_track), load_lens(ds.lens), agg)
+    return evaluate(Locator(st, vid), ds.query_video, load_walk_path(ds.query_walk_path), load_lens(ds.lens), agg)
 
 
 def test_default_beats_the_papers_method(modelled, small_ds, tmp_path):
@@ -30,7 +30,7 @@ def test_default_beats_the_papers_method(modelled, small_ds, tmp_path):
         st2,
         "lab",
         small_ds.model_video,
-        load_track(small_ds.model_track),
+        load_walk_path(small_ds.model_walk_path),
         load_lens(small_ds.root / "model_lens.json"),
         settings=resolve("paper"),
     )
@@ -60,7 +60,7 @@ def test_cross_device_equirect_venue_answers_donut_clips(equirect_ds, tmp_path):
         st,
         "eq",
         equirect_ds.model_video,
-        load_track(equirect_ds.model_track),
+        load_walk_path(equirect_ds.model_walk_path),
         load_lens(equirect_ds.root / "model_lens.json"),
     )
     s = _eval(st, "eq", equirect_ds).summary()
@@ -87,7 +87,7 @@ def test_another_lens_geometry_end_to_end(tmp_path):
     lens = Catadioptric((480, 360), (238.0, 183.0), 60.0, 170.0, (float(c0), float(c1), float(c2)), 0.0, False)
     ds = make_dataset(tmp_path / "v", seed=11, layout="small", model_lens=lens, query_lens=lens)
     st = Store(tmp_path / "d")
-    model_video(st, "odd", ds.model_video, load_track(ds.model_track), load_lens(ds.root / "model_lens.json"))
+    model_video(st, "odd", ds.model_video, load_walk_path(ds.model_walk_path), load_lens(ds.root / "model_lens.json"))
     s = _eval(st, "odd", ds).summary()
     assert s["within_2m"] >= 0.9
     assert s["median_heading_err_deg"] <= 3.0

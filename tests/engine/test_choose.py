@@ -40,15 +40,15 @@ def test_two_or_more_different_known_presets_or_a_clear_refusal(bad: list[str]) 
 
 
 def _args(ds: Dataset, *more: str) -> list[str]:
-    walk = [str(ds.model_video), "--track", str(ds.model_track), "--lens", str(ds.root / "model_lens.json")]
-    return ["choose-preset", *walk, "--eval", str(ds.query_video), "--eval-track", str(ds.query_track), *more]
+    walk = [str(ds.model_video), "--walk-path", str(ds.model_walk_path), "--lens", str(ds.root / "model_lens.json")]
+    return ["choose-preset", *walk, "--eval", str(ds.query_video), "--eval-walk-path", str(ds.query_walk_path), *more]
 
 
 def test_refusals_come_before_any_work(small_ds: Dataset, tmp_path) -> None:
     """Each says what was wrong in one line, before the minutes of modelling."""
     swap = {str(small_ds.query_video): str(small_ds.model_video)}
-    no_track = {str(small_ds.query_track): str(tmp_path / "none.json")}
-    elsewhere = tmp_path / "later.json"  # a track of times the evaluation video never reaches
+    no_track = {str(small_ds.query_walk_path): str(tmp_path / "none.json")}
+    elsewhere = tmp_path / "later.json"  # a walk path of times the evaluation video never reaches
     elsewhere.write_text(json.dumps({"fps": 10, "waypoints": [{"t": 900, "x": 0, "y": 0}, {"t": 910, "x": 5, "y": 0}]}))
     cases = [
         (_args(small_ds, "--presets", "default,robust"), "unknown presets ['robust']"),
@@ -59,7 +59,10 @@ def test_refusals_come_before_any_work(small_ds: Dataset, tmp_path) -> None:
             "no.mp4: video not found",
         ),
         ([no_track.get(a, a) for a in _args(small_ds)], "none.json"),
-        ([str(elsewhere) if a == str(small_ds.query_track) else a for a in _args(small_ds)], "no frame lies within"),
+        (
+            [str(elsewhere) if a == str(small_ds.query_walk_path) else a for a in _args(small_ds)],
+            "no frame lies within",
+        ),
     ]
     for args, said in cases:
         p = run_cli(*args, data=tmp_path)

@@ -13,7 +13,7 @@ from omninav.presets import resolve
 
 def test_every_second_of_an_admins_walk_is_scored_its_last_part_second_too() -> None:
     """25 frames at 10 frames/s: two whole 1 s clips, and with `tail` a third that ends at the last
-    frame (overlapping the second), scored against the track there; without it, as the benchmarks
+    frame (overlapping the second), scored against the walk path there; without it, as the benchmarks
     measured, the last half second is left out."""
     conf = resolve("default")
     seen: list[np.ndarray] = []

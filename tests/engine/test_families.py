@@ -19,13 +19,13 @@ from omninav.synth.layouts import COMB_TEETH
 from omninav.synth.optics import REAL
 from omninav.synth.render import PanoGrid, world_panorama
 from omninav.synth.scene import GRID, TEX_PPM, Lighting
-from omninav.synth.walks import Perturb, default_routes, poses_from_track, render_frames, track_for
-from omninav.track import load_track
+from omninav.synth.walks import Perturb, default_routes, poses_from_walk_path, render_frames, walk_path_for
+from omninav.walk_path import load_walk_path
 
 
-def _pts(track: dict) -> np.ndarray:
-    """Points every 0.25 m along a track's waypoints."""
-    wp = [(w["x"], w["y"]) for w in track["waypoints"]]
+def _pts(walk_path: dict) -> np.ndarray:
+    """Points every 0.25 m along a walk path's waypoints."""
+    wp = [(w["x"], w["y"]) for w in walk_path["waypoints"]]
     out = []
     for a, b in zip(wp[:-1], wp[1:], strict=True):
         n = max(1, int(np.hypot(b[0] - a[0], b[1] - a[1]) / 0.25))
@@ -72,12 +72,12 @@ def test_every_family_builds_and_walks_its_corridors(name):
     v = family_venue(name, 0)
     sc = v.scene
     assert sc.seg.shape[0] > 20 and sc.atlas.shape[0] == int(round(sc.wall_h * TEX_PPM))
-    m, q = _pts(v.model_track), _pts(v.query_track)
+    m, q = _pts(v.model_walk_path), _pts(v.query_walk_path)
     for x, y in np.concatenate([m, q]):  # both walks stay in free space
         assert sc.free[int(y / GRID), int(x / GRID)]
     # 75-150 one-second clips in the query walk (twin-wings's small ring: 79); the modelling walk
     # passes every query position (within the query's sideways offsets)
-    assert 75 <= v.query_track["waypoints"][-1]["t"] <= 150
+    assert 75 <= v.query_walk_path["waypoints"][-1]["t"] <= 150
     d = np.min(np.hypot(q[:, None, 0] - m[None, :, 0], q[:, None, 1] - m[None, :, 1]), axis=1)
     assert d.max() <= FAMILIES[name].query_perturb.lateral_m + 0.1
     # the query walk is not the modelling walk: it walks each corridor the other way (dead-end
@@ -115,7 +115,7 @@ def test_query_walk_renders_as_before():
     """QUERY's perturbations, no optics: the same frames as before the optics hook."""
     sc = build_scene(0)
     _, q = default_routes(sc)
-    poses = poses_from_track(track_for(q[:3], [1.0], 10.0), QUERY, np.random.default_rng(3))[:25]
+    poses = poses_from_walk_path(walk_path_for(q[:3], [1.0], 10.0), QUERY, np.random.default_rng(3))[:25]
     h = hashlib.sha1()
     for _, f in render_frames(sc, donut_lens(0.5), poses, QUERY, 4, 720):
         h.update(f.tobytes())
@@ -124,7 +124,9 @@ def test_query_walk_renders_as_before():
 
 def test_optics_hook_changes_frames_deterministically():
     sc = build_scene(0, "small")
-    poses = poses_from_track(track_for([(2.0, 2.0), (6.0, 2.0)], [1.0], 10.0), QUERY, np.random.default_rng(0))[:3]
+    poses = poses_from_walk_path(walk_path_for([(2.0, 2.0), (6.0, 2.0)], [1.0], 10.0), QUERY, np.random.default_rng(0))[
+        :3
+    ]
     lens = donut_lens(0.25)
 
     def frames(p: Perturb) -> list[np.ndarray]:
@@ -173,20 +175,20 @@ def test_daylight_changes_with_the_hour_and_nothing_else():
 @pytest.mark.parametrize("name", ["cross-device", "atrium-glass"])
 def test_family_dataset_files(tmp_path, name):
     ds = make_family_dataset(tmp_path / name, name, 0, scale=0.2, route_m=3.0)
-    for p in (ds.model_video, ds.query_video, ds.model_track, ds.query_track, ds.lens, ds.floorplan):
+    for p in (ds.model_video, ds.query_video, ds.model_walk_path, ds.query_walk_path, ds.lens, ds.floorplan):
         assert p.exists() and p.stat().st_size > 0
     assert (tmp_path / name / "model_lens.json").exists()
     assert json.loads((tmp_path / name / "family.json").read_text())["family"] == name
-    for video, track, lens in (
-        (ds.model_video, ds.model_track, tmp_path / name / "model_lens.json"),
-        (ds.query_video, ds.query_track, ds.lens),
+    for video, walk_path, lens in (
+        (ds.model_video, ds.model_walk_path, tmp_path / name / "model_lens.json"),
+        (ds.query_video, ds.query_walk_path, ds.lens),
     ):
         cap = cv2.VideoCapture(str(video))
         n, w, h = (
             int(cap.get(k)) for k in (cv2.CAP_PROP_FRAME_COUNT, cv2.CAP_PROP_FRAME_WIDTH, cv2.CAP_PROP_FRAME_HEIGHT)
         )
         cap.release()
-        tr = load_track(track)
+        tr = load_walk_path(walk_path)
         assert n == int(np.floor(tr.times[-1] * tr.fps)) + 1
         assert (w, h) == load_lens(lens).image_size
     if name == "cross-device":
@@ -207,3 +209,18 @@ def test_comb_side_corridors_look_alike():
     assert len(same) >= 3 and np.mean(same) >= 0.5
     # and the spine's walls are not alike (a random wall elsewhere differs)
     assert _busyness(sc.atlas) > 0
+
+
+def test_a_render_cached_under_the_old_file_names_is_renamed_in_place(tmp_path):
+    """A render made before the walk path's rename keeps working: its `*_track.json` files take
+    the new names (nothing rendered again), and a render under the new names is left alone."""
+    from omninav.synth import OLD_NAMES, upgrade_names
+
+    for old in OLD_NAMES:
+        (tmp_path / old).write_text(json.dumps({"from": old}))
+    assert upgrade_names(tmp_path) == tmp_path
+    for old, new in OLD_NAMES.items():
+        assert not (tmp_path / old).exists() and json.loads((tmp_path / new).read_text()) == {"from": old}
+    before = {p.name: p.read_text() for p in tmp_path.iterdir()}
+    upgrade_names(tmp_path)
+    assert {p.name: p.read_text() for p in tmp_path.iterdir()} == before

@@ -1,4 +1,4 @@
-"""Modelling and venue storage: frames placed by the track, atomic generations, interruptions."""
+"""Modelling and venue storage: frames placed by the walk path, atomic generations, interruptions."""
 
 import json
 
@@ -10,13 +10,13 @@ from omninav.lens import load_lens
 from omninav.model_venue import model_video
 from omninav.presets import n_curves, resolve
 from omninav.store import Store, check_id
-from omninav.track import load_track, parse_track
+from omninav.walk_path import load_walk_path, parse_walk_path
 
 
-def test_modelled_frames_follow_the_track(modelled, small_ds):
+def test_modelled_frames_follow_the_walk_path(modelled, small_ds):
     st, vid = modelled
     g = st.load(vid)
-    tr = load_track(small_ds.model_track)
+    tr = load_walk_path(small_ds.model_walk_path)
     conf = resolve("default")
     assert g.spectra.shape[1:] == (n_curves(conf), conf["n_harmonics"]) == (14, 16)
     assert len(g.frames) == len(g.spectra) > 100
@@ -28,16 +28,16 @@ def test_modelled_frames_follow_the_track(modelled, small_ds):
     assert g.videos == ["model.mp4"]
 
 
-def test_a_track_in_seconds_is_timed_by_the_videos_own_rate(copy_store, modelled, small_ds):
+def test_a_walk_path_in_seconds_is_timed_by_the_videos_own_rate(copy_store, modelled, small_ds):
     # the admin page tags waypoints in seconds and sends no fps (docs/formats.md: fps only counts
     # `frame` numbers); a frame's time is its number over the VIDEO's rate (10 fps here), never the
-    # track's default 30, which would put every frame a third of the way along the walk
+    # walk path's default 30, which would put every frame a third of the way along the walk
     reference = modelled[0].load(modelled[1]).frames
     st, vid = copy_store
-    d = json.loads(small_ds.model_track.read_text())
+    d = json.loads(small_ds.model_walk_path.read_text())
     assert d["fps"] == 10 and all("t" in w for w in d["waypoints"])
     del d["fps"]
-    model_video(st, vid, small_ds.model_video, parse_track(d), load_lens(small_ds.root / "model_lens.json"))
+    model_video(st, vid, small_ds.model_video, parse_walk_path(d), load_lens(small_ds.root / "model_lens.json"))
     got = st.load(vid).frames
     assert len(got) == len(reference)
     np.testing.assert_array_equal(got["frame"], reference["frame"])
@@ -50,7 +50,11 @@ def test_remodelling_a_video_replaces_its_frames(copy_store, small_ds):
     st, vid = copy_store
     n = len(st.load(vid).frames)
     model_video(
-        st, vid, small_ds.model_video, load_track(small_ds.model_track), load_lens(small_ds.root / "model_lens.json")
+        st,
+        vid,
+        small_ds.model_video,
+        load_walk_path(small_ds.model_walk_path),
+        load_lens(small_ds.root / "model_lens.json"),
     )
     assert len(st.load(vid).frames) == n
 
@@ -65,7 +69,12 @@ def test_interrupted_modelling_leaves_the_venue_as_it_was(copy_store, small_ds):
 
     with pytest.raises(KeyboardInterrupt):
         model_video(
-            st, vid, small_ds.query_video, load_track(small_ds.query_track), load_lens(small_ds.lens), progress=boom
+            st,
+            vid,
+            small_ds.query_video,
+            load_walk_path(small_ds.query_walk_path),
+            load_lens(small_ds.lens),
+            progress=boom,
         )
     after = st.load(vid, mmap=False)
     assert np.array_equal(before.frames, after.frames)
@@ -76,7 +85,7 @@ def test_interrupted_modelling_leaves_the_venue_as_it_was(copy_store, small_ds):
 def test_a_second_video_adds_frames(copy_store, small_ds):
     st, vid = copy_store
     n = len(st.load(vid).frames)
-    model_video(st, vid, small_ds.query_video, load_track(small_ds.query_track), load_lens(small_ds.lens))
+    model_video(st, vid, small_ds.query_video, load_walk_path(small_ds.query_walk_path), load_lens(small_ds.lens))
     g = st.load(vid)
     assert g.videos == ["model.mp4", "query.mp4"] and len(g.frames) > n
     assert set(np.unique(g.frames["video"])) == {0, 1}
@@ -97,4 +106,4 @@ def test_store_errors(store: Store, small_ds, tmp_path):
     with pytest.raises(OmninavError, match="lens profile is for"):
         from omninav.synth import donut_lens
 
-        model_video(store, "v1", small_ds.model_video, load_track(small_ds.model_track), donut_lens(1.0))
+        model_video(store, "v1", small_ds.model_video, load_walk_path(small_ds.model_walk_path), donut_lens(1.0))

@@ -1,5 +1,5 @@
 """Hypothesis properties of everything that decodes what a client sends: the feature record (binary
-and JSON), lens profiles, modelling tracks and places.
+and JSON), lens profiles, modelling walk paths and places.
 
 Each decoder either gives back what was encoded (within the record's float16/int16 quantisation) or
 refuses the input with OmninavError whose message is one line:
@@ -24,7 +24,7 @@ from omninav.lens import Catadioptric, Equirectangular, lens_from_dict
 from omninav.presets import n_curves, resolve
 from omninav.server import create_app
 from omninav.spectrum import MAGIC, RECORD_VERSION, decode_binary, decode_json, encode_binary, encode_json, quantise
-from omninav.track import parse_track
+from omninav.walk_path import parse_walk_path
 from server_helpers import TOKEN
 
 FAST = settings(max_examples=150, derandomize=True, deadline=None, database=None)
@@ -249,9 +249,9 @@ def test_lens_flags_are_booleans() -> None:
     )
 
 
-# ---- tracks ---------------------------------------------------------------------------------------
+# ---- walk paths ---------------------------------------------------------------------------------------
 @st.composite
-def tracks(draw: Any) -> dict[str, Any]:
+def walk_paths(draw: Any) -> dict[str, Any]:
     """Waypoints in increasing time, each given by frame or by seconds."""
     fps = draw(st.floats(1, 120))
     steps = draw(st.lists(st.floats(0.05, 100), min_size=1, max_size=6))
@@ -264,21 +264,21 @@ def tracks(draw: Any) -> dict[str, Any]:
 
 
 @FAST
-@given(tracks())
-def test_track_decodes_to_what_was_encoded(d: dict[str, Any]) -> None:
-    tr = parse_track(json.loads(json.dumps(d)))
+@given(walk_paths())
+def test_walk_path_decodes_to_what_was_encoded(d: dict[str, Any]) -> None:
+    tr = parse_walk_path(json.loads(json.dumps(d)))
     want_t = [w["t"] if "t" in w else w["frame"] / d["fps"] for w in d["waypoints"]]
     assert tr.fps == d["fps"] and tr.heading_offset == d["heading_offset_deg"]
     assert np.allclose(tr.times, want_t, rtol=1e-12) and np.all(np.diff(tr.times) > 0)
     assert np.array_equal(tr.xy, [[w["x"], w["y"]] for w in d["waypoints"]])
-    xy, h, ok = tr.pose_at(tr.times)  # at its own waypoints, the track is where they say
+    xy, h, ok = tr.pose_at(tr.times)  # at its own waypoints, the walk path is where they say
     assert ok.all() and np.allclose(xy, tr.xy, atol=1e-6) and ((h >= 0) & (h < 360)).all()
 
 
 @FAST
-@given(json_values | broken(tracks()))
-def test_any_json_is_a_track_or_one_line_refusal(d: Any) -> None:
-    tr = decodes_or_refuses(parse_track, d)
+@given(json_values | broken(walk_paths()))
+def test_any_json_is_a_walk_path_or_one_line_refusal(d: Any) -> None:
+    tr = decodes_or_refuses(parse_walk_path, d)
     if tr is not None:
         assert len(tr.times) >= 2 and np.all(np.diff(tr.times) > 0) and np.isfinite(tr.xy).all()
 

@@ -38,7 +38,7 @@ from omninav.synth.layouts import TWINS
 from omninav.synth.render import world_panorama
 from omninav.synth.scene import build_scene, floorplan_image
 from omninav.synth.walks import grid_for
-from omninav.track import load_track
+from omninav.walk_path import load_walk_path
 
 SEED = 5
 
@@ -47,7 +47,7 @@ SEED = 5
 def twin(tmp_path_factory: pytest.TempPathFactory) -> tuple[Dataset, Store]:
     ds = make_dataset(tmp_path_factory.mktemp("twin"), seed=SEED, layout="twin", scale=0.5)
     st = Store(tmp_path_factory.mktemp("twin-store"))
-    model_video(st, "twin", ds.model_video, load_track(ds.model_track), load_lens(ds.root / "model_lens.json"))
+    model_video(st, "twin", ds.model_video, load_walk_path(ds.model_walk_path), load_lens(ds.root / "model_lens.json"))
     return ds, st
 
 
@@ -152,7 +152,7 @@ def test_green_agrees_with_an_independent_walk(twin: tuple[Dataset, Store], resu
     walk = evaluate_walk(
         Locator(st, "twin"),
         ds.query_video,
-        load_track(ds.query_track),
+        load_walk_path(ds.query_walk_path),
         load_lens(ds.lens),
         progress=lambda d, t, _s: seen.append(d),
     )
@@ -228,8 +228,8 @@ def test_cli_quality(twin: tuple[Dataset, Store], tmp_path: Path) -> None:
         "evaluate",
         "tw",
         str(ds.query_video),
-        "--track",
-        str(ds.query_track),
+        "--walk-path",
+        str(ds.query_walk_path),
         "--lens",
         str(ds.lens),
         "--clips",
@@ -279,7 +279,7 @@ def test_coverage_ignores_crossings_and_cuts() -> None:
     xy = np.array([[0.5, 1.0], [0.6, 1.0], [9.4, 1.0], [9.5, 1.0]])
     s = axis_coverage(AREA, xy, np.array([True, False, True, False]))
     assert s["covered"] == pytest.approx(0.1)
-    # nor does a jump within one video (a track with a gap)
+    # nor does a jump within one video (a walk path with a gap)
     s = axis_coverage(AREA, xy, np.array([True, False, False, False]))
     assert s["covered"] == pytest.approx(0.1)
     # a walk that never enters, and one lone frame inside

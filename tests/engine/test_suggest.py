@@ -1,7 +1,7 @@
 """Suggested waypoints (omninav/suggest.py): turns and stops found in a walk video.
 
 Walks with known corners and stops are rendered here (small, low resolution, 10 fps) and the
-suggestions compared with their tracks; the signal processing is checked alone on made-up signals,
+suggestions compared with their walk paths; the signal processing is checked alone on made-up signals,
 where a straight walk must suggest nothing.
 """
 
@@ -33,14 +33,14 @@ from omninav.suggest import (
     suggest_waypoints,
 )
 from omninav.synth import MODELLING, QUERY, Perturb, build_scene, donut_lens, equirect_lens
-from omninav.synth.walks import render_walk, track_for, walk_events
+from omninav.synth.walks import render_walk, walk_events, walk_path_for
 
 
 @dataclass
 class Walk:
     video: Path
     lens: Lens
-    track: dict[str, Any]
+    walk_path: dict[str, Any]
     turns: list[tuple[float, float]]  # the truth: (t, signed deg)
     stops: list[tuple[float, float]]  # (t, seconds)
 
@@ -53,9 +53,9 @@ def _walk(
     route: list[tuple[float, float]],
     perturb: Perturb,
     turn_s: float,
-    **track: Any,
+    **walk_path: Any,
 ) -> Walk:
-    tr = track_for(route, fps=10.0, **track)
+    tr = walk_path_for(route, fps=10.0, **walk_path)
     video = root / f"{name}.mp4"
     render_walk(video, build_scene(3, layout), lens, tr, perturb, seed=7, turn_s=turn_s, pano_width=720)
     turns, stops = walk_events(tr)
@@ -133,7 +133,7 @@ def test_few_suggestions_and_start_end(walks: dict[str, Walk], results: dict[str
     events = len(w.turns) + len(w.stops)
     assert len(sug) <= 2 * events + 2, sug
     assert sug[0]["kind"] == "start" and sug[0]["t"] == 0.0
-    last_t = w.track["waypoints"][-1]["t"]
+    last_t = w.walk_path["waypoints"][-1]["t"]
     assert sug[-1]["kind"] == "end" and abs(sug[-1]["t"] - last_t) <= 0.15
     assert [s["t"] for s in sug] == sorted(s["t"] for s in sug)
     assert r["fps"] == pytest.approx(10.0) and r["frames"] == int(last_t * 10) + 1
@@ -178,7 +178,7 @@ def test_progress_and_wrong_lens(walks: dict[str, Walk]) -> None:
     w = walks["L"]
     seen: list[tuple[int, int]] = []
     suggest_waypoints(w.video, w.lens, {"sample_fps": 5.0}, progress=lambda d, n, e: seen.append((d, n)))
-    frames = int(w.track["waypoints"][-1]["t"] * 10) + 1
+    frames = int(w.walk_path["waypoints"][-1]["t"] * 10) + 1
     assert seen[-1][0] == seen[-1][1] == len(seen) == (frames - 1) // 2 + 1  # every other frame of 10 fps
     assert [d for d, _ in seen] == list(range(1, len(seen) + 1))
     with pytest.raises(OmninavError, match="lens profile is for 960x720"):

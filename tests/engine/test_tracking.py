@@ -31,10 +31,10 @@ from omninav.motion import Motion, parse_imu, parts, share
 from omninav.presets import resolve
 from omninav.synth import Dataset
 from omninav.synth.layouts import TWIN_RING, twin_routes
-from omninav.synth.walks import imu_for, track_for
-from omninav.track import parse_track
+from omninav.synth.walks import imu_for, walk_path_for
 from omninav.tracking import FIT_M, STEPS_WORK_S, Tracker
 from omninav.tracking_state import MAX_STORED, ClipAnswer, TrackState
+from omninav.walk_path import parse_walk_path
 from omninav.walkgraph import build
 
 CONF = resolve("default")
@@ -95,7 +95,7 @@ class Venue:
 
 def walk_poses(points: list[tuple[float, float]], speed: float = 1.2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A walk along points at `speed`, sampled at FPS: times, (T, 2) positions, headings."""
-    track = parse_track(track_for(points, [speed], FPS))
+    track = parse_walk_path(walk_path_for(points, [speed], FPS))
     t = np.arange(0.0, track.times[-1] + 1e-9, 1.0 / FPS)
     xy, hd, _ = track.pose_at(t)
     return t, xy, hd
@@ -587,7 +587,7 @@ def test_motion_helps_in_a_repetitive_corridor(corridor: Venue) -> None:
     this walker's stride 0.76 m where the filter assumes 0.7) it keeps the right door ~1.5 times as
     long. Nothing holds the phase of a truly periodic corridor for ever: its end will."""
     t, xy, hd = walk_poses([(0.5, 0.0), (47.0, 0.0)])
-    track = track_for([(0.5, 0.0), (47.0, 0.0)], [1.2], FPS)
+    track = walk_path_for([(0.5, 0.0), (47.0, 0.0)], [1.2], FPS)
     imu = parse_imu(imu_for(track, np.random.default_rng(5)))
 
     def right_until(motion) -> float:
@@ -1202,11 +1202,11 @@ def test_a_tracking_confidence_model_that_cannot_be_evaluated_is_refused() -> No
 @pytest.fixture(scope="module")
 def walk_spec(modelled, small_ds: Dataset):
     from omninav.evaluate import query_spectra
-    from omninav.track import load_track
+    from omninav.walk_path import load_walk_path
 
     st, vid = modelled
     loc = Locator(st, vid, device="cpu")
-    spec = query_spectra(loc, small_ds.query_video, load_track(small_ds.query_track), load_lens(small_ds.lens))
+    spec = query_spectra(loc, small_ds.query_video, load_walk_path(small_ds.query_walk_path), load_lens(small_ds.lens))
     return loc, spec
 
 
@@ -1289,7 +1289,7 @@ def cli_venue(small_ds: Dataset, tmp_path_factory: pytest.TempPathFactory) -> Pa
 
 
 def test_cli_track_prints_one_answer_per_second(cli_venue: Path, small_ds: Dataset, tmp_path: Path) -> None:
-    track = json.loads(small_ds.query_track.read_text())
+    track = json.loads(small_ds.query_walk_path.read_text())
     imu = tmp_path / "imu.json"
     imu.write_text(json.dumps(imu_for(track, np.random.default_rng(0))))
     p = run_cli("track", "lab", str(small_ds.query_video), "--lens", str(small_ds.lens), data=cli_venue, check=True)
@@ -1300,7 +1300,7 @@ def test_cli_track_prints_one_answer_per_second(cli_venue: Path, small_ds: Datas
     for a in lines:
         assert {"clip", "t", "x", "y", "heading_deg", "confidence", "floor", "place", "frame", "ambiguous"} <= set(a)
         assert a["floor"] == "2" and 0 <= a["confidence"] <= 1 and 0 <= a["heading_deg"] < 360
-    tr = parse_track(track)
+    tr = parse_walk_path(track)
     truth, _, _ = tr.pose_at(np.array([a["t"] for a in lines]))
     e = np.hypot(*(np.array([[a["x"], a["y"]] for a in lines]) - truth).T)
     assert np.mean(e[5:] <= 2.0) >= 0.9
@@ -1314,7 +1314,7 @@ def test_cli_track_prints_one_answer_per_second(cli_venue: Path, small_ds: Datas
 
 
 def test_cli_evaluate_track_mode(cli_venue: Path, small_ds: Dataset, tmp_path: Path) -> None:
-    args = ["evaluate", "lab", str(small_ds.query_video), "--track", str(small_ds.query_track)]
+    args = ["evaluate", "lab", str(small_ds.query_video), "--walk-path", str(small_ds.query_walk_path)]
     args += ["--lens", str(small_ds.lens), "--plot", str(tmp_path / "t.png"), "--track-mode"]
     out = json.loads(run_cli(*args, "--json", data=cli_venue, check=True).stdout)
     for key in ("single", "track"):

@@ -17,8 +17,8 @@ from omninav.extract import Extractors
 from omninav.lens import load_lens
 from omninav.model_venue import VideoSource, _plan
 from omninav.presets import resolve
-from omninav.track import load_track
 from omninav.video import VideoInfo, in_order, iter_video, on_pool, read_ahead
+from omninav.walk_path import load_walk_path
 
 
 def test_read_ahead_keeps_the_order_and_raises_the_readers_error():
@@ -106,7 +106,7 @@ def test_modelling_extracts_the_frames_one_after_another_would(modelled, small_d
     st, venue = modelled
     g = st.load(venue, mmap=False)
     src = VideoSource(
-        small_ds.model_video, load_track(small_ds.model_track), load_lens(small_ds.root / "model_lens.json")
+        small_ds.model_video, load_walk_path(small_ds.model_walk_path), load_lens(small_ds.root / "model_lens.json")
     )
     p = _plan(src, g.settings)
     cap = cv2.VideoCapture(str(small_ds.model_video))
@@ -115,7 +115,7 @@ def test_modelling_extracts_the_frames_one_after_another_would(modelled, small_d
         ok, f = cap.read()
         if not ok:
             break
-        if i >= p.first and (i - p.first) % p.stride == 0 and src.track.pose_at(np.array([i / p.vfps]))[2][0]:
+        if i >= p.first and (i - p.first) % p.stride == 0 and src.walk_path.pose_at(np.array([i / p.vfps]))[2][0]:
             frames.append(f)
             numbers.append(i)
     cap.release()

@@ -1,5 +1,5 @@
 """The admin API the admin page needs (issue 11): the admin's venue document, deleting a venue,
-videos registered before their track (and tagged later), their facts and frames, and optimistic
+videos registered before their walk path (and tagged later), their facts and frames, and optimistic
 concurrency (If-Match / ETag / 412) on every write. Through the real Flask app (test client) on a
 real database, every response checked against openapi.yaml (server_helpers.Api)."""
 
@@ -91,22 +91,22 @@ def lab(small_ds: Any, tmp_path_factory: pytest.TempPathFactory) -> tuple[Any, A
     return app, api
 
 
-# ---- videos without a track, their facts, tracks ------------------------------------------------
-def test_a_video_registered_without_a_track_is_uploaded_checked_but_not_modelled(lab: Any, small_ds: Any) -> None:
+# ---- videos without a walk path, their facts, walk paths -----------------------------------------
+def test_a_video_registered_without_a_walk_path_is_uploaded_checked_but_not_modelled(lab: Any, small_ds: Any) -> None:
     app, api = lab
     v = api.get("/api/admin/venues/lab/videos/walk.mp4", headers=ADMIN).json
     lens = load_lens(small_ds.root / "model_lens.json")
     assert v["status"] == "ready" and v["role"] == "model" and v["error"] is None
-    assert v["tracked"] is False and v["track"] is None and v["suggestions"] is None
+    assert v["has_walk_path"] is False and v["walk_path"] is None and v["suggestions"] is None
     assert (v["width"], v["height"]) == tuple(lens.image_size)
     frames = int(cv2.VideoCapture(str(small_ds.model_video)).get(cv2.CAP_PROP_FRAME_COUNT))
     assert v["fps"] > 0 and v["duration_s"] == pytest.approx(frames / v["fps"])
     r = api.post("/api/admin/venues/lab/jobs", headers=ADMIN)
-    assert r.status_code == 409 and "has no track yet" in r.json["error"]
+    assert r.status_code == 409 and "has no walk path yet" in r.json["error"]
     r = api.post("/api/admin/venues/lab/jobs", json={"videos": ["walk.mp4"]}, headers=ADMIN)
-    assert r.status_code == 409 and "video 'walk.mp4' has no track yet" in r.json["error"]
-    r = api.get("/api/admin/venues/lab/videos/walk.mp4/track", headers=ADMIN)
-    assert r.status_code == 404 and "no track yet" in r.json["error"]
+    assert r.status_code == 409 and "video 'walk.mp4' has no walk path yet" in r.json["error"]
+    r = api.get("/api/admin/venues/lab/videos/walk.mp4/walk-path", headers=ADMIN)
+    assert r.status_code == 404 and "no walk path yet" in r.json["error"]
 
 
 def test_a_refused_upload_says_why_on_the_video(lab: Any, small_ds: Any) -> None:
@@ -120,26 +120,44 @@ def test_a_refused_upload_says_why_on_the_video(lab: Any, small_ds: Any) -> None
     assert api.delete("/api/admin/venues/lab/videos/junk.mp4", headers=ADMIN).status_code == 200
 
 
-def test_a_track_is_tagged_later_downloaded_and_replaced(lab: Any, small_ds: Any) -> None:
+def test_a_walk_path_is_tagged_later_downloaded_and_replaced(lab: Any, small_ds: Any) -> None:
     app, api = lab
-    track = json.loads(small_ds.model_track.read_text())
-    r = api.put("/api/admin/venues/lab/videos/walk.mp4/track", json=track, headers=ADMIN)
-    assert r.status_code == 200 and r.json["tracked"] is True and r.json["track"] == track
-    r = api.get("/api/admin/venues/lab/videos/walk.mp4/track", headers=ADMIN)
-    assert r.status_code == 200 and r.json == track
-    assert r.headers["Content-Disposition"] == 'attachment; filename="walk.mp4.track.json"'
-    # a modelled video whose track changes is ready to be modelled again
+    walk_path = json.loads(small_ds.model_walk_path.read_text())
+    r = api.put("/api/admin/venues/lab/videos/walk.mp4/walk-path", json=walk_path, headers=ADMIN)
+    assert r.status_code == 200 and r.json["has_walk_path"] is True and r.json["walk_path"] == walk_path
+    r = api.get("/api/admin/venues/lab/videos/walk.mp4/walk-path", headers=ADMIN)
+    assert r.status_code == 200 and r.json == walk_path
+    assert r.headers["Content-Disposition"] == 'attachment; filename="walk.mp4.walk_path.json"'
+    # a modelled video whose walk path changes is ready to be modelled again
     db = app.extensions["omninav"].db
     db.run("UPDATE videos SET status = 'modelled' WHERE venue = 'lab' AND name = 'walk.mp4'")
-    moved = {**track, "waypoints": [{**w, "x": w["x"] + 0.1} for w in track["waypoints"]]}
-    r = api.put("/api/admin/venues/lab/videos/walk.mp4/track", json=moved, headers=ADMIN)
-    assert r.json["status"] == "ready" and r.json["track"]["waypoints"][0]["x"] == moved["waypoints"][0]["x"]
+    moved = {**walk_path, "waypoints": [{**w, "x": w["x"] + 0.1} for w in walk_path["waypoints"]]}
+    r = api.put("/api/admin/venues/lab/videos/walk.mp4/walk-path", json=moved, headers=ADMIN)
+    assert r.json["status"] == "ready" and r.json["walk_path"]["waypoints"][0]["x"] == moved["waypoints"][0]["x"]
     # the default modelling selection takes it now (the job is left queued: no runner here)
     job = api.post("/api/admin/venues/lab/jobs", headers=ADMIN)
     assert job.status_code == 201 and job.json["videos"] == ["walk.mp4"]
-    r = api.put("/api/admin/venues/lab/videos/walk.mp4/track", json=track, headers=ADMIN)
+    r = api.put("/api/admin/venues/lab/videos/walk.mp4/walk-path", json=walk_path, headers=ADMIN)
     assert r.status_code == 409 and "being modelled" in r.json["error"]
     assert api.post(f"/api/admin/jobs/{job.json['id']}/cancel", headers=ADMIN).status_code == 202
+
+
+def test_the_walk_paths_old_names_still_work_for_a_release(lab: Any, small_ds: Any) -> None:
+    """`.../track` and the registration key `track` were the walk path's names until the rename:
+    still read, to the same place; both keys at once is refused, and nothing is registered."""
+    _, api = lab
+    walk_path = json.loads(small_ds.model_walk_path.read_text())
+    v = "/api/admin/venues/lab/videos"
+    r = api.put(f"{v}/walk.mp4/track", json=walk_path, headers=ADMIN)
+    assert r.status_code == 200 and r.json["walk_path"] == walk_path
+    assert api.get(f"{v}/walk.mp4/track", headers=ADMIN).json == walk_path
+    assert api.get(f"{v}/walk.mp4/walk-path", headers=ADMIN).json == walk_path
+    r = api.post(v, json={"name": "old.mp4", "size": 10, "track": walk_path, "lens": "donut"}, headers=ADMIN)
+    assert r.status_code == 201 and r.json["has_walk_path"] and r.json["walk_path"] == walk_path
+    both = {"name": "both.mp4", "size": 10, "track": walk_path, "walk_path": walk_path, "lens": "donut"}
+    r = api.post(v, json=both, headers=ADMIN)
+    assert r.status_code == 400 and "give 'walk_path' only" in r.json["error"]
+    assert api.get(f"{v}/both.mp4", headers=ADMIN).status_code == 404
 
 
 def _off_plan(t: dict[str, Any]) -> dict[str, Any]:
@@ -162,13 +180,13 @@ def _backwards(t: dict[str, Any]) -> dict[str, Any]:
         ("bad..name", lambda t: t, 400, "invalid video name"),
     ],
 )
-def test_a_bad_track_is_refused_naming_what_is_wrong(
+def test_a_bad_walk_path_is_refused_naming_what_is_wrong(
     lab: Any, small_ds: Any, name: str, change: Any, status: int, says: str
 ) -> None:
     _, api = lab
     before = api.get("/api/admin/venues/lab/videos/walk.mp4", headers=ADMIN).json
-    track = change(json.loads(small_ds.model_track.read_text()))
-    r = api.put(f"/api/admin/venues/lab/videos/{name}/track", json=track, headers=ADMIN)
+    walk_path = change(json.loads(small_ds.model_walk_path.read_text()))
+    r = api.put(f"/api/admin/venues/lab/videos/{name}/walk-path", json=walk_path, headers=ADMIN)
     assert r.status_code == status and says in r.json["error"], r.json
     assert api.get("/api/admin/venues/lab/videos/walk.mp4", headers=ADMIN).json == before
 
@@ -178,8 +196,8 @@ def test_a_bad_track_is_refused_naming_what_is_wrong(
     [
         ({"role": "judge"}, 400, "'role' must be one of model, evaluation"),
         ({"floor": "9"}, 404, "has no floor '9'"),
-        ({"track": {"fps": 30, "waypoints": []}}, 400, "at least two"),
-        ({"track": None, "lens": "nolens"}, 404, "no lens profile 'nolens'"),
+        ({"walk_path": {"fps": 30, "waypoints": []}}, 400, "at least two"),
+        ({"walk_path": None, "lens": "nolens"}, 404, "no lens profile 'nolens'"),
     ],
 )
 def test_a_bad_video_registration_is_refused(lab: Any, body: dict[str, Any], status: int, says: str) -> None:
@@ -295,7 +313,7 @@ def test_the_admin_venue_says_which_generation_is_live(tmp_path: Path, small_ds:
 # ---- optimistic concurrency -------------------------------------------------------------------
 def _writes(small_ds: Any) -> list[tuple[str, str, dict[str, Any]]]:
     plan = small_ds.floorplan.read_bytes()
-    track = json.loads(small_ds.model_track.read_text())
+    walk_path = json.loads(small_ds.model_walk_path.read_text())
     lens = json.loads((small_ds.root / "model_lens.json").read_text())
     return [
         ("PATCH", "", {"json": {"name": "Renamed"}}),
@@ -306,9 +324,9 @@ def _writes(small_ds: Any) -> list[tuple[str, str, dict[str, Any]]]:
         ("POST", "/places", {"json": {"name": "Stairs", "x": 2, "y": 2}}),
         ("DELETE", "/places/{place}", {}),
         ("PUT", "/lenses/other", {"json": lens}),
-        ("POST", "/videos", {"json": {"name": "b.mp4", "size": 10, "track": track, "lens": "donut"}}),
+        ("POST", "/videos", {"json": {"name": "b.mp4", "size": 10, "walk_path": walk_path, "lens": "donut"}}),
         ("POST", "/videos", {"json": {"name": "c.mp4", "size": 10, "lens": lens}}),  # an inline lens: two bumps
-        ("PUT", "/videos/a.mp4/track", {"json": track}),
+        ("PUT", "/videos/a.mp4/walk-path", {"json": walk_path}),
         ("DELETE", "/videos/a.mp4", {}),
         ("DELETE", "", {}),
     ]
@@ -462,8 +480,8 @@ def test_deleting_a_venue_leaves_nothing_behind(tmp_path: Path, small_ds: Any, m
     for vid in ("gone", "kept"):
         build_venue(api, small_ds, vid)
         video = small_ds.model_video.read_bytes()
-        track = json.loads(small_ds.model_track.read_text())
-        assert post_video(api, vid, "walk.mp4", len(video), track=track).status_code == 201
+        walk_path = json.loads(small_ds.model_walk_path.read_text())
+        assert post_video(api, vid, "walk.mp4", len(video), walk_path=walk_path).status_code == 201
         assert send(api, vid, "walk.mp4", video).status_code == 200
         st, src = modelled
         shutil.copytree(st.venue_dir(src), data / "venues" / vid)
@@ -493,8 +511,8 @@ def test_deleting_a_venue_stops_its_running_job(tmp_path: Path, small_ds: Any) -
     api = Api(app.test_client())
     build_venue(api, small_ds, "v")
     video = small_ds.model_video.read_bytes()
-    track = json.loads(small_ds.model_track.read_text())
-    assert post_video(api, "v", "walk.mp4", len(video), track=track).status_code == 201
+    walk_path = json.loads(small_ds.model_walk_path.read_text())
+    assert post_video(api, "v", "walk.mp4", len(video), walk_path=walk_path).status_code == 201
     assert send(api, "v", "walk.mp4", video).status_code == 200
     jobs = app.extensions["omninav"].jobs
     job = api.post("/api/admin/venues/v/jobs", headers=ADMIN).json
@@ -554,7 +572,7 @@ def test_migration_4_keeps_videos_and_jobs_of_a_version_3_catalogue(tmp_path: Pa
         c.execute(text("INSERT INTO jobs (id, venue, videos, state, created) VALUES ('j', 'v', '[]', 'done', 0)"))
     assert old.version() == 3 and old.migrate() == SCHEMA_VERSION - 3 and old.version() == SCHEMA_VERSION
     v = old.one("SELECT * FROM videos")
-    assert v is not None and v["role"] == "model" and v["track"] == '{"waypoints": []}' and v["suggestions"] is None
+    assert v is not None and v["role"] == "model" and v["walk_path"] == '{"waypoints": []}' and v["suggestions"] is None
     j = old.one("SELECT * FROM jobs")
     assert j is not None and j["kind"] == "model" and j["target"] is None and j["result"] is None
 

@@ -31,12 +31,12 @@ PLACES = [
 ]
 
 
-def register(api, name, path: Path, track=None, role="model", send=None):
-    """POST a video of venue 'lab' (track None: untracked) and PUT its bytes (the first `send`)."""
+def register(api, name, path: Path, walk_path=None, role="model", send=None):
+    """POST a video of venue 'lab' (walk_path None: tagged later) and PUT its bytes (the first `send`)."""
     data = path.read_bytes()
     body = {"name": name, "floor": "1", "size": len(data), "lens": "donut", "role": role}
-    if track is not None:
-        body["track"] = json.loads(track.read_text())
+    if walk_path is not None:
+        body["walk_path"] = json.loads(walk_path.read_text())
     r = api.post(f"{V}/videos", json=body, headers=ADMIN)
     assert r.status_code == 201, r.json
     if send is None:
@@ -60,7 +60,7 @@ def job(api, job_id):
 @pytest.fixture(scope="module")
 def lab(small_ds, tmp_path_factory):
     """Venue 'lab' (plan, scale, lens, places) modelled from walk.mp4, with an evaluation walk
-    eval.mp4 (the query walk and its track), an untracked walk and a half-uploaded one; and an
+    eval.mp4 (the query walk and its walk path), a walk without one and a half-uploaded one; and an
     empty venue 'empty'. No job thread."""
     app = make_app(tmp_path_factory.mktemp("analysis"), JOB_RUNNER=False)
     api = Api(app.test_client())
@@ -72,10 +72,10 @@ def lab(small_ds, tmp_path_factory):
     lens = json.loads((small_ds.root / "model_lens.json").read_text())
     assert api.put(f"{V}/lenses/donut", json=lens, headers=ADMIN).status_code == 200
     assert api.put(f"{V}/places", json=PLACES, headers=ADMIN).status_code == 200
-    register(api, "walk.mp4", small_ds.model_video, small_ds.model_track)
-    register(api, "eval.mp4", small_ds.query_video, small_ds.query_track, role="evaluation")
+    register(api, "walk.mp4", small_ds.model_video, small_ds.model_walk_path)
+    register(api, "eval.mp4", small_ds.query_video, small_ds.query_walk_path, role="evaluation")
     register(api, "untagged.mp4", small_ds.query_video, role="evaluation")
-    register(api, "half.mp4", small_ds.model_video, small_ds.model_track, send=1000)
+    register(api, "half.mp4", small_ds.model_video, small_ds.model_walk_path, send=1000)
     runner = app.extensions["omninav"].jobs
     model = api.post(f"{V}/jobs", headers=ADMIN)  # every tracked modelling walk: walk.mp4 alone
     assert model.status_code == 201 and model.json["videos"] == ["walk.mp4"] and model.json["kind"] == "model"
@@ -129,7 +129,7 @@ def test_suggest_job_finds_the_corner_and_keeps_the_result_on_the_video(lab):
     result = got.json
     assert json.loads(result_file(app, j["id"]).read_text()) == result
     assert d["videos"] == ["walk.mp4"] and abs(result["duration_s"] - 23.4) < 0.2
-    # the walk's one corner is at 15 s (the track's second waypoint)
+    # the walk's one corner is at 15 s (the walk path's second waypoint)
     turns = [s for s in result["suggestions"] if s["kind"] == "turn"]
     assert any(abs(s["t"] - 15.0) <= 1.0 for s in turns), result["suggestions"]
     assert api.get(f"{V}/videos/walk.mp4", headers=ADMIN).json["suggestions"] == result
@@ -274,7 +274,7 @@ def test_a_full_disk_while_writing_the_result_is_retried(lab, monkeypatch):
 def test_an_analysis_job_on_bad_input_fails_at_once(lab, small_ds):
     app, api = lab
     svc = app.extensions["omninav"]
-    register(api, "gone.mp4", small_ds.query_video, small_ds.query_track, role="evaluation")
+    register(api, "gone.mp4", small_ds.query_video, small_ds.query_walk_path, role="evaluation")
     j = api.post(f"{V}/videos/gone.mp4/evaluate", headers=ADMIN).json
     (Path(app.config["DATA"]) / "videos" / "lab" / "gone.mp4").unlink()  # lost from the disk meanwhile
     assert svc.jobs.run_next()
@@ -292,7 +292,7 @@ def test_an_analysis_job_on_bad_input_fails_at_once(lab, small_ds):
         ("post", f"{V}/videos/nope.mp4/evaluate", 404, "has no video 'nope.mp4'"),
         ("post", f"{V}/videos/half.mp4/evaluate", 409, "not completely uploaded"),
         ("post", f"{V}/videos/walk.mp4/evaluate", 409, "is a modelling walk"),
-        ("post", f"{V}/videos/untagged.mp4/evaluate", 409, "has no track yet"),
+        ("post", f"{V}/videos/untagged.mp4/evaluate", 409, "has no walk path yet"),
         ("post", "/api/admin/venues/empty/quality", 409, "model the venue first"),
         ("get", "/api/admin/venues/empty/quality", 404, "no quality map yet"),
         ("get", "/api/admin/venues/empty/quality.png", 409, "needs a floor plan"),

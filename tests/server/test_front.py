@@ -196,8 +196,8 @@ def test_two_uploads_of_one_video_at_once_have_one_writer(tmp_path, small_ds):
     srv = Server(tmp_path / "data")
     try:
         data = build_lab(srv, small_ds)
-        track = json.loads(small_ds.model_track.read_text())
-        body = {"name": "walk.mp4", "size": len(data), "track": track, "lens": "donut"}
+        walk_path = json.loads(small_ds.model_walk_path.read_text())
+        body = {"name": "walk.mp4", "size": len(data), "walk_path": walk_path, "lens": "donut"}
         url = "/api/admin/venues/lab/videos/walk.mp4/content"
 
         # upload A sends half, pauses while B tries, then sends the rest
@@ -394,8 +394,8 @@ def build_lab(srv: Server, small_ds) -> bytes:
     lens = json.loads((small_ds.root / "model_lens.json").read_text())
     assert srv.call("PUT", "/api/admin/venues/lab/lenses/donut", lens, admin=True)[0] == 200
     data = small_ds.model_video.read_bytes()
-    track = json.loads(small_ds.model_track.read_text())
-    body = {"name": "walk.mp4", "size": len(data), "track": track, "lens": "donut"}
+    walk_path = json.loads(small_ds.model_walk_path.read_text())
+    body = {"name": "walk.mp4", "size": len(data), "walk_path": walk_path, "lens": "donut"}
     assert srv.call("POST", "/api/admin/venues/lab/videos", body, admin=True)[0] == 201
     return data
 

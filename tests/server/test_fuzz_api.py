@@ -64,7 +64,7 @@ def _ok(r: Any, status: int = 200) -> Any:
 
 
 PLACES = [{"name": "Room 1", "x": 3, "y": 4, "area": [1, 1, 5, 6]}, {"name": "lifts", "floor": "2", "x": 5, "y": 5}]
-TRACK = {"fps": 10, "waypoints": [{"frame": 0, "x": 2, "y": 5}, {"frame": 29, "x": 8, "y": 5}]}
+WALK_PATH = {"fps": 10, "waypoints": [{"frame": 0, "x": 2, "y": 5}, {"frame": 29, "x": 8, "y": 5}]}
 
 
 @pytest.fixture(scope="module")
@@ -117,7 +117,7 @@ def _restock(app: Any) -> None:
 def _announce_and_send(c: Any, name: str, data: bytes, n: int) -> None:
     """POST the video and PUT its first n bytes (all: it becomes ready; fewer: still uploading)."""
     base = f"/api/admin/venues/{VENUE}"
-    r = c.post(f"{base}/videos", json={"name": name, "size": len(data), "track": TRACK}, headers=ADMIN)
+    r = c.post(f"{base}/videos", json={"name": name, "size": len(data), "walk_path": WALK_PATH}, headers=ADMIN)
     if r.status_code == 409:  # a job that the fuzzer queued holds it: leave it so
         return
     _ok(r, 201)
@@ -217,7 +217,7 @@ CANNOT_STATE = (
     "r_inner < r_outer",
     "not monotonic",  # lens elevation polynomial
     "overflows",
-    "increasing time",  # track waypoints
+    "increasing time",  # walk path waypoints
     "must both be",  # a feature record's 'mag' and 'phase' have one shape
     "this venue needs",  # a feature record for other settings than the venue's
     "other settings",

@@ -137,14 +137,16 @@ def test_a_job_on_bad_input_fails_at_once(lab, small_ds):
     app, api, record = lab
     runner = app.extensions["omninav"].jobs
     answer = api.post("/api/venues/lab/locate", data=record, content_type=OCTET).json
-    track = json.loads(small_ds.model_track.read_text())
-    late = {**track, "waypoints": [{**w, "t": w["t"] + 10000.0} for w in track["waypoints"]]}
-    assert upload(api, "lab", "late.mp4", add_video(api, "lab", "late.mp4", small_ds, track=late)).status_code == 200
+    walk_path = json.loads(small_ds.model_walk_path.read_text())
+    late = {**walk_path, "waypoints": [{**w, "t": w["t"] + 10000.0} for w in walk_path["waypoints"]]}
+    assert (
+        upload(api, "lab", "late.mp4", add_video(api, "lab", "late.mp4", small_ds, walk_path=late)).status_code == 200
+    )
     j = api.post("/api/admin/venues/lab/jobs", json={"videos": ["late.mp4"]}, headers=ADMIN).json
     assert runner.run_next()
     d = job(api, j["id"])
     assert d["state"] == "failed" and d["attempts"] == 1 and d["retry_at"] is None
-    assert "track starts after the video ends" in d["error"] and "attempt" not in d["error"]
+    assert "walk path starts after the video ends" in d["error"] and "attempt" not in d["error"]
     assert runner.claim() is None
     assert api.post("/api/venues/lab/locate", data=record, content_type=OCTET).json == answer
     assert api.delete("/api/admin/venues/lab/videos/late.mp4", headers=ADMIN).status_code == 200

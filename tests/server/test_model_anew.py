@@ -21,7 +21,7 @@ from omninav.lens import load_lens
 from omninav.model_venue import model_video
 from omninav.presets import resolve, settings_id
 from omninav.spectrum import encode_binary
-from omninav.track import load_track
+from omninav.walk_path import load_walk_path
 from server_helpers import ADMIN, Api, clip_spectra, heading_error, query_clip
 from test_jobs import job, prepared
 from test_server import add_video, upload
@@ -96,13 +96,15 @@ def test_a_venue_with_no_modelling_walk_cannot_be_modelled_anew(small_ds: Any, t
     app, api = prepared(small_ds, tmp_path)
     assert api.delete("/api/admin/venues/lab/videos/walk.mp4", headers=ADMIN).status_code == 200
     r = api.post("/api/admin/venues/lab/jobs", json={"anew": True}, headers=ADMIN)
-    assert r.status_code == 409 and "no uploaded modelling video with a track" in r.json["error"]
-    assert "upload a modelling walk and tag its track first" in r.json["error"]
+    assert r.status_code == 409 and "no uploaded modelling video with a walk path" in r.json["error"]
+    assert "upload a modelling walk and tag its walk path first" in r.json["error"]
     # frames of a walk the catalogue does not know: modelled by the command line, upgraded there
     cli_walk = tmp_path / "cli-walk.mp4"
     cli_walk.write_bytes(small_ds.model_video.read_bytes())
     store = app.extensions["omninav"].catalog.store
-    model_video(store, "lab", cli_walk, load_track(small_ds.model_track), load_lens(small_ds.root / "model_lens.json"))
+    model_video(
+        store, "lab", cli_walk, load_walk_path(small_ds.model_walk_path), load_lens(small_ds.root / "model_lens.json")
+    )
     r = api.post("/api/admin/venues/lab/jobs", json={"anew": True}, headers=ADMIN)
     assert r.status_code == 409 and "its frames are from 'cli-walk.mp4'" in r.json["error"]
     assert "omninav model ... --anew" in r.json["error"]
@@ -122,7 +124,9 @@ def test_a_modelling_anew_never_drops_a_walk_it_cannot_model_again(small_ds: Any
     # a walk modelled with the command line (frames, no video of the catalogue): its frames would go
     cli = tmp_path / "cli.mp4"
     cli.write_bytes(small_ds.model_video.read_bytes())
-    model_video(cat.store, "lab", cli, load_track(small_ds.model_track), load_lens(small_ds.root / "model_lens.json"))
+    model_video(
+        cat.store, "lab", cli, load_walk_path(small_ds.model_walk_path), load_lens(small_ds.root / "model_lens.json")
+    )
     gen = cat.store.generation("lab")
     r = api.post("/api/admin/venues/lab/jobs", json={"anew": True}, headers=ADMIN)
     assert r.status_code == 409 and "would drop the frames of 'cli.mp4'" in r.json["error"], r.json

@@ -43,8 +43,8 @@ def pair(small_ds, pg_url, tmp_path_factory):
         assert a.call("PUT", "/api/admin/venues/lab/floors/1", {"px_per_m": 20}, admin=True)[0] == 200
         lens = json.loads((small_ds.root / "model_lens.json").read_text())
         assert b.call("PUT", "/api/admin/venues/lab/lenses/donut", lens, admin=True)[0] == 200
-        track = json.loads(small_ds.model_track.read_text())
-        upload(a, "lab", "walk.mp4", small_ds.model_video.read_bytes(), track, piece=512 * 1024)
+        walk_path = json.loads(small_ds.model_walk_path.read_text())
+        upload(a, "lab", "walk.mp4", small_ds.model_video.read_bytes(), walk_path, piece=512 * 1024)
         frames, truth = query_clip(small_ds, 100)
         _, venue = b.call("GET", "/api/venues/lab")
         settings = venue["features"]["settings"]
@@ -85,10 +85,10 @@ def test_a_job_runs_exactly_once_and_both_servers_serve_its_generation(pair):
 def test_killing_the_server_running_a_job_lets_the_other_take_it_over(pair, small_ds):
     a, b, db, record, truth = pair
     before = a.call("GET", "/api/venues/lab")[1]["frames"]
-    track = json.loads(small_ds.model_track.read_text())
+    walk_path = json.loads(small_ds.model_walk_path.read_text())
     names = [f"copy{i}.mp4" for i in range(3)]
     for n in names:
-        upload(b, "lab", n, small_ds.model_video.read_bytes(), track, piece=8 * 1024 * 1024)
+        upload(b, "lab", n, small_ds.model_video.read_bytes(), walk_path, piece=8 * 1024 * 1024)
     st, job = b.call("POST", "/api/admin/venues/lab/jobs", {"videos": names}, admin=True)
     assert st == 201
     wait_job(a, job["id"], until=lambda j: j["state"] == "running" and j["frames_done"] > 20)

@@ -17,7 +17,7 @@ from omninav.catalog import videos as videos_mod
 from omninav.errors import OmninavError
 from omninav.lens import load_lens
 from omninav.model_venue import model_video, remove_video
-from omninav.track import load_track
+from omninav.walk_path import load_walk_path
 from server_helpers import ADMIN, Api
 from test_server import make_app
 
@@ -50,7 +50,7 @@ def test_a_crash_between_writing_a_generation_and_switching_to_it_heals_itself(c
             st,
             vid,
             small_ds.model_video,
-            load_track(small_ds.model_track),
+            load_walk_path(small_ds.model_walk_path),
             load_lens(small_ds.root / "model_lens.json"),
         )
     monkeypatch.setattr(store_mod, "_write_atomic", real)
@@ -77,7 +77,9 @@ def test_a_damaged_video_fails_its_modelling_naming_where_decoding_stopped(copy_
     before, n = st.generation(vid), st.frame_count(vid)
     bad = damaged(small_ds.model_video, tmp_path / "walk2.mp4")
     with pytest.raises(OmninavError) as e:
-        model_video(st, vid, bad, load_track(small_ds.model_track), load_lens(small_ds.root / "model_lens.json"))
+        model_video(
+            st, vid, bad, load_walk_path(small_ds.model_walk_path), load_lens(small_ds.root / "model_lens.json")
+        )
     msg = str(e.value)
     assert msg.startswith("walk2.mp4: the video stops decoding at 0:") and "damaged" in msg
     assert str(tmp_path) not in msg  # the video's name, never a path on the server (finding 10)
@@ -98,8 +100,8 @@ def venue_app(small_ds, tmp_path):
 
 
 def announce(api, small_ds, name: str, size: int) -> None:
-    track = json.loads(small_ds.model_track.read_text())
-    body = {"name": name, "size": size, "track": track, "lens": "donut"}
+    walk_path = json.loads(small_ds.model_walk_path.read_text())
+    body = {"name": name, "size": size, "walk_path": walk_path, "lens": "donut"}
     assert api.post("/api/admin/venues/lab/videos", json=body, headers=ADMIN).status_code == 201
 
 

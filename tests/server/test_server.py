@@ -65,12 +65,12 @@ def upload(api, venue, name, data, piece=None):
     return r
 
 
-def add_video(api, venue, name, ds, lens="donut", track=None):
+def add_video(api, venue, name, ds, lens="donut", walk_path=None):
     data = ds.model_video.read_bytes()
-    track = track or json.loads(ds.model_track.read_text())
+    walk_path = walk_path or json.loads(ds.model_walk_path.read_text())
     r = api.post(
         f"/api/admin/venues/{venue}/videos",
-        json={"name": name, "floor": "1", "size": len(data), "track": track, "lens": lens},
+        json={"name": name, "floor": "1", "size": len(data), "walk_path": walk_path, "lens": lens},
         headers=ADMIN,
     )
     assert r.status_code == 201, r.json
@@ -418,18 +418,18 @@ def test_admin_edits_venue_floors_places_and_lenses(built, small_ds):
 
 def test_video_uploads_refuse_bad_input_and_lose_nothing(built, small_ds):
     _, api = built
-    track = json.loads(small_ds.model_track.read_text())
-    base = {"name": "v2.mp4", "floor": "1", "size": 1000, "track": track, "lens": "donut"}
-    outside = {**track, "waypoints": [*track["waypoints"][:-1], {**track["waypoints"][-1], "x": 99.0}]}
+    walk_path = json.loads(small_ds.model_walk_path.read_text())
+    base = {"name": "v2.mp4", "floor": "1", "size": 1000, "walk_path": walk_path, "lens": "donut"}
+    outside = {**walk_path, "waypoints": [*walk_path["waypoints"][:-1], {**walk_path["waypoints"][-1], "x": 99.0}]}
     cases = [
-        ({**base, "track": outside}, 422, "outside the floor plan"),
+        ({**base, "walk_path": outside}, 422, "outside the floor plan"),
         ({**base, "size": 10**12}, 413, "limit"),
         ({**base, "size": -1}, 400, "'size'"),
         ({**base, "name": "../evil.mp4"}, 400, "invalid video name"),
         ({**base, "name": "a/b.mp4"}, 400, "invalid video name"),
         ({**base, "lens": "fisheye"}, 404, "fisheye"),
         ({**base, "floor": "7"}, 404, "no floor '7'"),
-        ({**base, "track": {"fps": 30, "waypoints": [{"frame": 0, "x": 1, "y": 1}]}}, 400, "at least two"),
+        ({**base, "walk_path": {"fps": 30, "waypoints": [{"frame": 0, "x": 1, "y": 1}]}}, 400, "at least two"),
     ]
     for body, code, words in cases:
         r = api.post("/api/admin/venues/lab/videos", json=body, headers=ADMIN)
@@ -465,15 +465,15 @@ def test_video_uploads_refuse_bad_input_and_lose_nothing(built, small_ds):
     assert api.delete("/api/admin/venues/lab/videos/v2.mp4", headers=ADMIN).json["frames_removed"] == 0
 
 
-def test_a_video_that_ends_before_its_track_starts_fails_its_job_and_keeps_the_frames(built, small_ds, clip):
+def test_a_video_that_ends_before_its_walk_path_starts_fails_its_job_and_keeps_the_frames(built, small_ds, clip):
     _, api = built
-    track = json.loads(small_ds.model_track.read_text())
-    late = {**track, "waypoints": [{**w, "t": w["t"] + 10000.0} for w in track["waypoints"]]}
-    data = add_video(api, "lab", "late.mp4", small_ds, track=late)
+    walk_path = json.loads(small_ds.model_walk_path.read_text())
+    late = {**walk_path, "waypoints": [{**w, "t": w["t"] + 10000.0} for w in walk_path["waypoints"]]}
+    data = add_video(api, "lab", "late.mp4", small_ds, walk_path=late)
     assert upload(api, "lab", "late.mp4", data).status_code == 200
     before = api.get("/api/venues/lab").json["frames"]
     job = wait_job(api, api.post("/api/admin/venues/lab/jobs", headers=ADMIN).json["id"])
-    assert job["state"] == "failed" and "track starts after the video ends" in job["error"]
+    assert job["state"] == "failed" and "walk path starts after the video ends" in job["error"]
     assert api.get("/api/venues/lab").json["frames"] == before
     _, truth, spec, conf = clip
     assert_near(api.post("/api/venues/lab/locate", json=encode_json(spec, conf)).json, truth)

@@ -51,11 +51,11 @@ class Server(ServeProcess):
         return status, (json.loads(data) if ctype.startswith("application/json") else data)
 
 
-def upload(srv: Server, venue: str, name: str, data: bytes, track: dict, piece: int) -> dict:
+def upload(srv: Server, venue: str, name: str, data: bytes, walk_path: dict, piece: int) -> dict:
     st, v = srv.call(
         "POST",
         f"/api/admin/venues/{venue}/videos",
-        {"name": name, "size": len(data), "track": track, "lens": "donut"},
+        {"name": name, "size": len(data), "walk_path": walk_path, "lens": "donut"},
         admin=True,
     )
     assert st == 201, v
@@ -124,8 +124,8 @@ def venue_data(small_ds, tmp_path_factory):
         assert srv.call("PUT", "/api/admin/venues/lab/floors/1", {"px_per_m": 20}, admin=True)[0] == 200
         lens = json.loads((small_ds.root / "model_lens.json").read_text())
         assert srv.call("PUT", "/api/admin/venues/lab/lenses/donut", lens, admin=True)[0] == 200
-        track = json.loads(small_ds.model_track.read_text())
-        upload(srv, "lab", "walk.mp4", small_ds.model_video.read_bytes(), track, piece=256 * 1024)
+        walk_path = json.loads(small_ds.model_walk_path.read_text())
+        upload(srv, "lab", "walk.mp4", small_ds.model_video.read_bytes(), walk_path, piece=256 * 1024)
         st, job = srv.call("POST", "/api/admin/venues/lab/jobs", admin=True)
         assert st == 201
         assert wait_job(srv, job["id"])["state"] == "done"
@@ -146,11 +146,11 @@ def test_a_job_killed_with_its_server_is_taken_up_again_on_restart(venue_data, s
         octet = {"Content-Type": "application/octet-stream"}
         st, a0 = srv.call("POST", "/api/venues/lab/locate", record, octet)
         assert st == 200 and abs(a0["x"] - truth[0]) < 2 and abs(a0["y"] - truth[1]) < 2
-        track = json.loads(small_ds.model_track.read_text())
+        walk_path = json.loads(small_ds.model_walk_path.read_text())
         data = small_ds.model_video.read_bytes()
         names = [f"copy{i}.mp4" for i in range(4)]
         for n in names:
-            upload(srv, "lab", n, data, track, piece=len(data))
+            upload(srv, "lab", n, data, walk_path, piece=len(data))
         _, job = srv.call("POST", "/api/admin/venues/lab/jobs", {"videos": names}, admin=True)
         running = wait_job(srv, job["id"], until=lambda j: j["state"] == "running" and j["frames_done"] > 20)
         assert running["frames_done"] < running["frames_total"] and running["eta_s"] is not None

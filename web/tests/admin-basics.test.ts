@@ -153,11 +153,17 @@ describe('routes', () => {
   it('#/venues, #/v/<id>/<screen>?query, and anything else', () => {
     expect(parseRoute('#/venues')).toEqual({ kind: 'venues' });
     expect(parseRoute('')).toEqual({ kind: 'venues' });
-    const r = parseRoute('#/v/lab%201/track?video=walk&floor=2');
+    const r = parseRoute('#/v/lab%201/walk-path?video=walk&floor=2');
     expect(r.kind).toBe('venue');
     if (r.kind !== 'venue') return;
-    expect([r.id, r.screen, r.params.get('video'), r.params.get('floor')]).toEqual(['lab 1', 'track', 'walk', '2']);
+    expect([r.id, r.screen, r.params.get('video'), r.params.get('floor')]).toEqual(['lab 1', 'walk-path', 'walk', '2']);
     expect(parseRoute('#/v/lab/nonsense')).toMatchObject({ kind: 'venue', screen: 'floor' });
+  });
+
+  it('opens a renamed screen by its old name (a bookmark of the last release)', () => {
+    const r = parseRoute('#/v/lab/track?video=walk.mp4');
+    if (r.kind !== 'venue') throw new Error('not a venue route');
+    expect([r.screen, r.params.get('video')]).toEqual(['walk-path', 'walk.mp4']);
   });
 
   it('venue paths are escaped', () => {
@@ -207,10 +213,18 @@ describe("a venue's first-run checklist", () => {
     // with the videos and jobs: every walked second in an area, each walk tagged and modelled,
     // a quality map and an evaluation; each missing piece is a step with its screen
     type Progress = NonNullable<Parameters<typeof stepsLeft>[1]>;
-    const walk = (name: string, role: string, track: unknown, status = 'modelled') =>
-      ({ name, role, floor: '1', status, tracked: !!track, track, fps: 30 }) as unknown as Progress['videos'][number];
+    const walk = (name: string, role: string, walkPath: unknown, status = 'modelled') =>
+      ({
+        name,
+        role,
+        floor: '1',
+        status,
+        has_walk_path: !!walkPath,
+        walk_path: walkPath,
+        fps: 30,
+      }) as unknown as Progress['videos'][number];
     // 20 s east along y = 1 (in Corridor 1 up to x = 9), then 10 s south along x = 20 (in no area)
-    const track = {
+    const walkPath = {
       waypoints: [
         { t: 0, x: 0, y: 1 },
         { t: 20, x: 20, y: 1 },
@@ -218,7 +232,7 @@ describe("a venue's first-run checklist", () => {
       ],
     };
     const job = (kind: string, state = 'done') => ({ kind, state }) as unknown as Progress['jobs'][number];
-    const full: Progress = { videos: [walk('walk.mp4', 'model', track)], jobs: [job('quality'), job('evaluate')] };
+    const full: Progress = { videos: [walk('walk.mp4', 'model', walkPath)], jobs: [job('quality'), job('evaluate')] };
     const areas = stepsLeft(all as typeof ready, full);
     // 9 of the 20 s along y = 1 are in Corridor 1 (their middles at 0.5 .. 8.5 m), none of the next 10
     expect(areas).toEqual([
@@ -239,13 +253,13 @@ describe("a venue's first-run checklist", () => {
     // a walk uploaded but not tagged, nothing modelled, no quality map, no evaluation
     const early: Progress = { videos: [walk('walk.mp4', 'model', null, 'ready')], jobs: [job('quality', 'failed')] };
     expect(stepsLeft({ ...zoned, modelled: false }, early)).toEqual([
-      { screen: 'track', text: 'Tag the track of walk.mp4', params: { video: 'walk.mp4' } },
+      { screen: 'walk-path', text: 'Tag the walk path of walk.mp4', params: { video: 'walk.mp4' } },
       { screen: 'modelling', text: 'Model the tagged walks' },
       { screen: 'quality', text: 'Compute the quality map' },
       { screen: 'evaluation', text: 'Upload an evaluation walk, tag it and evaluate it' },
     ]);
     // tagged, not modelled again; no walk at all; an evaluation walk is not a modelling walk
-    const tagged: Progress = { ...full, videos: [walk('walk.mp4', 'model', track, 'ready')] };
+    const tagged: Progress = { ...full, videos: [walk('walk.mp4', 'model', walkPath, 'ready')] };
     expect(stepsLeft(zoned, tagged).map((st) => st.text)).toEqual(['Model the newly tagged walks']);
     // a quality map and an evaluation from before the live modelling judged other frames: asked again
     const old = (kind: string) => ({ kind, state: 'done', finished: 100 }) as unknown as Progress['jobs'][number];
@@ -256,10 +270,10 @@ describe("a venue's first-run checklist", () => {
     ]);
     const fresh = (kind: string) => ({ kind, state: 'done', finished: 300 }) as unknown as Progress['jobs'][number];
     expect(stepsLeft(remodelled, { ...full, jobs: [fresh('quality'), fresh('evaluate')] })).toEqual([]);
-    const none: Progress = { ...full, videos: [walk('eval.mp4', 'evaluation', track)] };
+    const none: Progress = { ...full, videos: [walk('eval.mp4', 'evaluation', walkPath)] };
     expect(stepsLeft(zoned, none).map((st) => st.text)).toEqual([
       'Upload a modelling walk',
-      'Tag the walk’s track (where the walker was)',
+      'Tag the walk path (where the walker was)',
     ]);
   });
 });

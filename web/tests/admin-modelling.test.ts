@@ -10,8 +10,8 @@ const video = (over: Partial<Video>): Video =>
   videoDoc({
     received: 1000,
     status: 'ready',
-    tracked: true,
-    track: { waypoints: [] },
+    has_walk_path: true,
+    walk_path: { waypoints: [] },
     duration_s: 20,
     fps: 10,
     width: 480,
@@ -24,7 +24,7 @@ describe('the next modelling', () => {
     expect(modelVerdict(video({}))).toEqual({ goes: true, why: 'will be modelled' });
   });
   it('leaves out the others, saying why', () => {
-    expect(modelVerdict(video({ tracked: false })).why).toBe('no track yet: tag it first');
+    expect(modelVerdict(video({ has_walk_path: false })).why).toBe('no walk path yet: tag it first');
     expect(modelVerdict(video({ status: 'uploading' })).why).toBe('still uploading');
     expect(modelVerdict(video({ status: 'modelled', frames: 188 })).why).toBe('already modelled (188 frames)');
     expect(modelVerdict(video({ role: 'evaluation' })).goes).toBe(false);
@@ -46,11 +46,11 @@ describe('a modelling anew', () => {
   const walks = [
     video({ name: 'walk.mp4', status: 'modelled', frames: 188 }),
     video({ name: 'new.mp4' }),
-    video({ name: 'untagged.mp4', tracked: false }),
+    video({ name: 'untagged.mp4', has_walk_path: false }),
     video({ name: 'eval.mp4', role: 'evaluation' }),
     video({ name: 'half.mp4', status: 'uploading' }),
   ];
-  it('takes every uploaded modelling walk with a track, modelled or not', () => {
+  it('takes every uploaded modelling walk with a walk path, modelled or not', () => {
     expect(anewVideos(walks)).toEqual(['walk.mp4', 'new.mp4']);
   });
   it('is offered only when the live frames have older settings than the preset', () => {
@@ -63,8 +63,8 @@ describe('a modelling anew', () => {
     );
   });
   it('says when there is nothing to model anew from', () => {
-    expect(anewNotice(venue(5, 7, false), [video({ tracked: false })])).toContain(
-      'Modelling anew needs the modelling videos with their tracks, and no uploaded modelling video has a track yet',
+    expect(anewNotice(venue(5, 7, false), [video({ has_walk_path: false })])).toContain(
+      'Modelling anew needs the modelling videos with their walk paths, and no uploaded modelling video has a walk path yet',
     );
   });
 });

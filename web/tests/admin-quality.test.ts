@@ -265,10 +265,10 @@ describe('evaluation walk in words', () => {
 
   it('offers only evaluation videos, and says why one cannot run yet', () => {
     const v = (over: Partial<Video>): Video =>
-      ({ name: 'eval.mp4', role: 'evaluation', status: 'ready', tracked: true, error: null, ...over }) as Video;
+      ({ name: 'eval.mp4', role: 'evaluation', status: 'ready', has_walk_path: true, error: null, ...over }) as Video;
     expect(evaluationVideos([v({}), v({ name: 'model.mp4', role: 'model' })]).map((x) => x.name)).toEqual(['eval.mp4']);
     expect(notReady(v({}))).toBeNull();
-    expect(notReady(v({ tracked: false }))).toMatch(/no track/);
+    expect(notReady(v({ has_walk_path: false }))).toMatch(/no walk path/);
     expect(notReady(v({ status: 'uploading' }))).toMatch(/uploading/);
     expect(notReady(v({ error: 'it does not decode' }))).toMatch(/refused it: it does not decode/);
   });

@@ -1,5 +1,5 @@
 // A video document as the admin API gives it, for the admin page's unit tests: by default one just
-// registered (nothing received, no track); a test overrides what it is about.
+// registered (nothing received, no walk path); a test overrides what it is about.
 import type { Video } from '../src/admin/types';
 
 export const videoDoc = (over: Partial<Video> = {}): Video => ({
@@ -11,8 +11,8 @@ export const videoDoc = (over: Partial<Video> = {}): Video => ({
   received: 0,
   status: 'uploading',
   frames: 0,
-  tracked: false,
-  track: null,
+  has_walk_path: false,
+  walk_path: null,
   duration_s: null,
   fps: null,
   width: null,

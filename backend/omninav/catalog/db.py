@@ -148,6 +148,8 @@ MIGRATIONS: list[Migration] = [
     [_tracking_sessions],
     # 6: a modelling job may model the venue anew, with its preset's current feature settings
     ["ALTER TABLE jobs ADD COLUMN anew INTEGER NOT NULL DEFAULT 0"],
+    # 7: a video's waypoints are its walk path ("track" named the tracking filter too)
+    ["ALTER TABLE videos RENAME COLUMN track TO walk_path"],
 ]
 SCHEMA_VERSION = len(MIGRATIONS)
 MIGRATION_LOCK = 0x6F6D6E69  # 'omni': the advisory lock id migrations hold on PostgreSQL

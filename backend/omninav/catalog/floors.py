@@ -1,6 +1,6 @@
 """Floors and their plans: a plan is a picture with a scale (pixels per metre).
 
-Places, tracks and answers are in metres on the floor, so a plan can be replaced or re-scaled
+Places, walk paths and answers are in metres on the floor, so a plan can be replaced or re-scaled
 without touching them. A plan's size is read from its header before it is decoded (a 16,384^2 PNG
 is a 100 KB upload and 800 MB decoded) and bounded: no screen needs more.
 """
@@ -163,7 +163,7 @@ class Floors:
 
     @staticmethod
     def extent_m(f: dict[str, Any]) -> tuple[float, float]:
-        """The floor's plan in metres (width, height): what tracks and places must lie in."""
+        """The floor's plan in metres (width, height): what walk paths and places must lie in."""
         if not f["plan_file"] or not f["px_per_m"]:
             raise Conflict(f"floor {f['id']!r} needs a floor plan and its scale first (PUT .../floors/{f['id']}/plan)")
         return f["plan_w"] / f["px_per_m"], f["plan_h"] / f["px_per_m"]

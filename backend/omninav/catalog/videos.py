@@ -1,11 +1,11 @@
-"""Modelling videos: registered with their floor, lens, role and (now or later) track, uploaded
+"""Modelling videos: registered with their floor, lens, role and (now or later) walk path, uploaded
 in resumable pieces, checked when the last byte is in, modelled by jobs (server/jobs.py), deleted
 with their frames.
 
 A video's role is 'model' (a walk the venue is modelled from) or 'evaluation' (a walk that checks
-the modelled venue, never modelled itself). Its track may come after its bytes: the admin tags it
+the modelled venue, never modelled itself). Its walk path may come after its bytes: the admin tags it
 on the plan, helped by the waypoints a suggest job found (`suggestions`); until then it is
-untracked (its track column holds the JSON null) and is not modelled.
+without a walk path (its walk path column holds the JSON null) and is not modelled.
 
 The only module that writes the `videos` table. An upload has one writer at a time: a request
 claims the video (a lease in its row, renewed while bytes flow, lapsing if its process dies), and
@@ -32,8 +32,8 @@ from sqlalchemy import Connection, text
 from ..errors import Conflict, NoRoom, NotFound, OmninavError, TooLarge, Unusable
 from ..model_venue import ModelResult, VideoSource
 from ..preview import frame_jpeg
-from ..track import Track, parse_track
 from ..video import VideoInfo
+from ..walk_path import WalkPath, parse_walk_path
 from .lenses import DEFAULT_LENS
 from .venues import bump
 
@@ -71,6 +71,14 @@ def check_size(size: Any, max_bytes: int) -> int:
     return size
 
 
+def body_walk_path(body: dict[str, Any]) -> Any:
+    """A registration's walk path: `walk_path`, or `track`, its name until the rename (accepted for
+    one release; docs/decisions.md). Both at once is refused: which one is meant is not clear."""
+    if "walk_path" in body and "track" in body:
+        raise OmninavError("give 'walk_path' only ('track' is its old name)")
+    return body.get("walk_path", body.get("track"))
+
+
 class Videos:
     def __init__(self, cat: Catalog):
         self.cat = cat
@@ -105,15 +113,15 @@ class Videos:
         first = min(ids) if ids else "1"
         return [str(vf.get(n, first)) for n in names] or [first]
 
-    def check_track(self, venue_id: str, floor: str, track: Any) -> Track:
-        """A track as sent, parsed, and on the floor's plan."""
+    def check_walk_path(self, venue_id: str, floor: str, walk_path: Any) -> WalkPath:
+        """A walk path as sent, parsed, and on the floor's plan."""
         f = self.cat.floors.get(venue_id, floor)
-        t = parse_track(track, where="track")
+        t = parse_walk_path(walk_path, where="walk_path")
         w, h = self.cat.floors.extent_m(f)
         for i, (x, y) in enumerate(t.xy):
             if not (0 <= x <= w and 0 <= y <= h):
                 raise Unusable(
-                    f"track waypoint {i} ({x:.2f}, {y:.2f}) m lies outside the floor plan of floor {floor!r} "
+                    f"walk path waypoint {i} ({x:.2f}, {y:.2f}) m lies outside the floor plan of floor {floor!r} "
                     f"({w:.1f} x {h:.1f} m)"
                 )
         return t
@@ -133,18 +141,18 @@ class Videos:
             raise Conflict(f"video {name!r} is being modelled by job {job}; cancel it first")
 
     def create(self, venue_id: str, body: dict[str, Any], max_bytes: int) -> dict[str, Any]:
-        """Register a video before its bytes: name, floor, size, track, lens (a name or a profile).
+        """Register a video before its bytes: name, floor, size, walk path, lens (a name or a profile).
         A video registered again under its name is replaced when the new upload completes."""
         self.cat.venues.get(venue_id)
         name = check_video_name(body.get("name"))
         floor = str(body.get("floor", "1"))
         size = check_size(body.get("size"), max_bytes)
         role = check_role(body.get("role", "model"))
-        track = body.get("track")
-        if track is None:  # untracked: tagged later (PUT .../track)
+        walk_path = body_walk_path(body)
+        if walk_path is None:  # without a walk path: tagged later (PUT .../walk-path)
             self.cat.floors.get(venue_id, floor)
         else:
-            self.check_track(venue_id, floor, track)
+            self.check_walk_path(venue_id, floor, walk_path)
         lens = body.get("lens", DEFAULT_LENS)
         if isinstance(lens, dict):  # an inline profile becomes a lens named by its content
             lens = self.cat.lenses.put_inline(venue_id, lens)
@@ -162,7 +170,7 @@ class Videos:
             c.execute(text("DELETE FROM videos WHERE venue = :v AND name = :n"), {"v": venue_id, "n": name})
             c.execute(
                 text(
-                    "INSERT INTO videos (venue, name, floor, lens, track, size, received, status, frames, created, "
+                    "INSERT INTO videos (venue, name, floor, lens, walk_path, size, received, status, frames, created, "
                     "role) VALUES (:v, :n, :f, :l, :t, :s, 0, 'uploading', :fr, :c, :r)"
                 ),
                 {
@@ -170,7 +178,7 @@ class Videos:
                     "n": name,
                     "f": floor,
                     "l": lens,
-                    "t": json.dumps(track),
+                    "t": json.dumps(walk_path),
                     "s": size,
                     "fr": old["frames"] if old else 0,
                     "c": time.time(),
@@ -181,13 +189,13 @@ class Videos:
         return self.get(venue_id, name)
 
     def add_file(
-        self, venue_id: str, path: Path, floor: str, lens: str, track: Any, role: str = "model"
+        self, venue_id: str, path: Path, floor: str, lens: str, walk_path: Any, role: str = "model"
     ) -> dict[str, Any]:
         """Register a video file that is already on this machine (the demo): linked, not copied
         where the file system allows, and ready to model."""
         size = path.stat().st_size
         info = VideoInfo(path)
-        body = {"name": path.name, "floor": floor, "size": size, "track": track, "lens": lens, "role": role}
+        body = {"name": path.name, "floor": floor, "size": size, "walk_path": walk_path, "lens": lens, "role": role}
         self.create(venue_id, body, size)
         d = self.dir(venue_id)
         d.mkdir(parents=True, exist_ok=True)
@@ -225,7 +233,7 @@ class Videos:
 
     # ---- modelling ----------------------------------------------------------------------------
     def sources(self, venue_id: str, names: list[str]) -> list[VideoSource]:
-        """What modelling reads of each named video: its file, track and lens."""
+        """What modelling reads of each named video: its file, walk path and lens."""
         out = []
         for name in names:
             v = self.db.one("SELECT * FROM videos WHERE venue = :v AND name = :n", v=venue_id, n=name)
@@ -234,10 +242,10 @@ class Videos:
             path = self.dir(venue_id) / name
             if not path.is_file():
                 raise OmninavError(f"video {name!r} has no uploaded file")
-            track = json.loads(v["track"])
-            if track is None:
-                raise OmninavError(f"video {name!r} has no track yet")
-            out.append(VideoSource(path, parse_track(track), self.cat.lenses.get(venue_id, v["lens"])))
+            walk_path = json.loads(v["walk_path"])
+            if walk_path is None:
+                raise OmninavError(f"video {name!r} has no walk path yet")
+            out.append(VideoSource(path, parse_walk_path(walk_path), self.cat.lenses.get(venue_id, v["lens"])))
         return out
 
     @staticmethod
@@ -261,33 +269,33 @@ class Videos:
                 {"f": r.frames, "v": venue_id, "n": r.video},
             )
 
-    # ---- tracks, suggestions, frames ----------------------------------------------------------
-    def track(self, venue_id: str, name: str) -> dict[str, Any]:
-        """The video's track as stored (track.json), NotFound while it has none."""
-        track = json.loads(self.get(venue_id, name)["track"])
-        if track is None:
-            raise NotFound(f"video {name!r} has no track yet")
-        return dict(track)
+    # ---- walk paths, suggestions, frames --------------------------------------------------------
+    def walk_path(self, venue_id: str, name: str) -> dict[str, Any]:
+        """The video's walk path as stored (walk_path.json), NotFound while it has none."""
+        walk_path = json.loads(self.get(venue_id, name)["walk_path"])
+        if walk_path is None:
+            raise NotFound(f"video {name!r} has no walk path yet")
+        return dict(walk_path)
 
-    def set_track(self, venue_id: str, name: str, track: Any) -> dict[str, Any]:
-        """Give a video its track (or a new one). A modelled video is ready to be modelled again:
-        its frames in the venue have the poses of its old track until then."""
+    def set_walk_path(self, venue_id: str, name: str, walk_path: Any) -> dict[str, Any]:
+        """Give a video its walk path (or a new one). A modelled video is ready to be modelled again:
+        its frames in the venue have the poses of its old walk path until then."""
         v = self.get(venue_id, name)
         try:
-            self.check_track(venue_id, v["floor"], track)
+            self.check_walk_path(venue_id, v["floor"], walk_path)
         except (Unusable, NotFound, Conflict):
             raise
-        except OmninavError as e:  # the track as sent is unusable: 422 like one off the plan
+        except OmninavError as e:  # the walk path as sent is unusable: 422 like one off the plan
             raise Unusable(str(e)) from None
         self._check_not_modelling(venue_id, v["name"])
         with self.db.tx() as c:
             bump(c, venue_id)
             c.execute(
                 text(
-                    "UPDATE videos SET track = :t, status = CASE WHEN status = 'modelled' THEN 'ready' ELSE status END "
-                    "WHERE venue = :v AND name = :n"
+                    "UPDATE videos SET walk_path = :t, "
+                    "status = CASE WHEN status = 'modelled' THEN 'ready' ELSE status END WHERE venue = :v AND name = :n"
                 ),
-                {"t": json.dumps(track), "v": venue_id, "n": v["name"]},
+                {"t": json.dumps(walk_path), "v": venue_id, "n": v["name"]},
             )
         return self.get(venue_id, v["name"])
 

@@ -178,7 +178,7 @@ def put_lens(venue_id: str, name: str) -> Any:
 
 # ---- videos -------------------------------------------------------------------------------------
 def video_doc(r: dict[str, Any]) -> dict[str, Any]:
-    track = json.loads(r["track"])
+    walk_path = json.loads(r["walk_path"])
     return {
         "name": r["name"],
         "floor": r["floor"],
@@ -188,8 +188,8 @@ def video_doc(r: dict[str, Any]) -> dict[str, Any]:
         "received": r["received"],
         "status": r["status"],
         "frames": r["frames"],
-        "tracked": track is not None,
-        "track": track,
+        "has_walk_path": walk_path is not None,
+        "walk_path": walk_path,
         "duration_s": r["duration_s"],
         "fps": r["fps"],
         "width": r["width"],
@@ -222,15 +222,17 @@ def delete_video(venue_id: str, name: str) -> Any:
     return jsonify({"deleted": name, "frames_removed": removed})
 
 
-@bp.put("/venues/<venue_id>/videos/<name>/track")
-def put_track(venue_id: str, name: str) -> Any:
-    return jsonify(video_doc(_cat().videos.set_track(venue_id, name, json_body())))
+@bp.put("/venues/<venue_id>/videos/<name>/walk-path")
+@bp.put("/venues/<venue_id>/videos/<name>/track")  # its name until the rename, for one release
+def put_walk_path(venue_id: str, name: str) -> Any:
+    return jsonify(video_doc(_cat().videos.set_walk_path(venue_id, name, json_body())))
 
 
-@bp.get("/venues/<venue_id>/videos/<name>/track")
-def get_track(venue_id: str, name: str) -> Any:
-    resp = jsonify(_cat().videos.track(venue_id, name))
-    resp.headers["Content-Disposition"] = f'attachment; filename="{name}.track.json"'
+@bp.get("/venues/<venue_id>/videos/<name>/walk-path")
+@bp.get("/venues/<venue_id>/videos/<name>/track")  # its name until the rename, for one release
+def get_walk_path(venue_id: str, name: str) -> Any:
+    resp = jsonify(_cat().videos.walk_path(venue_id, name))
+    resp.headers["Content-Disposition"] = f'attachment; filename="{name}.walk_path.json"'
     return resp
 
 

@@ -17,7 +17,7 @@ from typing import Any
 from ..catalog import Catalog
 from ..errors import Conflict, NotFound, OmninavError
 from ..model_venue import Progress
-from ..track import parse_track
+from ..walk_path import parse_walk_path
 
 KINDS = ("model", "suggest", "quality", "evaluate")
 
@@ -32,8 +32,8 @@ def doing(kind: str, target: str | None) -> str:
     }.get(kind, kind)
 
 
-def tracked(v: dict[str, Any]) -> bool:
-    return json.loads(v["track"]) is not None
+def has_walk_path(v: dict[str, Any]) -> bool:
+    return json.loads(v["walk_path"]) is not None
 
 
 def check_uploaded(v: dict[str, Any]) -> None:
@@ -56,13 +56,13 @@ def plain(x: Any) -> Any:
 
 
 def videos_to_model(cat: Catalog, venue_id: str, names: Any, anew: bool = False) -> list[str]:
-    """The names of the videos to model (default: every uploaded modelling walk with a track,
+    """The names of the videos to model (default: every uploaded modelling walk with a walk path,
     not modelled yet; `anew`: every one, modelled or not, and no other choice: the new
     generation holds only the job's videos)."""
     vids = cat.videos.all(venue_id)
     if anew:
         walks = [v for v in vids if v["role"] == "model" and v["status"] in ("ready", "modelled")]
-        every: list[str] = [v["name"] for v in walks if tracked(v)]
+        every: list[str] = [v["name"] for v in walks if has_walk_path(v)]
         if not every:
             known = {v["name"] for v in vids}
             by_cli = [n for n in cat.store.modelled_videos(venue_id) if n not in known]
@@ -70,15 +70,15 @@ def videos_to_model(cat: Catalog, venue_id: str, names: Any, anew: bool = False)
                 f"its frames are from {', '.join(map(repr, by_cli))}, modelled by the command line: "
                 "omninav model ... --anew"
                 if by_cli
-                else "upload a modelling walk and tag its track first"
+                else "upload a modelling walk and tag its walk path first"
             )
-            raise Conflict(f"venue {venue_id!r} has no uploaded modelling video with a track to model anew ({how})")
+            raise Conflict(f"venue {venue_id!r} has no uploaded modelling video with a walk path to model anew ({how})")
         # the new generation holds only these: refuse rather than drop another walk's frames
         # (modelled by the command line, or registered again and still uploading)
         if lost := [n for n in cat.store.modelled_videos(venue_id) if n not in every]:
             raise Conflict(
                 f"modelling anew would drop the frames of {', '.join(map(repr, lost))}: it models only "
-                "uploaded modelling videos with a track; upload and tag them first"
+                "uploaded modelling videos with a walk path; upload and tag them first"
             )
         if gone := [n for n in every if not (cat.videos.dir(venue_id) / n).is_file()]:
             raise Conflict(
@@ -88,10 +88,10 @@ def videos_to_model(cat: Catalog, venue_id: str, names: Any, anew: bool = False)
         return every
     if names is None:
         ready = [v for v in vids if v["status"] == "ready" and v["role"] == "model"]
-        names = [v["name"] for v in ready if tracked(v)]
+        names = [v["name"] for v in ready if has_walk_path(v)]
         if not names:
-            untagged = [v["name"] for v in ready if not tracked(v)]
-            why = f" (video {untagged[0]!r} has no track yet)" if untagged else ""
+            untagged = [v["name"] for v in ready if not has_walk_path(v)]
+            why = f" (video {untagged[0]!r} has no walk path yet)" if untagged else ""
             raise Conflict(f"venue {venue_id!r} has no uploaded video waiting to be modelled{why}")
     if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
         raise OmninavError("'videos' must be a non-empty list of video names")
@@ -102,8 +102,8 @@ def videos_to_model(cat: Catalog, venue_id: str, names: Any, anew: bool = False)
         check_uploaded(by_name[n])
         if by_name[n]["role"] != "model":
             raise Conflict(f"video {n!r} is an evaluation walk: it is evaluated, not modelled")
-        if not tracked(by_name[n]):
-            raise Conflict(f"video {n!r} has no track yet")
+        if not has_walk_path(by_name[n]):
+            raise Conflict(f"video {n!r} has no walk path yet")
     return list(dict.fromkeys(names))
 
 
@@ -119,8 +119,8 @@ def check_analysis(cat: Catalog, venue_id: str, kind: str, target: str | None) -
         if kind == "evaluate":
             if v["role"] != "evaluation":
                 raise Conflict(f"video {target!r} is a modelling walk; evaluate a walk uploaded with role 'evaluation'")
-            if not tracked(v):
-                raise Conflict(f"video {target!r} has no track yet: tag its waypoints first")
+            if not has_walk_path(v):
+                raise Conflict(f"video {target!r} has no walk path yet: tag its waypoints first")
     if kind in ("quality", "evaluate") and cat.store.generation(venue_id) is None:
         raise Conflict(f"venue {venue_id!r} has no modelled frames yet: model the venue first")
 
@@ -150,9 +150,9 @@ def analyse(cat: Catalog, job: dict[str, Any], progress: Progress, device: str |
         from ..evaluate import evaluate_walk
         from ..locate import Locator
 
-        if not tracked(v):
-            raise OmninavError(f"video {target!r} has no track")
+        if not has_walk_path(v):
+            raise OmninavError(f"video {target!r} has no walk path")
         places = [p for p in cat.places.all(venue) if p["floor"] == v["floor"]]
         loc = Locator(cat.store, venue, device=device, places=places, floor=v["floor"])
-        return evaluate_walk(loc, path, parse_track(json.loads(v["track"])), lens, progress=progress)
+        return evaluate_walk(loc, path, parse_walk_path(json.loads(v["walk_path"])), lens, progress=progress)
     raise OmninavError(f"job {job['id']} is of an unknown kind {job['kind']!r}")

@@ -18,9 +18,9 @@ from .walks import (
     Perturb,
     default_routes,
     offset_route,
-    poses_from_track,
+    poses_from_walk_path,
     render_frames,
-    track_for,
+    walk_path_for,
     write_json,
     write_video,
 )
@@ -63,40 +63,55 @@ def equirect_lens(width: int = 1440) -> Equirectangular:
 class Dataset:
     root: Path
     model_video: Path
-    model_track: Path
+    model_walk_path: Path
     query_video: Path
-    query_track: Path
+    query_walk_path: Path
     lens: Path
     floorplan: Path
     px_per_m: float
     scene: Scene
 
 
+OLD_NAMES = {"model_track.json": "model_walk_path.json", "query_track.json": "query_walk_path.json"}
+
+
+def upgrade_names(root: Path) -> Path:
+    """A dataset rendered before the walk path's files had that name, its files renamed in place.
+
+    Renders are cached for days (the demo's, the benchmarks'); renaming is cheaper than rendering
+    again. Returns `root`.
+    """
+    for old, new in OLD_NAMES.items():
+        if (root / old).exists() and not (root / new).exists():
+            (root / old).rename(root / new)
+    return root
+
+
 def dataset_files(
     root: Path,
     scene: Scene,
-    model_track: dict[str, Any],
-    query_track: dict[str, Any],
+    model_walk_path: dict[str, Any],
+    query_walk_path: dict[str, Any],
     query_lens: Lens,
     model_lens: Lens,
     px_per_m: float = 20.0,
 ) -> Dataset:
-    """Everything of a rendered dataset but its two videos: the tracks, both lens profiles
+    """Everything of a rendered dataset but its two videos: the walk paths, both lens profiles
     (lens.json is the query's) and the floor plan. Returns the Dataset naming all its files."""
     root.mkdir(parents=True, exist_ok=True)
     ds = Dataset(
         root,
         root / "model.mp4",
-        root / "model_track.json",
+        root / "model_walk_path.json",
         root / "query.mp4",
-        root / "query_track.json",
+        root / "query_walk_path.json",
         root / "lens.json",
         root / "floorplan.png",
         px_per_m,
         scene,
     )
-    write_json(ds.model_track, model_track)
-    write_json(ds.query_track, query_track)
+    write_json(ds.model_walk_path, model_walk_path)
+    write_json(ds.query_walk_path, query_walk_path)
     write_json(ds.lens, query_lens.to_dict())
     write_json(root / "model_lens.json", model_lens.to_dict())
     cv2.imwrite(str(ds.floorplan), cv2.cvtColor(floorplan_image(scene, px_per_m), cv2.COLOR_RGB2BGR))
@@ -116,7 +131,7 @@ def make_dataset(
     model_speed: float = 1.2,
     query_speeds: tuple[float, ...] = (1.0, 1.3, 1.1, 0.9),
 ) -> Dataset:
-    """Render a venue's modelling walk and an independent query walk, with tracks and lens files.
+    """Render a venue's modelling walk and an independent query walk, with walk paths and lens files.
 
     The modelling video is taken with `model_lens`, the query with `query_lens` (both default to
     the synthetic donut at `scale`).
@@ -130,14 +145,14 @@ def make_dataset(
     if query_route is not None:
         q_route = query_route
     q_route = offset_route(scene, q_route, query_perturb.lateral_m, rng)
-    m_track = track_for(m_route, [model_speed], fps)
-    q_track = track_for(q_route, list(query_speeds), fps)
-    ds = dataset_files(root, scene, m_track, q_track, lens, mlens)
-    mposes = poses_from_track(m_track, MODELLING, np.random.default_rng(seed + 1))
+    m_path = walk_path_for(m_route, [model_speed], fps)
+    q_path = walk_path_for(q_route, list(query_speeds), fps)
+    ds = dataset_files(root, scene, m_path, q_path, lens, mlens)
+    mposes = poses_from_walk_path(m_path, MODELLING, np.random.default_rng(seed + 1))
     write_video(
         ds.model_video, (f for _, f in render_frames(scene, mlens, mposes, MODELLING, seed + 2)), fps, mlens.image_size
     )
-    qposes = poses_from_track(q_track, query_perturb, np.random.default_rng(seed + 3))
+    qposes = poses_from_walk_path(q_path, query_perturb, np.random.default_rng(seed + 3))
     write_video(
         ds.query_video,
         (f for _, f in render_frames(scene, lens, qposes, query_perturb, seed + 4)),

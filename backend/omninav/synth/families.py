@@ -35,9 +35,9 @@ from .walks import (
     Perturb,
     default_routes,
     offset_route,
-    poses_from_track,
+    poses_from_walk_path,
     render_frames,
-    track_for,
+    walk_path_for,
     write_video,
 )
 
@@ -330,8 +330,8 @@ class FamilyVenue:
     family: Family
     scene: Scene  # as the modelling walk sees it
     query_scene: Scene  # the same building as the query walk sees it (another hour's daylight)
-    model_track: dict[str, Any]
-    query_track: dict[str, Any]
+    model_walk_path: dict[str, Any]
+    query_walk_path: dict[str, Any]
 
 
 def family_venue(family: str, seed: int, fps: float = 10.0, route_m: float | None = None) -> FamilyVenue:
@@ -350,32 +350,32 @@ def family_venue(family: str, seed: int, fps: float = 10.0, route_m: float | Non
         m_route, q_route = _cut(m_route, route_m), _cut(q_route, route_m)
     rng = np.random.default_rng(seed + 1000)
     q_route = offset_route(scene, q_route, fam.query_perturb.lateral_m, rng)
-    m_track = track_for(m_route, [fam.model_speed], fps)
-    q_track = track_for(q_route, list(fam.query_speeds), fps)
-    return FamilyVenue(fam, scene, qscene, m_track, q_track)
+    m_path = walk_path_for(m_route, [fam.model_speed], fps)
+    q_path = walk_path_for(q_route, list(fam.query_speeds), fps)
+    return FamilyVenue(fam, scene, qscene, m_path, q_path)
 
 
 def make_family_dataset(
     root: Path, family: str, seed: int, fps: float = 10.0, scale: float = 1.0, route_m: float | None = None
 ) -> Dataset:
     """Render one venue of a family: a modelling walk over every corridor and an independent query
-    walk (the other way round, off the centre line), with tracks, lens files and a floor plan:
+    walk (the other way round, off the centre line), with walk paths, lens files and a floor plan:
     the files `synth.make_dataset` writes, and `family.json` saying which venue it is.
 
     For quick tests: `scale` shrinks both videos' image size, `route_m` walks only the first
     metres of each route (the venue is the same)."""
     v = family_venue(family, seed, fps, route_m)
-    fam, scene, qscene, m_track, q_track = v.family, v.scene, v.query_scene, v.model_track, v.query_track
+    fam, scene, qscene, m_path, q_path = v.family, v.scene, v.query_scene, v.model_walk_path, v.query_walk_path
     mlens, qlens = _lens_at(fam.model_lens, scale), _lens_at(fam.query_lens, scale)
-    ds = dataset_files(root, scene, m_track, q_track, qlens, mlens)
+    ds = dataset_files(root, scene, m_path, q_path, qlens, mlens)
     (root / "family.json").write_text(
         json.dumps({"family": fam.name, "split": fam.split, "seed": seed, "describe": fam.describe}, indent=1)
     )
-    for video, track, sc, lens, perturb, jpeg, s in (
-        (ds.model_video, m_track, scene, mlens, fam.model_perturb, fam.model_jpeg, seed + 1),
-        (ds.query_video, q_track, qscene, qlens, fam.query_perturb, fam.query_jpeg, seed + 3),
+    for video, walk_path, sc, lens, perturb, jpeg, s in (
+        (ds.model_video, m_path, scene, mlens, fam.model_perturb, fam.model_jpeg, seed + 1),
+        (ds.query_video, q_path, qscene, qlens, fam.query_perturb, fam.query_jpeg, seed + 3),
     ):
-        poses = poses_from_track(track, perturb, np.random.default_rng(s))
+        poses = poses_from_walk_path(walk_path, perturb, np.random.default_rng(s))
         frames = (f for _, f in render_frames(sc, lens, poses, perturb, s + 1, pano_width(lens)))
         write_video(video, _jpeg(frames, jpeg), fps, lens.image_size)
     return ds

@@ -1,10 +1,10 @@
-"""Walks through a synthetic venue: poses, perturbations, tracks and rendered videos.
+"""Walks through a synthetic venue: poses, perturbations, walk paths and rendered videos.
 
 A modelling walk follows the corridor centre lines at a steady pace with the lens forward along
 the direction of travel, as a person recording a venue does. A query walk is recorded as a user
 would: off the centre line by up to 0.5 m, the phone at 1.15-1.55 m and tilted up to 5 degrees,
 light x0.6-1.3 with a colour cast, up to three passers-by, the lens re-clipped 2 px off centre,
-sensor noise and video compression. Its track (docs/formats.md) is the ground truth.
+sensor noise and video compression. Its walk path (docs/formats.md) is the ground truth.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from .render import CameraModel, PanoGrid, camera_frame, tilt_rotation, world_pa
 from .scene import GRID, Person, Scene, random_people
 
 if TYPE_CHECKING:
-    from ..track import Track
+    from ..walk_path import WalkPath
 
 
 @dataclass(frozen=True)
@@ -117,17 +117,17 @@ def offset_route(
     return out
 
 
-def track_for(
+def walk_path_for(
     route: list[Point],
     speeds: list[float],
     fps: float,
     heading_offset: float = 0.0,
     stops: dict[int, float] | None = None,
 ) -> dict[str, Any]:
-    """A track (docs/formats.md): a waypoint (t in seconds) at every route vertex.
+    """A walk path (docs/formats.md): a waypoint (t in seconds) at every route vertex.
 
     `stops` maps a route vertex index to seconds stood still there: the vertex is repeated at the
-    later time, which the track's linear interpolation reads as standing still.
+    later time, which the walk path's linear interpolation reads as standing still.
     """
     stops = stops or {}
     t = 0.0
@@ -148,16 +148,16 @@ def track_for(
 
 
 def walk_events(
-    track: dict[str, Any], min_turn_deg: float = 30.0
+    walk_path: dict[str, Any], min_turn_deg: float = 30.0
 ) -> tuple[list[tuple[float, float]], list[tuple[float, float]]]:
     """The ground truth of a synthetic walk: (turns [(t, signed deg, + clockwise)], stops [(t, s)]).
 
     A turn is a waypoint where the leg heading changes by at least `min_turn_deg` (after a stop,
     at the end of the stop, where the walker sets off the new way); a stop is a waypoint repeated.
     """
-    from ..track import parse_track
+    from ..walk_path import parse_walk_path
 
-    tr = parse_track(track)
+    tr = parse_walk_path(walk_path)
     legs = np.unwrap(tr.leg_headings(), period=360.0)
     turns = [
         (float(tr.times[i + 1]), float(legs[i + 1] - legs[i]))
@@ -169,11 +169,11 @@ def walk_events(
     return turns, stops
 
 
-def walk_heading(tr: Track, ts: np.ndarray, turn_s: float = 0.0) -> np.ndarray:
-    """The walker's heading at times `ts` (degrees clockwise from plan up, before the track's
+def walk_heading(tr: WalkPath, ts: np.ndarray, turn_s: float = 0.0) -> np.ndarray:
+    """The walker's heading at times `ts` (degrees clockwise from plan up, before the walk path's
     heading offset and any sway): the direction of the leg, turning at once at a waypoint or,
     with `turn_s` > 0, steadily over `turn_s` seconds centred on it (then unwrapped). One
-    function for the rendered heading (poses_from_track) and the gyroscope's truth (imu_for),
+    function for the rendered heading (poses_from_walk_path) and the gyroscope's truth (imu_for),
     so that the two cannot drift apart."""
     legs = tr.leg_headings()
     if turn_s > 0 and len(legs) > 1:
@@ -192,19 +192,19 @@ def walk_heading(tr: Track, ts: np.ndarray, turn_s: float = 0.0) -> np.ndarray:
     return np.asarray(legs[leg])
 
 
-def poses_from_track(
-    track: dict[str, Any], perturb: Perturb, rng: np.random.Generator, turn_s: float = 0.0
+def poses_from_walk_path(
+    walk_path: dict[str, Any], perturb: Perturb, rng: np.random.Generator, turn_s: float = 0.0
 ) -> list[Pose]:
-    """One pose per video frame, exactly where the track says (its ground truth).
+    """One pose per video frame, exactly where the walk path says (its ground truth).
 
-    The heading is the direction of the leg plus the track's heading offset, turning at once at a
+    The heading is the direction of the leg plus the walk path's heading offset, turning at once at a
     waypoint (as docs/formats.md has it) or, with `turn_s` > 0, turning steadily over `turn_s`
     seconds centred on the waypoint, as a person walks round a corner. A stop (a waypoint repeated
     at a later time) keeps the heading it arrived with.
     """
-    from ..track import parse_track
+    from ..walk_path import parse_walk_path
 
-    tr = parse_track(track)
+    tr = parse_walk_path(walk_path)
     n = int(np.floor(tr.times[-1] * tr.fps)) + 1
     ts = np.arange(n) / tr.fps
     xy, _, ok = tr.pose_at(ts)
@@ -299,17 +299,17 @@ def render_walk(
     path: Path,
     scene: Scene,
     lens: Lens,
-    track: dict[str, Any],
+    walk_path: dict[str, Any],
     perturb: Perturb = MODELLING,
     seed: int = 0,
     turn_s: float = 0.0,
     pano_width: int = 1440,
 ) -> int:
-    """Render the walk `track` describes (its corners turned over `turn_s`) into a video at the
-    track's fps; returns the number of frames. A smaller `pano_width` renders faster, coarser."""
-    poses = poses_from_track(track, perturb, np.random.default_rng(seed), turn_s=turn_s)
+    """Render the walk `walk_path` describes (its corners turned over `turn_s`) into a video at the
+    walk path's fps; returns the number of frames. A smaller `pano_width` renders faster, coarser."""
+    poses = poses_from_walk_path(walk_path, perturb, np.random.default_rng(seed), turn_s=turn_s)
     frames = (f for _, f in render_frames(scene, lens, poses, perturb, seed + 1, pano_width))
-    return write_video(path, frames, float(track["fps"]), lens.image_size)
+    return write_video(path, frames, float(walk_path["fps"]), lens.image_size)
 
 
 def write_json(path: Path, obj: dict[str, Any]) -> None:
@@ -317,7 +317,7 @@ def write_json(path: Path, obj: dict[str, Any]) -> None:
 
 
 def imu_for(
-    track: dict[str, Any],
+    walk_path: dict[str, Any],
     rng: np.random.Generator,
     step_m: tuple[float, float] = (0.62, 0.78),
     miss_p: float = 0.05,
@@ -333,15 +333,15 @@ def imu_for(
     Steps: the walker's step length is drawn once from `step_m` and varies +-8 % a step; a step is
     detected when walked, missed with `miss_p`, and a false one is added with `extra_p` (standing
     still: none, but the odd false one at the same rate per second). Yaw: the true heading's change
-    since the start (the walk's corners, turned over `turn_s` like poses_from_track), plus a
+    since the start (the walk's corners, turned over `turn_s` like poses_from_walk_path), plus a
     constant gyroscope bias, a random walk and white noise.
     """
-    from ..track import parse_track
+    from ..walk_path import parse_walk_path
 
-    tr = parse_track(track)
+    tr = parse_walk_path(walk_path)
     length = rng.uniform(*step_m)
     t_end = float(tr.times[-1])
-    # distance walked along the track, finely sampled in time
+    # distance walked along the walk path, finely sampled in time
     ts = np.arange(0.0, t_end + 1e-9, 0.02)
     xy, _, _ = tr.pose_at(ts)
     s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(xy, axis=0).T))]
@@ -367,15 +367,15 @@ def imu_for(
 
 
 def with_stops(
-    track: dict[str, Any], rng: np.random.Generator, n: int = 3, stop_s: tuple[float, float] = (3.0, 8.0)
+    walk_path: dict[str, Any], rng: np.random.Generator, n: int = 3, stop_s: tuple[float, float] = (3.0, 8.0)
 ) -> dict[str, Any]:
     """The same walk standing still `n` times (drawn from `stop_s` seconds each) at interior
     waypoints spread along it (a person waiting, reading a sign, talking): every later waypoint
-    moves by the time stood. The heading while standing is the one arrived with (track.py)."""
-    wps = [dict(w) for w in track["waypoints"]]
+    moves by the time stood. The heading while standing is the one arrived with (walk_path.py)."""
+    wps = [dict(w) for w in walk_path["waypoints"]]
     inner = np.arange(1, len(wps) - 1)
     if n <= 0 or len(inner) == 0:
-        return {**track, "waypoints": wps}
+        return {**walk_path, "waypoints": wps}
     at = sorted(int(i) for i in rng.choice(inner, size=min(n, len(inner)), replace=False))
     out: list[dict[str, Any]] = []
     shift = 0.0
@@ -386,4 +386,4 @@ def with_stops(
             s = float(rng.uniform(*stop_s))
             shift += s
             out.append({**w, "t": round(t + s, 4)})
-    return {**track, "waypoints": out}
+    return {**walk_path, "waypoints": out}

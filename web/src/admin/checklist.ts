@@ -5,14 +5,14 @@
 import type { Place, Venue } from '../shared/api-types';
 import type { ScreenId } from './routes';
 import { inArea } from './geometry';
-import { fromTrack, positionAt } from './track-edit';
+import { fromWalkPath, positionAt } from './walk-path-edit';
 import type { Job, Video } from './types';
 
 export interface Step {
   screen: ScreenId;
   /** What is missing, as the link says it. */
   text: string;
-  /** The screen's query (the track screen's video). */
+  /** The screen's query (the walk path screen's video). */
   params?: Record<string, string>;
 }
 
@@ -42,14 +42,14 @@ export const UNZONED_S = 5;
 
 /**
  * How many whole seconds of the tagged modelling walks lie in no area of their floor (each second
- * judged at its middle, on the track between its waypoints), of how many tagged seconds.
+ * judged at its middle, on the walk path between its waypoints), of how many tagged seconds.
  */
 export function walkOutsideAreas(videos: readonly Video[], places: readonly Place[]): { outside: number; all: number } {
   let outside = 0;
   let all = 0;
   for (const v of videos) {
-    if (v.role !== 'model' || !v.track) continue;
-    const pts = fromTrack(v.track, v.fps ?? 30);
+    if (v.role !== 'model' || !v.walk_path) continue;
+    const pts = fromWalkPath(v.walk_path, v.fps ?? 30);
     if (pts.length < 2) continue;
     const areas = places.filter((p) => p.floor === v.floor && p.area).map((p) => p.area!);
     for (let t = Math.ceil(pts[0].t); t + 1 <= pts[pts.length - 1].t; t++) {
@@ -97,22 +97,22 @@ export function stepsLeft(v: Venue & { modelled_at?: number | null }, progress: 
     [Object.keys(v.lenses).length > 0, { screen: 'lenses', text: 'Add the lens profile of the modelling camera' }],
   ];
   if (!progress) {
-    steps.push([v.modelled, { screen: 'videos', text: 'Upload a modelling walk, tag its track and model it' }]);
+    steps.push([v.modelled, { screen: 'videos', text: 'Upload a modelling walk, tag its walk path and model it' }]);
     return steps.filter(([ok]) => !ok).map(([, s]) => s);
   }
   const walks = progress.videos.filter((w) => w.role === 'model' && w.status !== 'uploading');
-  const untagged = walks.find((w) => !w.tracked);
+  const untagged = walks.find((w) => !w.has_walk_path);
   steps.push(
     [walks.length > 0, { screen: 'videos', text: 'Upload a modelling walk' }],
     // before any walk, its tagging is a step still to come, not one done
     [
       walks.length > 0 && !untagged,
       untagged
-        ? { screen: 'track', text: `Tag the track of ${untagged.name}`, params: { video: untagged.name } }
-        : { screen: 'track', text: 'Tag the walk’s track (where the walker was)' },
+        ? { screen: 'walk-path', text: `Tag the walk path of ${untagged.name}`, params: { video: untagged.name } }
+        : { screen: 'walk-path', text: 'Tag the walk path (where the walker was)' },
     ],
     [
-      v.modelled && !walks.some((w) => w.tracked && w.status === 'ready'),
+      v.modelled && !walks.some((w) => w.has_walk_path && w.status === 'ready'),
       { screen: 'modelling', text: v.modelled ? 'Model the newly tagged walks' : 'Model the tagged walks' },
     ],
     [done(progress.jobs, 'quality', since), { screen: 'quality', text: 'Compute the quality map' }],

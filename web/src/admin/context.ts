@@ -15,7 +15,7 @@ export interface AdminContext {
   /** Re-read the venue from the server (after another tab's change, or a job's end). */
   refresh(): Promise<Venue>;
   /**
-   * The venue's videos or jobs changed (an upload, a track, a quality map or an evaluation done):
+   * The venue's videos or jobs changed (an upload, a walk path, a quality map or an evaluation done):
    * its checklist reads them again, and says a step done (a failed read changes nothing).
    */
   recheck(): void;
@@ -33,9 +33,9 @@ export interface AdminContext {
    * a "Reload the venue" button that re-reads it and mounts the screen again. AbortErrors are ignored.
    */
   fail(e: unknown, doing?: string): void;
-  /** Go to another screen of this venue (e.g. 'track' with ?video=NAME). */
+  /** Go to another screen of this venue (e.g. 'walk-path' with ?video=NAME). */
   go(screen: string, params?: Record<string, string>): void;
-  /** The route's query parameters (e.g. which video the track screen edits). */
+  /** The route's query parameters (e.g. which video the walk path screen edits). */
   params(): URLSearchParams;
 }
 

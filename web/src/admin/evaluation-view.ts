@@ -7,14 +7,14 @@ import type { Evaluation, EvaluationClip, Video } from './types';
 import { at, clock, percent } from './quality-view';
 import { isSure } from '../shared/sure';
 
-/** Videos that can be evaluated: role 'evaluation' (tracked or not: the screen says which lack a track). */
+/** Videos that can be evaluated: role 'evaluation' (tagged or not: the screen says which lack a walk path). */
 export const evaluationVideos = (videos: Video[]): Video[] => videos.filter((v) => v.role === 'evaluation');
 
 /** Why a video cannot be run yet, or null when it can. */
 export function notReady(v: Video): string | null {
   if (v.error) return `the server refused it: ${v.error}`;
   if (v.status === 'uploading') return 'it is still uploading';
-  if (!v.tracked) return 'it has no track yet: tag its waypoints first';
+  if (!v.has_walk_path) return 'it has no walk path yet: tag its waypoints first';
   return null;
 }
 

@@ -19,7 +19,7 @@ import * as modelling from './screens/modelling';
 import * as places from './screens/places';
 import * as quality from './screens/quality';
 import { clearToken, mountSignIn, savedToken } from './screens/signin';
-import * as track from './screens/track';
+import * as walkPath from './screens/walk-path';
 import * as venues from './screens/venues';
 import * as videos from './screens/videos';
 import { SCREEN_IDS, parseRoute, venueHash, type Route } from './routes';
@@ -31,7 +31,7 @@ const SCREENS: { id: (typeof SCREEN_IDS)[number]; title: string; mount: Mount }[
   { id: 'places', title: 'Places', mount: places.mount },
   { id: 'lenses', title: 'Lenses', mount: lenses.mount },
   { id: 'videos', title: 'Videos', mount: videos.mount },
-  { id: 'track', title: 'Track', mount: track.mount },
+  { id: 'walk-path', title: 'Walk path', mount: walkPath.mount },
   { id: 'modelling', title: 'Modelling', mount: modelling.mount },
   { id: 'quality', title: 'Quality map', mount: quality.mount },
   { id: 'evaluation', title: 'Evaluation', mount: evaluation.mount },

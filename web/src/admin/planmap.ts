@@ -93,7 +93,7 @@ export class PlanMap {
     el.setAttribute('role', 'region');
     el.setAttribute('aria-label', label);
     el.setAttribute('aria-roledescription', 'map');
-    // the drawing layer (track lines, areas) is a picture without a name: every screen says the
+    // the drawing layer (walk path lines, areas) is a picture without a name: every screen says the
     // same in text beside the map (the place list, the waypoint table), so screen readers skip it
     this.map.on('layeradd', () =>
       el.querySelectorAll('svg.leaflet-zoom-animated:not([aria-hidden])').forEach((svg) => {

@@ -6,13 +6,16 @@ export const SCREEN_IDS = [
   'places',
   'lenses',
   'videos',
-  'track',
+  'walk-path',
   'modelling',
   'quality',
   'evaluation',
 ] as const;
 
 export type ScreenId = (typeof SCREEN_IDS)[number];
+
+/** Screens under their name of the last release, so that a kept bookmark still opens them. */
+const RENAMED: Readonly<Record<string, ScreenId>> = { track: 'walk-path' };
 
 export type Route = { kind: 'venues' } | { kind: 'venue'; id: string; screen: ScreenId; params: URLSearchParams };
 
@@ -24,7 +27,8 @@ export function parseRoute(hash: string): Route {
   const query = q < 0 ? '' : h.slice(q + 1);
   const parts = path.split('/').filter(Boolean);
   if (parts[0] === 'v' && parts[1]) {
-    const screen = (SCREEN_IDS as readonly string[]).includes(parts[2]) ? (parts[2] as ScreenId) : 'floor';
+    const named = RENAMED[parts[2]] ?? parts[2];
+    const screen = (SCREEN_IDS as readonly string[]).includes(named) ? (named as ScreenId) : 'floor';
     return { kind: 'venue', id: decodeURIComponent(parts[1]), screen, params: new URLSearchParams(query) };
   }
   return { kind: 'venues' };

@@ -40,7 +40,7 @@ export interface Waypoint {
   y: number;
 }
 
-export interface Track {
+export interface WalkPath {
   fps?: number;
   heading_offset_deg?: number;
   waypoints: Waypoint[];
@@ -87,8 +87,8 @@ export interface Video {
   received: number;
   status: 'uploading' | 'ready' | 'modelled';
   frames: number;
-  tracked: boolean;
-  track: Track | null;
+  has_walk_path: boolean;
+  walk_path: WalkPath | null;
   duration_s: number | null;
   fps: number | null;
   width: number | null;

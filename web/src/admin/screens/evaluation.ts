@@ -35,19 +35,19 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   const intro = el('p', {
     textContent:
       'Film a second walk, upload it on the Videos screen as an evaluation walk and tag a few of its ' +
-      'waypoints on the Track screen; here the venue locates each second of it, as a phone would, and ' +
+      'waypoints on the Walk path screen; here the venue locates each second of it, as a phone would, and ' +
       'the plan shows each answer as an arrow from where the walker was to where the venue said. ' +
-      'Each second of the walk is one clip, scored against where the track puts the walker at the ' +
+      'Each second of the walk is one clip, scored against where the walk path puts the walker at the ' +
       "clip's last frame: tag a waypoint at each turn and stop, and at the walk's start and end, so " +
-      'that the track is where the walker was at every moment (the last part-second is scored too).',
+      'that the walk path is where the walker was at every moment (the last part-second is scored too).',
   });
   const pick = el('select', { id: 'evaluation-video' });
   const pickLabel = el('label', { htmlFor: 'evaluation-video', textContent: 'Evaluation video' });
   const run = el('button', { type: 'button', textContent: 'Run the evaluation' });
   const upload = el('button', { type: 'button', textContent: 'Upload an evaluation walk' });
   upload.addEventListener('click', () => ctx.go('videos', { role: 'evaluation' }));
-  const tag = el('button', { type: 'button', textContent: 'Tag its track' });
-  tag.addEventListener('click', () => ctx.go('track', { video: pick.value }));
+  const tag = el('button', { type: 'button', textContent: 'Tag its walk path' });
+  tag.addEventListener('click', () => ctx.go('walk-path', { video: pick.value }));
   const why = el('p', { id: 'evaluation-why' });
   const status = el('p', { className: 'status', id: 'evaluation-status' });
   const progress = new JobProgress(ctx.api, 'Evaluation progress');

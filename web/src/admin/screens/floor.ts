@@ -1,7 +1,7 @@
 /**
  * Step 3, the floor and its plan: upload a plan (PNG or JPEG), set the scale by two points on the
  * plan and the distance between them (PUT floor `scale: {a, b, distance_m}` in plan pixels), see
- * the scale bar. Places and tracks are stored in metres, so a replaced or re-scaled plan keeps them
+ * the scale bar. Places and walk paths are stored in metres, so a replaced or re-scaled plan keeps them
  * where they are in the building; they are drawn on the plan to be checked. Every point can also be
  * typed (plan pixels), and the floor's name edited.
  */
@@ -17,7 +17,7 @@ import type * as L from 'leaflet';
 /** A floor id as the API takes it (openapi.yaml FloorId). */
 const FLOOR_ID = /^[A-Za-z0-9][A-Za-z0-9_-]{0,31}$/;
 const KEPT =
-  'Places, areas and tracks are stored in metres: replacing the plan or changing its scale keeps ' +
+  'Places, areas and walk paths are stored in metres: replacing the plan or changing its scale keeps ' +
   'them where they are in the building. They are drawn on the plan below: check that they still ' +
   'sit where they belong.';
 
@@ -166,18 +166,18 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       if (p.area) map.addRectangle(p.area, { interactive: false });
       map.addMarker(p.x, p.y, { label: `Place: ${p.name}`, className: 'pm-place' });
     }
-    const tracked = videos.filter((v) => v.floor === floorId && v.track?.waypoints.length);
-    for (const v of tracked)
+    const withPaths = videos.filter((v) => v.floor === floorId && v.walk_path?.waypoints.length);
+    for (const v of withPaths)
       map.addPolyline(
-        v.track!.waypoints.map((w) => [w.x, w.y] as [number, number]),
+        v.walk_path!.waypoints.map((w) => [w.x, w.y] as [number, number]),
         { color: '#6a00a8', weight: 3, dashArray: '8 4', interactive: false },
       );
     shown.textContent =
       `Drawn on the plan: ${places.length} place${places.length === 1 ? '' : 's'}` +
-      (tracked.length
-        ? ` and the track${tracked.length === 1 ? '' : 's'} of ${tracked.map((v) => v.name).join(', ')}`
+      (withPaths.length
+        ? ` and the walk path${withPaths.length === 1 ? '' : 's'} of ${withPaths.map((v) => v.name).join(', ')}`
         : '') +
-      ' (squares are places, green rectangles areas, dashed purple lines tracks).';
+      ' (squares are places, green rectangles areas, dashed purple lines walk paths).';
     drawPoints();
   };
 
@@ -278,7 +278,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
         next = fl.px_per_m ? uploadBtn : pick;
         ctx.announce(
           `Plan uploaded: ${fl.plan_size_px?.[0]} × ${fl.plan_size_px?.[1]} pixels.` +
-            (had ? ' Places and tracks kept their metres; check them on the new plan.' : '') +
+            (had ? ' Places and walk paths kept their metres; check them on the new plan.' : '') +
             (fl.px_per_m ? '' : ' Now set its scale.'),
         );
       })
@@ -312,7 +312,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       .then(async (fl) => {
         await reload(true);
         ctx.announce(
-          `Scale saved: ${fl.px_per_m?.toFixed(2)} pixels per metre. Places and tracks kept their metres; check them on the plan.`,
+          `Scale saved: ${fl.px_per_m?.toFixed(2)} pixels per metre. Places and walk paths kept their metres; check them on the plan.`,
         );
       })
       .catch((err: unknown) => ctx.fail(err, 'Saving the scale'))
@@ -358,7 +358,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       videos = r.videos;
       draw();
     })
-    .catch((err: unknown) => ctx.fail(err, 'Reading the videos’ tracks'));
+    .catch((err: unknown) => ctx.fail(err, 'Reading the videos’ walk paths'));
   const keys = (e: KeyboardEvent): void => {
     if (e.key === 'Escape' && picking) {
       setPicking(0);

@@ -1,5 +1,5 @@
 /**
- * Step 8, modelling: one button models every modelling video whose track is tagged and which is not
+ * Step 8, modelling: one button models every modelling video whose walk path is tagged and which is not
  * modelled yet (POST .../jobs); the job's progress (frames done, frames per second, time left) is
  * read from its event stream; it can be cancelled, and a failed job says why. The page says which
  * generation of frames is live: the venue keeps answering from it until the new one is complete.
@@ -20,15 +20,15 @@ export function modelVerdict(v: Video): { goes: boolean; why: string } {
   if (v.role === 'evaluation')
     return { goes: false, why: 'an evaluation walk: it checks the map, it is not part of it' };
   if (v.status === 'uploading') return { goes: false, why: 'still uploading' };
-  if (!v.tracked) return { goes: false, why: 'no track yet: tag it first' };
+  if (!v.has_walk_path) return { goes: false, why: 'no walk path yet: tag it first' };
   if (v.status === 'modelled') return { goes: false, why: `already modelled (${v.frames} frames)` };
   return { goes: true, why: 'will be modelled' };
 }
 
-/** The videos a modelling anew takes: every uploaded modelling walk with a track, modelled or not. */
+/** The videos a modelling anew takes: every uploaded modelling walk with a walk path, modelled or not. */
 export function anewVideos(videos: Video[]): string[] {
   return videos
-    .filter((v) => v.role !== 'evaluation' && v.tracked && (v.status === 'ready' || v.status === 'modelled'))
+    .filter((v) => v.role !== 'evaluation' && v.has_walk_path && (v.status === 'ready' || v.status === 'modelled'))
     .map((v) => v.name);
 }
 
@@ -38,7 +38,7 @@ export function anewNotice(v: AdminVenue, videos: Video[]): string | null {
   const names = anewVideos(videos);
   const what = names.length
     ? `Modelling anew models ${names.join(', ')} again with them`
-    : 'Modelling anew needs the modelling videos with their tracks, and no uploaded modelling video has a track yet';
+    : 'Modelling anew needs the modelling videos with their walk paths, and no uploaded modelling video has a walk path yet';
   return (
     'This venue was modelled with older feature settings than its preset has now. ' +
     `${what}. Until that is complete the venue answers as it does now; phones take up the new ` +
@@ -82,7 +82,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     el('div', { className: 'row' }, anew),
   );
   anewBox.hidden = true;
-  const { table, body: tbody } = dataTable('What the next modelling takes', ['Video', 'Track', 'Next modelling'], {
+  const { table, body: tbody } = dataTable('What the next modelling takes', ['Video', 'Walk path', 'Next modelling'], {
     id: 'model-videos',
   });
   root.replaceChildren(
@@ -111,11 +111,11 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       ...videos.map((v) => {
         const verdict = modelVerdict(v);
         const cell = el('td', { textContent: verdict.why });
-        if (!v.tracked && v.status !== 'uploading' && v.role === 'model')
+        if (!v.has_walk_path && v.status !== 'uploading' && v.role === 'model')
           cell.append(
             ' (',
             el('a', {
-              href: `#/v/${encodeURIComponent(venueId)}/track?video=${encodeURIComponent(v.name)}`,
+              href: `#/v/${encodeURIComponent(venueId)}/walk-path?video=${encodeURIComponent(v.name)}`,
               textContent: `tag ${v.name}`,
             }),
             ')',
@@ -124,7 +124,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
           'tr',
           { className: verdict.goes ? 'goes' : '' },
           el('th', { scope: 'row', textContent: v.name }),
-          el('td', { textContent: v.tracked ? `${v.track?.waypoints.length ?? 0} waypoints` : 'none' }),
+          el('td', { textContent: v.has_walk_path ? `${v.walk_path?.waypoints.length ?? 0} waypoints` : 'none' }),
           cell,
         );
       }),
@@ -142,8 +142,8 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       : goes.length
         ? `Models ${goes.map((v) => v.name).join(', ')}.`
         : videos.length
-          ? 'Nothing to model: every modelling video with a track is modelled already, or none has a track yet.'
-          : 'Nothing to model: upload a walk video and tag its track first.';
+          ? 'Nothing to model: every modelling video with a walk path is modelled already, or none has a walk path yet.'
+          : 'Nothing to model: upload a walk video and tag its walk path first.';
   };
 
   const load = async () => {

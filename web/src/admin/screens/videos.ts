@@ -3,7 +3,7 @@
  * frame size, then uploaded resumably in pieces with a progress bar, speed and time left, pause and
  * resume (uploader.ts). A reload or a dropped connection loses nothing: the server keeps what
  * arrived, and the same file chosen again continues from the server's `received`. When a video is
- * in, the server finds its turns and stops (a suggest job) for the track screen.
+ * in, the server finds its turns and stops (a suggest job) for the walk path screen.
  */
 import { venuePath } from '../api';
 import type { AdminContext } from '../context';
@@ -92,7 +92,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
 
   const { table, body: tableBody } = dataTable(
     'Videos of this venue',
-    ['Video', 'Floor and lens', 'Role', 'Status', 'Track', 'Actions'],
+    ['Video', 'Floor and lens', 'Role', 'Status', 'Walk path', 'Actions'],
     { id: 'video-table', className: 'videos' },
   );
   const noVideos = el('p', { id: 'no-videos', textContent: 'No videos yet.', hidden: true });
@@ -101,7 +101,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     el('h2', { textContent: 'Videos' }),
     el('p', {
       textContent:
-        'Walk videos filmed with the lens: modelling walks build the map (their track is tagged next), ' +
+        'Walk videos filmed with the lens: modelling walks build the map (their walk path is tagged next), ' +
         'evaluation walks check it.',
     }),
     addSection,
@@ -318,9 +318,9 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     if (u.suggestError) {
       r.turns.replaceChildren(
         el('p', {
-          textContent: `Could not find the turns and stops: ${u.suggestError}. The track can still be tagged by hand.`,
+          textContent: `Could not find the turns and stops: ${u.suggestError}. The walk path can still be tagged by hand.`,
         }),
-        trackLink(u.name),
+        walkPathLink(u.name),
       );
       return;
     }
@@ -344,9 +344,9 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     }
     if (job.state === 'done') {
       const n = u.video?.suggestions?.suggestions.length ?? 0;
-      r.turns.replaceChildren(el('p', {}, `${n} suggested waypoints (turns and stops). `, trackLink(u.name)));
+      r.turns.replaceChildren(el('p', {}, `${n} suggested waypoints (turns and stops). `, walkPathLink(u.name)));
       if (!r.turnsSaid) {
-        ctx.announce(`${n} turns and stops found in ${u.name}. Its track can be tagged now.`);
+        ctx.announce(`${n} turns and stops found in ${u.name}. Its walk path can be tagged now.`);
         r.turnsSaid = true;
         told.set(u, { state: r.state, turns: true });
       }
@@ -355,16 +355,16 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     }
     r.turns.replaceChildren(
       el('p', {
-        textContent: `Finding turns and stops ${job.state}${job.error ? `: ${job.error}` : ''}. The track can still be tagged by hand.`,
+        textContent: `Finding turns and stops ${job.state}${job.error ? `: ${job.error}` : ''}. The walk path can still be tagged by hand.`,
       }),
-      trackLink(u.name),
+      walkPathLink(u.name),
     );
   };
 
-  const trackLink = (name: string) =>
+  const walkPathLink = (name: string) =>
     el('a', {
-      href: `#/v/${encodeURIComponent(venueId)}/track?video=${encodeURIComponent(name)}`,
-      textContent: `Tag the track of ${name}`,
+      href: `#/v/${encodeURIComponent(venueId)}/walk-path?video=${encodeURIComponent(name)}`,
+      textContent: `Tag the walk path of ${name}`,
     });
 
   const render = () => {
@@ -416,15 +416,17 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
         if (v.status !== 'uploading')
           actions.append(
             el('a', {
-              href: `#/v/${encodeURIComponent(venueId)}/track?video=${encodeURIComponent(v.name)}`,
-              textContent: v.tracked ? 'Edit the track' : 'Tag the track',
+              href: `#/v/${encodeURIComponent(venueId)}/walk-path?video=${encodeURIComponent(v.name)}`,
+              textContent: v.has_walk_path ? 'Edit the walk path' : 'Tag the walk path',
             }),
           );
         const del = button('Delete', () => confirmDelete(v, actions, del), 'danger');
         del.setAttribute('aria-label', `Delete ${v.name}`);
         actions.append(' ', del);
         const sugg = v.suggestions ? `, ${v.suggestions.suggestions.length} suggested waypoints` : '';
-        const track = v.tracked ? `tagged (${v.track?.waypoints.length ?? 0} waypoints)` : `not tagged${sugg}`;
+        const walkPath = v.has_walk_path
+          ? `tagged (${v.walk_path?.waypoints.length ?? 0} waypoints)`
+          : `not tagged${sugg}`;
         const tr = el(
           'tr',
           { dataset: { name: v.name } },
@@ -432,7 +434,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
           el('td', { textContent: `floor ${v.floor}, lens ${v.lens}` }),
           el('td', { textContent: ROLE_TEXT[v.role] ?? v.role }),
           el('td', { className: 'video-status', textContent: videoStatus(v) }),
-          el('td', { textContent: v.status === 'uploading' ? '–' : track }),
+          el('td', { textContent: v.status === 'uploading' ? '–' : walkPath }),
           actions,
         );
         return tr;
@@ -446,7 +448,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     const what =
       v.status === 'modelled'
         ? `Delete ${v.name} and its ${v.frames} modelled frames? The venue then answers without them.`
-        : `Delete ${v.name}${v.tracked ? ' and its track' : ''}?`;
+        : `Delete ${v.name}${v.has_walk_path ? ' and its walk path' : ''}?`;
     const yes = button(
       `Delete ${v.name}`,
       async () => {

@@ -1,11 +1,11 @@
 /**
- * Step 7, the track tagged on the plan: a video's frame and its unwrapped panorama at the scrubber's
+ * Step 7, the walk path tagged on the plan: a video's frame and its unwrapped panorama at the scrubber's
  * time (rendered by the server with the engine's unwarp; the walking direction marked), the plan
  * beside. Clicking the plan drops a waypoint at the current time; waypoints are dragged, typed,
  * deleted, and snap to the corridors' centre lines when asked. The turns and stops the server found
  * are offered in order, so that each corner takes one click: choose (or accept) a suggestion, the
  * video jumps there, click where it happened, and the next one comes up. Saved as the video's
- * track.json (PUT .../track, If-Match: a stale venue is refused and said so); downloadable.
+ * walk_path.json (PUT .../walk-path, If-Match: a stale venue is refused and said so); downloadable.
  */
 import type * as L from 'leaflet';
 import { AdminError, venuePath } from '../api';
@@ -18,7 +18,7 @@ import {
   acceptSuggestion,
   addAt,
   corridorLines,
-  fromTrack,
+  fromWalkPath,
   isTagged,
   landmarkLine,
   nextUntagged,
@@ -27,11 +27,11 @@ import {
   snapToLines,
   snapWords,
   suggestionText,
-  toTrack,
-  trackProblem,
+  toWalkPath,
+  walkPathProblem,
   walkColumn,
   type Point,
-} from '../track-edit';
+} from '../walk-path-edit';
 import type { Suggestion, Video } from '../types';
 
 /** Frames kept as object URLs (both views), so scrubbing back and forth is instant. */
@@ -47,10 +47,10 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   let cleanup: (() => void)[] = [];
 
   const chooser = el('select');
-  const status = el('p', { className: 'status', id: 'track-status' });
-  const body = el('div', { className: 'track-body' });
+  const status = el('p', { className: 'status', id: 'walk-path-status' });
+  const body = el('div', { className: 'walk-path-body' });
   root.replaceChildren(
-    el('h2', { textContent: 'Track' }),
+    el('h2', { textContent: 'Walk path' }),
     el('p', {
       textContent:
         'Where the walker was while filming: scrub the video, and at each turn or stop click the plan ' +
@@ -92,16 +92,16 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     }
     chooser.append(new Option('Choose a video…', ''));
     for (const v of usable)
-      chooser.append(new Option(`${v.name} (${v.tracked ? 'tagged' : 'not tagged'}, floor ${v.floor})`, v.name));
+      chooser.append(new Option(`${v.name} (${v.has_walk_path ? 'tagged' : 'not tagged'}, floor ${v.floor})`, v.name));
     chooser.addEventListener('change', () => {
-      if (chooser.value) ctx.go('track', { video: chooser.value });
+      if (chooser.value) ctx.go('walk-path', { video: chooser.value });
     });
     // without ?video=, the first modelling walk still to tag (or the first video) is opened
     const v = wanted
       ? usable.find((x) => x.name === wanted)
-      : (usable.find((x) => !x.tracked && x.role === 'model') ?? usable[0]);
+      : (usable.find((x) => !x.has_walk_path && x.role === 'model') ?? usable[0]);
     if (!v) {
-      body.replaceChildren(el('p', { textContent: 'Choose the video whose track to tag.' }));
+      body.replaceChildren(el('p', { textContent: 'Choose the video whose walk path to tag.' }));
       return;
     }
     chooser.value = v.name;
@@ -113,22 +113,22 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     }
   })();
 
-  // ---- the editor of one video's track ---------------------------------------------------------
+  // ---- the editor of one video's walk path ---------------------------------------------------------
   function editor(video: Video): void {
     const name = video.name;
     const videoPath = venuePath(venueId, `/videos/${encodeURIComponent(name)}`);
     const sugg = video.suggestions;
-    const fps = video.fps ?? sugg?.fps ?? video.track?.fps ?? 30;
+    const fps = video.fps ?? sugg?.fps ?? video.walk_path?.fps ?? 30;
     const duration =
       video.duration_s ??
       sugg?.duration_s ??
       (video.frames > 0 ? video.frames / fps : null) ??
-      (video.track ? Math.max(...fromTrack(video.track, fps).map((p) => p.t)) : null);
+      (video.walk_path ? Math.max(...fromWalkPath(video.walk_path, fps).map((p) => p.t)) : null);
     const suggestions: Suggestion[] = sugg?.suggestions ?? [];
-    let points: Point[] = fromTrack(video.track, fps);
-    let offset = video.track?.heading_offset_deg ?? 0;
+    let points: Point[] = fromWalkPath(video.walk_path, fps);
+    let offset = video.walk_path?.heading_offset_deg ?? 0;
     let t = 0;
-    let saved = JSON.stringify(toTrack(points, offset));
+    let saved = JSON.stringify(toWalkPath(points, offset));
     let modelled = video.status === 'modelled';
     /** The suggestion a plan click accepts (the video stands at its time). */
     let current = -1;
@@ -190,7 +190,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     const suggHint = el('p', { className: 'hint', id: 'suggestion-next' });
 
     // the plan and the waypoints
-    const planEl = el('div', { className: 'plan', id: 'track-plan' });
+    const planEl = el('div', { className: 'plan', id: 'walk-path-plan' });
     const snap = el('input', { type: 'checkbox', checked: lines.length > 0 });
     snap.disabled = lines.length === 0;
     const snapField = el(
@@ -219,21 +219,21 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       },
       'secondary',
     );
-    const problem = el('p', { className: 'problem', id: 'track-problem', hidden: true });
-    const save = button('Save the track', () => void doSave());
-    const download = el('a', { textContent: `Download ${name}.track.json`, href: '#', id: 'track-download' });
+    const problem = el('p', { className: 'problem', id: 'walk-path-problem', hidden: true });
+    const save = button('Save the walk path', () => void doSave());
+    const download = el('a', { textContent: `Download ${name}.walk_path.json`, href: '#', id: 'walk-path-download' });
     download.addEventListener('click', (e) => {
-      const blob = new Blob([JSON.stringify(toTrack(points, offset), null, 1)], { type: 'application/json' });
+      const blob = new Blob([JSON.stringify(toWalkPath(points, offset), null, 1)], { type: 'application/json' });
       const url = URL.createObjectURL(blob);
       download.href = url;
-      download.download = `${name}.track.json`;
+      download.download = `${name}.walk_path.json`;
       setTimeout(() => URL.revokeObjectURL(url), 10_000);
       if (!points.length) e.preventDefault();
     });
-    const dirty = el('span', { className: 'hint', id: 'track-dirty' });
+    const dirty = el('span', { className: 'hint', id: 'walk-path-dirty' });
 
     body.replaceChildren(
-      el('div', { className: 'track-views' }, el('figure', {}, rawBox, rawCap), el('figure', {}, panoBox, panoCap)),
+      el('div', { className: 'walk-path-views' }, el('figure', {}, rawBox, rawCap), el('figure', {}, panoBox, panoCap)),
       el(
         'div',
         { className: 'scrub' },
@@ -261,7 +261,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
           snapField,
           el('p', {
             className: 'hint',
-            id: 'track-landmarks',
+            id: 'walk-path-landmarks',
             textContent: landmarkLine(ctx.venue().places, video.floor),
           }),
         ),
@@ -487,7 +487,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
             current = -1;
             drawSuggestions();
             say(
-              `${suggestionText(sg)} tagged at ${where}. Every suggestion has a waypoint now: check the track and save it.`,
+              `${suggestionText(sg)} tagged at ${where}. Every suggestion has a waypoint now: check the walk path and save it.`,
             );
           }
           return;
@@ -608,11 +608,11 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     };
 
     const drawState = () => {
-      const p = trackProblem(points, duration);
+      const p = walkPathProblem(points, duration);
       problem.hidden = !p || points.length === 0;
       problem.textContent = p ?? '';
       save.disabled = !!p;
-      const isDirty = JSON.stringify(toTrack(points, offset)) !== saved;
+      const isDirty = JSON.stringify(toWalkPath(points, offset)) !== saved;
       dirty.textContent = isDirty ? 'Unsaved changes.' : points.length ? 'Saved.' : '';
     };
 
@@ -629,24 +629,24 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     };
 
     const doSave = async () => {
-      const p = trackProblem(points, duration);
+      const p = walkPathProblem(points, duration);
       if (p) {
         say(p, true);
         return;
       }
-      const track = toTrack(points, offset);
+      const walkPath = toWalkPath(points, offset);
       save.disabled = true;
       try {
-        const v = await ctx.api.put<Video>(`${videoPath}/track`, track);
-        saved = JSON.stringify(track);
-        // a modelled video whose track changed is modelled again by the next modelling
+        const v = await ctx.api.put<Video>(`${videoPath}/walk-path`, walkPath);
+        saved = JSON.stringify(walkPath);
+        // a modelled video whose walk path changed is modelled again by the next modelling
         const again = modelled && v.status === 'ready' ? '; the next modelling models it again with it' : '';
         modelled = v.status === 'modelled';
-        say(`Track of ${name} saved: ${points.length} waypoints${again}.`);
+        say(`Walk path of ${name} saved: ${points.length} waypoints${again}.`);
         ctx.recheck();
       } catch (e) {
         if (e instanceof AdminError) status.textContent = `Not saved: ${e.message}`;
-        ctx.fail(e, 'Saving the track');
+        ctx.fail(e, 'Saving the walk path');
       } finally {
         drawState();
         if (!save.disabled) enable(save);

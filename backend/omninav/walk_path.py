@@ -1,4 +1,4 @@
-"""Modelling tracks (`track.json`, docs/formats.md): where the recorder was at each video frame.
+"""Modelling walk paths (`walk_path.json`, docs/formats.md): where the recorder was at each video frame.
 
 Positions between waypoints are linear in time; the heading is the direction of travel plus
 `heading_offset_deg`. Frames outside the first and last waypoint have no pose and are not used.
@@ -16,7 +16,7 @@ from .errors import OmninavError, finite, read_json
 
 
 @dataclass(frozen=True)
-class Track:
+class WalkPath:
     fps: float
     times: np.ndarray  # (N,) seconds, strictly increasing
     xy: np.ndarray  # (N, 2) plan metres
@@ -55,9 +55,9 @@ class Track:
         return h[idx]
 
 
-def parse_track(d: Any, where: str = "track") -> Track:
+def parse_walk_path(d: Any, where: str = "walk_path") -> WalkPath:
     if not isinstance(d, dict):
-        raise OmninavError(f"{where}: a track must be a JSON object")
+        raise OmninavError(f"{where}: a walk path must be a JSON object")
     fps = finite(d.get("fps", 30), "'fps'", where)
     if fps <= 0:
         raise OmninavError(f"{where}: 'fps' must be positive")
@@ -89,8 +89,8 @@ def parse_track(d: Any, where: str = "track") -> Track:
     if tt[0] < 0:
         raise OmninavError(f"{where}: waypoint times must not be negative")
     off = finite(d.get("heading_offset_deg", 0.0), "'heading_offset_deg'", where)
-    return Track(fps, tt, np.array(xy, np.float64), off)
+    return WalkPath(fps, tt, np.array(xy, np.float64), off)
 
 
-def load_track(path: str | Path) -> Track:
-    return parse_track(read_json(path, "track file"), where=str(path))
+def load_walk_path(path: str | Path) -> WalkPath:
+    return parse_walk_path(read_json(path, "walk path file"), where=str(path))

@@ -1,11 +1,11 @@
 /**
- * The track being tagged, without the DOM (unit-tested in Node): waypoints kept in time order,
- * snapping to corridor lines, the words for a suggested waypoint, and the track.json written from
- * them (docs/formats.md "Modelling track"). Times in seconds of the video, positions in metres.
+ * The walk path being tagged, without the DOM (unit-tested in Node): waypoints kept in time order,
+ * snapping to corridor lines, the words for a suggested waypoint, and the walk_path.json written from
+ * them (docs/formats.md "Modelling walk path"). Times in seconds of the video, positions in metres.
  */
 import type { Place } from '../shared/api-types';
 import { formatDuration, formatTime } from './format';
-import type { Suggestion, Track, Waypoint } from './types';
+import type { Suggestion, WalkPath, Waypoint } from './types';
 
 /** A waypoint as the editor holds it: always a time (a `frame` is turned into seconds on load). */
 export interface Point {
@@ -17,21 +17,21 @@ export interface Point {
 /** Two waypoints closer in time than this are one moment (one is replaced, not added). */
 export const SAME_MOMENT_S = 0.05;
 
-/** Waypoints of a track.json as editor points, in time order (`t` wins over `frame`). */
-export function fromTrack(track: Track | null, defaultFps = 30): Point[] {
-  if (!track) return [];
-  const fps = track.fps ?? defaultFps;
-  return track.waypoints
+/** Waypoints of a walk_path.json as editor points, in time order (`t` wins over `frame`). */
+export function fromWalkPath(walkPath: WalkPath | null, defaultFps = 30): Point[] {
+  if (!walkPath) return [];
+  const fps = walkPath.fps ?? defaultFps;
+  return walkPath.waypoints
     .map((w: Waypoint) => ({ t: w.t ?? (w.frame ?? 0) / fps, x: w.x, y: w.y }))
     .sort((a, b) => a.t - b.t);
 }
 
-/** The track.json of the editor's points: times in seconds (ms precision), positions to the cm. */
-export function toTrack(points: readonly Point[], headingOffsetDeg = 0): Track {
+/** The walk_path.json of the editor's points: times in seconds (ms precision), positions to the cm. */
+export function toWalkPath(points: readonly Point[], headingOffsetDeg = 0): WalkPath {
   const r = (v: number, k: number): number => Math.round(v * k) / k;
-  const track: Track = { waypoints: points.map((p) => ({ t: r(p.t, 1000), x: r(p.x, 100), y: r(p.y, 100) })) };
-  if (headingOffsetDeg) track.heading_offset_deg = r(headingOffsetDeg, 10);
-  return track;
+  const walkPath: WalkPath = { waypoints: points.map((p) => ({ t: r(p.t, 1000), x: r(p.x, 100), y: r(p.y, 100) })) };
+  if (headingOffsetDeg) walkPath.heading_offset_deg = r(headingOffsetDeg, 10);
+  return walkPath;
 }
 
 /** Add a waypoint (or move the one at the same moment); -> the new list, in time order. */
@@ -71,9 +71,9 @@ export function addAt(points: readonly Point[], t: number): { points: Point[]; s
   };
 }
 
-/** What is wrong with the points as a track, in words, or null when it can be saved. */
-export function trackProblem(points: readonly Point[], duration: number | null): string | null {
-  if (points.length < 2) return 'A track needs at least two waypoints: where the walk starts and where it ends.';
+/** What is wrong with the points as a walk path, in words, or null when it can be saved. */
+export function walkPathProblem(points: readonly Point[], duration: number | null): string | null {
+  if (points.length < 2) return 'A walk path needs at least two waypoints: where the walk starts and where it ends.';
   for (let i = 0; i < points.length; i++) {
     const p = points[i];
     if (![p.t, p.x, p.y].every(Number.isFinite)) return `Waypoint ${i + 1} has a value that is not a number.`;
@@ -189,7 +189,7 @@ export function snapWords(click: { x: number; y: number }, s: { x: number; y: nu
   return ` (on ${s.line}, moved ${Math.hypot(s.x - click.x, s.y - click.y).toFixed(1)} m)`;
 }
 
-/** The floor's named places (not areas) in words, beside the track's plan: what to tag the walk by. */
+/** The floor's named places (not areas) in words, beside the walk path's plan: what to tag the walk by. */
 export function landmarkLine(places: readonly Place[], floor: string): string {
   const named = places.filter((p) => p.floor === floor && !p.area);
   if (!named.length) return 'No named place on this floor to tag the walk by: add them on the Places screen.';

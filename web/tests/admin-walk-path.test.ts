@@ -1,10 +1,10 @@
-// The track editor's logic: corridor lines and snapping, suggestions in words, the one-click flow.
+// The walk path editor's logic: corridor lines and snapping, suggestions in words, the one-click flow.
 import { describe, expect, it } from 'vitest';
 import type { Place } from '../src/shared/api-types';
 import {
   acceptSuggestion,
   corridorLines,
-  fromTrack,
+  fromWalkPath,
   landmarkLine,
   nextUntagged,
   addAt,
@@ -14,11 +14,11 @@ import {
   snapWords,
   suggestionLabel,
   suggestionText,
-  toTrack,
-  trackProblem,
+  toWalkPath,
+  walkPathProblem,
   walkColumn,
   type Point,
-} from '../src/admin/track-edit';
+} from '../src/admin/walk-path-edit';
 import type { Suggestion } from '../src/admin/types';
 
 // an L of two corridors (the quick demo's shape): one along x at y = 2, one along y at x = 20
@@ -74,7 +74,7 @@ describe('corridor lines', () => {
   });
 });
 
-describe('the landmarks beside the track', () => {
+describe('the landmarks beside the walk path', () => {
   it("the floor's named places in words, or where to add them", () => {
     const desk: Place = { id: 'l', floor: '1', name: 'the desk', x: 3, y: 2.04 };
     expect(landmarkLine([...places, desk, { ...desk, id: 'm', floor: '2' }], '1')).toBe(
@@ -118,7 +118,7 @@ describe('suggestions', () => {
       { t: 19, x: 20, y: 6 },
       { t: 30, x: 20, y: 12 },
     ]);
-    expect(trackProblem(pts, 30)).toBeNull();
+    expect(walkPathProblem(pts, 30)).toBeNull();
   });
   it('a suggestion already tagged (a waypoint within a quarter second) is skipped', () => {
     const sugg = [s(0, 'start'), s(10, 'turn', 90), s(30, 'end')];
@@ -138,10 +138,10 @@ describe('waypoints', () => {
       { t: 5.01, x: 2, y: 2 },
     ]);
   });
-  it('say what keeps a track from being saved', () => {
-    expect(trackProblem([{ t: 0, x: 0, y: 0 }], 10)).toMatch(/at least two/);
+  it('say what keeps a walk path from being saved', () => {
+    expect(walkPathProblem([{ t: 0, x: 0, y: 0 }], 10)).toMatch(/at least two/);
     expect(
-      trackProblem(
+      walkPathProblem(
         [
           { t: 2, x: 0, y: 0 },
           { t: 2, x: 1, y: 0 },
@@ -150,7 +150,7 @@ describe('waypoints', () => {
       ),
     ).toBe('Waypoint 2 (0:02.0) is not after waypoint 1 (0:02.0).');
     expect(
-      trackProblem(
+      walkPathProblem(
         [
           { t: 0, x: 0, y: 0 },
           { t: 12, x: 1, y: 0 },
@@ -159,7 +159,7 @@ describe('waypoints', () => {
       ),
     ).toMatch(/after the video ends/);
     expect(
-      trackProblem(
+      walkPathProblem(
         [
           { t: 0, x: NaN, y: 0 },
           { t: 1, x: 1, y: 0 },
@@ -168,8 +168,8 @@ describe('waypoints', () => {
       ),
     ).toMatch(/not a number/);
   });
-  it("round-trip through track.json: seconds (frames read at the track's fps), cm, the heading offset", () => {
-    const pts = fromTrack({
+  it("round-trip through walk_path.json: seconds (frames read at the walk path's fps), cm, the heading offset", () => {
+    const pts = fromWalkPath({
       fps: 25,
       heading_offset_deg: 90,
       waypoints: [
@@ -181,15 +181,15 @@ describe('waypoints', () => {
       { t: 2, x: 1.234567, y: 2 },
       { t: 4.5, x: 3, y: 4 },
     ]);
-    expect(toTrack(pts, 90)).toEqual({
+    expect(toWalkPath(pts, 90)).toEqual({
       heading_offset_deg: 90,
       waypoints: [
         { t: 2, x: 1.23, y: 2 },
         { t: 4.5, x: 3, y: 4 },
       ],
     });
-    expect(toTrack(pts).heading_offset_deg).toBeUndefined();
-    expect(fromTrack(null)).toEqual([]);
+    expect(toWalkPath(pts).heading_offset_deg).toBeUndefined();
+    expect(fromWalkPath(null)).toEqual([]);
   });
   it("the walker's position between waypoints, none outside them", () => {
     const pts = [

@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 
 from omninav.errors import OmninavError
-from omninav.track import load_track, parse_track
+from omninav.walk_path import load_walk_path, parse_walk_path
 
 
 def test_interpolation_and_headings():
-    tr = parse_track(
+    tr = parse_walk_path(
         {
             "fps": 10,
             "waypoints": [{"frame": 0, "x": 0, "y": 10}, {"frame": 50, "x": 10, "y": 10}, {"t": 10.0, "x": 10, "y": 0}],
@@ -22,7 +22,7 @@ def test_interpolation_and_headings():
 
 
 def test_heading_offset():
-    tr = parse_track(
+    tr = parse_walk_path(
         {
             "fps": 30,
             "waypoints": [{"frame": 0, "x": 0, "y": 0}, {"frame": 30, "x": 0, "y": 5}],
@@ -45,22 +45,22 @@ def test_heading_offset():
         ([1, 2], "JSON object"),
     ],
 )
-def test_bad_tracks(d, msg):
+def test_bad_walk_paths(d, msg):
     with pytest.raises(OmninavError, match=msg):
-        parse_track(d)
+        parse_walk_path(d)
 
 
-def test_load_track_file(tmp_path):
+def test_load_walk_path_file(tmp_path):
     p = tmp_path / "t.json"
     p.write_text(json.dumps({"fps": 30, "waypoints": [{"frame": 0, "x": 0, "y": 0}, {"frame": 5, "x": 1, "y": 0}]}))
-    assert load_track(p).fps == 30
+    assert load_walk_path(p).fps == 30
     with pytest.raises(OmninavError, match="not found"):
-        load_track(tmp_path / "missing.json")
+        load_walk_path(tmp_path / "missing.json")
 
 
 def test_a_stop_keeps_the_heading_it_arrived_with():
     # walk east, stand still 3 s (the same point tagged twice), then walk south
-    tr = parse_track(
+    tr = parse_walk_path(
         {
             "fps": 10,
             "waypoints": [
@@ -76,7 +76,7 @@ def test_a_stop_keeps_the_heading_it_arrived_with():
     np.testing.assert_allclose(h, [90.0, 90.0, 90.0, 180.0])
 
 
-def test_a_track_that_starts_standing_faces_its_first_move():
-    tr = parse_track({"waypoints": [{"t": 0, "x": 2, "y": 2}, {"t": 2, "x": 2, "y": 2}, {"t": 4, "x": 0, "y": 2}]})
+def test_a_walk_path_that_starts_standing_faces_its_first_move():
+    tr = parse_walk_path({"waypoints": [{"t": 0, "x": 2, "y": 2}, {"t": 2, "x": 2, "y": 2}, {"t": 4, "x": 0, "y": 2}]})
     _, h, _ = tr.pose_at(np.array([1.0, 3.0]))
     np.testing.assert_allclose(h, [270.0, 270.0])
