@@ -55,7 +55,7 @@ class WalkPath:
         return h[idx]
 
 
-def parse_walk_path(d: Any, where: str = "walk_path") -> WalkPath:
+def parse_walk_path(d: Any, where: str = "walk path") -> WalkPath:
     if not isinstance(d, dict):
         raise OmninavError(f"{where}: a walk path must be a JSON object")
     fps = finite(d.get("fps", 30), "'fps'", where)

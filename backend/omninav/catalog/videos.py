@@ -116,7 +116,7 @@ class Videos:
     def check_walk_path(self, venue_id: str, floor: str, walk_path: Any) -> WalkPath:
         """A walk path as sent, parsed, and on the floor's plan."""
         f = self.cat.floors.get(venue_id, floor)
-        t = parse_walk_path(walk_path, where="walk_path")
+        t = parse_walk_path(walk_path, where="walk path")
         w, h = self.cat.floors.extent_m(f)
         for i, (x, y) in enumerate(t.xy):
             if not (0 <= x <= w and 0 <= y <= h):
