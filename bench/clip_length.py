@@ -39,7 +39,7 @@ from omninav.evaluate import query_spectra
 from omninav.heading import wrap_deg
 from omninav.lens import Lens, load_lens
 from omninav.locate import Locator
-from omninav.synth import QUERY, build_scene, make_dataset
+from omninav.synth import QUERY, build_scene, make_dataset, upgrade_names
 from omninav.synth.scene import Scene
 from omninav.synth.walks import Perturb, Pose, render_frames, write_video
 from omninav.video import VideoInfo, iter_video
@@ -240,7 +240,7 @@ def main() -> None:
         if not (root / "query.mp4").exists():
             print(f"rendering {root} ...", file=sys.stderr, flush=True)
             make_dataset(root, seed=a.seed, layout=layout)
-        report(root, build_scene(a.seed, layout), f"{layout} layout", a.seed)
+        report(upgrade_names(root), build_scene(a.seed, layout), f"{layout} layout", a.seed)
 
 
 if __name__ == "__main__":

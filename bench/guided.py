@@ -245,7 +245,7 @@ def main() -> None:
             base = {"family": name, "split": FAMILIES[name].split, "seed": seed}
             walked = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(w.xy, axis=0).T))])
             set_off = float(w.t[0])
-            dests = stops(json.loads((root / "stops_track.json").read_text()))
+            dests = stops(json.loads((root / "stops_walk_path.json").read_text()))
             for k, dest in enumerate(dests):
                 at = walked[int(np.searchsorted(w.t, dest[2] - 1e-6))]
                 t0 = max(set_off, float(w.t[int(np.searchsorted(walked, at - APPROACH_M))]))

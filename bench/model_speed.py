@@ -32,7 +32,7 @@ from omninav.lens import load_lens
 from omninav.model_venue import model_video
 from omninav.presets import resolve
 from omninav.store import Store
-from omninav.synth import MODELLING, build_scene, donut_lens
+from omninav.synth import MODELLING, build_scene, donut_lens, upgrade_names
 from omninav.synth.walks import (
     default_routes,
     poses_from_walk_path,
@@ -46,7 +46,7 @@ from omninav.walk_path import load_walk_path
 
 
 def render(root: Path, seconds: float) -> None:
-    if (root / "model30.mp4").exists():
+    if (upgrade_names(root) / "model30.mp4").exists():
         return
     root.mkdir(parents=True, exist_ok=True)
     scene = build_scene(0)

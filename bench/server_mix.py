@@ -58,6 +58,7 @@ from bench.common import machine
 from bench.server_load import REPO, load, query_spectra, start_server, summary
 from omninav.spectrum import encode_binary
 from omninav.store import Store
+from omninav.synth import upgrade_names
 
 LOCATE = "/api/venues/bench8k/locate"
 GOAL = "Goal"  # the place guided phones walk to (set on the bench venue by `main`)
@@ -286,7 +287,7 @@ def job_venue(adm: Admin, copies: int) -> list[str]:
             "PUT", f"/api/admin/venues/{JOB_VENUE}/lenses/default", json.loads((SRC / "model_lens.json").read_text())
         )
     have = {v["name"]: v["status"] for v in adm.call("GET", f"/api/admin/venues/{JOB_VENUE}/videos")["videos"]}
-    walk_path = json.loads((SRC / "model_walk_path.json").read_text())
+    walk_path = json.loads((upgrade_names(SRC) / "model_walk_path.json").read_text())
     names = [f"walk{k}.mp4" for k in range(1, copies + 1)]
     for n in names:
         if have.get(n) not in ("ready", "modelled"):
@@ -360,7 +361,7 @@ class Uploader(threading.Thread):
     def __init__(self, port: int, video: Path):
         super().__init__(daemon=True)
         self.adm, self.video = Admin(port), video
-        self.walk_path = json.loads((SRC / "model_walk_path.json").read_text())
+        self.walk_path = json.loads((upgrade_names(SRC) / "model_walk_path.json").read_text())
         self.stop = threading.Event()
         self.sent = 0
         self.complete = 0

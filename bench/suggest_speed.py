@@ -23,7 +23,7 @@ from omninav.lens import load_lens
 from omninav.model_venue import model_video
 from omninav.store import Store
 from omninav.suggest import suggest_waypoints
-from omninav.synth import MODELLING, build_scene, donut_lens
+from omninav.synth import MODELLING, build_scene, donut_lens, upgrade_names
 from omninav.synth.walks import render_walk, walk_events, walk_path_for, write_json
 from omninav.walk_path import load_walk_path
 
@@ -31,7 +31,7 @@ ROUTE = [(15.0, 3.0), (27.0, 3.0), (27.0, 23.0), (39.0, 23.0)]
 
 
 def render(root: Path) -> None:
-    if (root / "walk30.mp4").exists():
+    if (upgrade_names(root) / "walk30.mp4").exists():
         return
     root.mkdir(parents=True, exist_ok=True)
     walk_path = walk_path_for(ROUTE, [1.3], 30.0, stops={2: 3.0})

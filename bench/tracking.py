@@ -123,7 +123,7 @@ def stops_walk(root: Path, family: str, seed: int) -> str:
             )
             part = video.with_name(f"{name}.part.mp4")
             write_video(part, _jpeg(frames, fam.query_jpeg), float(walk_path["fps"]), lens.image_size)
-            (root / f"{name}_track.json").write_text(json.dumps(walk_path, indent=1))
+            (root / f"{name}_walk_path.json").write_text(json.dumps(walk_path, indent=1))
             part.rename(video)
             print(f"rendered {video} in {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
     return name
@@ -138,7 +138,7 @@ def walk(root: Path, loc: Locator, name: str = "query") -> Walk:
         if str(z["key"]) == key:
             return Walk(z["t"], z["xy"], z["heading"], z["spec"])
     spec, t, xy, hd, _ = query_spectra(
-        loc, root / f"{name}.mp4", load_walk_path(root / f"{name}_track.json"), load_lens(root / "lens.json")
+        loc, root / f"{name}.mp4", load_walk_path(root / f"{name}_walk_path.json"), load_lens(root / "lens.json")
     )
     np.savez(cache, key=key, t=t, xy=xy, heading=hd, spec=spec)
     return Walk(t, xy, hd, spec)
@@ -148,7 +148,7 @@ def walk_imu(root: Path, name: str = "query", seed: int = 0) -> Imu:
     """The walk's imu.json (made once, deterministically, beside it)."""
     path = root / f"{name}_imu.json"
     if not path.exists():
-        walk_path = json.loads((root / f"{name}_track.json").read_text())
+        walk_path = json.loads((root / f"{name}_walk_path.json").read_text())
         path.write_text(json.dumps(imu_for(walk_path, np.random.default_rng(seed + 77))))
     return parse_imu(json.loads(path.read_text()))
 

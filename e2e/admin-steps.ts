@@ -149,7 +149,7 @@ export async function waitUploadedAndSuggested(page: Page, name: string, timeout
   expect(again).toEqual([]);
 }
 
-/** Where a truth walk path has the walker at `t` (linear between waypoints, clamped to its ends). */
+/** Where the true walk path has the walker at `t` (linear between waypoints, clamped to its ends). */
 export function truthAt(walkPath: TruthWalkPath, t: number): { x: number; y: number } {
   const fps = walkPath.fps ?? 30;
   const w = walkPath.waypoints.map((p) => ({ t: p.t ?? (p.frame ?? 0) / fps, x: p.x, y: p.y }));

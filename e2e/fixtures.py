@@ -247,7 +247,7 @@ ADMIN_PLACES = [
 
 def admin(out: Path) -> None:
     """The admin page's inputs (plan.png, lens.json, walk.mp4, eval.mp4) and admin.json: the truth
-    (each walk's walk path, corners and duration), the places to draw and the scale's two plan pixels.
+    (each walk's waypoints, corners and duration), the places to draw and the scale's two plan pixels.
     Deterministic, and small: two walks of about 20 s at 480 x 360."""
     from omninav.synth.scene import floorplan_image
     from omninav.synth.walks import MODELLING, poses_from_walk_path, walk_path_for, write_video

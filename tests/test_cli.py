@@ -145,8 +145,8 @@ def test_venue_list(cli_venue):
 
 
 def _bad_inputs(small_ds, tmp):
-    bad_track = tmp / "bad_track.json"
-    bad_track.write_text(
+    bad_walk_path = tmp / "bad_walk_path.json"
+    bad_walk_path.write_text(
         json.dumps({"fps": 10, "waypoints": [{"frame": 9, "x": 0, "y": 0}, {"frame": 3, "x": 1, "y": 0}]})
     )
     bad_lens = tmp / "bad_lens.json"
@@ -162,7 +162,7 @@ def _bad_inputs(small_ds, tmp):
     return [
         (["model", "lab", str(tmp / "nope.mp4"), *t, *l], "video not found"),
         (["model", "lab", str(junk), *t, *l], "not a readable video"),
-        ([*m, "--walk-path", str(bad_track), *l], "increasing time"),
+        ([*m, "--walk-path", str(bad_walk_path), *l], "increasing time"),
         ([*m, *t, "--lens", str(bad_lens)], "r_outer"),
         ([*m, "--walk-path", str(tmp / "none.json"), *l], "walk path file not found"),
         (["model", "nowhere", str(small_ds.model_video), *t, *l], "unknown venue"),
@@ -379,12 +379,21 @@ def test_a_renamed_option_keeps_its_old_name_for_a_release(tmp_path):
     assert "--track" not in run(cmd, ["--help"]).stdout  # hidden: the help shows one name
 
 
-def test_model_reads_the_old_track_flag(cli_venue, small_ds, tmp_path):
-    """The real command under its old flag: the same check, one line more on stderr."""
+def test_the_commands_read_their_old_walk_path_flags(cli_venue, small_ds, tmp_path):
+    """The real commands under their old flags (`--track`, `--eval-track`, and `--track` beside
+    tracking's `--track-mode`): the same checks, one line more on stderr naming the new flag."""
+    wp, nope = str(small_ds.model_walk_path), str(tmp_path / "nope.mp4")
     lens = ["--lens", str(small_ds.root / "model_lens.json")]
-    p = run_cli(
-        "model", "lab", str(tmp_path / "nope.mp4"), "--track", str(small_ds.model_walk_path), *lens, data=cli_venue
-    )
-    lines = p.stderr.strip().splitlines()
-    assert p.returncode != 0 and len(lines) == 2, p.stderr
-    assert "--track is now --walk-path" in lines[0] and "video not found" in lines[1]
+    runs = [
+        (["model", "lab", nope, "--track", wp, *lens], "--track is now --walk-path"),
+        (["evaluate", "lab", nope, "--track", wp, *lens, "--track-mode"], "--track is now --walk-path"),
+        (
+            ["choose-preset", str(small_ds.model_video), "--walk-path", wp, *lens, "--eval", nope, "--eval-track", wp],
+            "--eval-track is now --eval-walk-path",
+        ),
+    ]
+    for args, said in runs:
+        p = run_cli(*args, data=cli_venue)
+        lines = p.stderr.strip().splitlines()
+        assert p.returncode != 0 and len(lines) == 2, (args, p.stderr)
+        assert said in lines[0] and "not found" in lines[1], (args, p.stderr)

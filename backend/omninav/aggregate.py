@@ -25,7 +25,7 @@ from .heading import wrap_deg
 from .index import Matches
 
 WALK_MPS = 1.8  # fastest walking pace we allow between two frames of a clip
-NEAR_M = 0.45  # slack on top: matching granularity and the modelling track's own error
+NEAR_M = 0.45  # slack on top: matching granularity and the walk path's own error
 ALT_M = 3.0  # a rival hypothesis this far away is a different place
 # "Sure": the confidence from which an answer is one a user may trust (the app's TRUSTED_CONFIDENCE,
 # the accuracy circle's 2 m, the figures' "conf >= 0.8", issue 13's target)

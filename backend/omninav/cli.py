@@ -191,7 +191,7 @@ def venue_delete(ctx: click.Context, venue_id: str, yes: bool) -> None:
 )
 @click.pass_context
 def model(ctx: click.Context, venue_id: str, video: Path, walk_path_file: Path, lens_path: Path, anew: bool) -> None:
-    """Model VENUE from a panoramic VIDEO walked along its walk path (the recorder's positions over time)."""
+    """Model VENUE from a panoramic VIDEO and its walk path (where the recorder was, and when)."""
     from .lens import load_lens
     from .model_venue import VideoSource, model_videos
     from .walk_path import load_walk_path
@@ -549,10 +549,10 @@ def _table(rows: list[tuple[str, dict[str, Any]]], confident: bool = False) -> s
 
 @cli.command("choose-preset")
 @click.argument("walk", type=click.Path(path_type=Path))
-@renamed_path_option("--walk-path", "--track", "walk_path_file", help="The walk's walk_path.json.")
+@renamed_path_option("--walk-path", "--track", "walk_path_file", help="The walk's waypoints (walk_path.json).")
 @click.option("--lens", "lens_path", required=True, type=click.Path(path_type=Path), help="The walk's lens.json.")
 @click.option("--eval", "eval_path", required=True, type=click.Path(path_type=Path), help="An evaluation walk (video).")
-@renamed_path_option("--eval-walk-path", "--eval-track", "eval_walk_path_file", help="Its walk path.")
+@renamed_path_option("--eval-walk-path", "--eval-track", "eval_walk_path_file", help="Its waypoints (walk_path.json).")
 @click.option("--eval-lens", "eval_lens_path", type=click.Path(path_type=Path), help="Its lens (default: --lens).")
 @click.option(
     "--presets", help="Presets to choose among, comma-separated, the one to keep first (default: default,wide)."

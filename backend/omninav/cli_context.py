@@ -38,7 +38,7 @@ def renamed_path_option(new: str, old: str, dest: str, help: str) -> Callable[[F
     def deco(f: F) -> F:
         old_dest = f"{dest}_old_name"
         f = click.option(old, old_dest, type=click.Path(path_type=Path), hidden=True)(f)
-        f = click.option(new, dest, type=click.Path(path_type=Path), help=f"{help} [required]")(f)
+        f = click.option(new, dest, type=click.Path(path_type=Path), help=f"{help}  [required]")(f)
 
         @functools.wraps(f)
         def wrapper(*args: Any, **kwargs: Any) -> Any:

@@ -47,7 +47,7 @@ def _args(ds: Dataset, *more: str) -> list[str]:
 def test_refusals_come_before_any_work(small_ds: Dataset, tmp_path) -> None:
     """Each says what was wrong in one line, before the minutes of modelling."""
     swap = {str(small_ds.query_video): str(small_ds.model_video)}
-    no_track = {str(small_ds.query_walk_path): str(tmp_path / "none.json")}
+    no_walk_path = {str(small_ds.query_walk_path): str(tmp_path / "none.json")}
     elsewhere = tmp_path / "later.json"  # a walk path of times the evaluation video never reaches
     elsewhere.write_text(json.dumps({"fps": 10, "waypoints": [{"t": 900, "x": 0, "y": 0}, {"t": 910, "x": 5, "y": 0}]}))
     cases = [
@@ -58,7 +58,7 @@ def test_refusals_come_before_any_work(small_ds: Dataset, tmp_path) -> None:
             [a if a != str(small_ds.query_video) else str(tmp_path / "no.mp4") for a in _args(small_ds)],
             "no.mp4: video not found",
         ),
-        ([no_track.get(a, a) for a in _args(small_ds)], "none.json"),
+        ([no_walk_path.get(a, a) for a in _args(small_ds)], "none.json"),
         (
             [str(elsewhere) if a == str(small_ds.query_walk_path) else a for a in _args(small_ds)],
             "no frame lies within",

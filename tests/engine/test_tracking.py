@@ -95,9 +95,9 @@ class Venue:
 
 def walk_poses(points: list[tuple[float, float]], speed: float = 1.2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A walk along points at `speed`, sampled at FPS: times, (T, 2) positions, headings."""
-    track = parse_walk_path(walk_path_for(points, [speed], FPS))
-    t = np.arange(0.0, track.times[-1] + 1e-9, 1.0 / FPS)
-    xy, hd, _ = track.pose_at(t)
+    walk_path = parse_walk_path(walk_path_for(points, [speed], FPS))
+    t = np.arange(0.0, walk_path.times[-1] + 1e-9, 1.0 / FPS)
+    xy, hd, _ = walk_path.pose_at(t)
     return t, xy, hd
 
 
@@ -587,8 +587,8 @@ def test_motion_helps_in_a_repetitive_corridor(corridor: Venue) -> None:
     this walker's stride 0.76 m where the filter assumes 0.7) it keeps the right door ~1.5 times as
     long. Nothing holds the phase of a truly periodic corridor for ever: its end will."""
     t, xy, hd = walk_poses([(0.5, 0.0), (47.0, 0.0)])
-    track = walk_path_for([(0.5, 0.0), (47.0, 0.0)], [1.2], FPS)
-    imu = parse_imu(imu_for(track, np.random.default_rng(5)))
+    walk_path = walk_path_for([(0.5, 0.0), (47.0, 0.0)], [1.2], FPS)
+    imu = parse_imu(imu_for(walk_path, np.random.default_rng(5)))
 
     def right_until(motion) -> float:
         out = run_walk(corridor, t, xy, hd, periodic, every=2.5, motion=motion, per=1)
@@ -1289,18 +1289,18 @@ def cli_venue(small_ds: Dataset, tmp_path_factory: pytest.TempPathFactory) -> Pa
 
 
 def test_cli_track_prints_one_answer_per_second(cli_venue: Path, small_ds: Dataset, tmp_path: Path) -> None:
-    track = json.loads(small_ds.query_walk_path.read_text())
+    walk_path = json.loads(small_ds.query_walk_path.read_text())
     imu = tmp_path / "imu.json"
-    imu.write_text(json.dumps(imu_for(track, np.random.default_rng(0))))
+    imu.write_text(json.dumps(imu_for(walk_path, np.random.default_rng(0))))
     p = run_cli("track", "lab", str(small_ds.query_video), "--lens", str(small_ds.lens), data=cli_venue, check=True)
     lines = [json.loads(s) for s in p.stdout.splitlines()]
-    duration = track["waypoints"][-1]["t"]
+    duration = walk_path["waypoints"][-1]["t"]
     assert len(lines) == pytest.approx(duration, abs=1.5)
     assert [round(a["t"]) for a in lines[:3]] == [1, 2, 3]
     for a in lines:
         assert {"clip", "t", "x", "y", "heading_deg", "confidence", "floor", "place", "frame", "ambiguous"} <= set(a)
         assert a["floor"] == "2" and 0 <= a["confidence"] <= 1 and 0 <= a["heading_deg"] < 360
-    tr = parse_walk_path(track)
+    tr = parse_walk_path(walk_path)
     truth, _, _ = tr.pose_at(np.array([a["t"] for a in lines]))
     e = np.hypot(*(np.array([[a["x"], a["y"]] for a in lines]) - truth).T)
     assert np.mean(e[5:] <= 2.0) >= 0.9

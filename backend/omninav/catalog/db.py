@@ -122,7 +122,7 @@ MIGRATIONS: list[Migration] = [
         _job_videos,
     ],
     # 4: the admin page. Videos have a role (modelling or evaluation walk), may be registered
-    # before their track (track is the JSON `null` until then), keep what the upload check read
+    # before their track (track is the JSON `null` until then; `walk_path` since 7), keep what the upload check read
     # of them (or why it refused them) and the latest waypoint suggestions; jobs have a kind, a
     # target video (suggest, evaluate) and the path of their result JSON (relative to DATA). One
     # active job per venue, kind and target: a venue can be modelled while a video's waypoints

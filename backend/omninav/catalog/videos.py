@@ -5,7 +5,7 @@ with their frames.
 A video's role is 'model' (a walk the venue is modelled from) or 'evaluation' (a walk that checks
 the modelled venue, never modelled itself). Its walk path may come after its bytes: the admin tags it
 on the plan, helped by the waypoints a suggest job found (`suggestions`); until then it is
-without a walk path (its walk path column holds the JSON null) and is not modelled.
+without a walk path (its `walk_path` column holds the JSON null) and is not modelled.
 
 The only module that writes the `videos` table. An upload has one writer at a time: a request
 claims the video (a lease in its row, renewed while bytes flow, lapsing if its process dies), and

@@ -230,7 +230,7 @@ class Jobs:
     def submit_analysis(self, venue_id: str, kind: str, target: str | None = None) -> dict[str, Any]:
         """Queue a suggest, quality or evaluate job (on video `target` for suggest and evaluate),
         once what it needs is there: the video uploaded (and, to evaluate, an evaluation walk with
-        a track), the venue modelled (quality, evaluate)."""
+        a walk path), the venue modelled (quality, evaluate)."""
         self.cat.venues.get(venue_id)
         self.reap()
         check_analysis(self.cat, venue_id, kind, target)

@@ -72,14 +72,19 @@ class Dataset:
     scene: Scene
 
 
-OLD_NAMES = {"model_track.json": "model_walk_path.json", "query_track.json": "query_walk_path.json"}
+OLD_NAMES = {
+    "model_track.json": "model_walk_path.json",
+    "query_track.json": "query_walk_path.json",
+    "stops_track.json": "stops_walk_path.json",  # bench/tracking.py's walk with stops
+    "track30.json": "walk_path30.json",  # bench/model_speed.py's and bench/suggest_speed.py's
+}
 
 
 def upgrade_names(root: Path) -> Path:
     """A dataset rendered before the walk path's files had that name, its files renamed in place.
 
     Renders are cached for days (the demo's, the benchmarks'); renaming is cheaper than rendering
-    again. Returns `root`.
+    again. Kept for one release, like the other old names (docs/decisions.md). Returns `root`.
     """
     for old, new in OLD_NAMES.items():
         if (root / old).exists() and not (root / new).exists():
