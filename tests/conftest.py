@@ -1,12 +1,15 @@
-"""Shared fixtures: a small synthetic venue rendered once per session, and a modelled store.
+"""Shared fixtures: a small synthetic venue rendered once a run (the xdist processes share it), a
+modelled store per process, the quick demo's render.
 
 The data is generated at test time by our own renderer (deterministic by seed), never committed.
 """
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import os
+import pickle
 import shutil
 import subprocess
 import sys
@@ -14,10 +17,12 @@ import tempfile
 import threading
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
+from omninav.demo import source_dir
 from omninav.lens import load_lens
 from omninav.model_venue import model_video
 from omninav.store import Store
@@ -31,10 +36,31 @@ OMNINAV = str(Path(sys.executable).with_name("omninav"))
 os.environ.setdefault("OMNINAV_WARM_VENUES", "off")
 
 
+def run_temp(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The temporary folder of this pytest run, shared by its xdist processes (not older runs')."""
+    base = tmp_path_factory.getbasetemp()
+    return base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+
+
+def shared_render(tmp_path_factory: pytest.TempPathFactory, name: str, make: Any) -> Any:
+    """`make(folder)`'s result, made once a run by whichever process asks first (under a lock)
+    and read back by the others: the renders are seconds of CPU each, and the tests only read
+    their files."""
+    root = run_temp(tmp_path_factory)
+    made = root / f"{name}.pickle"
+    with open(root / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not made.exists():
+            made.write_bytes(pickle.dumps(make(root / name)))
+        return pickle.loads(made.read_bytes())
+
+
 @pytest.fixture(scope="session")
 def small_ds(tmp_path_factory: pytest.TempPathFactory) -> Dataset:
     """The small L-shaped venue at half resolution (480x360 donut): modelling + query walk."""
-    return make_dataset(tmp_path_factory.mktemp("small"), seed=3, layout="small", scale=0.5)
+    return shared_render(  # type: ignore[no-any-return]
+        tmp_path_factory, "small", lambda root: make_dataset(root, seed=3, layout="small", scale=0.5)
+    )
 
 
 @pytest.fixture(scope="session")
@@ -53,10 +79,31 @@ def modelled(small_ds: Dataset, tmp_path_factory: pytest.TempPathFactory) -> tup
 
 
 @pytest.fixture(scope="session")
+def quick_demo_render(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The quick demo's rendered venue (demo.render: about 25 s on two cores), made once a run and
+    copied into each data folder that starts the quick demo (`seed_quick_demo`). The processes of
+    one pytest-xdist run share it through a lock in the run's temporary folder."""
+    from omninav.demo import render
+
+    root = run_temp(tmp_path_factory)
+    with open(root / "quick-demo.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        return render(root / "quick-demo", quick=True, log=lambda *_: None)
+
+
+def seed_quick_demo(data: Path, render: Path) -> None:
+    """Put the quick demo's render where `omninav demo --quick` / `serve --demo quick` look for it
+    in `data`, so that they model it instead of rendering it again."""
+    shutil.copytree(render, source_dir(data, quick=True))
+
+
+@pytest.fixture(scope="session")
 def equirect_ds(tmp_path_factory: pytest.TempPathFactory) -> Dataset:
     """The small venue modelled with a 360-camera (equirectangular) instead of the donut."""
-    return make_dataset(
-        tmp_path_factory.mktemp("equi"), seed=3, layout="small", scale=0.5, model_lens=equirect_lens(720)
+    return shared_render(  # type: ignore[no-any-return]
+        tmp_path_factory,
+        "equi",
+        lambda root: make_dataset(root, seed=3, layout="small", scale=0.5, model_lens=equirect_lens(720)),
     )
 
 

@@ -16,7 +16,7 @@ from omninav.walk_path import load_walk_path
 def cli_venue(small_ds, tmp_path_factory):
     """A venue created and modelled through the CLI itself."""
     data = tmp_path_factory.mktemp("cli-data")
-    places = small_ds.root / "places.json"
+    places = data.parent / f"{data.name}-places.json"  # beside the data folder: small_ds is shared
     places.write_text(json.dumps(small_ds.scene.places))
     p = run_cli(
         "venue",

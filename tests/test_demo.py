@@ -5,12 +5,13 @@ import re
 
 import cv2
 
-from conftest import run_cli
+from conftest import run_cli, seed_quick_demo
 from omninav.lens import load_lens
 from omninav.walk_path import load_walk_path
 
 
-def test_demo_quick_prints_both_methods(tmp_path):
+def test_demo_quick_prints_both_methods(tmp_path, quick_demo_render):
+    seed_quick_demo(tmp_path, quick_demo_render)  # rendered once a run (conftest), modelled here
     p = run_cli("demo", "--quick", data=tmp_path, check=True)
     rows = {line.split("  ")[0]: line for line in p.stdout.splitlines() if "%" in line}
     assert set(rows) == {"omninav (sequence)", "paper (I curve, median)"}

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import OMNINAV
+from conftest import OMNINAV, seed_quick_demo
 from omninav.devserver import ServeProcess, free_port
 from omninav.spectrum import encode_binary
 from server_helpers import ADMIN, TOKEN, check_response, clip_spectra, query_clip
@@ -247,8 +247,9 @@ def test_the_web_app_or_its_placeholder_is_served_at_the_root(venue_data):
         srv.kill()
 
 
-def test_first_start_prints_a_token_and_models_the_demo_venue_in_the_background(tmp_path):
+def test_first_start_prints_a_token_and_models_the_demo_venue_in_the_background(tmp_path, quick_demo_render):
     data = tmp_path / "data"
+    seed_quick_demo(data, quick_demo_render)  # rendered once a run (conftest); set up and modelled here
     srv = Server(data, "--demo", "quick", token=False)
     try:
         log = (tmp_path / f"server-{srv.port}.log").read_text()
