@@ -88,6 +88,12 @@ test('admin basics: sign in, venue, plan and scale, places, lens, a stale save, 
   await test.step('venues: list and create', async () => {
     await expect(page.locator('#venue-list')).toContainText('demo');
     await expectNoAxeViolations(page, 'the venues screen');
+    // an id already taken: said, and the focus back on the id, marked invalid
+    await page.getByLabel('Venue id').fill('demo');
+    await page.getByRole('button', { name: 'Create the venue' }).click();
+    await expect(page.getByRole('alert')).toContainText("venue 'demo' already exists");
+    await expect(page.getByLabel('Venue id')).toBeFocused();
+    await expect(page.getByLabel('Venue id')).toHaveAttribute('aria-invalid', 'true');
     await page.getByLabel('Venue id').fill(VENUE);
     await page.getByLabel('Name', { exact: true }).fill('Basics Hall');
     await page.getByRole('button', { name: 'Create the venue' }).click();

@@ -4,7 +4,7 @@
  * delete send the revision read when the admin started them, so a change made meanwhile in another
  * tab is refused ("changed since you opened it") rather than overwritten.
  */
-import { venuePath } from '../api';
+import { AdminError, venuePath } from '../api';
 import type { AdminContext } from '../context';
 import { button, el, field } from '../dom';
 import type { AdminVenue, Video } from '../types';
@@ -59,7 +59,14 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
         ctx.announce(`Created venue ${v.name}.`);
         location.hash = `#/v/${encodeURIComponent(v.id)}/floor`;
       })
-      .catch((err: unknown) => ctx.fail(err, `Creating venue ${id}`));
+      .catch((err: unknown) => {
+        ctx.fail(err, `Creating venue ${id}`);
+        if (err instanceof AdminError && err.status === 409) {
+          // the id is taken: back to the field, marked, so that the next key changes it
+          idIn.setAttribute('aria-invalid', 'true');
+          idIn.focus();
+        }
+      });
   });
 
   // ---- one row: open, rename, delete
