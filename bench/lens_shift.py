@@ -30,7 +30,7 @@ from omninav.extract import Extractor
 from omninav.heading import wrap_deg
 from omninav.lens import load_lens
 from omninav.presets import resolve
-from omninav.synth import QUERY, make_dataset
+from omninav.synth import QUERY, make_dataset, upgrade_names
 from omninav.synth.scene import build_scene
 from omninav.synth.walks import poses_from_walk_path, render_frames
 
@@ -49,6 +49,7 @@ def main() -> None:
         root = a.root or Path("data") / f"bench-venue-{a.layout}-{a.seed}"
         if not (root / "query.mp4").exists():
             make_dataset(root, seed=a.seed, layout=a.layout)
+        upgrade_names(root)
     lens = load_lens(root / "lens.json")
     loc = cached_venue(root, "lens-shift", resolve("default"), lens="lens.json")
     conf = loc.conf

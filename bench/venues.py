@@ -110,7 +110,7 @@ def cached_venue(
     into `store` (default root/bench-data), once per settings: the venue id is `tag` and a hash of
     what is modelled, so a changed default is another venue, never a stale one (bench/accuracy.py,
     bench/lens_shift.py and bench/foreign.py cache their venues here too)."""
-    st = Store(store or upgrade_names(root) / "bench-data")
+    st = Store(store or root / "bench-data")
     vid = venue_key(tag, settings)
     if st.generation(vid) is None:
         t = time.perf_counter()

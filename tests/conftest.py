@@ -81,14 +81,12 @@ def modelled(small_ds: Dataset, tmp_path_factory: pytest.TempPathFactory) -> tup
 @pytest.fixture(scope="session")
 def quick_demo_render(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The quick demo's rendered venue (demo.render: about 25 s on two cores), made once a run and
-    copied into each data folder that starts the quick demo (`seed_quick_demo`). The processes of
-    one pytest-xdist run share it through a lock in the run's temporary folder."""
+    copied into each data folder that starts the quick demo (`seed_quick_demo`)."""
     from omninav.demo import render
 
-    root = run_temp(tmp_path_factory)
-    with open(root / "quick-demo.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        return render(root / "quick-demo", quick=True, log=lambda *_: None)
+    return shared_render(  # type: ignore[no-any-return]
+        tmp_path_factory, "quick-demo", lambda root: render(root, quick=True, log=lambda *_: None)
+    )
 
 
 def seed_quick_demo(data: Path, render: Path) -> None:

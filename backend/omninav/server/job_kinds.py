@@ -33,7 +33,7 @@ def doing(kind: str, target: str | None) -> str:
 
 
 def has_walk_path(v: dict[str, Any]) -> bool:
-    return json.loads(v["walk_path"]) is not None
+    return bool(v["walk_path"] != "null")  # the column holds the JSON null until the walk path is tagged
 
 
 def check_uploaded(v: dict[str, Any]) -> None:

@@ -105,3 +105,9 @@ export function statusLine(
     },
   };
 }
+
+/** A field refused: marked invalid for assistive technology and focused, so the next key fixes it. */
+export function markInvalid(input: HTMLElement): void {
+  input.setAttribute('aria-invalid', 'true');
+  input.focus();
+}

@@ -5,7 +5,7 @@
  */
 import { venuePath } from '../api';
 import type { AdminContext } from '../context';
-import { el, enable, field, num, numberInput } from '../dom';
+import { el, enable, field, markInvalid, num, numberInput } from '../dom';
 import { lensOverlay, lensRows } from '../lens-view';
 import type { Lens } from '../../shared/lens';
 import type { Video } from '../types';
@@ -161,8 +161,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     const name = nameIn.value.trim();
     if (!f) return ctx.announce('Choose a lens profile file (lens.json) first.', true);
     if (!ID.test(name)) {
-      nameIn.setAttribute('aria-invalid', 'true');
-      nameIn.focus();
+      markInvalid(nameIn);
       return ctx.announce(
         'The profile name must start with a letter or digit and have only letters, digits, - and _.',
         true,

@@ -6,7 +6,7 @@
  */
 import { venuePath } from '../api';
 import type { AdminContext } from '../context';
-import { button, el, field, num, numberInput } from '../dom';
+import { button, el, field, markInvalid, num, numberInput } from '../dom';
 import { areaOf, cm, type Metres } from '../geometry';
 import { PLACE_KINDS, exportPlaces, parsePlaces, toInput, type EditablePlace, type PlaceInput } from '../places-io';
 import type { PlanMap } from '../planmap';
@@ -322,9 +322,8 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   }
 
   function problem(input: HTMLElement, msg: string): void {
-    input.setAttribute('aria-invalid', 'true');
     ctx.announce(msg, true);
-    input.focus();
+    markInvalid(input);
   }
 
   function close(): void {

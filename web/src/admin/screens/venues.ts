@@ -6,7 +6,7 @@
  */
 import { AdminError, venuePath } from '../api';
 import type { AdminContext } from '../context';
-import { button, el, field } from '../dom';
+import { button, el, field, markInvalid } from '../dom';
 import type { AdminVenue, Video } from '../types';
 
 interface VenueItem {
@@ -46,9 +46,8 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
     e.preventDefault();
     const id = idIn.value.trim();
     if (!ID.test(id)) {
-      idIn.setAttribute('aria-invalid', 'true');
       ctx.announce('The venue id must start with a letter or digit and have only letters, digits, - and _.', true);
-      idIn.focus();
+      markInvalid(idIn);
       return;
     }
     idIn.removeAttribute('aria-invalid');
@@ -62,9 +61,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
       .catch((err: unknown) => {
         ctx.fail(err, `Creating venue ${id}`);
         if (err instanceof AdminError && err.status === 409) {
-          // the id is taken: back to the field, marked, so that the next key changes it
-          idIn.setAttribute('aria-invalid', 'true');
-          idIn.focus();
+          markInvalid(idIn); // the id is taken
         }
       });
   });
