@@ -265,8 +265,27 @@ test('waypoints can be typed, deleted and downloaded; the video plays and steps 
   await page.getByLabel('Waypoint 2 x in metres').fill('9.5');
   await page.keyboard.press('Tab');
   await expect(page.getByLabel('Waypoint 2 y in metres')).toBeFocused();
+  // the y typed before that redraw comes (a busy page: here its timers are held back 300 ms) is
+  // kept, not replaced by the row redrawn under it
+  await page.evaluate(() => {
+    const w = window as Window & { heldTimers?: typeof setTimeout };
+    w.heldTimers = window.setTimeout;
+    window.setTimeout = ((f: () => void, ms?: number) => w.heldTimers!(f, (ms ?? 0) + 300)) as typeof setTimeout;
+  });
+  await page.getByLabel('Waypoint 2 x in metres').fill('9.4');
+  await page.keyboard.press('Tab');
   await page.keyboard.press('Control+A');
   await page.keyboard.type('2');
+  await page.waitForTimeout(900); // the x's redraw (and the y's after it) come while the y holds it
+  await page.evaluate(() => {
+    const w = window as Window & { heldTimers?: typeof setTimeout };
+    window.setTimeout = w.heldTimers!;
+  });
+  await expect(page.getByLabel('Waypoint 2 y in metres')).toBeFocused();
+  await expect(page.getByLabel('Waypoint 2 y in metres')).toHaveValue('2');
+  await page.getByLabel('Waypoint 2 x in metres').fill('9.5');
+  await page.keyboard.press('Tab');
+  await expect(page.getByLabel('Waypoint 2 y in metres')).toBeFocused();
   await page.keyboard.press('Tab');
   await expect(page.getByRole('button', { name: 'Go to waypoint 2 (0:05.0)' })).toBeFocused();
   await expect(page.locator('.pm-waypoint[aria-label^="Waypoint 2 at 0:05.0: x 9.50 m, y 2.00 m"]')).toHaveCount(1);

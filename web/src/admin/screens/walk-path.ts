@@ -570,6 +570,10 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
               const active = document.activeElement;
               const row = active && wpBody.contains(active) ? active.closest('tr') : null;
               const control = row ? [...row.querySelectorAll('input, button')].indexOf(active!) : -1;
+              // a value typed into the focused field since (a busy page brought this redraw late)
+              // is committed first, by the change its blur fires; removed by the redraw, the field
+              // would fire that change after the table was drawn from the points without it
+              if (row && active instanceof HTMLInputElement) active.blur();
               const of = row ? rowPoint.get(row) : undefined;
               changed(`Waypoint ${n} set to ${formatTime(nt)}, x ${nx} m, y ${ny} m.`);
               const k = of ? points.indexOf(of) : -1;
