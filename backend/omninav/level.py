@@ -51,8 +51,10 @@ MAX_TILT_DEG = 15.0  # a larger estimate is capped: nobody films a corridor held
 
 
 def intensity(pano: np.ndarray) -> np.ndarray:
-    """(rows, cols, 3 or 4) uint8 panorama -> (rows, cols) float64 mean of its first three channels."""
-    out: np.ndarray = pano[..., :3].astype(np.float64).sum(axis=-1) / 3.0
+    """(rows, cols, 3 or 4) uint8 panorama -> (rows, cols) float64 mean of its first three channels
+    (their sum is exact in 16 bits, so the mean is the same to the bit as a float64 sum's)."""
+    total = pano[..., 0].astype(np.uint16) + pano[..., 1] + pano[..., 2]
+    out: np.ndarray = total / 3.0
     return out
 
 
@@ -129,22 +131,76 @@ def tilted_map(lens: Lens, upright: UnwarpMap, rot: np.ndarray) -> UnwarpMap:
     upright world, turned into the tilted camera's frame, looked up through the lens. Where that
     direction lies outside what the lens sees (a narrow donut's band reaches its ring's edge), the
     cell reads what it read upright: the tilt is left there, not turned into black or a smear of
-    the ring's edge, which both differ from the upright venue more than the tilt does."""
+    the ring's edge, which both differ from the upright venue more than the tilt does.
+
+    An oversampled map (the band's four columns a degree) is turned exactly at every
+    `anchor_step` column and linearly between them (`_between`): over a degree of azimuth the
+    ring bends away from a straight line by under 0.02 px (panorama bytes move by 2 levels at
+    most, spectra by the float16 record's own step), at a quarter of the cost (levelling's
+    largest: docs/decisions.md, "Levelling's band map"). A stretch whose ends are not both seen,
+    or lie more than JUMP_PX apart (the 360 camera's seam), is turned cell by cell.
+    """
     w0, w1, w2 = _directions(np.asarray(upright.elevations, np.float32).tobytes(), upright.map_x.shape[1])
+    step = anchor_step(w0.shape[1])
+    x, y = _turned(lens, rot, w0[:, ::step], w1[:, ::step], w2[:, ::step])  # NaN where the donut does not see
+    if step == 1:
+        ok = np.isfinite(x) & np.isfinite(y)
+        x, y = np.where(ok, x, upright.map_x).astype(np.float32), np.where(ok, y, upright.map_y).astype(np.float32)
+    else:
+        x, y, redo = _between(x, y, step)
+        if redo[0].size:  # the stretches not filled: cell by cell, unseen cells as upright
+            ex, ey = _turned(lens, rot, w0[redo], w1[redo], w2[redo])
+            ok = np.isfinite(ex) & np.isfinite(ey)
+            x[redo] = np.where(ok, ex, upright.map_x[redo])
+            y[redo] = np.where(ok, ey, upright.map_y[redo])
+    return UnwarpMap(x, y, upright.elevations, upright.valid, upright.border)
+
+
+ANCHOR_DEG = 1.0  # tilted_map turns an oversampled map exactly at columns this many degrees apart
+JUMP_PX = 64.0  # ... and cell by cell between two whose pixels lie further apart than this
+
+
+def anchor_step(cols: int) -> int:
+    """Columns from one exactly turned column to the next in a map `cols` wide: ANCHOR_DEG's worth
+    where that divides the columns (the band map's `oversample`), else 1 (every column exact)."""
+    step = int(cols * ANCHOR_DEG / 360.0)
+    return step if step > 1 and cols % step == 0 else 1
+
+
+def _between(ax: np.ndarray, ay: np.ndarray, step: int) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
+    """(rows, n) float64 pixels of every `step`-th column (NaN: not seen) -> (rows, n * step)
+    float32 tables, each column linear from its anchor to the next (the last to the first:
+    azimuth wraps), as a + (b - a) * (s / step) in float64; and the (row, column) indices of the
+    stretches left to tilted_map: those whose ends are not both seen or lie more than JUMP_PX
+    apart."""
+    bx, by = np.roll(ax, -1, axis=1), np.roll(ay, -1, axis=1)
+    dx, dy = bx - ax, by - ay
+    with np.errstate(invalid="ignore"):
+        bad = ~((np.abs(dx) <= JUMP_PX) & (np.abs(dy) <= JUMP_PX))  # (NaN compares False)
+    rows, n = ax.shape
+
+    def fill(a: np.ndarray, d: np.ndarray) -> np.ndarray:
+        out = np.empty((rows, n * step), np.float32)
+        for s in range(step):
+            out[:, s::step] = a + d * (s / step)
+        return out
+
+    r, m = np.nonzero(bad)
+    redo = (np.repeat(r, step), (m[:, None] * step + np.arange(step)).ravel())
+    return fill(ax, dx), fill(ay, dy), redo
+
+
+def _turned(
+    lens: Lens, rot: np.ndarray, w0: np.ndarray, w1: np.ndarray, w2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vectors (w0, w1, w2) of upright panorama cells -> the pixels that see them tilted by
+    `rot` (NaN where the lens does not)."""
     # each direction times rot (rot's transpose applied: the tilt undone), term by term as the
     # phone's worker sums it
     c0 = w0 * rot[0, 0] + w1 * rot[1, 0] + w2 * rot[2, 0]
     c1 = w0 * rot[0, 1] + w1 * rot[1, 1] + w2 * rot[2, 1]
     c2 = w0 * rot[0, 2] + w1 * rot[1, 2] + w2 * rot[2, 2]
-    x, y = _turned_pixels(lens, c0, c1, c2)  # NaN where the donut does not see
-    ok = np.isfinite(x) & np.isfinite(y)
-    return UnwarpMap(
-        np.where(ok, x, upright.map_x).astype(np.float32),
-        np.where(ok, y, upright.map_y).astype(np.float32),
-        upright.elevations,
-        upright.valid,
-        upright.border,
-    )
+    return _turned_pixels(lens, c0, c1, c2)
 
 
 def _turned_pixels(lens: Lens, c0: np.ndarray, c1: np.ndarray, c2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -9,7 +9,7 @@ from omninav.errors import OmninavError
 from omninav.extract import Extractor
 from omninav.heading import relative_heading
 from omninav.lens import direction_to_pixel
-from omninav.level import edge_lean, estimate_map, intensity, level_map, tilt_rotation, tilted_map
+from omninav.level import anchor_step, edge_lean, estimate_map, intensity, level_map, tilt_rotation, tilted_map
 from omninav.presets import TWO_BANDS, resolve, settings_id
 from omninav.synth import build_scene, donut_lens, equirect_lens
 from omninav.synth.render import CameraModel, camera_frame, world_panorama
@@ -106,13 +106,18 @@ def test_directions_the_lens_does_not_see_read_what_they_read_upright():
     assert same[0].any() and not same[len(same) // 2].any()
 
 
+@pytest.mark.parametrize("oversample", [1, 4])
 @pytest.mark.parametrize("make", [lambda: donut_lens(0.5), lambda: equirect_lens(1440)], ids=["donut", "360"])
-def test_the_tilted_map_is_direction_to_pixel_of_the_turned_directions(make):
+def test_the_tilted_map_is_direction_to_pixel_of_the_turned_directions(make, oversample):
     # tilted_map takes a donut's pixel from the turned direction's horizontal components, without
-    # arctan2, cos and sin: the same float32 tables as the azimuth and elevation give
+    # arctan2, cos and sin: the same float32 tables as the azimuth and elevation give at every
+    # anchor column (one a degree), and within 0.02 px of them between (the 360 camera's seam
+    # included, where the anchors' columns jump across the frame)
     lens = make()
-    upright = Extractor(lens, resolve("default")).map
+    upright = Extractor(lens, {**resolve("default"), "oversample": oversample}).map
     rows, cols = upright.map_x.shape
+    assert anchor_step(cols) == oversample
+    anchor = np.arange(cols) % oversample == 0
     el = np.repeat(upright.elevations.astype(np.float64)[:, None], cols, 1)
     az = np.repeat(((np.arange(cols) + 0.5) * 360.0 / cols)[None], rows, 0)
     w = np.stack(
@@ -133,7 +138,10 @@ def test_the_tilted_map_is_direction_to_pixel_of_the_turned_directions(make):
         )
         ok = np.isfinite(x) & np.isfinite(y)
         m = tilted_map(lens, upright, rot)
-        assert np.abs(m.map_x[ok] - x[ok]).max() < 1e-3 and np.abs(m.map_y[ok] - y[ok]).max() < 1e-3
+        off = np.maximum(np.abs(m.map_x - x), np.abs(m.map_y - y))
+        assert off[ok & anchor].max() < 1e-3
+        if oversample > 1:
+            assert off[ok].max() < 0.02 and off[ok & ~anchor].max() > off[ok & anchor].max()
         assert (m.map_x[~ok] == upright.map_x[~ok]).all()
 
 
@@ -161,3 +169,13 @@ def test_levelling_is_the_default_and_venues_modelled_before_it_keep_their_id():
 def test_level_settings_are_refused_unless_a_small_whole_number_or_null(bad):
     with pytest.raises(OmninavError, match="level_iters"):
         resolve("default", {"level_iters": bad})
+
+
+def test_intensity_is_the_float64_mean_of_the_first_three_channels_to_the_bit():
+    # the phone's worker sums the three bytes and divides by 3 in doubles: the same bits
+    pano = np.random.default_rng(3).integers(0, 256, (7, 11, 4), dtype=np.uint8)
+    pano[0, :3] = 255
+    want = pano[..., :3].astype(np.float64).sum(axis=-1) / 3.0
+    for p in (pano, pano[..., :3]):
+        got = intensity(p)
+        assert got.dtype == np.float64 and got.tobytes() == want.tobytes()

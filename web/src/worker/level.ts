@@ -234,8 +234,20 @@ export function radiusAt(t: RadiusTable, el: number): number {
   return t.slope[lo] * (el - e[lo]) + r[lo];
 }
 
+/** tiltInto turns an oversampled map exactly at columns this many degrees apart (level.py's
+ * ANCHOR_DEG) ... */
+export const ANCHOR_DEG = 1;
+/** ... and cell by cell between two whose pixels lie further apart than this (JUMP_PX). */
+export const JUMP_PX = 64;
+
+/** Columns from one exactly turned column to the next in a map `cols` wide (level.anchor_step). */
+export function anchorStep(cols: number): number {
+  const step = Math.trunc((cols * ANCHOR_DEG) / 360);
+  return step > 1 && cols % step === 0 ? step : 1;
+}
+
 /** What turning one map through any tilt needs, made once per map: its rows' and columns' trig,
- * and the lens's radius lookup. */
+ * the lens's radius lookup, and the anchors' working array. */
 export interface Tilter {
   lens: Lens;
   upright: UnwarpMap;
@@ -244,6 +256,10 @@ export interface Tilter {
   cosA: Float64Array;
   sinA: Float64Array;
   radius: RadiusTable | null;
+  step: number;
+  /** one row's anchors, and one stretch's cells, x and y interleaved */
+  anchors: Float64Array;
+  cells: Float64Array;
 }
 
 export function tilter(lens: Lens, upright: UnwarpMap): Tilter {
@@ -263,12 +279,17 @@ export function tilter(lens: Lens, upright: UnwarpMap): Tilter {
     sinA[j] = Math.sin(a);
   }
   const radius = lens.model === 'catadioptric' ? radiusTableOf(lens) : null;
-  return { lens, upright, cosE, sinE, cosA, sinA, radius };
+  const step = anchorStep(cols);
+  const anchors = new Float64Array((2 * cols) / step);
+  return { lens, upright, cosE, sinE, cosA, sinA, radius, step, anchors, cells: new Float64Array(2 * step) };
 }
 
+/** Cells' pixels through a tilt: row i's `count` cells from column j0, `dj` apart -> out[2c],
+ * out[2c + 1] = x, y of the c-th (NaN where the lens does not see the turned direction). */
+type RowTurn = (i: number, j0: number, dj: number, count: number, out: Float64Array) => void;
+
 /**
- * The upright map through a tilt, into mapX and mapY (rows x cols); where the tilted direction is
- * not seen, the upright cell.
+ * The turn of `t`'s cells through `rot`.
  *
  * Notes
  * -----
@@ -278,15 +299,12 @@ export function tilter(lens: Lens, upright: UnwarpMap): Tilter {
  * horizontal length): no atan2, cos or sin per cell, the same point to a few units in the last
  * place (level.py turns it the same way). A 360 camera's column is linear in the azimuth: atan2.
  */
-export function tiltInto(t: Tilter, rot: number[], mapX: Float32Array, mapY: Float32Array): void {
-  const { lens, upright, cosE, sinE, cosA, sinA, radius } = t;
-  const { rows, cols } = upright;
-  const ux = upright.mapX;
-  const uy = upright.mapY;
+function rowTurn(t: Tilter, rot: number[]): RowTurn {
+  const { lens, cosE, sinE, cosA, sinA, radius } = t;
   const [r0, r1, r2, r3, r4, r5, r6, r7, r8] = rot;
-  if (lens.model !== 'catadioptric' || !radius) {
-    for (let i = 0, k = 0; i < rows; i++)
-      for (let j = 0; j < cols; j++, k++) {
+  if (lens.model !== 'catadioptric' || !radius)
+    return (i, j0, dj, count, out) => {
+      for (let c = 0, j = j0; c < count; c++, j += dj) {
         const w0 = cosE[i] * cosA[j];
         const w1 = cosE[i] * sinA[j];
         const w2 = sinE[i];
@@ -297,27 +315,25 @@ export function tiltInto(t: Tilter, rot: number[], mapX: Float32Array, mapY: Flo
         let azc = Math.atan2(c1, c0) * DEG;
         azc = azc - Math.floor(azc / 360) * 360; // numpy.mod
         const [x, y] = directionToPixel(lens, null, azc, elc);
-        const ok = Number.isFinite(x) && Number.isFinite(y);
-        mapX[k] = ok ? x : ux[k];
-        mapY[k] = ok ? y : uy[k];
+        out[2 * c] = x;
+        out[2 * c + 1] = y;
       }
-    return;
-  }
+    };
   const sign = (lens.ccw ?? true) ? -1 : 1;
   const fwd = (lens.forward_deg ?? 0) * RAD;
   const cF = Math.cos(fwd);
   const sF = Math.sin(fwd);
   const [cx, cy] = lens.center;
-  // radiusAt, inlined: this loop is levelling's largest cost
+  // radiusAt, inlined: this is levelling's largest cost
   const { e, r: rr, slope, start, scale } = radius;
   const e0 = e[0];
   const last = rr.length - 1;
   const eLast = e[last];
   const nb = start ? start.length - 1 : 0;
-  for (let i = 0, k = 0; i < rows; i++) {
+  return (i, j0, dj, count, out) => {
     const ce = cosE[i];
     const w2 = sinE[i];
-    for (let j = 0; j < cols; j++, k++) {
+    for (let c = 0, j = j0; c < count; c++, j += dj) {
       const w0 = ce * cosA[j];
       const w1 = ce * sinA[j];
       const c0 = w0 * r0 + w1 * r3 + w2 * r6;
@@ -332,19 +348,64 @@ export function tiltInto(t: Tilter, rot: number[], mapX: Float32Array, mapY: Flo
         lo += +(e[lo + 1] <= elc) + +(e[lo + 2] <= elc); // two steps at most, without branches
         r = slope[lo] * (elc - e[lo]) + rr[lo];
       } else r = radiusAt(radius, elc);
-      if (r !== r) {
-        mapX[k] = ux[k]; // not seen: the upright cell
-        mapY[k] = uy[k];
-        continue;
-      }
       const hh = Math.sqrt(c0 * c0 + c1 * c1);
       const ca = hh > 0 ? c0 / hh : 1; // straight up or down: azimuth 0, as atan2(0, 0) says
       const sa = hh > 0 ? c1 / hh : 0;
-      const x = cx + r * (cF * ca - sign * sF * sa);
-      const y = cy + r * (sF * ca + sign * cF * sa);
+      out[2 * c] = cx + r * (cF * ca - sign * sF * sa);
+      out[2 * c + 1] = cy + r * (sF * ca + sign * cF * sa);
+    }
+  };
+}
+
+/**
+ * The upright map through a tilt, into mapX and mapY (rows x cols); where the tilted direction is
+ * not seen, the upright cell. An oversampled map (the band's four columns a degree) is turned
+ * exactly at every `step`-th column and linearly between them, x0 + (x1 - x0) * (s / step), the
+ * last column's stretch to the first (level.py's tilted_map: under 0.02 px off, 2 levels of a
+ * panorama byte at most); a stretch whose ends are not both seen or lie more than JUMP_PX apart (the 360
+ * camera's seam) is turned cell by cell.
+ */
+export function tiltInto(t: Tilter, rot: number[], mapX: Float32Array, mapY: Float32Array): void {
+  const { upright, step, anchors: a } = t;
+  const { rows, cols } = upright;
+  const ux = upright.mapX;
+  const uy = upright.mapY;
+  const turn = rowTurn(t, rot);
+  const cells = t.cells;
+  // cells [from, from + count) of row i, turned into `out` (x, y interleaved), to the map; an
+  // unseen one reads its upright cell
+  const put = (out: Float64Array, k: number, count: number): void => {
+    for (let c = 0; c < count; c++) {
+      const x = out[2 * c];
+      const y = out[2 * c + 1];
       const ok = Number.isFinite(x) && Number.isFinite(y);
-      mapX[k] = ok ? x : ux[k];
-      mapY[k] = ok ? y : uy[k];
+      mapX[k + c] = ok ? x : ux[k + c];
+      mapY[k + c] = ok ? y : uy[k + c];
+    }
+  };
+  const n = cols / step;
+  for (let i = 0, k0 = 0; i < rows; i++, k0 += cols) {
+    turn(i, 0, step, n, a);
+    if (step === 1) {
+      put(a, k0, cols);
+      continue;
+    }
+    for (let m = 0, k = k0; m < n; m++, k += step) {
+      const m1 = m + 1 === n ? 0 : m + 1;
+      const x0 = a[2 * m];
+      const y0 = a[2 * m + 1];
+      const dx = a[2 * m1] - x0;
+      const dy = a[2 * m1 + 1] - y0;
+      if (Math.abs(dx) <= JUMP_PX && Math.abs(dy) <= JUMP_PX)
+        for (let s = 0; s < step; s++) {
+          const f = s / step;
+          mapX[k + s] = x0 + dx * f;
+          mapY[k + s] = y0 + dy * f;
+        }
+      else {
+        turn(i, m * step, 1, step, cells);
+        put(cells, k, step);
+      }
     }
   }
 }
