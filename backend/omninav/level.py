@@ -48,11 +48,16 @@ LEAN_PERCENTILE = 90.0  # the strongest tenth of the horizontal gradients: the e
 LEAN_MAX = 0.5  # an edge leaning more than this (deg of azimuth per deg of elevation) is not upright
 MIN_EDGES = 200  # fewer edge pixels than this: no estimate (the map stays upright)
 MAX_TILT_DEG = 15.0  # a larger estimate is capped: nobody films a corridor held further off
+ANCHOR_DEG = 1.0  # tilted_map turns a map exactly at columns this many degrees apart ...
+JUMP_PX = 64.0  # ... and cell by cell between two whose pixels lie further apart than this
 
 
 def intensity(pano: np.ndarray) -> np.ndarray:
-    """(rows, cols, 3 or 4) uint8 panorama -> (rows, cols) float64 mean of its first three channels
-    (their sum is exact in 16 bits, so the mean is the same to the bit as a float64 sum's)."""
+    """(rows, cols, 3 or 4) panorama -> (rows, cols) float64 mean of its first three channels (of
+    uint8 bytes, summed in 16 bits: exact, so the same bits as a float64 sum's)."""
+    if pano.dtype != np.uint8:
+        flt: np.ndarray = pano[..., :3].astype(np.float64).sum(axis=-1) / 3.0
+        return flt
     total = pano[..., 0].astype(np.uint16) + pano[..., 1] + pano[..., 2]
     out: np.ndarray = total / 3.0
     return out
@@ -133,12 +138,12 @@ def tilted_map(lens: Lens, upright: UnwarpMap, rot: np.ndarray) -> UnwarpMap:
     cell reads what it read upright: the tilt is left there, not turned into black or a smear of
     the ring's edge, which both differ from the upright venue more than the tilt does.
 
-    An oversampled map (the band's four columns a degree) is turned exactly at every
-    `anchor_step` column and linearly between them (`_between`): over a degree of azimuth the
-    ring bends away from a straight line by under 0.02 px (panorama bytes move by 2 levels at
-    most, spectra by the float16 record's own step), at a quarter of the cost (levelling's
-    largest: docs/decisions.md, "Levelling's band map"). A stretch whose ends are not both seen,
-    or lie more than JUMP_PX apart (the 360 camera's seam), is turned cell by cell.
+    A map of more than one column a degree (the band's four) is turned exactly at one column a
+    degree (`anchor_step`) and linearly between (`_between`): over a degree of azimuth the ring
+    bends away from a straight line by under 0.02 px (on the renderer's frames panorama bytes move
+    by about 2 levels, spectra by the float16 record's own step), at a quarter of the cost
+    (levelling's largest: docs/decisions.md, "Levelling's band map"). A stretch whose ends are not
+    both seen, or lie more than JUMP_PX apart (the 360 camera's seam), is turned cell by cell.
     """
     w0, w1, w2 = _directions(np.asarray(upright.elevations, np.float32).tobytes(), upright.map_x.shape[1])
     step = anchor_step(w0.shape[1])
@@ -156,13 +161,9 @@ def tilted_map(lens: Lens, upright: UnwarpMap, rot: np.ndarray) -> UnwarpMap:
     return UnwarpMap(x, y, upright.elevations, upright.valid, upright.border)
 
 
-ANCHOR_DEG = 1.0  # tilted_map turns an oversampled map exactly at columns this many degrees apart
-JUMP_PX = 64.0  # ... and cell by cell between two whose pixels lie further apart than this
-
-
 def anchor_step(cols: int) -> int:
     """Columns from one exactly turned column to the next in a map `cols` wide: ANCHOR_DEG's worth
-    where that divides the columns (the band map's `oversample`), else 1 (every column exact)."""
+    where that is more than one and divides the columns, else 1 (every column exact)."""
     step = int(cols * ANCHOR_DEG / 360.0)
     return step if step > 1 and cols % step == 0 else 1
 
@@ -177,17 +178,19 @@ def _between(ax: np.ndarray, ay: np.ndarray, step: int) -> tuple[np.ndarray, np.
     dx, dy = bx - ax, by - ay
     with np.errstate(invalid="ignore"):
         bad = ~((np.abs(dx) <= JUMP_PX) & (np.abs(dy) <= JUMP_PX))  # (NaN compares False)
-    rows, n = ax.shape
-
-    def fill(a: np.ndarray, d: np.ndarray) -> np.ndarray:
-        out = np.empty((rows, n * step), np.float32)
-        for s in range(step):
-            out[:, s::step] = a + d * (s / step)
-        return out
-
     r, m = np.nonzero(bad)
     redo = (np.repeat(r, step), (m[:, None] * step + np.arange(step)).ravel())
-    return fill(ax, dx), fill(ay, dy), redo
+    return _fill(ax, dx, step), _fill(ay, dy, step), redo
+
+
+def _fill(a: np.ndarray, d: np.ndarray, step: int) -> np.ndarray:
+    """(rows, n) anchors and their differences to the next -> (rows, n * step) float32, column
+    m * step + s being a + d * (s / step), in float64 and then rounded (the worker's order)."""
+    rows, n = a.shape
+    out = np.empty((rows, n * step), np.float32)
+    for s in range(step):
+        out[:, s::step] = a + d * (s / step)
+    return out
 
 
 def _turned(

@@ -8,7 +8,7 @@ import pytest
 from omninav.errors import OmninavError
 from omninav.extract import Extractor
 from omninav.heading import relative_heading
-from omninav.lens import direction_to_pixel
+from omninav.lens import Catadioptric, direction_to_pixel
 from omninav.level import anchor_step, edge_lean, estimate_map, intensity, level_map, tilt_rotation, tilted_map
 from omninav.presets import TWO_BANDS, resolve, settings_id
 from omninav.synth import build_scene, donut_lens, equirect_lens
@@ -140,8 +140,9 @@ def test_the_tilted_map_is_direction_to_pixel_of_the_turned_directions(make, ove
         m = tilted_map(lens, upright, rot)
         off = np.maximum(np.abs(m.map_x - x), np.abs(m.map_y - y))
         assert off[ok & anchor].max() < 1e-3
-        if oversample > 1:
-            assert off[ok].max() < 0.02 and off[ok & ~anchor].max() > off[ok & anchor].max()
+        assert off[ok].max() < 0.02
+        if oversample > 1 and isinstance(lens, Catadioptric):  # the ring's bend between anchors shows
+            assert off[ok & ~anchor].max() > 5e-3
         assert (m.map_x[~ok] == upright.map_x[~ok]).all()
 
 
@@ -176,6 +177,6 @@ def test_intensity_is_the_float64_mean_of_the_first_three_channels_to_the_bit():
     pano = np.random.default_rng(3).integers(0, 256, (7, 11, 4), dtype=np.uint8)
     pano[0, :3] = 255
     want = pano[..., :3].astype(np.float64).sum(axis=-1) / 3.0
-    for p in (pano, pano[..., :3]):
+    for p in (pano, pano[..., :3], pano.astype(np.float32)):  # (a float panorama: summed as floats)
         got = intensity(p)
         assert got.dtype == np.float64 and got.tobytes() == want.tobytes()

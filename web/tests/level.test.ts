@@ -138,7 +138,8 @@ describe('the tilted map', () => {
             }
           expect(worst).toBeLessThan(1e-3);
           expect(between).toBeLessThan(0.02);
-          if (oversample > 1) expect(between).toBeGreaterThan(worst); // (the columns between are not exact)
+          // the ring's bend between anchors shows (a 360 camera's columns are nearly linear)
+          if (oversample > 1 && lens.model === 'catadioptric') expect(between).toBeGreaterThan(5e-3);
         }
       });
 });

@@ -234,8 +234,7 @@ export function radiusAt(t: RadiusTable, el: number): number {
   return t.slope[lo] * (el - e[lo]) + r[lo];
 }
 
-/** tiltInto turns an oversampled map exactly at columns this many degrees apart (level.py's
- * ANCHOR_DEG) ... */
+/** tiltInto turns a map exactly at columns this many degrees apart (level.py's ANCHOR_DEG) ... */
 export const ANCHOR_DEG = 1;
 /** ... and cell by cell between two whose pixels lie further apart than this (JUMP_PX). */
 export const JUMP_PX = 64;
@@ -289,7 +288,7 @@ export function tilter(lens: Lens, upright: UnwarpMap): Tilter {
 type RowTurn = (i: number, j0: number, dj: number, count: number, out: Float64Array) => void;
 
 /**
- * The turn of `t`'s cells through `rot`.
+ * The turn of `t`'s cells through `rot`, a row's cells at a time (tiltInto's exact cells).
  *
  * Notes
  * -----
@@ -359,10 +358,9 @@ function rowTurn(t: Tilter, rot: number[]): RowTurn {
 
 /**
  * The upright map through a tilt, into mapX and mapY (rows x cols); where the tilted direction is
- * not seen, the upright cell. An oversampled map (the band's four columns a degree) is turned
- * exactly at every `step`-th column and linearly between them, x0 + (x1 - x0) * (s / step), the
- * last column's stretch to the first (level.py's tilted_map: under 0.02 px off, 2 levels of a
- * panorama byte at most); a stretch whose ends are not both seen or lie more than JUMP_PX apart (the 360
+ * not seen, the upright cell. A map of more than one column a degree (the band's four) is turned
+ * exactly at one column a degree (`anchorStep`) and linearly between, x0 + (x1 - x0) * (s / step),
+ * the last column's stretch to the first (level.py's tilted_map: under 0.02 px off); a stretch whose ends are not both seen or lie more than JUMP_PX apart (the 360
  * camera's seam) is turned cell by cell.
  */
 export function tiltInto(t: Tilter, rot: number[], mapX: Float32Array, mapY: Float32Array): void {
@@ -372,8 +370,8 @@ export function tiltInto(t: Tilter, rot: number[], mapX: Float32Array, mapY: Flo
   const uy = upright.mapY;
   const turn = rowTurn(t, rot);
   const cells = t.cells;
-  // cells [from, from + count) of row i, turned into `out` (x, y interleaved), to the map; an
-  // unseen one reads its upright cell
+  // `count` turned cells (x, y interleaved in `out`) into the map from cell k on; an unseen one
+  // reads its upright cell
   const put = (out: Float64Array, k: number, count: number): void => {
     for (let c = 0; c < count; c++) {
       const x = out[2 * c];

@@ -573,9 +573,12 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
               // a value typed into the focused field since (a busy page brought this redraw late)
               // is committed first, by the change its blur fires; removed by the redraw, the field
               // would fire that change after the table was drawn from the points without it
+              const mine = rowPoint.get(tr);
               if (row && active instanceof HTMLInputElement) active.blur();
               const of = row ? rowPoint.get(row) : undefined;
-              changed(`Waypoint ${n} set to ${formatTime(nt)}, x ${nx} m, y ${ny} m.`);
+              // said by the redraw of the change the blur fired, where that was this row's
+              const now = rowPoint.get(tr) ?? np;
+              changed(`Waypoint ${n} set to ${formatTime(now.t)}, x ${now.x} m, y ${now.y} m.`, now === mine);
               const k = of ? points.indexOf(of) : -1;
               if (k >= 0 && control >= 0)
                 wpBody.rows[k]?.querySelectorAll<HTMLElement>('input, button')[control]?.focus();
