@@ -21,9 +21,12 @@ DEFAULTS: dict[str, Any] = settings.DEFAULTS
 
 
 def setting(conf: Mapping[str, Any], key: str) -> Any:
-    """A venue's setting: its own, else today's default. Settings read from a venue
+    """A venue's setting: its own, else today's default (a copy: a caller that changes a list it
+    was given changes no other venue's defaults). Settings read from a venue
     (settings_upgrade.upgrade) and made by `resolve` carry every key; a dict made by hand may not."""
-    return conf.get(key, DEFAULTS[key])
+    if key in conf:
+        return conf[key]
+    return copy.deepcopy(DEFAULTS[key])
 
 
 PRESETS: dict[str, dict[str, Any]] = {

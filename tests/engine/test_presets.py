@@ -9,7 +9,7 @@ import pytest
 from omninav.errors import OmninavError
 from omninav.extract import Extractor
 from omninav.heading import relative_heading
-from omninav.presets import PRESETS, n_curves, resolve, settings_id
+from omninav.presets import DEFAULTS, PRESETS, n_curves, resolve, setting, settings_id
 from omninav.synth import build_scene, donut_lens
 from omninav.synth.render import CameraModel, camera_frame, world_panorama
 from omninav.synth.walks import grid_for
@@ -58,3 +58,15 @@ def test_wide_holds_a_place_that_a_lens_off_in_elevation_or_another_height_moves
             other.setdefault(name, []).append(float(relative_heading(ext.spectrum(_shot(v, p, dx=3.0)), ref)[1]))
     assert all(w < d / 2 for w, d in zip(lost["wide"], lost["default"], strict=True)), lost
     assert max(other["wide"]) < 0.5 and np.mean(other["wide"]) <= np.mean(other["default"]) + 0.05, other
+
+
+def test_a_default_handed_out_is_a_copy_and_a_venues_own_setting_is_its_own():
+    # a hand-made settings dict without the key gets today's default; changing what it was given
+    # changes no other venue's defaults
+    key = next(k for k, v in DEFAULTS.items() if isinstance(v, list))
+    got = setting({}, key)
+    assert got == DEFAULTS[key]
+    got.append("changed")
+    assert "changed" not in DEFAULTS[key] and setting({}, key) == DEFAULTS[key]
+    own = [1, 2]
+    assert setting({key: own}, key) is own
