@@ -235,7 +235,7 @@ export function radiusAt(t: RadiusTable, el: number): number {
 }
 
 /** tiltInto turns a map exactly at columns this many degrees apart (level.py's ANCHOR_DEG) ... */
-export const ANCHOR_DEG = 1;
+export const ANCHOR_DEG = 2;
 /** ... and cell by cell between two whose pixels lie further apart than this (JUMP_PX). */
 export const JUMP_PX = 64;
 
@@ -358,10 +358,10 @@ function rowTurn(t: Tilter, rot: number[]): RowTurn {
 
 /**
  * The upright map through a tilt, into mapX and mapY (rows x cols); where the tilted direction is
- * not seen, the upright cell. A map of more than one column a degree (the band's four) is turned
- * exactly at one column a degree (`anchorStep`) and linearly between, x0 + (x1 - x0) * (s / step),
- * the last column's stretch to the first (level.py's tilted_map: under 0.02 px off); a stretch whose ends are not both seen or lie more than JUMP_PX apart (the 360
- * camera's seam) is turned cell by cell.
+ * not seen, the upright cell. The map is turned exactly at every column ANCHOR_DEG apart
+ * (`anchorStep`) and linearly between, x0 + (x1 - x0) * (s / step), the last column's stretch to
+ * the first (level.py's tilted_map: under 0.08 px off); a stretch whose ends are not both seen or
+ * lie more than JUMP_PX apart (the 360 camera's seam) is turned cell by cell.
  */
 export function tiltInto(t: Tilter, rot: number[], mapX: Float32Array, mapY: Float32Array): void {
   const { upright, step, anchors: a } = t;
