@@ -150,16 +150,19 @@ def tilted_map(lens: Lens, upright: UnwarpMap, rot: np.ndarray) -> UnwarpMap:
     step = anchor_step(w0.shape[1])
     x, y = _turned(lens, rot, w0[:, ::step], w1[:, ::step], w2[:, ::step])  # NaN where the donut does not see
     if step == 1:
-        ok = np.isfinite(x) & np.isfinite(y)
-        x, y = np.where(ok, x, upright.map_x).astype(np.float32), np.where(ok, y, upright.map_y).astype(np.float32)
+        x, y = _seen_or(x, y, upright.map_x, upright.map_y)
     else:
         x, y, redo = _between(x, y, step)
-        if redo[0].size:  # the stretches not filled: cell by cell, unseen cells as upright
+        if redo[0].size:  # the stretches not filled: cell by cell
             ex, ey = _turned(lens, rot, w0[redo], w1[redo], w2[redo])
-            ok = np.isfinite(ex) & np.isfinite(ey)
-            x[redo] = np.where(ok, ex, upright.map_x[redo])
-            y[redo] = np.where(ok, ey, upright.map_y[redo])
+            x[redo], y[redo] = _seen_or(ex, ey, upright.map_x[redo], upright.map_y[redo])
     return UnwarpMap(x, y, upright.elevations, upright.valid, upright.border)
+
+
+def _seen_or(x: np.ndarray, y: np.ndarray, ux: np.ndarray, uy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Turned pixels (NaN: not seen) -> float32 tables, an unseen cell reading its upright one."""
+    ok = np.isfinite(x) & np.isfinite(y)
+    return np.where(ok, x, ux).astype(np.float32), np.where(ok, y, uy).astype(np.float32)
 
 
 def anchor_step(cols: int) -> int:
