@@ -12,15 +12,17 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from .calib.commands import calib
-from .catalog import Catalog
 from .cli_context import catalog_of, renamed_path_option
 from .cli_server import SERVER_COMMANDS
 from .errors import OmninavError, read_json
+
+if TYPE_CHECKING:
+    from .catalog import Catalog
 
 
 def _locator(ctx: click.Context, venue_id: str, device: str | None = None) -> Any:

@@ -7,11 +7,12 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar, cast
+from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 import click
 
-from .catalog import Catalog
+if TYPE_CHECKING:  # (imported where a command opens it: SQLAlchemy is a third of the CLI's start)
+    from .catalog import Catalog
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -24,6 +25,8 @@ def server_conf(ctx: click.Context, **options: Any) -> dict[str, Any]:
 def catalog_of(ctx: click.Context) -> Catalog:
     """The catalogue the server of this data folder (and its omninav.cfg) uses, opened once."""
     if "catalog" not in ctx.obj:
+        from .catalog import Catalog
+
         ctx.obj["catalog"] = Catalog.open(server_conf(ctx))
     return ctx.obj["catalog"]  # type: ignore[no-any-return]
 

@@ -12,13 +12,14 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Iterator
-from concurrent.futures import Executor, ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from . import extract_pool
 from .calib.correct import ClipLens
 from .errors import OmninavError
 from .extract import Extractors
@@ -30,6 +31,9 @@ from .walk_path import WalkPath
 
 log = logging.getLogger("omninav.calib")
 POSE_BLOCK = 1024  # sampled frames whose poses are looked up in one call
+# a run of this many sampled frames or more extracts on worker processes (extract_pool.py), fewer
+# on threads of this process: starting the processes (~0.3 s, once a process) is worth it from here
+PROCESSES_FROM = 100
 
 # frames done, frames expected, seconds elapsed; it may raise to stop the run (nothing is written)
 Progress = Callable[[int, int, float], None]
@@ -88,16 +92,20 @@ def _plan(src: VideoSource, settings: dict[str, Any]) -> _Plan:
     return _Plan(src, info, vfps, stride, first, last, expected)
 
 
-def _extract(
-    p: _Plan, settings: dict[str, Any], tick: Callable[[], None], pool: Executor, ahead: int
-) -> tuple[np.ndarray, np.ndarray]:
+Submit = Callable[
+    [Lens], Callable[[np.ndarray], Future[np.ndarray]]
+]  # a lens -> a frame's spectrum, extracted elsewhere
+
+
+def _extract(p: _Plan, tick: Callable[[], None], submit: Submit, ahead: int) -> tuple[np.ndarray, np.ndarray]:
     """One video's sampled frames -> (rows FRAME_DTYPE without `video`, spectra).
 
-    Each frame is decoded once (on the reader thread, up to the walk path's last frame) and extracted
-    on `pool`, at most `ahead` frames in flight; the spectra come back in frame order."""
+    Each frame is decoded once (on the reader thread, up to the walk path's last frame) and handed
+    to `submit`'s threads or processes, at most `ahead` frames in flight; the spectra come back in
+    frame order."""
     # the lens as it sat in this video: a walk filmed after the lens was clipped on again is
     # extracted through the profile moved to its ring, as every query clip is (calib/correct.py)
-    clip = ClipLens(p.src.lens, on_pool(pool, Extractors(settings, size=2).spectrum))
+    clip = ClipLens(p.src.lens, submit)
     rows, specs = [], []
     seen = -1
 
@@ -190,13 +198,26 @@ def model_videos(
 
     extracted = []
     workers = extract_threads()
-    with ThreadPoolExecutor(workers, thread_name_prefix="omninav-extract") as pool:
+    with ThreadPoolExecutor(workers, thread_name_prefix="omninav-extract") as threads:
+        if workers > 1 and expected >= PROCESSES_FROM:
+            submit: Submit = extract_pool.shared(workers).extract(settings)
+        else:
+            submit = on_pool(threads, Extractors(settings, size=2).spectrum)
         for p in plans:
             ts = time.perf_counter()
-            rows, specs = _extract(p, settings, tick, pool, ahead=2 * workers)
+            rows, specs = _extract(p, tick, submit, ahead=2 * workers)
             extracted.append((p, rows, specs, time.perf_counter() - ts))
     with store.lock(venue_id):  # read the live generation and commit the next as one step
         return _merge_commit(store, venue_id, settings, sources[-1].lens, extracted, before_commit, anew)
+
+
+def start_workers() -> None:
+    """Start the processes that a long walk's frames are extracted on (extract_pool.shared), ~0.2 s,
+    now rather than at the first modelling: a job runner does at its start. Nothing on one core,
+    where modelling extracts on this process."""
+    workers = extract_threads()
+    if workers > 1:
+        extract_pool.shared(workers)
 
 
 def _merge_commit(

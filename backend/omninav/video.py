@@ -1,5 +1,6 @@
 """Decoding: modelling videos and query clips (a video file or a directory of frame images), and
-their frames' features extracted on several threads in the order they were decoded.
+their frames' features extracted on several threads (a long walk's on processes: extract_pool.py) in
+the order they were decoded.
 
 OpenCV's FFmpeg backend reads every common container and codec. Frames we do not need are
 `grab`bed (demuxed and decoded, never converted), and none past the last one wanted is decoded.
@@ -64,7 +65,7 @@ def iter_video(
 
 def _frames(path: Path, stride: int, start: int, last: int | None) -> Iterator[tuple[int, np.ndarray]]:
     """(index, BGR frame) of every `stride`-th frame from `start` to `last`; the others are only
-    `grab`bed. FFmpeg decodes on this one thread: the extraction threads keep the cores busy, and
+    `grab`bed. FFmpeg decodes on this one thread: the extraction threads or processes keep the cores busy, and
     its frame threads would only add hand-offs (measured: bench/model_speed.py, docs/decisions.md)."""
     cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG, [cv2.CAP_PROP_N_THREADS, 1])
     try:
@@ -130,7 +131,7 @@ def read_ahead(items: Iterator[T], size: int) -> Generator[T, None, None]:
 
 
 def extract_threads() -> int:
-    """Threads that extract a video's frames: one a core this process may run on."""
+    """Threads (or processes) that extract a video's frames: one a core this process may run on."""
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 

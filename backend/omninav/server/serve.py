@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import json
+import logging
 import multiprocessing
 import os
 import shutil
@@ -37,9 +38,12 @@ from ..catalog.db import Db
 from ..config import database_url
 from ..demo import VENUE as DEMO_VENUE
 from ..errors import OmninavError
+from ..model_venue import start_workers
 from .auth import ensure_token
 from .jobs import Jobs
 from .nginx import Front, binary, start
+
+log = logging.getLogger("omninav.server")
 
 
 class _Gunicorn(BaseApplication):  # type: ignore[misc]
@@ -322,6 +326,10 @@ def _run_jobs(conf: dict[str, Any]) -> None:
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(1)
+    try:  # a modelling job's processes, started once for every job (extract_pool.py)
+        start_workers()
+    except Exception as e:  # noqa: BLE001 - a job starts them again, and fails saying why it cannot
+        log.warning("the extraction processes did not start: %s", e)
     db = Db(database_url(conf))
     jobs = Jobs(Catalog(db, Path(conf["DATA"])), stale_s=conf["JOB_STALE_S"], device=conf["DEVICE"] or None)
     # SIGTERM (the server stopping) ends the process at once: a job it was running wrote nothing
