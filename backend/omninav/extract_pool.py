@@ -7,25 +7,38 @@ share no allocator, so a long video's frames are extracted on `workers` processe
 frame is copied into a slot of one shared memory block (`multiprocessing.shared_memory`), a worker
 reads it there (a 960x720 frame is 2 MB: no pickle through a pipe), and its spectrum (1.8 KB) comes
 back as a future. The worker runs the same `Extractor` on the same bytes, so the spectra are the
-bits this process would make (tests/test_extract_pool.py).
+bits this process would make (tests/engine/test_extract_pool.py).
 
 The workers are forks of a fork server, a fresh interpreter that has imported the extractor: never
 forks of this process, whose other threads (the decoder, a job's heartbeat) may hold locks. Each runs
 one BLAS and one OpenCV thread (the processes are the parallelism), ignores Ctrl-C (the parent
-stops them), and inherits the parent's niceness (a job runner's modelling stays behind the answers).
+stops them), inherits the parent's niceness (a job runner's modelling stays behind the answers),
+and exits when the parent does, however it ends: a job runner killed for memory leaves no workers,
+and the fork server and the resource tracker, whose pipes they held, then exit and free the shared
+memory too. Where all of them were killed at once, the next pool made frees the block (`sweep`).
+
+The shared memory is a block of `slots` frames of one size at a time (20 MB for 960x720): a block
+of another size is freed once none of its frames is out, and `room` says whether the shared
+memory file system (64 MB in a default Docker container) holds a block, else modelling stays on
+threads.
 
 `shared(workers)` is the process's pool, started once and kept: the fork server and its workers
-take ~0.2 s to start, which a job runner pays once at its start, not per job (`warm`). As in every program that
-uses multiprocessing, a script that models a long walk keeps its work under
+take ~0.2 s to start, which a job runner pays once at its start, not per job (`warm`). As in every
+program that uses multiprocessing, a script that models a long walk keeps its work under
 `if __name__ == "__main__":`: each worker imports the script's main module.
 """
 
 from __future__ import annotations
 
 import atexit
+import contextlib
 import multiprocessing
+import os
+import secrets
+import select
 import signal
 import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -42,7 +55,10 @@ class _Slots:
 
     def __init__(self, nbytes: int, count: int):
         self.nbytes = nbytes
-        self.shm = shared_memory.SharedMemory(create=True, size=nbytes * count)
+        self.count = count
+        self.takers = 0  # callers between ExtractPool._slots and their slot (under the pool's lock)
+        name = f"{PREFIX}{os.getpid()}_{secrets.token_hex(4)}"
+        self.shm = shared_memory.SharedMemory(name=name, create=True, size=nbytes * count)
         self._free = list(range(count))
         self._cond = threading.Condition()
 
@@ -60,9 +76,62 @@ class _Slots:
     def view(self, slot: int, shape: tuple[int, ...]) -> np.ndarray:
         return np.ndarray(shape, np.uint8, buffer=self.shm.buf, offset=slot * self.nbytes)
 
+    @property
+    def idle(self) -> bool:
+        """No frame of this block is out."""
+        with self._cond:
+            return len(self._free) == self.count
+
     def close(self) -> None:
-        self.shm.close()
-        self.shm.unlink()
+        with contextlib.suppress(BufferError):  # a frame still being copied at exit: the mapping goes with the process
+            self.shm.close()
+        with contextlib.suppress(FileNotFoundError):
+            self.shm.unlink()
+
+
+PREFIX = "omninav_"  # a block's name: PREFIX, its owner's pid, _, a random part
+
+
+def sweep(root: str = "/dev/shm") -> list[str]:
+    """Unlink the blocks whose owner has ended (-> their names). An owner, its workers and the
+    resource tracker all killed at once (SIGKILL to their process group) leave their block behind;
+    the next pool made on the machine frees it."""
+    gone = []
+    with contextlib.suppress(OSError):
+        for name in os.listdir(root):
+            owner = name[len(PREFIX) :].split("_")[0]
+            if not name.startswith(PREFIX) or not owner.isdigit() or _alive(int(owner)):
+                continue
+            with contextlib.suppress(OSError):
+                os.unlink(os.path.join(root, name))
+                gone.append(name)
+    return gone
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def room(nbytes: int) -> bool:
+    """Whether the shared memory file system has `nbytes` free, with as much again to spare (a
+    block written past it would end the process with SIGBUS, not an error)."""
+    try:
+        st = os.statvfs("/dev/shm")
+    except OSError:
+        return True  # not Linux: shared memory is not a small file system there
+    return st.f_bavail * st.f_frsize >= 2 * nbytes
+
+
+def slots_for(workers: int) -> int:
+    """Frames out at a time: what modelling keeps in flight (two a worker, and the three frames a
+    clip's ring is measured on) and a few more, so that a slot handed back late never stalls it."""
+    return 2 * workers + 6
 
 
 class ExtractPool:
@@ -72,15 +141,16 @@ class ExtractPool:
     submits a (H, W, 3) uint8 frame and returns its spectrum's future. At most `slots` frames of one
     size are out at a time; a caller that submits more waits for one to come back."""
 
-    def __init__(self, workers: int, slots: int = 10):
+    def __init__(self, workers: int, slots: int | None = None):
         ctx = multiprocessing.get_context(
             "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
         )
         if ctx.get_start_method() == "forkserver":
             ctx.set_forkserver_preload([__name__, "omninav.extract"])
+        sweep()
         self.workers = workers
-        self.slots = slots
-        self._ex = ProcessPoolExecutor(workers, mp_context=ctx, initializer=_start_worker)
+        self.slots = slots or slots_for(workers)
+        self._ex = ProcessPoolExecutor(workers, mp_context=ctx, initializer=_start_worker, initargs=(os.getpid(),))
         self._by_size: dict[tuple[int, ...], _Slots] = {}
         self._lock = threading.Lock()
 
@@ -89,7 +159,7 @@ class ExtractPool:
         return bool(getattr(self._ex, "_broken", False))
 
     def warm(self) -> None:
-        """Start every worker now (each imports nothing more: the fork server has)."""
+        """Start every worker now, rather than at the first frames."""
         for f in [self._ex.submit(_ready) for _ in range(self.workers)]:
             f.result()
 
@@ -104,7 +174,11 @@ class ExtractPool:
         if frame.dtype != np.uint8:
             raise ValueError(f"frames are uint8, not {frame.dtype}")
         slots = self._slots(frame.shape)
-        slot = slots.take()
+        try:
+            slot = slots.take()
+        finally:
+            with self._lock:
+                slots.takers -= 1
         try:
             np.copyto(slots.view(slot, frame.shape), frame)
             fut = self._ex.submit(_spectrum, slots.shm.name, slot * slots.nbytes, frame.shape, settings, lens)
@@ -115,10 +189,15 @@ class ExtractPool:
         return fut
 
     def _slots(self, shape: tuple[int, ...]) -> _Slots:
+        """The block for frames of `shape`, counted as taken from until the caller has its slot;
+        blocks of other shapes that no frame or caller uses are freed."""
         with self._lock:
             s = self._by_size.get(shape)
             if s is None:
+                for other in [k for k, b in self._by_size.items() if b.idle and not b.takers]:
+                    self._by_size.pop(other).close()
                 s = self._by_size[shape] = _Slots(int(np.prod(shape)), self.slots)
+            s.takers += 1
             return s
 
     def close(self, wait: bool = True) -> None:
@@ -167,13 +246,27 @@ _ATTACHED: dict[str, shared_memory.SharedMemory] = {}
 _EXTRACTORS: dict[str, Any] = {}
 
 
-def _start_worker() -> None:
+def _start_worker(owner: int) -> None:
     import cv2
     from threadpoolctl import threadpool_limits  # type: ignore[import-untyped]
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     cv2.setNumThreads(1)
     threadpool_limits(1)
+    threading.Thread(target=_exit_with, args=(owner,), name="omninav-owner", daemon=True).start()
+
+
+def _exit_with(owner: int) -> None:
+    """Wait for the process that owns the pool to end, then end this worker. A worker's parent is
+    the fork server, not the owner, and the worker holds pipes that would otherwise keep it, the fork
+    server and the resource tracker alive after an owner killed without its exit handlers."""
+    try:
+        fd = os.pidfd_open(owner)  # Linux: readable once the owner has ended
+        select.select([fd], [], [])
+    except (AttributeError, OSError):  # elsewhere: look every second
+        while _alive(owner):
+            time.sleep(1.0)
+    os._exit(0)
 
 
 def _ready() -> bool:
@@ -185,6 +278,10 @@ def _spectrum(name: str, offset: int, shape: tuple[int, ...], settings: dict[str
 
     shm = _ATTACHED.get(name)
     if shm is None:
+        for old in _ATTACHED.values():  # a block the owner has freed: its memory goes when we let go
+            with contextlib.suppress(BufferError):
+                old.close()
+        _ATTACHED.clear()
         shm = _ATTACHED[name] = shared_memory.SharedMemory(name=name)
     key = repr(sorted(settings.items()))
     ex = _EXTRACTORS.get(key)

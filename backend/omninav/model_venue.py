@@ -32,7 +32,8 @@ from .walk_path import WalkPath
 log = logging.getLogger("omninav.calib")
 POSE_BLOCK = 1024  # sampled frames whose poses are looked up in one call
 # a run of this many sampled frames or more extracts on worker processes (extract_pool.py), fewer
-# on threads of this process: starting the processes (~0.3 s, once a process) is worth it from here
+# on threads of this process: starting the processes (~0.2 s, once a process) is worth it from here
+# (and where the shared memory has room for their frames)
 PROCESSES_FROM = 100
 
 # frames done, frames expected, seconds elapsed; it may raise to stop the run (nothing is written)
@@ -199,7 +200,8 @@ def model_videos(
     extracted = []
     workers = extract_threads()
     with ThreadPoolExecutor(workers, thread_name_prefix="omninav-extract") as threads:
-        if workers > 1 and expected >= PROCESSES_FROM:
+        frame = max(3 * p.info.width * p.info.height for p in plans)
+        if workers > 1 and expected >= PROCESSES_FROM and extract_pool.room(frame * extract_pool.slots_for(workers)):
             submit: Submit = extract_pool.shared(workers).extract(settings)
         else:
             submit = on_pool(threads, Extractors(settings, size=2).spectrum)

@@ -6,7 +6,12 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
+import sys
+import textwrap
+import time
 from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -29,6 +34,25 @@ def pool():
     p.close()
 
 
+@pytest.fixture
+def own_shared(monkeypatch):
+    """extract_pool.shared's pools for this test alone (the process's own are others' to use)."""
+    mine: dict[int, extract_pool.ExtractPool] = {}
+    monkeypatch.setattr(extract_pool, "_SHARED", mine)
+    yield mine
+    for p in mine.values():
+        p.close()
+
+
+def _eventually(check, timeout_s: float = 10.0) -> bool:
+    t0 = time.monotonic()
+    while not check():
+        if time.monotonic() - t0 > timeout_s:
+            return False
+        time.sleep(0.02)
+    return True
+
+
 @pytest.fixture(scope="module")
 def frames(small_ds):
     return [f for _, f in iter_video(VideoInfo(small_ds.model_video), stride=3, last=35)]
@@ -48,11 +72,14 @@ def test_the_workers_give_this_process_spectra(pool, frames, small_ds):
 
 
 def test_frames_of_another_size_and_other_settings(pool, frames, small_ds):
+    """Each size has its block of slots while its frames are out; a block no frame uses is freed
+    when frames of another size come."""
     lens = load_lens(small_ds.root / "model_lens.json")
     conf = {**resolve("default"), "level_iters": 0}
     small = np.ascontiguousarray(frames[0][::2, ::2])
     for f in (small, frames[1], small):
         assert np.array_equal(pool.submit(conf, lens, f).result(), Extractors(conf).spectrum(lens)(f))
+        assert _eventually(lambda f=f: list(pool._by_size) == [f.shape] and pool._by_size[f.shape].idle)
     with pytest.raises(ValueError, match="uint8"):
         pool.submit(conf, lens, frames[0].astype(np.float32))
 
@@ -69,10 +96,10 @@ def test_cancelled_frames_give_their_slots_back(pool, frames, small_ds):
     last = pool.submit(conf, lens, frames[0])
     assert np.array_equal(last.result(timeout=60), Extractors(conf).spectrum(lens)(frames[0]))
     slots = pool._by_size[frames[0].shape]
-    assert sorted(slots._free) == [0, 1, 2]
+    assert _eventually(lambda: sorted(slots._free) == [0, 1, 2])
 
 
-def test_a_killed_worker_fails_its_frames_and_the_pool_is_replaced(frames, small_ds):
+def test_a_killed_worker_fails_its_frames_and_the_pool_is_replaced(frames, small_ds, own_shared):
     lens = load_lens(small_ds.root / "model_lens.json")
     conf = resolve("default")
     first = extract_pool.shared(2)
@@ -86,18 +113,79 @@ def test_a_killed_worker_fails_its_frames_and_the_pool_is_replaced(frames, small
     assert np.array_equal(again.submit(conf, lens, frames[0]).result(timeout=60), want)
 
 
+def test_the_workers_end_with_a_killed_owner_and_free_the_shared_memory(tmp_path):
+    """An owner killed without its exit handlers (SIGKILL, out of memory) leaves no worker behind,
+    and its shared memory goes too."""
+    script = tmp_path / "owner.py"
+    script.write_text(
+        textwrap.dedent(
+            """
+            import sys, time
+            import numpy as np
+            from omninav import extract_pool
+            if __name__ == "__main__":
+                p = extract_pool.ExtractPool(2)
+                p.warm()
+                p._slots((8, 8, 3))
+                print(" ".join(str(w) for w in p._ex._processes), p._by_size[(8, 8, 3)].shm.name, flush=True)
+                time.sleep(600)
+            """
+        )
+    )
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    owner = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        *workers, name = owner.stdout.readline().split()
+        assert len(workers) == 2 and Path("/dev/shm", name).exists()
+    finally:
+        owner.kill()
+        owner.wait()
+        owner.stdout.close()
+
+    def gone(pid: int) -> bool:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return True
+        return Path(f"/proc/{pid}/stat").exists() and Path(f"/proc/{pid}/stat").read_text().split()[2] == "Z"
+
+    assert _eventually(lambda: all(gone(int(w)) for w in workers), 20)
+    assert _eventually(lambda: not Path("/dev/shm", name).exists(), 20)
+
+
+def test_blocks_of_owners_that_ended_are_swept(tmp_path):
+    """What a process group killed at once leaves behind: its owner's block goes, a live one's and
+    other files stay."""
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    files = [f"omninav_{dead.stdout.strip()}_ab12", f"omninav_{os.getpid()}_cd34", "omninav_x_1", "psm_1234"]
+    for f in files:
+        (tmp_path / f).write_bytes(b"x")
+    assert extract_pool.sweep(str(tmp_path)) == [files[0]]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(files[1:])
+
+
+def test_room_asks_for_twice_the_block_the_shared_memory_would_hold(monkeypatch):
+    monkeypatch.setattr(os, "statvfs", lambda _: os.statvfs_result((4096, 4096, 0, 0, 10_000, 0, 0, 0, 0, 255)))
+    assert extract_pool.room(20_000_000)  # 41 MB free: twice the block
+    assert not extract_pool.room(21_000_000)
+
+
 def test_modelling_on_processes_is_modelling_on_threads(small_ds, tmp_path, monkeypatch):
     """The same walk modelled with its frames on processes and on threads: the same generation."""
     src = VideoSource(
         small_ds.model_video, load_walk_path(small_ds.model_walk_path), load_lens(small_ds.root / "model_lens.json")
     )
     monkeypatch.setattr(model_venue, "extract_threads", lambda: 2)
+    calls = []
+    shared = extract_pool.shared
+    monkeypatch.setattr(extract_pool, "shared", lambda n: calls.append(n) or shared(n))
     got = {}
     for name, start in (("processes", 0), ("threads", 10**9)):
         monkeypatch.setattr(model_venue, "PROCESSES_FROM", start)
         st = Store(tmp_path / name)
         model_videos(st, "lab", [src], settings=resolve("default"))
         got[name] = st.load("lab", mmap=False)
+    assert calls == [2]  # the first on processes, the second on threads
     assert len(got["processes"].frames) > 50
     assert np.array_equal(got["processes"].frames, got["threads"].frames)
     assert np.array_equal(got["processes"].spectra, got["threads"].spectra)

@@ -326,17 +326,17 @@ def _run_jobs(conf: dict[str, Any]) -> None:
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(1)
+    # SIGTERM (the server stopping) ends the process at once: a job it was running wrote nothing
+    # live, and the next runner takes it up again (its owner is gone: Jobs.reap). A terminal's
+    # Ctrl-C is for `omninav serve`, which stops this process with SIGTERM.
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:  # a modelling job's processes, started once for every job (extract_pool.py)
         start_workers()
     except Exception as e:  # noqa: BLE001 - a job starts them again, and fails saying why it cannot
         log.warning("the extraction processes did not start: %s", e)
     db = Db(database_url(conf))
     jobs = Jobs(Catalog(db, Path(conf["DATA"])), stale_s=conf["JOB_STALE_S"], device=conf["DEVICE"] or None)
-    # SIGTERM (the server stopping) ends the process at once: a job it was running wrote nothing
-    # live, and the next runner takes it up again (its owner is gone: Jobs.reap). A terminal's
-    # Ctrl-C is for `omninav serve`, which stops this process with SIGTERM.
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
     jobs.run_forever()
 
 
