@@ -32,11 +32,13 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import hashlib
 import multiprocessing
 import os
 import secrets
 import select
 import signal
+import socket
 import threading
 import time
 from collections.abc import Callable
@@ -57,7 +59,7 @@ class _Slots:
         self.nbytes = nbytes
         self.count = count
         self.takers = 0  # callers between ExtractPool._slots and their slot (under the pool's lock)
-        name = f"{PREFIX}{os.getpid()}_{secrets.token_hex(4)}"
+        name = f"{PREFIX}{_host()}_{os.getpid()}_{secrets.token_hex(4)}"
         self.shm = shared_memory.SharedMemory(name=name, create=True, size=nbytes * count)
         self._free = list(range(count))
         self._cond = threading.Condition()
@@ -89,18 +91,25 @@ class _Slots:
             self.shm.unlink()
 
 
-PREFIX = "omninav_"  # a block's name: PREFIX, its owner's pid, _, a random part
+PREFIX = "omninav_"  # a block's name: PREFIX, its host, its owner's pid, a random part (31 characters at most)
+
+
+def _host() -> str:
+    """Six hex digits of the host's name: a container that shares the machine's /dev/shm has
+    another name and other pids, and its blocks are not this host's to sweep."""
+    return hashlib.blake2s(socket.gethostname().encode(), digest_size=3).hexdigest()
 
 
 def sweep(root: str = "/dev/shm") -> list[str]:
-    """Unlink the blocks whose owner has ended (-> their names). An owner, its workers and the
-    resource tracker all killed at once (SIGKILL to their process group) leave their block behind;
-    the next pool made on the machine frees it."""
+    """Unlink this host's blocks whose owner has ended (-> their names). An owner, its workers and
+    the resource tracker all killed at once (SIGKILL to their process group) leave their block
+    behind; the next pool made on the machine frees it."""
     gone = []
+    mine = f"{PREFIX}{_host()}_"
     with contextlib.suppress(OSError):
         for name in os.listdir(root):
-            owner = name[len(PREFIX) :].split("_")[0]
-            if not name.startswith(PREFIX) or not owner.isdigit() or _alive(int(owner)):
+            owner = name[len(mine) :].split("_")[0]
+            if not name.startswith(mine) or not owner.isdigit() or _alive(int(owner)):
                 continue
             with contextlib.suppress(OSError):
                 os.unlink(os.path.join(root, name))

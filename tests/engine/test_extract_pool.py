@@ -154,10 +154,12 @@ def test_the_workers_end_with_a_killed_owner_and_free_the_shared_memory(tmp_path
 
 
 def test_blocks_of_owners_that_ended_are_swept(tmp_path):
-    """What a process group killed at once leaves behind: its owner's block goes, a live one's and
-    other files stay."""
+    """What a process group killed at once leaves behind: its owner's block goes; a live owner's,
+    another host's (a container sharing /dev/shm) and other files stay."""
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
-    files = [f"omninav_{dead.stdout.strip()}_ab12", f"omninav_{os.getpid()}_cd34", "omninav_x_1", "psm_1234"]
+    host = extract_pool._host()
+    files = [f"omninav_{host}_{dead.stdout.strip()}_ab12", f"omninav_{host}_{os.getpid()}_cd34"]
+    files += [f"omninav_{host}_x_1", f"omninav_0f0f0f_{dead.stdout.strip()}_ab12", "psm_1234"]
     for f in files:
         (tmp_path / f).write_bytes(b"x")
     assert extract_pool.sweep(str(tmp_path)) == [files[0]]
