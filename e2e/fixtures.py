@@ -11,6 +11,8 @@
                                           # picture, no ring) or cut (the ring cut by the edge)
     python e2e/fixtures.py walk OUT NAME  # a walk through the demo venue for route guidance: NAME is
                                          # to-stairs or wrong-way (OUT/NAME.y4m and its truth NAME.json)
+    python e2e/fixtures.py renders WORK  # the renders kept while their recipe holds: the admin
+                                         # page's (WORK/admin) and the guidance walks (WORK/walk)
     python e2e/fixtures.py age DATA VENUE  # (the server stopped) venue VENUE of data directory DATA
                                            # as an omninav from before the soft clipping left it
 
@@ -480,10 +482,22 @@ def age(data: Path, venue: str) -> None:
     path.write_text(json.dumps(old, indent=1))
 
 
+def renders(work: Path) -> None:
+    """What Playwright's setup renders and keeps while its recipe holds (e2e/global-setup.ts):
+    `npm test` makes it beside the API fuzzing and the PostgreSQL run (scripts/test.sh), which
+    leave a core idle part of the time, and the setup then finds it made."""
+    admin(work / "admin")
+    for name in WALKS:
+        walk(work / "walk", name)
+
+
 if __name__ == "__main__":
-    if len(sys.argv) not in (3, 4) or sys.argv[1] not in ("golden", "ring", "clip", "admin", "lens", "walk", "age"):
+    kinds = ("golden", "ring", "clip", "admin", "lens", "walk", "renders", "age")
+    if len(sys.argv) not in (3, 4) or sys.argv[1] not in kinds:
         sys.exit(__doc__)
-    if sys.argv[1] == "age":
+    if sys.argv[1] == "renders":
+        renders(Path(sys.argv[2]))
+    elif sys.argv[1] == "age":
         if len(sys.argv) != 4:
             sys.exit("age DATA VENUE")
         age(Path(sys.argv[2]), sys.argv[3])

@@ -20,7 +20,14 @@ npm test -w web --silent
 # operation, and xdist's module-by-module scheduling runs that item without its cases)
 jobs="${OMNINAV_TEST_JOBS:-3}"
 .venv/bin/python -m pytest -n "$jobs" --dist loadfile --ignore=tests/server/test_fuzz_api.py "$@"
+# Playwright's renders (e2e/fixtures.py renders, kept while their recipe holds) beside the API
+# fuzzing, on one process, and the PostgreSQL run, whose tests wait on servers: the cores they
+# leave idle
+mkdir -p data/e2e
+.venv/bin/python e2e/fixtures.py renders data/e2e > data/e2e/renders.log 2>&1 &
+renders=$!
 .venv/bin/python -m pytest tests/server/test_fuzz_api.py
 OMNINAV_TEST_DB=postgres .venv/bin/python -m pytest -n "$jobs" --dist loadfile tests/server/test_server.py tests/server/test_jobs.py tests/server/test_admin_api.py tests/server/test_tracking_api.py tests/server/test_model_anew.py  # again on a real PostgreSQL
+wait "$renders" || { cat data/e2e/renders.log; exit 1; }
 bash scripts/chromium.sh
 npx playwright test -c e2e/playwright.config.ts
