@@ -34,6 +34,7 @@ import atexit
 import contextlib
 import hashlib
 import multiprocessing
+import multiprocessing.util
 import os
 import secrets
 import select
@@ -240,13 +241,21 @@ def shared(workers: int) -> ExtractPool:
         return pool
 
 
-@atexit.register
 def _close_shared() -> None:
-    """At exit (concurrent.futures has stopped the workers by then): the shared memory freed."""
+    """At exit: the workers stopped and the shared memory freed."""
     with _SHARED_LOCK:
         for pool in _SHARED.values():
             pool.close()
         _SHARED.clear()
+
+
+# Both exits: a plain program's (atexit), and a multiprocessing child's, such as the server's job
+# runner, which ends without atexit or concurrent.futures' own shutdown and joins its children
+# first, which would wait on the workers for good. Its finalizers of priority >= 0 run before that
+# join, highest first: this one before the pool's queues close theirs (priority 10), or the
+# workers' stop signal would never be sent.
+atexit.register(_close_shared)
+multiprocessing.util.Finalize(None, _close_shared, exitpriority=100)
 
 
 # the worker's side: what it attached and built, kept between tasks

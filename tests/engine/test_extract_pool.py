@@ -153,6 +153,34 @@ def test_the_workers_end_with_a_killed_owner_and_free_the_shared_memory(tmp_path
     assert _eventually(lambda: not Path("/dev/shm", name).exists(), 20)
 
 
+def test_a_multiprocessing_child_that_started_workers_ends(tmp_path):
+    """The server's job runner is a multiprocessing child: it ends without atexit, joining its
+    children first, and the workers must be stopped before that join (or it waits for good)."""
+    script = tmp_path / "runner.py"
+    script.write_text(
+        textwrap.dedent(
+            """
+            import multiprocessing, time
+            def child():
+                from omninav import extract_pool
+                extract_pool.shared(2)
+            if __name__ == "__main__":
+                p = multiprocessing.get_context("spawn").Process(target=child)
+                t = time.monotonic()
+                p.start()
+                p.join(30)
+                print(p.exitcode, time.monotonic() - t)
+                if p.exitcode is None:
+                    p.kill()
+            """
+        )
+    )
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env, timeout=120)
+    code, took = out.stdout.split()
+    assert code == "0" and float(took) < 15, out
+
+
 def test_blocks_of_owners_that_ended_are_swept(tmp_path):
     """What a process group killed at once leaves behind: its owner's block goes; a live owner's,
     another host's (a container sharing /dev/shm) and other files stay."""
