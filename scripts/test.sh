@@ -26,6 +26,7 @@ jobs="${OMNINAV_TEST_JOBS:-3}"
 mkdir -p data/e2e
 .venv/bin/python e2e/fixtures.py renders data/e2e > data/e2e/renders.log 2>&1 &
 renders=$!
+trap 'kill "$renders" 2>/dev/null || true' EXIT  # a suite that fails (or Ctrl-C) stops it too
 .venv/bin/python -m pytest tests/server/test_fuzz_api.py
 OMNINAV_TEST_DB=postgres .venv/bin/python -m pytest -n "$jobs" --dist loadfile tests/server/test_server.py tests/server/test_jobs.py tests/server/test_admin_api.py tests/server/test_tracking_api.py tests/server/test_model_anew.py  # again on a real PostgreSQL
 wait "$renders" || { cat data/e2e/renders.log; exit 1; }

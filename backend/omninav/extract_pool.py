@@ -15,7 +15,8 @@ one BLAS and one OpenCV thread (the processes are the parallelism), ignores Ctrl
 stops them), inherits the parent's niceness (a job runner's modelling stays behind the answers),
 and exits when the parent does, however it ends: a job runner killed for memory leaves no workers,
 and the fork server and the resource tracker, whose pipes they held, then exit and free the shared
-memory too. Where all of them were killed at once, the next pool made frees the block (`sweep`).
+memory too. Where all of them were killed at once, the next pool made frees the block (`sweep`);
+multiprocessing's own named semaphores (32 bytes each) are left then.
 
 The shared memory is a block of `slots` frames of one size at a time (20 MB for 960x720): a block
 of another size is freed once none of its frames is out, and `room` says whether the shared
@@ -32,14 +33,13 @@ from __future__ import annotations
 
 import atexit
 import contextlib
-import hashlib
+import fcntl
 import multiprocessing
 import multiprocessing.util
 import os
 import secrets
 import select
 import signal
-import socket
 import threading
 import time
 from collections.abc import Callable
@@ -60,8 +60,8 @@ class _Slots:
         self.nbytes = nbytes
         self.count = count
         self.takers = 0  # callers between ExtractPool._slots and their slot (under the pool's lock)
-        name = f"{PREFIX}{_host()}_{os.getpid()}_{secrets.token_hex(4)}"
-        self.shm = shared_memory.SharedMemory(name=name, create=True, size=nbytes * count)
+        self.shm = shared_memory.SharedMemory(name=PREFIX + secrets.token_hex(8), create=True, size=nbytes * count)
+        self._held = _hold(self.shm.name)
         self._free = list(range(count))
         self._cond = threading.Condition()
 
@@ -90,31 +90,49 @@ class _Slots:
             self.shm.close()
         with contextlib.suppress(FileNotFoundError):
             self.shm.unlink()
+        if self._held is not None:
+            os.close(self._held)
+            self._held = None
 
 
-PREFIX = "omninav_"  # a block's name: PREFIX, its host, its owner's pid, a random part (31 characters at most)
+PREFIX = "omninav_"  # a block's name: PREFIX and 16 random hex digits (31 characters at most)
+SHM = "/dev/shm"  # where Linux keeps the blocks as files
+STALE_S = 60.0  # a block unheld this long after it was made is a leftover
 
 
-def _host() -> str:
-    """Six hex digits of the host's name: a container that shares the machine's /dev/shm has
-    another name and other pids, and its blocks are not this host's to sweep."""
-    return hashlib.blake2s(socket.gethostname().encode(), digest_size=3).hexdigest()
+def _hold(name: str, root: str = SHM) -> int | None:
+    """A shared lock on the block's file for as long as its owner lives (the kernel drops it when
+    the owner ends, however): what `sweep` asks. None where blocks are not files (not Linux)."""
+    try:
+        fd = os.open(os.path.join(root, name), os.O_RDONLY)
+    except OSError:
+        return None
+    fcntl.flock(fd, fcntl.LOCK_SH)
+    return fd
 
 
-def sweep(root: str = "/dev/shm") -> list[str]:
-    """Unlink this host's blocks whose owner has ended (-> their names). An owner, its workers and
+def sweep(root: str = SHM) -> list[str]:
+    """Unlink the blocks that no owner holds any more (-> their names). An owner, its workers and
     the resource tracker all killed at once (SIGKILL to their process group) leave their block
-    behind; the next pool made on the machine frees it."""
+    behind; the next pool made on the machine frees it. A live owner holds its block's lock, in
+    whatever container or pid namespace it runs, so no live block is taken; one made in the last
+    STALE_S seconds is left to its owner, who locks it just after making it."""
     gone = []
-    mine = f"{PREFIX}{_host()}_"
     with contextlib.suppress(OSError):
         for name in os.listdir(root):
-            owner = name[len(mine) :].split("_")[0]
-            if not name.startswith(mine) or not owner.isdigit() or _alive(int(owner)):
+            path = os.path.join(root, name)
+            if not name.startswith(PREFIX):
                 continue
             with contextlib.suppress(OSError):
-                os.unlink(os.path.join(root, name))
-                gone.append(name)
+                fd = os.open(path, os.O_RDONLY)
+                try:
+                    if time.time() - os.fstat(fd).st_mtime < STALE_S:
+                        continue
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # BlockingIOError (an OSError): held
+                    os.unlink(path)
+                    gone.append(name)
+                finally:
+                    os.close(fd)
     return gone
 
 
@@ -128,11 +146,21 @@ def _alive(pid: int) -> bool:
     return True
 
 
+def fits(workers: int, shape: tuple[int, ...]) -> bool:
+    """Whether frames of `shape` can go to the shared pool of `workers`: it has their block
+    already, or the shared memory has room for one."""
+    with _SHARED_LOCK:
+        pool = _SHARED.get(workers)
+        if pool is not None and shape in pool._by_size:
+            return True
+    return room(int(np.prod(shape)) * slots_for(workers))
+
+
 def room(nbytes: int) -> bool:
     """Whether the shared memory file system has `nbytes` free, with as much again to spare (a
     block written past it would end the process with SIGBUS, not an error)."""
     try:
-        st = os.statvfs("/dev/shm")
+        st = os.statvfs(SHM)
     except OSError:
         return True  # not Linux: shared memory is not a small file system there
     return st.f_bavail * st.f_frsize >= 2 * nbytes
@@ -280,7 +308,10 @@ def _exit_with(owner: int) -> None:
     server and the resource tracker alive after an owner killed without its exit handlers."""
     try:
         fd = os.pidfd_open(owner)  # Linux: readable once the owner has ended
-        select.select([fd], [], [])
+        poll = select.poll()
+        poll.register(fd, select.POLLIN)
+        while not poll.poll():
+            pass
     except (AttributeError, OSError):  # elsewhere: look every second
         while _alive(owner):
             time.sleep(1.0)

@@ -200,8 +200,8 @@ def model_videos(
     extracted = []
     workers = extract_threads()
     with ThreadPoolExecutor(workers, thread_name_prefix="omninav-extract") as threads:
-        frame = max(3 * p.info.width * p.info.height for p in plans)
-        if workers > 1 and expected >= PROCESSES_FROM and extract_pool.room(frame * extract_pool.slots_for(workers)):
+        shapes = {(p.info.height, p.info.width, 3) for p in plans}
+        if workers > 1 and expected >= PROCESSES_FROM and all(extract_pool.fits(workers, s) for s in shapes):
             submit: Submit = extract_pool.shared(workers).extract(settings)
         else:
             submit = on_pool(threads, Extractors(settings, size=2).spectrum)

@@ -5,6 +5,7 @@ died says so and is replaced."""
 from __future__ import annotations
 
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -135,6 +136,7 @@ def test_the_workers_end_with_a_killed_owner_and_free_the_shared_memory(tmp_path
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
     owner = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True, env=env)
     try:
+        assert select.select([owner.stdout], [], [], 60)[0], "the owner did not start its pool"
         *workers, name = owner.stdout.readline().split()
         assert len(workers) == 2 and Path("/dev/shm", name).exists()
     finally:
@@ -168,7 +170,7 @@ def test_a_multiprocessing_child_that_started_workers_ends(tmp_path):
                 p = multiprocessing.get_context("spawn").Process(target=child)
                 t = time.monotonic()
                 p.start()
-                p.join(30)
+                p.join(60)
                 print(p.exitcode, time.monotonic() - t)
                 if p.exitcode is None:
                     p.kill()
@@ -177,27 +179,37 @@ def test_a_multiprocessing_child_that_started_workers_ends(tmp_path):
     )
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
     out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env, timeout=120)
-    code, took = out.stdout.split()
-    assert code == "0" and float(took) < 15, out
+    code, _took = out.stdout.split()
+    assert code == "0", out  # None: still joining its workers after a minute
 
 
-def test_blocks_of_owners_that_ended_are_swept(tmp_path):
-    """What a process group killed at once leaves behind: its owner's block goes; a live owner's,
-    another host's (a container sharing /dev/shm) and other files stay."""
-    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
-    host = extract_pool._host()
-    files = [f"omninav_{host}_{dead.stdout.strip()}_ab12", f"omninav_{host}_{os.getpid()}_cd34"]
-    files += [f"omninav_{host}_x_1", f"omninav_0f0f0f_{dead.stdout.strip()}_ab12", "psm_1234"]
+def test_blocks_no_owner_holds_are_swept(tmp_path):
+    """What a process group killed at once leaves behind: a block nobody holds goes; a held one,
+    one just made (its owner locks it next), and other files stay."""
+    old_t = time.time() - 2 * extract_pool.STALE_S
+    files = ["omninav_00ff00ff00ff00ff", "omninav_11ee11ee11ee11ee", "omninav_22dd22dd22dd22dd", "psm_1234"]
     for f in files:
         (tmp_path / f).write_bytes(b"x")
-    assert extract_pool.sweep(str(tmp_path)) == [files[0]]
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(files[1:])
+        os.utime(tmp_path / f, (old_t, old_t))
+    os.utime(tmp_path / files[2])  # just made
+    held = extract_pool._hold(files[1], str(tmp_path))
+    try:
+        assert extract_pool.sweep(str(tmp_path)) == [files[0]]
+        assert sorted(p.name for p in tmp_path.iterdir()) == sorted(files[1:])
+    finally:
+        os.close(held)
+    assert extract_pool.sweep(str(tmp_path)) == [files[1]]  # its owner ended
 
 
-def test_room_asks_for_twice_the_block_the_shared_memory_would_hold(monkeypatch):
+def test_room_asks_for_twice_the_block_the_shared_memory_would_hold(monkeypatch, own_shared):
     monkeypatch.setattr(os, "statvfs", lambda _: os.statvfs_result((4096, 4096, 0, 0, 10_000, 0, 0, 0, 0, 255)))
     assert extract_pool.room(20_000_000)  # 41 MB free: twice the block
     assert not extract_pool.room(21_000_000)
+    shape = (2000, 2000, 3)  # a block of 12 MB a frame: no room
+    assert not extract_pool.fits(2, shape)
+    own_shared[2] = pool = extract_pool.ExtractPool(2, slots=1)
+    pool._slots(shape).takers -= 1  # the pool has a block for these frames already: it fits
+    assert extract_pool.fits(2, shape)
 
 
 def test_modelling_on_processes_is_modelling_on_threads(small_ds, tmp_path, monkeypatch):
