@@ -18,10 +18,10 @@ and the fork server and the resource tracker, whose pipes they held, then exit a
 memory too. Where all of them were killed at once, the next pool made frees the block (`sweep`);
 multiprocessing's own named semaphores (32 bytes each) are left then.
 
-The shared memory is a block of `slots` frames of one size at a time (20 MB for 960x720): a block
-of another size is freed once none of its frames is out, and `room` says whether the shared
-memory file system (64 MB in a default Docker container) holds a block, else modelling stays on
-threads.
+The shared memory is a block of `slots` frames of one size (20 MB for 960x720), kept for the next
+run: frames of a new size free the blocks none of whose frames are out. `fits` says whether frames
+can come: the pool has their block, or the shared memory file system (64 MB in a default Docker
+container) has room for one (`room`); else modelling stays on threads.
 
 `shared(workers)` is the process's pool, started once and kept: the fork server and its workers
 take ~0.2 s to start, which a job runner pays once at its start, not per job (`warm`). As in every
