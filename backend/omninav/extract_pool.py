@@ -50,6 +50,7 @@ from typing import Any
 
 import numpy as np
 
+from .calib.correct import FIRST
 from .lens import Lens
 
 
@@ -167,9 +168,9 @@ def room(nbytes: int) -> bool:
 
 
 def slots_for(workers: int) -> int:
-    """Frames out at a time: what modelling keeps in flight (two a worker, and the three frames a
-    clip's ring is measured on) and a few more, so that a slot handed back late never stalls it."""
-    return 2 * workers + 6
+    """Frames out at a time: what modelling keeps in flight (two a worker, and the frames a clip's
+    ring is measured on) and three more, so that a slot handed back late never stalls it."""
+    return 2 * workers + FIRST + 3
 
 
 class ExtractPool:

@@ -9,6 +9,7 @@ the venue exactly as it was.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import time
 from collections.abc import Callable, Iterator
@@ -93,9 +94,8 @@ def _plan(src: VideoSource, settings: dict[str, Any]) -> _Plan:
     return _Plan(src, info, vfps, stride, first, last, expected)
 
 
-Submit = Callable[
-    [Lens], Callable[[np.ndarray], Future[np.ndarray]]
-]  # a lens -> a frame's spectrum, extracted elsewhere
+# a lens -> the function that hands a frame to threads or processes and gives its spectrum's future
+Submit = Callable[[Lens], Callable[[np.ndarray], Future[np.ndarray]]]
 
 
 def _extract(p: _Plan, tick: Callable[[], None], submit: Submit, ahead: int) -> tuple[np.ndarray, np.ndarray]:
@@ -199,11 +199,12 @@ def model_videos(
 
     extracted = []
     workers = extract_threads()
-    with ThreadPoolExecutor(workers, thread_name_prefix="omninav-extract") as threads:
-        shapes = {(p.info.height, p.info.width, 3) for p in plans}
+    shapes = {(p.info.height, p.info.width, 3) for p in plans}
+    with contextlib.ExitStack() as stack:
         if workers > 1 and expected >= PROCESSES_FROM and all(extract_pool.fits(workers, s) for s in shapes):
             submit: Submit = extract_pool.shared(workers).extract(settings)
         else:
+            threads = stack.enter_context(ThreadPoolExecutor(workers, thread_name_prefix="omninav-extract"))
             submit = on_pool(threads, Extractors(settings, size=2).spectrum)
         for p in plans:
             ts = time.perf_counter()

@@ -65,8 +65,9 @@ def iter_video(
 
 def _frames(path: Path, stride: int, start: int, last: int | None) -> Iterator[tuple[int, np.ndarray]]:
     """(index, BGR frame) of every `stride`-th frame from `start` to `last`; the others are only
-    `grab`bed. FFmpeg decodes on this one thread: the extraction threads or processes keep the cores busy, and
-    its frame threads would only add hand-offs (measured: bench/model_speed.py, docs/decisions.md)."""
+    `grab`bed. FFmpeg decodes on this one thread: the extraction threads or processes keep the
+    cores busy, and its frame threads would only add hand-offs (measured: bench/model_speed.py,
+    docs/decisions.md)."""
     cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG, [cv2.CAP_PROP_N_THREADS, 1])
     try:
         i = 0
