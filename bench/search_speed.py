@@ -96,7 +96,9 @@ def bench_size(n: int, device: str, repeat: int, conf: dict, curves: int, shortl
     extra = ""
     if BASE is not None:  # the baseline's shared search and locate, interleaved with this tree's
         old_index, old_aggregate = BASE
-        arrays = {"keys": ix.keys, "keys_t": ix.keys_t, **({"basis": ix.basis} if ix.basis is not None else {})}
+        arrays = {"keys": ix.keys, "keys_t": np.ascontiguousarray(ix.first.T)}  # the layout before `first`
+        if ix.basis is not None:
+            arrays["basis"] = ix.basis
         old = old_index.Index(spec, heads, device=device, key_dims=dims, arrays=arrays)
         pair = [
             lambda: ix.search(q, k, groups=one, shortlist=shortlist),
@@ -108,8 +110,8 @@ def bench_size(n: int, device: str, repeat: int, conf: dict, curves: int, shortl
             lambda: old_aggregate.sequence(old.search(q, k, groups=one, shortlist=shortlist), xy, times, conf),
         ]
         (l50, l90), (ol50, _) = timeit_ab(pair, rep, sync)
-        keys_t = ix.keys_t
-        scan, _ = timeit(lambda: keys_t.sum(axis=0), max(3, rep // 3), sync)
+        first = ix.first
+        scan, _ = timeit(lambda: first.sum(), max(3, rep // 3), sync)
         same = all(
             same_matches(
                 ix.search(x, k, groups=one, shortlist=shortlist), old.search(x, k, groups=one, shortlist=shortlist)

@@ -310,7 +310,7 @@ def sharing_table(venues: list[dict]) -> None:
 
 def disk_table(venues: list[dict]) -> None:
     print("\n## Disk: the live generation (`<data>/venues/<id>/gen-NNNNNN/`)\n")
-    print("| venue | MiB | MiB per 1,000 frames | B/frame spectra | keys | keys_t | frames | basis (KiB) |")
+    print("| venue | MiB | MiB per 1,000 frames | B/frame spectra | keys | first | frames | basis (KiB) |")
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for v in venues:
         files, n = v["disk"], v["frames"]
@@ -319,7 +319,7 @@ def disk_table(venues: list[dict]) -> None:
         def per(name: str, files: dict = files, n: int = n) -> str:
             return f"{files.get(name, 0) / n:.0f}"
 
-        sizes = " | ".join(per(f"{k}.npy") for k in ("spectra", "keys", "keys_t", "frames"))
+        sizes = " | ".join(per(f"{k}.npy") for k in ("spectra", "keys", "first", "frames"))
         basis = files.get("basis.npy", 0) / 1024
         print(f"| {label(v['what'], n)} | {total:.2f} | {total / n * 1000:.2f} | {sizes} | {basis:.0f} |")
 

@@ -148,44 +148,51 @@ def select(
     return xp.take_along_axis(cand, part, axis=1), val
 
 
-def scan_top(qk: Any, keys_t: Any, k: int, sample_t: Any | None = None, chunk: int | None = None) -> tuple[Any, Any]:
-    """(Q, d) query keys, (d, N) venue keys -> each query's k best venue frames by inner product
-    and their scores ((Q, k), in any order): stage 1's first pass, top_k(qk @ keys_t, k) fused.
+def scan_top(qk: Any, first: Any, k: int, sample: Any | None = None, chunk: int | None = None) -> tuple[Any, Any]:
+    """(Q, d) query keys, (N, d) venue keys -> each query's k best venue frames by inner product
+    and their scores ((Q, k), in any order): stage 1's first pass, top_k(qk @ first.T, k) fused.
 
     The product is made `chunk` venue frames at a time, each chunk's scores compared at once
-    with a threshold from `sample_t` (d, m), a strided sample of keys_t's columns, so that the
-    (Q, N) score matrix is never written out: at a million frames it is 40 MB, written and read
-    again, against the keys' 128 MB read once. Rows that the threshold leaves with fewer than k
+    with a threshold from `sample` (m, d), a strided sample of first's rows, so that the (Q, N)
+    score matrix is never written out: at a million frames it is 40 MB, written and read again,
+    against the keys' 128 MB read once; on a few thousand frames the comparison pass is also
+    3-4x cheaper than a partition of each row. Rows that the threshold leaves with fewer than k
     survivors (never seen: the threshold keeps about eight times k) are scored again in full.
+
+    The venue's keys are frame-major, (N, d), and each chunk's product is (chunk, Q): OpenBLAS
+    streams the long operand a quarter faster as the first factor of its product than as the
+    second (bench/search_speed.py, docs/decisions.md "The first pass, frame-major").
     """
-    xp = namespace_of(keys_t)
-    q, n = qk.shape[0], keys_t.shape[1]
+    xp = namespace_of(first)
+    q, n = qk.shape[0], first.shape[0]
     k = min(k, n)
-    if sample_t is None:
-        return top_k(qk @ keys_t, k, ordered=False)
-    thr = sample_threshold(qk @ sample_t, k, n)[:, None]
+    if sample is None:
+        return top_k(xp.ascontiguousarray((first @ qk.T).T), k, ordered=False)
+    thr = sample_threshold((sample @ qk.T).T, k, n)
+    if not bool((thr > 0).all()):  # (inner products of magnitudes: never seen)
+        return scan_top(qk, first, k)
     chunk = chunk or n
+    # each query scaled by its threshold, so that one scalar comparison cuts every column
+    qk_t = xp.ascontiguousarray((qk / thr[:, None]).T)
     rows, cols, vals = [], [], []
     for a in range(0, n, chunk):
-        sc = qk @ keys_t[:, a : a + chunk]
-        w = sc.shape[1]
-        at = xp.flatnonzero(sc >= thr)
-        r = at // w
+        sc = (first[a : a + chunk] @ qk_t).reshape(-1)  # (w, Q), frame-major
+        at = xp.flatnonzero(sc >= 1.0)  # frame (at // Q), query (at % Q)
+        f = at // q
+        r = at - f * q
         rows.append(r)
-        cols.append(at - r * w + a)
-        vals.append(sc.reshape(-1)[at])
-    if len(rows) == 1:
-        got = select(rows[0], cols[0], vals[0], q, k, ordered=False)
-    else:  # (each chunk's in row order, not all of them)
-        r, c, v = (xp.concatenate(x) for x in (rows, cols, vals))
-        got = select(r, c, v, q, k, ordered=False, by_row=False)
-    return got if got is not None else top_k(qk @ keys_t, k, ordered=False)
+        cols.append(f + a)
+        vals.append(sc[at] * thr[r])
+    r, c, v = (xp.concatenate(x) for x in (rows, cols, vals)) if len(rows) > 1 else (rows[0], cols[0], vals[0])
+    got = select(r, c, v, q, k, ordered=False, by_row=False)
+    return got if got is not None else scan_top(qk, first, k)
 
 
 PREFILTER = 8  # shortlist factor of the projected first pass
-SAMPLE = 16384  # at most this many venue frames sampled for stage 1's threshold (scan_top) ...
-SCAN_ABOVE = 65536  # ... on venues of this many frames or more (below, a partition of each row is cheaper)
-SCAN_CHUNK = 32768  # venue frames a CPU scores at a time in stage 1 (10 query frames: 1.3 MB of scores)
+SAMPLE = 4096  # at most this many venue frames sampled for stage 1's threshold (scan_top), ...
+SAMPLE_STEP = 8  # ... at least every this many, ...
+SCAN_ABOVE = 2048  # ... on venues of more frames than this (below, 224 unprojected dims: a partition is as cheap)
+SCAN_CHUNK = 16384  # venue frames a CPU scores at a time in stage 1 (10 query frames: 0.7 MB of scores)
 
 
 def _best_first(idx: Any, val: Any) -> tuple[Any, Any]:
@@ -199,8 +206,8 @@ def index_arrays(spectra: Any, key_dims: int = 0) -> dict[str, Any]:
     """The search arrays derived from a generation's spectra: written once at modelling time so
     that every server worker memory-maps one copy instead of computing its own.
 
-    keys (N, D): the full magnitude keys, the exact stage-1 score; keys_t: what the first pass
-    multiplies by, (D, N) so the GEMM reads it linearly, or with projected keys (d, N) and their
+    keys (N, D): the full magnitude keys, the exact stage-1 score and, on a venue of few frames,
+    what the first pass multiplies by; on a large one, projected keys `first` (N, d) and their
     `basis` (D, d): a cheap first pass over every frame, re-ranked exactly below.
     """
     xp = namespace_of(spectra)
@@ -208,10 +215,19 @@ def index_arrays(spectra: Any, key_dims: int = 0) -> dict[str, Any]:
     out = {"keys": keys}
     if 0 < key_dims < keys.shape[1]:
         out["basis"] = key_basis(keys, key_dims)
-        out["keys_t"] = xp.ascontiguousarray((keys @ out["basis"]).T)
-    else:
-        out["keys_t"] = xp.ascontiguousarray(keys.T)
+        out["first"] = xp.ascontiguousarray(keys @ out["basis"])
     return out
+
+
+def first_keys(arrays: dict[str, Any]) -> Any:
+    """The first pass's (N, d) keys of index_arrays(): `first`, else the keys themselves; a
+    generation written before the first pass was frame-major has (d, N) `keys_t` (its transpose
+    serves, a little slower)."""
+    if "first" in arrays:
+        return arrays["first"]
+    if "basis" in arrays:
+        return arrays["keys_t"].T
+    return arrays["keys"]
 
 
 class Index:
@@ -233,13 +249,13 @@ class Index:
             arrays = index_arrays(self.spec, key_dims)
         self.keys = self.xp.asarray(arrays["keys"])
         self.basis = self.xp.asarray(arrays["basis"]) if "basis" in arrays else None
-        self.keys_t = self.xp.asarray(arrays["keys_t"])
+        self.first = self.xp.asarray(first_keys(arrays))  # (N, d): what the first pass multiplies by
         self.heading = self.xp.asarray(np.asarray(headings, np.float32))
         self.n = int(spectra.shape[0])
         # stage 1's scan (scan_top): a strided sample of the first pass's keys for its threshold,
         # and on a CPU chunks whose scores stay in the cache (a GPU scores the venue in one pass)
-        step = max(1, self.n // max(SAMPLE // 4, min(SAMPLE, self.n // 16)))
-        self.sample_t = self.xp.ascontiguousarray(self.keys_t[:, ::step]) if self.n >= SCAN_ABOVE else None
+        step = max(SAMPLE_STEP, self.n // SAMPLE)
+        self.sample = self.xp.ascontiguousarray(self.first[::step]) if self.n > SCAN_ABOVE else None
         self.chunk = SCAN_CHUNK if self.xp is np else None
 
     def coarse(
@@ -258,9 +274,9 @@ class Index:
         first_q = kq if self.basis is None else kq @ self.basis
         s = k if self.basis is None else max(k, prefilter or PREFILTER * k)
         if exclude is None:
-            short, first_v = scan_top(first_q, self.keys_t, s, self.sample_t, self.chunk)
+            short, first_v = scan_top(first_q, self.first, s, self.sample, self.chunk)
         else:
-            short, first_v = top_k(self._masked(first_q @ self.keys_t, exclude), s, ordered=False)
+            short, first_v = top_k(self._masked(first_q @ self.first.T, exclude), s, ordered=False)
         if self.basis is None:
             return _best_first(short, first_v)
         # the exact scores of the shortlists: every frame's against the clip's union of them in one

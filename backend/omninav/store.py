@@ -2,7 +2,7 @@
 
     <data>/venues/<id>/CURRENT          name of the live generation (replaced with os.replace)
     <data>/venues/<id>/gen-000003/      settings.json, lens.json, frames.npy, spectra.npy, videos.json,
-                                        keys.npy, keys_t.npy[, basis.npy] (the index's arrays, index.py)
+                                        keys.npy[, first.npy, basis.npy] (the index's arrays, index.py)
 
 A modelling run writes a complete new generation beside the live one and only then swaps CURRENT,
 so a run that is interrupted (Ctrl-C, crash, power) leaves the venue answering as before.
@@ -32,7 +32,7 @@ from .lens import Lens, lens_from_dict
 from .settings import SearchSettings
 from .settings_upgrade import upgrade
 
-INDEX_ARRAYS = ("keys", "keys_t", "basis")
+INDEX_ARRAYS = ("keys", "first", "basis", "keys_t")  # keys_t: generations before `first` (index.first_keys)
 VENUE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
 
 # One row per modelled frame; `video` names the modelling video it came from.

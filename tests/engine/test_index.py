@@ -6,7 +6,7 @@ import pytest
 
 from omninav.curves import normalise
 from omninav.heading import cross_correlation
-from omninav.index import Index, magnitude_keys, sequential_search, top_k
+from omninav.index import Index, index_arrays, magnitude_keys, scan_top, sequential_search, top_k
 from omninav.spectrum import quantise, spectrum
 
 
@@ -65,13 +65,55 @@ def test_sampled_threshold_top_k_is_exact_on_long_rows():
     assert idx[2, 0] == 123_456
 
 
+def _exact_top(qk: np.ndarray, first: np.ndarray, k: int) -> np.ndarray:
+    return np.sort(np.argsort(-(qk @ first.T), axis=1, kind="stable")[:, :k], axis=1)
+
+
+def test_the_chunked_scan_keeps_each_querys_exact_k_best():
+    """Stage 1's fused scan (chunks, a sampled threshold, queries of very different scales)
+    keeps what a full product and a sort keep, with their scores."""
+    rng = np.random.default_rng(11)
+    first = np.abs(np.cumsum(rng.normal(size=(50_000, 32)), axis=0)).astype(np.float32)
+    qk = first[[10, 20_000, 49_999]] * np.array([[1.0], [40.0], [0.01]], np.float32)  # scores 4,000x apart
+    sample = np.ascontiguousarray(first[::8])
+    idx, val = scan_top(qk, first, 64, sample, chunk=7_000)
+    assert np.array_equal(np.sort(idx, axis=1), _exact_top(qk, first, 64))
+    assert np.allclose(val, np.take_along_axis(qk @ first.T, idx, axis=1), rtol=1e-5)
+
+
+def test_the_scan_falls_back_to_the_full_product_when_its_sample_misleads_it():
+    """A sample that holds the venue's best frames sets the cut too high: fewer than k survive
+    for a query, and the full product decides."""
+    rng = np.random.default_rng(12)
+    first = rng.uniform(0.0, 0.1, size=(20_000, 8)).astype(np.float32)
+    first[::8] += 1.0  # every sampled frame scores high, the others low
+    qk = rng.uniform(0.5, 1.0, size=(2, 8)).astype(np.float32)
+    idx, _ = scan_top(qk, first, 2_600, np.ascontiguousarray(first[::8]), chunk=4_096)
+    assert np.array_equal(np.sort(idx, axis=1), _exact_top(qk, first, 2_600))
+
+
+def test_a_generation_written_with_keys_t_searches_as_a_new_one():
+    """Generations written before the first pass was frame-major carry (d, N) keys_t and no
+    `first`: they answer the same."""
+    spec = venue_spectra(3000, seed=6)
+    heads = np.random.default_rng(7).uniform(0, 360, 3000).astype(np.float32)
+    new = index_arrays(spec, 32)
+    old = {"keys": new["keys"], "basis": new["basis"], "keys_t": np.ascontiguousarray(new["first"].T)}
+    k = np.arange(1, 33)
+    q = (spec[[40, 1500, 2990]] * np.exp(2j * np.pi * k * 77.0 / 360.0)).astype(np.complex64)
+    a = Index(spec, heads, device="cpu", key_dims=32, arrays=new).search(q, 8, groups=np.zeros(3, int))
+    b = Index(spec, heads, device="cpu", key_dims=32, arrays=old).search(q, 8, groups=np.zeros(3, int))
+    assert np.array_equal(a.index, b.index) and np.allclose(a.score, b.score, atol=1e-6)
+    assert np.array_equal(a.index[:, 0], [40, 1500, 2990])
+
+
 def test_projected_keys_still_find_the_frame(modelled):
     """Real curve spectra are close to low-rank: 32 projected dims keep the right candidates."""
     st, vid = modelled
     spec = np.asarray(st.load(vid).spectra)
     n = len(spec)
     ix = Index(spec, np.zeros(n), device="cpu", key_dims=32)
-    assert ix.keys_t.shape == (32, n) and ix.keys.shape == (n, spec.shape[1] * spec.shape[2])
+    assert ix.first.shape == (n, 32) and ix.keys.shape == (n, spec.shape[1] * spec.shape[2])
     rows = np.array([3, n // 2, n - 1])
     k = np.arange(1, spec.shape[-1] + 1)
     q = spec[rows] * np.exp(2j * np.pi * k * 123.0 / 360.0)
