@@ -34,7 +34,7 @@ import cv2
 import numpy as np
 
 from omninav.extract import Extractor
-from omninav.lens import Catadioptric
+from omninav.lens import Catadioptric, Sensor
 from omninav.presets import FEATURE_KEYS, TWO_BANDS, resolve, settings_id
 from omninav.spectrum import encode_binary
 from omninav.synth import QUERY, donut_lens, equirect_lens
@@ -85,6 +85,10 @@ def golden_frames() -> list[np.ndarray]:
     return [f for _, f in render_frames(build_scene(0, "small"), donut_lens(1.0), POSES, LOOK, seed=7)]
 
 
+# the decentred fit's sensor on OpenCV's real catadioptric corners (tests/calib/test_calib_corners.py)
+GOLDEN_SENSOR = Sensor((1.0, -0.02556, 0.02424, 1.00408), (0.0296, -0.00463), 340.0)
+
+
 def golden(out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
     scene = build_scene(0, "small")
@@ -92,6 +96,7 @@ def golden(out: Path) -> None:
     dframes = golden_frames()
     eq = equirect_lens(1440)
     eframes = [f for _, f in render_frames(scene, eq, POSES[:1], LOOK, seed=8)]
+    tilted = [f for _, f in render_frames(scene, donut, TILTED, LOOK, seed=9)]
     cases = [
         _case(out, "donut-default", donut, "default", dframes),
         _case(out, "donut-six", donut, "six", dframes[:1]),
@@ -100,7 +105,10 @@ def golden(out: Path) -> None:
         # the default before per-band channels: what a phone makes for a venue modelled with it
         _case(out, "donut-before-bands", donut, "default", dframes[:1], TWO_BANDS),
         # levelled: the tilted phone's frames, each read through the remap its own edges level
-        _case(out, "donut-tilted", donut, "default", [f for _, f in render_frames(scene, donut, TILTED, LOOK, seed=9)]),
+        _case(out, "donut-tilted", donut, "default", tilted),
+        # a real mirror's profile (`calib lens` on a real catadioptric camera: a skewed stretch and
+        # decentring, lens.json's `sensor`), read on the same frames: the phone's sums are the engine's
+        _case(out, "donut-sensor", replace(donut, sensor=GOLDEN_SENSOR), "default", [dframes[0], tilted[0]]),
     ]
     (out / "golden.json").write_text(json.dumps({"cases": cases}, indent=1))
     ring_golden(out, dframes)

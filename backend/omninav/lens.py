@@ -18,6 +18,60 @@ from .errors import OmninavError, finite, read_json
 
 
 @dataclass(frozen=True)
+class Sensor:
+    """Where a real mirror's picture departs from a radially symmetric one (lens.json `sensor`).
+
+    The symmetric model puts a direction at the offset o = r(el) (cos phi, sin phi) from `center`;
+    the pixel that sees it is center + M (o + s t(o / s)): t the decentring (tangential) term of
+    the Brown-Conrady model, t_x = 2 p1 x y + p2 (q + 2 x^2), t_y = p1 (q + 2 y^2) + 2 p2 x y with
+    q = x^2 + y^2, for a mirror whose axis is not the camera's; M a 2x2 matrix for a sensor whose
+    pixels are not square or whose axes are skewed (OCamCalib's stretch). `calib lens` fits both
+    (calib/ocam.py): on a real catadioptric camera's corners they take the reprojection error
+    from 1.94 to 0.80 px (docs/decisions.md, "Decentring").
+    """
+
+    matrix: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 1.0)  # m00, m01, m10, m11
+    tangential: tuple[float, float] = (0.0, 0.0)  # p1, p2
+    scale: float = 1.0  # s, pixels: the offsets' unit in t (the ring's outer radius)
+
+    def to_pixel(self, ox: np.ndarray, oy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Symmetric offsets (px) -> the offsets from `center` of the pixels that see them
+        (the phone's lens.ts `sensorOffsets` does the same operations in the same order)."""
+        m00, m01, m10, m11 = self.matrix
+        p1, p2 = self.tangential
+        s = self.scale
+        xn = ox / s
+        yn = oy / s
+        q = xn * xn + yn * yn
+        ux = ox + s * (2.0 * p1 * xn * yn + p2 * (q + 2.0 * xn * xn))
+        uy = oy + s * (p1 * (q + 2.0 * yn * yn) + 2.0 * p2 * xn * yn)
+        return m00 * ux + m01 * uy, m10 * ux + m11 * uy
+
+    def from_pixel(self, dx: np.ndarray, dy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Offsets of pixels from `center` -> the symmetric offsets they see (to_pixel's inverse:
+        the matrix solved, the decentring undone by fixed-point steps, each shrinking the error by
+        the term's slope, a few hundredths on a real mirror)."""
+        m00, m01, m10, m11 = self.matrix
+        det = m00 * m11 - m01 * m10
+        ux = (m11 * dx - m01 * dy) / det
+        uy = (m00 * dy - m10 * dx) / det
+        p1, p2 = self.tangential
+        s = self.scale
+        ox, oy = ux, uy
+        for _ in range(12):
+            xn = ox / s
+            yn = oy / s
+            q = xn * xn + yn * yn
+            ox = ux - s * (2.0 * p1 * xn * yn + p2 * (q + 2.0 * xn * xn))
+            oy = uy - s * (p1 * (q + 2.0 * yn * yn) + 2.0 * p2 * xn * yn)
+        return ox, oy
+
+    def to_dict(self) -> dict[str, Any]:
+        m00, m01, m10, m11 = self.matrix
+        return {"matrix": [[m00, m01], [m10, m11]], "tangential": list(self.tangential), "scale": self.scale}
+
+
+@dataclass(frozen=True)
 class Catadioptric:
     image_size: tuple[int, int]
     center: tuple[float, float]
@@ -31,6 +85,9 @@ class Catadioptric:
     # from `center`: the optical centre a board fit finds may sit a few pixels off the ring's.
     # None (hand-typed and rendered profiles): the ring is `center`, `r_inner`, `r_outer`.
     ring: tuple[float, float, float, float] | None = None
+    # A real mirror's departure from radial symmetry (Sensor); None: none (rendered and hand-typed
+    # profiles, and those made before `calib lens` fitted it)
+    sensor: Sensor | None = None
     model: str = field(default="catadioptric", init=False)
 
     def elevation(self, r: np.ndarray) -> np.ndarray:
@@ -72,7 +129,16 @@ class Catadioptric:
         if self.ring is not None:
             cx, cy, ri, ro = self.ring
             d["ring"] = {"center": [cx, cy], "r_inner": ri, "r_outer": ro}
+        if self.sensor is not None:
+            d["sensor"] = self.sensor.to_dict()
         return d
+
+    def pixel(self, ox: np.ndarray, oy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The pixel (x, y) that sees the symmetric offset (ox, oy) from the centre."""
+        if self.sensor is None:
+            return self.center[0] + ox, self.center[1] + oy
+        sx, sy = self.sensor.to_pixel(ox, oy)
+        return self.center[0] + sx, self.center[1] + sy
 
 
 @dataclass(frozen=True)
@@ -139,6 +205,30 @@ def _ring(v: Any, where: str) -> tuple[float, float, float, float] | None:
     return cx, cy, ri, ro
 
 
+def _sensor(v: Any, where: str) -> Sensor | None:
+    """The optional {"matrix": [[a, b], [c, d]], "tangential": [p1, p2], "scale": s}."""
+    if v is None:
+        return None
+    shape = (
+        '{"matrix": [[a, b], [c, d]], "tangential": [p1, p2], "scale": s}'
+        " (a matrix near the identity, |p| <= 0.2, s > 0)"
+    )
+    m, t = (v.get("matrix"), v.get("tangential")) if isinstance(v, dict) else (None, None)
+    rows_ok = isinstance(m, list | tuple) and len(m) == 2
+    rows_ok = rows_ok and all(isinstance(r, list | tuple) and len(r) == 2 for r in m)  # type: ignore[union-attr]
+    if not rows_ok or not isinstance(t, list | tuple) or len(t) != 2:
+        raise OmninavError(f"{where}: lens field 'sensor' must be {shape}")
+    assert isinstance(v, dict) and isinstance(m, list | tuple)
+    mat = tuple(_num(x, "sensor", where) for r in m for x in r)
+    p = tuple(_num(x, "sensor", where) for x in t)
+    s = _num(v.get("scale"), "sensor", where)
+    det = mat[0] * mat[3] - mat[1] * mat[2]
+    # near the identity and a small decentring: from_pixel's fixed-point steps converge there
+    if not (s > 0 and 0.5 < det < 2.0 and max(abs(mat[1]), abs(mat[2])) < 0.5 and max(map(abs, p)) <= 0.2):
+        raise OmninavError(f"{where}: lens field 'sensor' must be {shape}")
+    return Sensor((mat[0], mat[1], mat[2], mat[3]), (p[0], p[1]), s)
+
+
 def lens_from_dict(d: Any, where: str = "lens") -> Lens:
     """Validate a parsed `lens.json` and build the profile; every problem names its field."""
     if not isinstance(d, dict):
@@ -167,6 +257,7 @@ def lens_from_dict(d: Any, where: str = "lens") -> Lens:
             forward_deg=_num(d.get("forward_deg", 0.0), "forward_deg", where),
             ccw=_flag(d, "ccw", True, where),
             ring=_ring(d.get("ring"), where),
+            sensor=_sensor(d.get("sensor"), where),
         )
         with np.errstate(all="ignore"):  # huge coefficients or radii overflow: refused below, not raised
             e = lens.elevation(np.linspace(r_in, r_out, 512))
@@ -202,7 +293,7 @@ def direction_to_pixel(lens: Lens, az_deg: np.ndarray, el_deg: np.ndarray) -> tu
         r = lens.radius(el)
         sign = -1.0 if lens.ccw else 1.0
         phi = np.deg2rad(lens.forward_deg + sign * az)
-        return lens.center[0] + r * np.cos(phi), lens.center[1] + r * np.sin(phi)
+        return lens.pixel(r * np.cos(phi), r * np.sin(phi))
     w, h = lens.image_size
     sign = -1.0 if lens.ccw else 1.0
     x = np.mod(lens.forward_x + sign * az * w / 360.0, w)
@@ -216,6 +307,8 @@ def pixel_to_direction(lens: Lens, x: np.ndarray, y: np.ndarray) -> tuple[np.nda
     y = np.asarray(y, np.float64)
     if isinstance(lens, Catadioptric):
         dx, dy = x - lens.center[0], y - lens.center[1]
+        if lens.sensor is not None:
+            dx, dy = lens.sensor.from_pixel(dx, dy)
         r = np.hypot(dx, dy)
         phi = np.rad2deg(np.arctan2(dy, dx))
         sign = -1.0 if lens.ccw else 1.0

@@ -236,7 +236,7 @@ def _turned_pixels(lens: Lens, c0: np.ndarray, c1: np.ndarray, c2: np.ndarray) -
     sign = -1.0 if lens.ccw else 1.0
     f = math.radians(lens.forward_deg)
     cf, sf = math.cos(f), math.sin(f)
-    return lens.center[0] + r * (cf * ca - sign * sf * sa), lens.center[1] + r * (sf * ca + sign * cf * sa)
+    return lens.pixel(r * (cf * ca - sign * sf * sa), r * (sf * ca + sign * cf * sa))
 
 
 def level_map(

@@ -1,17 +1,23 @@
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from omninav.calib.lens_fit import scaled_lens
 from omninav.errors import OmninavError
 from omninav.lens import (
     Catadioptric,
+    Sensor,
     direction_to_pixel,
     lens_from_dict,
     load_lens,
     pixel_to_direction,
 )
 from omninav.synth import donut_lens, equirect_lens
+
+# a real mirror's sensor (`calib lens` on OpenCV's real catadioptric corners, scaled to the donut)
+REAL_SENSOR = Sensor((1.0, -0.02556, 0.02424, 1.00408), (0.0296, -0.00463), 340.0)
 
 
 @pytest.mark.parametrize(
@@ -21,6 +27,7 @@ from omninav.synth import donut_lens, equirect_lens
         donut_lens(0.5),
         equirect_lens(),
         Catadioptric((640, 480), (320, 240), 50, 200, (-60.0, 0.4), 0.0, False),
+        replace(donut_lens(), sensor=REAL_SENSOR),
     ],
 )
 def test_direction_pixel_round_trip(lens):
@@ -69,6 +76,53 @@ def test_bad_profiles(patch, msg):
     d = {**donut_lens().to_dict(), **patch}
     with pytest.raises(OmninavError, match=msg):
         lens_from_dict(d)
+
+
+def test_a_sensor_moves_the_pixels_as_its_matrix_and_decentring_say():
+    """lens.json's `sensor`: the symmetric offset o is seen at center + M (o + s t(o / s))."""
+    plain = donut_lens()
+    lens = replace(plain, sensor=REAL_SENSOR)
+    az, el = np.array([0.0, 90.0, 200.0]), np.array([-20.0, 0.0, 10.0])
+    x0, y0 = direction_to_pixel(plain, az, el)
+    ox, oy = x0 - plain.center[0], y0 - plain.center[1]
+    p1, p2 = REAL_SENSOR.tangential
+    xn, yn = ox / 340.0, oy / 340.0
+    q = xn**2 + yn**2
+    ux = ox + 340.0 * (2 * p1 * xn * yn + p2 * (q + 2 * xn**2))
+    uy = oy + 340.0 * (p1 * (q + 2 * yn**2) + 2 * p2 * xn * yn)
+    m = np.array(REAL_SENSOR.matrix).reshape(2, 2)
+    x, y = direction_to_pixel(lens, az, el)
+    assert np.allclose(x - plain.center[0], m[0, 0] * ux + m[0, 1] * uy)
+    assert np.allclose(y - plain.center[1], m[1, 0] * ux + m[1, 1] * uy)
+    assert np.hypot(x - x0, y - y0).max() > 3.0  # a real mirror's departure is pixels, not noise
+    assert lens_from_dict(json.loads(json.dumps(lens.to_dict()))) == lens
+
+
+def test_a_scaled_profile_scales_its_sensor_with_the_picture():
+    """A re-clipped lens whose picture is 5 % larger sees each direction 5 % farther out."""
+    lens = replace(donut_lens(), sensor=REAL_SENSOR)
+    big = scaled_lens(lens, (3.0, -2.0), 1.05)
+    az, el = np.linspace(0, 350, 36), np.full(36, 5.0)
+    x, y = direction_to_pixel(lens, az, el)
+    xb, yb = direction_to_pixel(big, az, el)
+    assert np.allclose(xb - big.center[0], 1.05 * (x - lens.center[0]), atol=1e-6)
+    assert np.allclose(yb - big.center[1], 1.05 * (y - lens.center[1]), atol=1e-6)
+
+
+@pytest.mark.parametrize(
+    "sensor",
+    [
+        {"matrix": [[1, 0], [0, 1]], "tangential": [0.3, 0], "scale": 340},  # no small decentring
+        {"matrix": [[1, 0.9], [0, 1]], "tangential": [0, 0], "scale": 340},  # no skew that large
+        {"matrix": [[1, 0], [0, 1]], "tangential": [0, 0], "scale": 0},
+        {"matrix": [1, 0, 0, 1], "tangential": [0, 0], "scale": 340},
+        {"matrix": [[1, 0], [0, "a"]], "tangential": [0, 0], "scale": 340},
+        "flat",
+    ],
+)
+def test_a_sensor_out_of_shape_is_refused_by_name(sensor):
+    with pytest.raises(OmninavError, match="sensor"):
+        lens_from_dict({**donut_lens().to_dict(), "sensor": sensor})
 
 
 def test_load_lens_errors(tmp_path):

@@ -38,7 +38,6 @@ class LensCalibration:
     ring: Any  # ring.Ring
     detections: list[Any]  # board.Detection, the frames the board was found in
     n_frames: int
-    stretch_warning: str | None
     handedness: str  # the fit's handedness against the protocol's ccw, in words
 
 
@@ -63,7 +62,7 @@ def _spec_hint(frames: Sequence[np.ndarray], spec: Any, ring: Any) -> str | None
 def calibrate(frames: Sequence[np.ndarray], spec: Any, holdout: int = 4, outer_down: bool = False) -> LensCalibration:
     """The whole calibration on decoded frames (BGR uint8, in the protocol's order)."""
     from .board import detect_board
-    from .ocam import fit_ocam, orientation, stretch_warning, to_profile
+    from .ocam import fit_ocam, orientation, to_profile
     from .ring import find_ring
 
     if not frames:
@@ -119,7 +118,6 @@ def calibrate(frames: Sequence[np.ndarray], spec: Any, holdout: int = 4, outer_d
         ring=ring,
         detections=usable,
         n_frames=len(frames),
-        stretch_warning=stretch_warning(fit.ocam),
         handedness=hand,
     )
 
@@ -151,6 +149,8 @@ def summary(cal: LensCalibration) -> list[str]:
         f"{n_held} held out",
         f"model        centre {fit.ocam.center[0]:.2f}, {fit.ocam.center[1]:.2f} px; f of degree {fit.degree}; "
         f"stretch c d e = {c:.5f} {d:.5f} {e:.5f} ({100 * fit.ocam.anisotropy():.2f} % anisotropic); "
+        f"decentring p1 p2 = {fit.ocam.tangential[0]:.5f} {fit.ocam.tangential[1]:.5f}"
+        f"{' (in lens.json: sensor)' if p.sensor is not None else ''}; "
         f"{fit.seconds:.1f} s",
         f"reprojection RMS  fitted {fit.rms_fit:.3f} px, held out {held}",
         "per image    "
@@ -163,8 +163,6 @@ def summary(cal: LensCalibration) -> list[str]:
         f"ccw          {str(p.ccw).lower()} (moved left, the board's image angle went {o.turn_deg:+.1f} deg); "
         f"the fit {cal.handedness}",
     ]
-    if cal.stretch_warning:
-        lines.append(f"warning      {cal.stretch_warning}")
     if (cov := coverage_warning(fit.support, p.r_inner, p.r_outer)) is not None:
         lines.append(f"warning      {cov}")
     lines.extend(f"note         {n}" for n in fit.notes)

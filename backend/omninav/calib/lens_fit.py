@@ -64,10 +64,12 @@ def _moved_words(dx: float, dy: float, s: float) -> str:
 
 def scaled_lens(lens: Catadioptric, d: tuple[float, float], s: float) -> Catadioptric:
     """The profile for a ring moved by d and s times larger: centre and ring moved, radii scaled,
-    elevation(r) -> elevation(r / s)."""
+    elevation(r) -> elevation(r / s), a sensor's unit scaled with them (its matrix and decentring
+    act on the picture's shape, which a larger picture keeps)."""
     ring = lens.ring
     if ring is not None:
         ring = (ring[0] + d[0], ring[1] + d[1], ring[2] * s, ring[3] * s)
+    sensor = lens.sensor if lens.sensor is None else dataclasses.replace(lens.sensor, scale=lens.sensor.scale * s)
     return dataclasses.replace(
         lens,
         center=(lens.center[0] + d[0], lens.center[1] + d[1]),
@@ -75,6 +77,7 @@ def scaled_lens(lens: Catadioptric, d: tuple[float, float], s: float) -> Catadio
         r_outer=lens.r_outer * s,
         elevation_poly=tuple(c / s**k for k, c in enumerate(lens.elevation_poly)),
         ring=ring,
+        sensor=sensor,
     )
 
 

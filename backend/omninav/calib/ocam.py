@@ -37,9 +37,9 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from scipy.optimize import least_squares, minimize  # type: ignore[import-untyped]
@@ -47,11 +47,14 @@ from scipy.sparse import lil_matrix  # type: ignore[import-untyped]
 from scipy.spatial.transform import Rotation  # type: ignore[import-untyped]
 
 from ..errors import OmninavError
-from ..lens import Catadioptric
+from ..lens import Catadioptric, Sensor
 from .board import RingLike
 
 DEGREES = (4, 5, 6, 7)  # f's degree, chosen per fit: 4 is OCamCalib's default, a ring often needs more
-STRETCH_WARN = 0.005  # warn when the stretch's anisotropy exceeds 0.5 %: lens.json cannot hold it
+N_FIXED = 7  # the fit's intrinsics before f: centre (2), stretch (3), decentring (2)
+DECENTRING_GAIN = 0.8  # the mirror's decentring is fitted only where it takes the RMS below this share
+SENSOR_PX = 0.05  # a fitted stretch or decentring that moves no ring pixel this far is left out of lens.json
+STRETCH_WARN = 0.005  # a stretch more anisotropic than 0.5 % is more than a rendered lens ever shows
 
 
 class View(Protocol):
@@ -75,6 +78,18 @@ class Ocam:
     stretch: tuple[float, float, float]
     poly: tuple[float, ...]
     image_size: tuple[int, int]
+    # the mirror's decentring (p1, p2), Brown-Conrady's tangential term on the sensor point (u, v)
+    # in units of `unit` px, before the stretch: (0, 0) is OCamCalib's model
+    tangential: tuple[float, float] = (0.0, 0.0)
+    unit: float = 1.0
+
+    def _tangential(self, uv: np.ndarray) -> np.ndarray:
+        """(n, 2) sensor points -> their decentring offsets (n, 2)."""
+        p1, p2 = self.tangential
+        s = self.unit
+        x, y = uv[:, 0] / s, uv[:, 1] / s
+        q = x * x + y * y
+        return s * np.stack([2.0 * p1 * x * y + p2 * (q + 2.0 * x * x), p1 * (q + 2.0 * y * y) + 2.0 * p2 * x * y], -1)
 
     def _a(self) -> np.ndarray:
         c, d, e = self.stretch
@@ -84,12 +99,19 @@ class Ocam:
         """(n, 2) pixels (x, y) -> (n, 2) sensor points (u, v) of Eq. 1 (u along rows)."""
         xy = np.asarray(xy, np.float64).reshape(-1, 2)
         rc = np.stack([xy[:, 1] - self.center[1], xy[:, 0] - self.center[0]], -1)
-        out: np.ndarray = np.linalg.solve(self._a(), rc.T).T
+        d: np.ndarray = np.linalg.solve(self._a(), rc.T).T
+        out = d
+        if self.tangential != (0.0, 0.0):  # undone by fixed-point steps (the term is small)
+            for _ in range(12):
+                out = d - self._tangential(out)
         return out
 
     def pixel(self, uv: np.ndarray) -> np.ndarray:
-        """(n, 2) sensor points (u, v) -> (n, 2) pixels (x, y): Eq. 1."""
-        rc = np.asarray(uv, np.float64).reshape(-1, 2) @ self._a().T
+        """(n, 2) sensor points (u, v) -> (n, 2) pixels (x, y): Eq. 1, the decentring first."""
+        uv = np.asarray(uv, np.float64).reshape(-1, 2)
+        if self.tangential != (0.0, 0.0):
+            uv = uv + self._tangential(uv)
+        rc = uv @ self._a().T
         return np.stack([rc[:, 1] + self.center[0], rc[:, 0] + self.center[1]], -1)
 
     def f(self, rho: np.ndarray) -> np.ndarray:
@@ -131,6 +153,8 @@ class Ocam:
             "stretch": list(self.stretch),
             "poly": list(self.poly),
             "image_size": list(self.image_size),
+            "tangential": list(self.tangential),
+            "unit": self.unit,
         }
 
 
@@ -349,7 +373,8 @@ def _to_params(
 ) -> np.ndarray:
     rv = [Rotation.from_matrix(_rot(p)).as_rotvec() for p in poses]
     tv = [p[2] for p in poses]
-    return np.concatenate([[*ocam_c, *cde], coef, *[np.concatenate([r, t]) for r, t in zip(rv, tv, strict=True)]])
+    poses_x = [np.concatenate([r, t]) for r, t in zip(rv, tv, strict=True)]
+    return np.concatenate([[*ocam_c, *cde, 0.0, 0.0], coef, *poses_x])
 
 
 def _rot(pose: np.ndarray) -> np.ndarray:
@@ -363,10 +388,13 @@ def _rot(pose: np.ndarray) -> np.ndarray:
 def _model(params: np.ndarray, powers: np.ndarray, scale: float, size: tuple[int, int], nodes: np.ndarray) -> Ocam:
     """Parameters -> model. f enters as its values at `nodes` (scaled radii across the ring), not its
     coefficients: the monomials are nearly collinear over a ring and LM crawls along that valley."""
-    cx, cy, c, d, e = params[:5]
-    coef = np.linalg.solve(nodes[:, None] ** powers[None, :], params[5 : 5 + len(powers)])
+    cx, cy, c, d, e, p1, p2 = params[:N_FIXED]
+    coef = np.linalg.solve(nodes[:, None] ** powers[None, :], params[N_FIXED : N_FIXED + len(powers)])
     coef = coef / scale ** (powers - 1.0)
-    return Ocam((float(cx), float(cy)), (float(c), float(d), float(e)), tuple(_full(coef, powers).tolist()), size)
+    stretch = (float(c), float(d), float(e))
+    return Ocam(
+        (float(cx), float(cy)), stretch, tuple(_full(coef, powers).tolist()), size, (float(p1), float(p2)), scale
+    )
 
 
 def _project(ocam: Ocam, rvecs: np.ndarray, tvecs: np.ndarray, obj: np.ndarray, idx: np.ndarray) -> np.ndarray:
@@ -450,7 +478,7 @@ def _fit_ocam(
     obj = np.concatenate([np.asarray(v.object_points, np.float64) for v in fit_v])
     obs = np.concatenate(pts)
     idx = np.concatenate([np.full(len(p), j) for j, p in enumerate(pts)])
-    n_in = 5 + len(powers)
+    n_in = N_FIXED + len(powers)
     nodes = np.linspace(float(ring.r_inner) / scale, 1.0, len(powers))
     x0 = _to_params(best, (1.0, 0.0, 0.0), (nodes[:, None] ** powers[None, :]) @ lin.coef, lin.poses)
 
@@ -459,14 +487,15 @@ def _fit_ocam(
         pv = x[n_in:].reshape(-1, 6)
         return (_project(oc, pv[:, :3], pv[:, 3:], obj, idx) - obs).ravel()
 
-    # Each view's residuals depend on the intrinsics and its own pose only: a sparse Jacobian, so
-    # finite differences cost n_intrinsics + 6 evaluations, not 6 per view.
-    sparsity = lil_matrix((2 * len(obs), len(x0)), dtype=int)
-    sparsity[:, :n_in] = 1
-    for j in range(len(fit_v)):
-        rows = np.flatnonzero(np.repeat(idx == j, 2))
-        sparsity[rows[:, None], n_in + 6 * j + np.arange(6)[None, :]] = 1
-    sol = least_squares(resid, x0, jac_sparsity=sparsity, loss="soft_l1", f_scale=1.0, x_scale="jac", max_nfev=200)
+    # OCamCalib's model first (the decentring held at 0), then with the decentring free; the second
+    # is kept only where it explains the corners clearly better (DECENTRING_GAIN): on a symmetric
+    # lens its two extra freedoms would only trade against the centre
+    free = np.ones(len(x0), bool)
+    free[5:7] = False
+    sol = _lm(resid, x0, free, n_in, idx, len(fit_v))
+    dec = _lm(resid, sol.x, np.ones(len(x0), bool), n_in, idx, len(fit_v))
+    if _rms(dec.fun.reshape(-1, 2)) < DECENTRING_GAIN * _rms(sol.fun.reshape(-1, 2)):
+        sol = dec
     ocam = _model(sol.x, powers, scale, image_size, nodes)
     pv = sol.x[n_in:].reshape(-1, 6)
 
@@ -508,10 +537,38 @@ def _fit_ocam(
     )
 
 
+def _lm(
+    resid: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, free: np.ndarray, n_in: int, idx: np.ndarray, views: int
+) -> Any:
+    """least_squares on the parameters where `free` (the others held at x0's values), the
+    reprojection residuals' sparse Jacobian given: each view's depend on the intrinsics and its
+    own pose only, so finite differences cost n_intrinsics + 6 evaluations, not 6 per view."""
+    at = np.flatnonzero(free)
+
+    def sub(y: np.ndarray) -> np.ndarray:
+        x = x0.copy()
+        x[at] = y
+        return resid(x)
+
+    sparsity = lil_matrix((2 * len(idx), len(x0)), dtype=int)
+    sparsity[:, :n_in] = 1
+    for j in range(views):
+        rows = np.flatnonzero(np.repeat(idx == j, 2))
+        sparsity[rows[:, None], n_in + 6 * j + np.arange(6)[None, :]] = 1
+    sol = least_squares(
+        sub, x0[at], jac_sparsity=sparsity[:, at], loss="soft_l1", f_scale=1.0, x_scale="jac", max_nfev=200
+    )
+    x = x0.copy()
+    x[at] = sol.x
+    sol.x = x
+    return sol
+
+
 def _support(ocam: Ocam, pts: np.ndarray) -> tuple[float, float]:
     """Radii (px from the optical centre) that the corners cover: 0.5 and 99.5 percentiles, so
     that a stray corner does not claim an edge."""
-    r = np.hypot(pts[:, 0] - ocam.center[0], pts[:, 1] - ocam.center[1])
+    uv = ocam.sensor(pts)
+    r = np.hypot(uv[:, 0], uv[:, 1])
     return float(np.percentile(r, 0.5)), float(np.percentile(r, 99.5))
 
 
@@ -591,7 +648,12 @@ def to_profile(
             f"the board's corners cover radii {lo:.0f}-{hi:.0f} px of the ring's {r_in:.0f}-{r_out:.0f}: "
             "film the board near the ring's inner and outer edges too"
         )
-    rr, el = ring_elevations(ocam, lo, hi)
+    sensor = profile_sensor(ocam, r_out)
+    if sensor is None:
+        rr, el = ring_elevations(ocam, lo, hi)
+    else:  # the profile's radius is the model's own sensor radius
+        rr = np.linspace(lo, hi, 96)
+        el = ocam.elevation(rr)
     s = r_out
     coef = np.polynomial.polynomial.polyfit(rr / s, el, degree)
     poly = coef / s ** np.arange(degree + 1)
@@ -611,19 +673,24 @@ def to_profile(
         forward_deg=round(float(forward_deg) % 360.0, 4),
         ccw=bool(ccw),
         ring=(float(ring.center[0]), float(ring.center[1]), r_in, r_out),
+        sensor=sensor,
     )
     return profile, resid
 
 
-def stretch_warning(ocam: Ocam) -> str | None:
-    """A line for the user when the stretch is more than lens.json can hold (0.5 % anisotropy)."""
-    a = ocam.anisotropy()
-    if a <= STRETCH_WARN:
-        return None
-    return (
-        f"the sensor stretches the ring by {100 * a:.2f} % (c, d, e = {ocam.stretch[0]:.5f}, {ocam.stretch[1]:.5f}, "
-        f"{ocam.stretch[2]:.5f}); lens.json has no stretch, so elevations are off by the residual shown"
-    )
+def profile_sensor(ocam: Ocam, r_outer: float) -> Sensor | None:
+    """lens.json's `sensor` of a fitted model (lens.Sensor, in (x, y) = (column, row) order): the
+    stretch [[c, d], [e, 1]] on (row, column) is [[1, e], [d, c]] on (x, y), the decentring's
+    (p1, p2) on (u, v) = (row, column) is (p2, p1) on (x, y). None where neither moves a pixel of
+    the ring by SENSOR_PX (a lens with no stretch or decentring to speak of: rendered ones)."""
+    c, d, e = ocam.stretch
+    p1, p2 = ocam.tangential
+    sensor = Sensor((1.0, e, d, c), (p2, p1), ocam.unit)
+    phi = np.linspace(0.0, 2.0 * np.pi, 72, endpoint=False)
+    r = np.concatenate([np.full(72, 0.5 * r_outer), np.full(72, r_outer)])
+    ox, oy = r * np.cos(np.tile(phi, 2)), r * np.sin(np.tile(phi, 2))
+    sx, sy = sensor.to_pixel(ox, oy)
+    return None if float(np.max(np.hypot(sx - ox, sy - oy))) < SENSOR_PX else sensor
 
 
 # ---- forward and sense of rotation from the protocol ------------------------------------------
@@ -645,8 +712,10 @@ def board_angles(detections: Sequence[View], ocam: Ocam) -> Iterator[tuple[int, 
         o3 = np.asarray(v.object_points, np.float64)
         rvec, tvec = pose_for(ocam, v.image_points, o3)
         c = Rotation.from_rotvec(rvec).as_matrix() @ o3.mean(0) + tvec
-        x, y = ocam.world2cam(c[None], clamp=True)[0]
-        yield v.frame, math.degrees(math.atan2(y - ocam.center[1], x - ocam.center[0]))
+        # the image angle of the symmetric model, as lens.json's azimuth has it (the sensor point,
+        # (u, v) = (row, column)): a pixel's own angle differs by the stretch and the decentring
+        n = math.hypot(c[0], c[1])
+        yield v.frame, math.degrees(math.atan2(c[0] / n, c[1] / n)) if n > 0 else 0.0
 
 
 def _wrap(a: float) -> float:

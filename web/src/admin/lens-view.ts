@@ -102,6 +102,15 @@ export function lensRows(lens: Lens): [string, string][] {
       ['Forward', `${lens.forward_deg ?? 0}° image angle`],
       ['Azimuth turns', (lens.ccw ?? true) ? 'counter-clockwise (ccw: true)' : 'clockwise (ccw: false)'],
     );
+    if (lens.sensor) {
+      const [[a, b], [c, d]] = lens.sensor.matrix;
+      const [p1, p2] = lens.sensor.tangential;
+      const f = (v: number) => v.toFixed(5);
+      rows.push([
+        'Sensor',
+        `matrix ${f(a)}, ${f(b)}; ${f(c)}, ${f(d)}; decentring ${f(p1)}, ${f(p2)} (unit ${lens.sensor.scale} pixels)`,
+      ]);
+    }
   } else {
     rows.push(
       ['Forward column', `${lens.forward_x}`],

@@ -18,6 +18,17 @@ export interface CatadioptricLens {
    * `center`, `r_inner`, `r_outer` (hand-typed and rendered profiles).
    */
   ring?: { center: [number, number]; r_inner: number; r_outer: number };
+  /**
+   * A real mirror's departure from radial symmetry (lens.py `Sensor`): the symmetric offset o from
+   * `center` is seen at center + matrix (o + scale t(o / scale)), t the decentring term.
+   */
+  sensor?: LensSensor;
+}
+
+export interface LensSensor {
+  matrix: [[number, number], [number, number]];
+  tangential: [number, number];
+  scale: number;
 }
 
 export interface EquirectangularLens {
@@ -79,6 +90,29 @@ export function radiusTable(lens: CatadioptricLens): (elevDeg: number) => number
   return (el) => interp(el, e, r);
 }
 
+/**
+ * Offsets from the centre of the pixel that sees the symmetric offset (ox, oy): lens.py's
+ * Sensor.to_pixel, the same operations in the same order (the panoramas match to the byte).
+ */
+export function sensorOffsets(sensor: LensSensor, ox: number, oy: number): [number, number] {
+  const [[m00, m01], [m10, m11]] = sensor.matrix;
+  const [p1, p2] = sensor.tangential;
+  const s = sensor.scale;
+  const xn = ox / s;
+  const yn = oy / s;
+  const q = xn * xn + yn * yn;
+  const ux = ox + s * (2.0 * p1 * xn * yn + p2 * (q + 2.0 * xn * xn));
+  const uy = oy + s * (p1 * (q + 2.0 * yn * yn) + 2.0 * p2 * xn * yn);
+  return [m00 * ux + m01 * uy, m10 * ux + m11 * uy];
+}
+
+/** The pixel (x, y) of a donut lens that sees the symmetric offset (ox, oy) from its centre. */
+export function donutPixel(lens: CatadioptricLens, ox: number, oy: number): [number, number] {
+  if (!lens.sensor) return [lens.center[0] + ox, lens.center[1] + oy];
+  const [sx, sy] = sensorOffsets(lens.sensor, ox, oy);
+  return [lens.center[0] + sx, lens.center[1] + sy];
+}
+
 /** Pixel (x, y) that sees (azimuth clockwise from forward, elevation), in degrees. */
 export function directionToPixel(
   lens: Lens,
@@ -90,7 +124,7 @@ export function directionToPixel(
   if (lens.model === 'catadioptric') {
     const r = radius!(el);
     const phi = (((lens.forward_deg ?? 0) + sign * az) * Math.PI) / 180;
-    return [lens.center[0] + r * Math.cos(phi), lens.center[1] + r * Math.sin(phi)];
+    return donutPixel(lens, r * Math.cos(phi), r * Math.sin(phi));
   }
   const [w, h] = lens.image_size;
   const a = lens.forward_x + (sign * az * w) / 360;
@@ -129,6 +163,22 @@ export function lensProblem(lens: unknown): string | null {
         (r.r_inner as number) >= 0 &&
         (r.r_inner as number) < (r.r_outer as number);
       if (!ok) return 'its ring must be {"center": [x, y], "r_inner": r, "r_outer": R} with 0 <= r < R';
+    }
+    if (l.sensor !== undefined) {
+      const v = l.sensor as Record<string, unknown> | null;
+      const m = v?.matrix;
+      const ok =
+        v !== null &&
+        typeof v === 'object' &&
+        Array.isArray(m) &&
+        m.length === 2 &&
+        m.every((row) => Array.isArray(row) && row.length === 2 && row.every(num)) &&
+        Array.isArray(v.tangential) &&
+        v.tangential.length === 2 &&
+        v.tangential.every(num) &&
+        num(v.scale) &&
+        (v.scale as number) > 0;
+      if (!ok) return 'its sensor must be {"matrix": [[a, b], [c, d]], "tangential": [p1, p2], "scale": s}';
     }
     return null;
   }

@@ -5,7 +5,7 @@
  * depends on the phone, the clip-on and the browser; the picture's door frames and corners say
  * the tilt by themselves.
  */
-import { directionToPixel, elevationSamples, type CatadioptricLens, type Lens } from '../shared/lens';
+import { directionToPixel, elevationSamples, sensorOffsets, type CatadioptricLens, type Lens } from '../shared/lens';
 import type { UnwarpMap } from './unwarp';
 
 /** The strongest tenth of the horizontal gradients are the edges whose lean counts. */
@@ -323,6 +323,7 @@ function rowTurn(t: Tilter, rot: number[]): RowTurn {
   const cF = Math.cos(fwd);
   const sF = Math.sin(fwd);
   const [cx, cy] = lens.center;
+  const sensor = lens.sensor;
   // radiusAt, inlined: this is levelling's largest cost
   const { e, r: rr, slope, start, scale } = radius;
   const e0 = e[0];
@@ -350,8 +351,14 @@ function rowTurn(t: Tilter, rot: number[]): RowTurn {
       const hh = Math.sqrt(c0 * c0 + c1 * c1);
       const ca = hh > 0 ? c0 / hh : 1; // straight up or down: azimuth 0, as atan2(0, 0) says
       const sa = hh > 0 ? c1 / hh : 0;
-      out[2 * c] = cx + r * (cF * ca - sign * sF * sa);
-      out[2 * c + 1] = cy + r * (sF * ca + sign * cF * sa);
+      if (sensor) {
+        const [sx, sy] = sensorOffsets(sensor, r * (cF * ca - sign * sF * sa), r * (sF * ca + sign * cF * sa));
+        out[2 * c] = cx + sx;
+        out[2 * c + 1] = cy + sy;
+      } else {
+        out[2 * c] = cx + r * (cF * ca - sign * sF * sa);
+        out[2 * c + 1] = cy + r * (sF * ca + sign * cF * sa);
+      }
     }
   };
 }

@@ -859,7 +859,7 @@ function movedWords(dx: number, dy: number, s: number): string {
   return `moved ${Math.hypot(dx, dy).toFixed(1)} px${where} and is ${size}`;
 }
 
-/** The profile for a ring moved by d and s times larger: elevation(r) -> elevation(r / s). */
+/** The profile for a ring moved by d and s times larger: elevation(r) -> elevation(r / s), a sensor's unit scaled too. */
 export function scaledLens(lens: CatadioptricLens, d: [number, number], s: number): CatadioptricLens {
   const out: CatadioptricLens = {
     ...lens,
@@ -874,6 +874,7 @@ export function scaledLens(lens: CatadioptricLens, d: [number, number], s: numbe
       r_inner: lens.ring.r_inner * s,
       r_outer: lens.ring.r_outer * s,
     };
+  if (lens.sensor) out.sensor = { ...lens.sensor, scale: lens.sensor.scale * s };
   return out;
 }
 
