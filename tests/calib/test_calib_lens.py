@@ -150,6 +150,36 @@ def test_calib_lens_stills(rendered: dict[str, tuple[object, Path]], tmp_path: P
     assert isinstance(prof, Catadioptric) and math.dist(prof.center, LENS_GEOMETRIES["wide1280"].center) <= 0.5
 
 
+def test_calib_lens_with_a_ring_marked_by_hand(rendered: dict[str, tuple[object, Path]], tmp_path: Path) -> None:
+    """--ring: a ring.json typed from the frame (a lens whose edge the finder cannot see: a white
+    wall all round it) is used as it is, and the fit is the same as with the ring found."""
+    cs, video = rendered["donut960"]
+    lens = LENS_GEOMETRIES["donut960"]
+    ring = tmp_path / "ring.json"
+    ring.write_text(json.dumps({"image_size": list(lens.image_size), "center": [487.5, 351.5], "r_outer": 339.0}))
+    out = tmp_path / "lens.json"
+    p = run_cli("calib", "lens", str(video), "--board", SPEC, "-o", str(out), "--ring", str(ring))
+    assert p.returncode == 0, p.stderr
+    assert "r_outer 339.00 px (given: --ring)" in p.stdout
+    prof = load_lens(out)
+    assert isinstance(prof, Catadioptric) and prof.ring == (487.5, 351.5, 0.0, 339.0)
+    assert math.dist(prof.center, lens.center) <= 0.5 and _elevation_error(prof, lens).max() <= 0.3
+    # a ring for other frames, and one out of shape, are refused by name
+    ring.write_text(json.dumps({"image_size": [1280, 960], "center": [640, 480], "r_outer": 400}))
+    assert "the ring is for 1280x960 frames; these are 960x720" in _fails(
+        str(video), "--board", SPEC, "-o", str(out), "--ring", str(ring)
+    )
+    ring.write_text(json.dumps({"image_size": [960, 720], "center": [480, 360], "r_inner": 50, "r_outer": 40}))
+    assert "0 <= r_inner < r_outer" in _fails(str(video), "--board", SPEC, "-o", str(out), "--ring", str(ring))
+
+
+def test_a_lens_with_no_ring_in_sight_is_told_of_ring(tmp_path: Path) -> None:
+    """The finder's refusal names the way round it."""
+    still = tmp_path / "wall.png"
+    cv2.imwrite(str(still), np.full((480, 640, 3), 200, np.uint8))
+    assert "give --ring" in _fails(str(still), "--board", SPEC, "-o", str(tmp_path / "l.json"))
+
+
 # ---- bad input: one line that says what to do -----------------------------------------------------
 def _fails(*args: str) -> str:
     p = run_cli("calib", "lens", *args)

@@ -19,7 +19,7 @@ from typing import Any
 import click
 import numpy as np
 
-from ..errors import OmninavError
+from ..errors import OmninavError, read_json
 from ..lens import Catadioptric, lens_from_dict
 from .cli_ring import max_frames_option
 
@@ -59,11 +59,14 @@ def _spec_hint(frames: Sequence[np.ndarray], spec: Any, ring: Any) -> str | None
     return None
 
 
-def calibrate(frames: Sequence[np.ndarray], spec: Any, holdout: int = 4, outer_down: bool = False) -> LensCalibration:
-    """The whole calibration on decoded frames (BGR uint8, in the protocol's order)."""
+def calibrate(
+    frames: Sequence[np.ndarray], spec: Any, holdout: int = 4, outer_down: bool = False, ring: Any | None = None
+) -> LensCalibration:
+    """The whole calibration on decoded frames (BGR uint8, in the protocol's order). `ring`: the
+    lens ring as given (`--ring`: marked by hand where the finder cannot see it), else found."""
     from .board import detect_board
     from .ocam import fit_ocam, orientation, to_profile
-    from .ring import find_ring
+    from .ring import NoRing, find_ring
 
     if not frames:
         raise OmninavError("no frames to calibrate from")
@@ -73,7 +76,16 @@ def calibrate(frames: Sequence[np.ndarray], spec: Any, holdout: int = 4, outer_d
             f"the frames are {w}x{h} pixels: too small to calibrate a lens on (at least {MIN_SIDE} a side); "
             "film at the resolution the lens will be used at"
         )
-    ring = find_ring(frames)  # also refuses frames of different sizes and frames without a ring
+    if ring is None:
+        try:
+            ring = find_ring(frames)  # also refuses frames of different sizes and frames without a ring
+        except NoRing as e:
+            raise NoRing(
+                f"{e} Where the lens's edge is hard to see (a white wall all round it), mark the ring by hand "
+                "in a ring.json and give --ring (calib/README.md)"
+            ) from e
+    elif ring.image_size != (w, h) or any(f.shape[:2] != (h, w) for f in frames):
+        raise OmninavError(f"the ring is for {ring.image_size[0]}x{ring.image_size[1]} frames; these are {w}x{h}")
     found = [d for i, f in enumerate(frames) if (d := detect_board(f, spec, ring, i)) is not None]
     name = f"{spec.kind} {spec.cols}x{spec.rows}"
     if not found:
@@ -144,7 +156,8 @@ def summary(cal: LensCalibration) -> list[str]:
     held = f"{fit.rms_held:.3f} px ({n_held} frames)" if fit.rms_held is not None else "none held out"
     lines = [
         f"ring         centre {ring.center[0]:.2f}, {ring.center[1]:.2f} px, r_inner {ring.r_inner:.2f}, "
-        f"r_outer {ring.r_outer:.2f} px (in {ring.frames_used} of {ring.frames_total} frames)",
+        f"r_outer {ring.r_outer:.2f} px "
+        + (f"(in {ring.frames_used} of {ring.frames_total} frames)" if ring.frames_total else "(given: --ring)"),
         f"board        found in {len(cal.detections)} of {cal.n_frames} frames: {len(fit.views) - n_held} fitted, "
         f"{n_held} held out",
         f"model        centre {fit.ocam.center[0]:.2f}, {fit.ocam.center[1]:.2f} px; f of degree {fit.degree}; "
@@ -176,8 +189,21 @@ def summary(cal: LensCalibration) -> list[str]:
 @click.option("--report", type=click.Path(path_type=Path), default=None, help="Write a PNG of the fit here.")
 @max_frames_option
 @click.option("--outer-down", is_flag=True, help="The ring's outer edge looks DOWN (rare; default: up).")
+@click.option(
+    "--ring",
+    "ring_path",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Use this ring.json (marked by hand, or from `calib ring`) instead of finding the ring.",
+)
 def lens_cmd(
-    inputs: tuple[Path, ...], board: str, output: Path, report: Path | None, max_frames: int, outer_down: bool
+    inputs: tuple[Path, ...],
+    board: str,
+    output: Path,
+    report: Path | None,
+    max_frames: int,
+    outer_down: bool,
+    ring_path: Path | None,
 ) -> None:
     """Fit a lens profile to a VIDEO (or still IMAGES, in filming order) of a calibration board held
     straight ahead of the phone, then moved to its left and on round the ring (calib/README.md)."""
@@ -190,8 +216,13 @@ def lens_cmd(
             raise OmninavError(f"{p.parent}: folder does not exist")
     if report is not None and report.suffix.lower() != ".png":
         raise OmninavError(f"{report}: the report is a PNG: name it something.png")
+    given = None
+    if ring_path is not None:
+        from .ring import ring_from_dict
+
+        given = ring_from_dict(read_json(ring_path, "ring"), where=str(ring_path))
     frames = read_frames(list(inputs), max_frames)
-    cal = calibrate(frames, spec, outer_down=outer_down)
+    cal = calibrate(frames, spec, outer_down=outer_down, ring=given)
     output.write_text(json.dumps(cal.profile.to_dict(), indent=2) + "\n")
     for line in summary(cal):
         click.echo(line)

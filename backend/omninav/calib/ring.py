@@ -146,7 +146,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..errors import OmninavError, Unusable
+from ..errors import OmninavError, Unusable, finite
 
 # The constants, shared with the phone's port (web/src/worker/ring.ts) through one file:
 # ring_constants.json. What each does is in the docstring above.
@@ -218,6 +218,25 @@ class Ring:
             "housing": round(self.housing, 3),
             "texture_ratio": round(self.texture_ratio, 3),
         }
+
+
+def ring_from_dict(d: Any, where: str = "ring") -> Ring:
+    """A ring.json (as `calib ring -o` writes it, or typed by hand from a frame: `image_size`,
+    `center`, `r_outer`, optionally `r_inner`) -> Ring; every problem names its field."""
+    if not isinstance(d, dict):
+        raise OmninavError(f"{where}: a ring must be a JSON object")
+    size, c = d.get("image_size"), d.get("center")
+    if not isinstance(size, list) or len(size) != 2 or not all(isinstance(v, int) and v > 0 for v in size):
+        raise OmninavError(f"{where}: 'image_size' must be [width, height] in pixels")
+    if not isinstance(c, list) or len(c) != 2:
+        raise OmninavError(f"{where}: 'center' must be [x, y] in pixels")
+    cx, cy = (finite(v, "ring field 'center'", where) for v in c)
+    ri = finite(d.get("r_inner", 0.0), "ring field 'r_inner'", where)
+    ro = finite(d.get("r_outer"), "ring field 'r_outer'", where)
+    if not 0 <= ri < ro:
+        raise OmninavError(f"{where}: a ring needs 0 <= r_inner < r_outer, got {ri}, {ro}")
+    wh = (int(size[0]), int(size[1]))
+    return Ring(wh, (cx, cy), ri, ro, visible_share((cx, cy), ro, wh), frames_used=0, frames_total=0)
 
 
 # ---- small geometry helpers -------------------------------------------------------------------
