@@ -32,8 +32,8 @@ test("the browser extracts the engine's records (relative error <= 1e-3) and its
     }
   }
   // donut-default 3 frames, donut-six 1, donut-wide 1, equirect-default 1, donut-before-bands 1,
-  // donut-tilted 3 (e2e/fixtures.py golden)
-  expect(checked).toBe(10);
+  // donut-tilted 3, donut-sensor 2 (a real mirror's profile) (e2e/fixtures.py golden)
+  expect(checked).toBe(12);
   expect(r.timing.width).toBe(960);
   test.info().annotations.push({
     type: 'extraction',

@@ -16,6 +16,40 @@ import numpy as np
 
 from .errors import OmninavError, finite, read_json
 
+# A real mirror's decentring is a few hundredths; up to this the term folds the plane no nearer the
+# centre than twice `scale` (about 1 / (6 |p|)), outside any ring, so every pixel has one direction
+MAX_DECENTRING = 0.08
+
+
+def undo_decentring(ux: np.ndarray, uy: np.ndarray, p: tuple[float, float], s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The offsets (x, y) whose decentred point (x, y) + s t((x, y) / s) is (ux, uy), by Newton's
+    method on the term's 2x2 Jacobian from (ux, uy) (the term is a few hundredths of the offset on
+    a real mirror: three or four steps reach a millionth of a pixel). NaN where it does not
+    converge: far enough out the quadratic term folds the plane, and no direction is seen there."""
+    p1, p2 = p
+    x = np.asarray(ux, np.float64)
+    y = np.asarray(uy, np.float64)
+    ux, uy = x, y
+    with np.errstate(all="ignore"):
+        for _ in range(10):
+            xn, yn = x / s, y / s
+            q = xn * xn + yn * yn
+            fx = x + s * (2.0 * p1 * xn * yn + p2 * (q + 2.0 * xn * xn)) - ux
+            fy = y + s * (p1 * (q + 2.0 * yn * yn) + 2.0 * p2 * xn * yn) - uy
+            a, b = 1.0 + 2.0 * p1 * yn + 6.0 * p2 * xn, 2.0 * p1 * xn + 2.0 * p2 * yn
+            d = 1.0 + 6.0 * p1 * yn + 2.0 * p2 * xn  # (the Jacobian is symmetric: c = b)
+            det = a * d - b * b
+            x, y = x - (d * fx - b * fy) / det, y - (a * fy - b * fx) / det
+        xn, yn = x / s, y / s
+        q = xn * xn + yn * yn
+        fx = x + s * (2.0 * p1 * xn * yn + p2 * (q + 2.0 * xn * xn)) - ux
+        fy = y + s * (p1 * (q + 2.0 * yn * yn) + 2.0 * p2 * xn * yn) - uy
+        a, b = 1.0 + 2.0 * p1 * yn + 6.0 * p2 * xn, 2.0 * p1 * xn + 2.0 * p2 * yn
+        d = 1.0 + 6.0 * p1 * yn + 2.0 * p2 * xn
+        # converged, and on the sheet that holds the centre (the Jacobian's determinant positive)
+        ok = (np.hypot(fx, fy) <= 1e-6 * s) & (a * d - b * b > 0)
+    return np.where(ok, x, np.nan), np.where(ok, y, np.nan)
+
 
 @dataclass(frozen=True)
 class Sensor:
@@ -27,7 +61,7 @@ class Sensor:
     q = x^2 + y^2, for a mirror whose axis is not the camera's; M a 2x2 matrix for a sensor whose
     pixels are not square or whose axes are skewed (OCamCalib's stretch). `calib lens` fits both
     (calib/ocam.py): on a real catadioptric camera's corners they take the reprojection error
-    from 1.94 to 0.80 px (docs/decisions.md, "Decentring").
+    from 2.0 to 0.80 px (docs/decisions.md, "Decentring").
     """
 
     matrix: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 1.0)  # m00, m01, m10, m11
@@ -48,23 +82,13 @@ class Sensor:
         return m00 * ux + m01 * uy, m10 * ux + m11 * uy
 
     def from_pixel(self, dx: np.ndarray, dy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Offsets of pixels from `center` -> the symmetric offsets they see (to_pixel's inverse:
-        the matrix solved, the decentring undone by fixed-point steps, each shrinking the error by
-        the term's slope, a few hundredths on a real mirror)."""
+        """Offsets of pixels from `center` -> the symmetric offsets they see (to_pixel's inverse):
+        the matrix solved, the decentring undone (undo_decentring); NaN where no offset maps there."""
         m00, m01, m10, m11 = self.matrix
         det = m00 * m11 - m01 * m10
         ux = (m11 * dx - m01 * dy) / det
         uy = (m00 * dy - m10 * dx) / det
-        p1, p2 = self.tangential
-        s = self.scale
-        ox, oy = ux, uy
-        for _ in range(12):
-            xn = ox / s
-            yn = oy / s
-            q = xn * xn + yn * yn
-            ox = ux - s * (2.0 * p1 * xn * yn + p2 * (q + 2.0 * xn * xn))
-            oy = uy - s * (p1 * (q + 2.0 * yn * yn) + 2.0 * p2 * xn * yn)
-        return ox, oy
+        return undo_decentring(ux, uy, self.tangential, self.scale)
 
     def to_dict(self) -> dict[str, Any]:
         m00, m01, m10, m11 = self.matrix
@@ -211,7 +235,7 @@ def _sensor(v: Any, where: str) -> Sensor | None:
         return None
     shape = (
         '{"matrix": [[a, b], [c, d]], "tangential": [p1, p2], "scale": s}'
-        " (a matrix near the identity, |p| <= 0.2, s > 0)"
+        " (a matrix near the identity, |p| <= 0.08, s > 0)"
     )
     m, t = (v.get("matrix"), v.get("tangential")) if isinstance(v, dict) else (None, None)
     rows_ok = isinstance(m, list | tuple) and len(m) == 2
@@ -223,8 +247,8 @@ def _sensor(v: Any, where: str) -> Sensor | None:
     p = tuple(_num(x, "sensor", where) for x in t)
     s = _num(v.get("scale"), "sensor", where)
     det = mat[0] * mat[3] - mat[1] * mat[2]
-    # near the identity and a small decentring: from_pixel's fixed-point steps converge there
-    if not (s > 0 and 0.5 < det < 2.0 and max(abs(mat[1]), abs(mat[2])) < 0.5 and max(map(abs, p)) <= 0.2):
+    # near the identity and a small decentring (a real mirror's is a few hundredths)
+    if not (s > 0 and 0.5 < det < 2.0 and max(abs(mat[1]), abs(mat[2])) < 0.5 and max(map(abs, p)) <= MAX_DECENTRING):
         raise OmninavError(f"{where}: lens field 'sensor' must be {shape}")
     return Sensor((mat[0], mat[1], mat[2], mat[3]), (p[0], p[1]), s)
 

@@ -2,7 +2,8 @@
 
     <data>/venues/<id>/CURRENT          name of the live generation (replaced with os.replace)
     <data>/venues/<id>/gen-000003/      settings.json, lens.json, frames.npy, spectra.npy, videos.json,
-                                        keys.npy[, first.npy, basis.npy] (the index's arrays, index.py)
+                                        keys.npy[, first.npy, basis.npy] (the index's arrays,
+                                        index.py), keys_t.npy (for the release before `first`)
 
 A modelling run writes a complete new generation beside the live one and only then swaps CURRENT,
 so a run that is interrupted (Ctrl-C, crash, power) leaves the venue answering as before.
@@ -27,7 +28,7 @@ from typing import Any, Literal
 import numpy as np
 
 from .errors import Conflict, OmninavError
-from .index import index_arrays
+from .index import first_keys, index_arrays
 from .lens import Lens, lens_from_dict
 from .settings import SearchSettings
 from .settings_upgrade import upgrade
@@ -202,7 +203,11 @@ class Store:
         np.save(tmp / "frames.npy", np.ascontiguousarray(gen.frames))
         np.save(tmp / "spectra.npy", np.ascontiguousarray(gen.spectra))
         if len(gen.frames):
-            for k, a in index_arrays(np.asarray(gen.spectra), key_dims_for(gen.settings, len(gen.frames))).items():
+            arrays = index_arrays(np.asarray(gen.spectra), key_dims_for(gen.settings, len(gen.frames)))
+            # keys_t, the first pass's keys as releases before `first` read them: written for one
+            # release more, so that going back to the last one finds every venue searchable
+            arrays["keys_t"] = np.ascontiguousarray(first_keys(arrays).T)
+            for k, a in arrays.items():
                 np.save(tmp / f"{k}.npy", a)
         (tmp / "settings.json").write_text(json.dumps(gen.settings, indent=1))
         (tmp / "lens.json").write_text(json.dumps(gen.lens.to_dict(), indent=1))

@@ -20,7 +20,7 @@ from scipy.optimize import least_squares  # type: ignore[import-untyped]
 from scipy.spatial.transform import Rotation  # type: ignore[import-untyped]
 
 from omninav.calib.ocam import fit_ocam, to_profile
-from omninav.lens import lens_from_dict
+from omninav.lens import direction_to_pixel, lens_from_dict
 
 DATA = Path(__file__).parents[1] / "data" / "real" / "opencv_omni_calib_data.xml"
 
@@ -121,10 +121,10 @@ def test_a_real_mirrors_decentring_is_fitted_and_held_by_its_profile(real):
     errs = []
     for v, r in zip(sorted(views, key=lambda v: v.frame), fit.views, strict=True):
         rays = v.object_points @ Rotation.from_rotvec(r.rvec).as_matrix().T + r.tvec  # OCamCalib's frame
-        n = np.hypot(rays[:, 0], rays[:, 1])
-        radius = prof.radius(np.rad2deg(np.arctan2(rays[:, 2], n)))
-        # the symmetric image angle: (row, column) = (ray x, ray y)
-        x, y = prof.pixel(radius * rays[:, 1] / n, radius * rays[:, 0] / n)
+        # as lens.json's directions (forward 0, ccw: the image angle atan2(row, column) = -azimuth)
+        az = -np.degrees(np.arctan2(rays[:, 0], rays[:, 1]))
+        el = np.degrees(np.arctan2(rays[:, 2], np.hypot(rays[:, 0], rays[:, 1])))
+        x, y = direction_to_pixel(prof, az, el)
         errs.append(np.stack([x, y], 1) - v.image_points)
     rms = float(np.sqrt(np.mean(np.sum(np.concatenate(errs) ** 2, axis=1))))
     assert rms <= 0.85, rms  # measured 0.80

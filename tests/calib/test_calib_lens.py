@@ -72,6 +72,7 @@ def test_fit_synthetic_correspondences(name: str) -> None:
     assert fit.ccw_fit == lens.ccw  # true labels: the poses' handedness agrees with the protocol
     assert fit.rms_held is not None and fit.rms_held <= 0.5
     assert resid < 0.1 and fit.ocam.anisotropy() < oc.STRETCH_WARN
+    assert fit.ocam.tangential == (0.0, 0.0) and prof.sensor is None  # a symmetric lens's profile as before
     # sign convention: outer edge up, as OCamCalib's a0 < 0 for such a lens
     assert fit.ocam.poly[0] < 0 and prof.elevation_range() == pytest.approx(lens.elevation_range(), abs=0.3)
 
@@ -117,7 +118,7 @@ def test_calib_lens_end_to_end(name: str, rendered: dict[str, tuple[object, Path
     assert p.returncode == 0, p.stderr
     assert "held out" in p.stdout and "per image" in p.stdout and "forward" in p.stdout
     prof = load_lens(out)
-    assert isinstance(prof, Catadioptric) and prof.ring is not None
+    assert isinstance(prof, Catadioptric) and prof.ring is not None and prof.sensor is None
     assert math.dist(prof.center, lens.center) <= 0.5
     assert _elevation_error(prof, lens).max() <= 0.3
     # The renderer holds the board within +-2 deg of straight ahead: forward is where it was held.

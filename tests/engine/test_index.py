@@ -92,6 +92,15 @@ def test_the_scan_falls_back_to_the_full_product_when_its_sample_misleads_it():
     assert np.array_equal(np.sort(idx, axis=1), _exact_top(qk, first, 2_600))
 
 
+def test_the_scan_falls_back_to_the_full_product_when_a_threshold_is_not_positive():
+    """Scores at or below zero (never seen with magnitudes) cannot be scaled by their threshold."""
+    rng = np.random.default_rng(13)
+    first = -rng.uniform(0.1, 1.0, size=(10_000, 8)).astype(np.float32)
+    qk = rng.uniform(0.5, 1.0, size=(3, 8)).astype(np.float32)
+    idx, _ = scan_top(qk, first, 40, np.ascontiguousarray(first[::8]), chunk=4_096)
+    assert np.array_equal(np.sort(idx, axis=1), _exact_top(qk, first, 40))
+
+
 def test_a_generation_written_with_keys_t_searches_as_a_new_one():
     """Generations written before the first pass was frame-major carry (d, N) keys_t and no
     `first`: they answer the same."""

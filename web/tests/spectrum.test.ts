@@ -206,4 +206,45 @@ describe('lens profiles the user loads', async () => {
     expect(lensProblem([1, 2])).toMatch(/image_size/);
     expect(lensProblem(null)).toMatch(/not an object/);
   });
+  it("holds a sensor to lens.py's bounds: near the identity, a small decentring", () => {
+    const donut = {
+      model: 'catadioptric',
+      image_size: [960, 720],
+      center: [487, 352],
+      r_inner: 105,
+      r_outer: 340,
+      elevation_poly: [-90, 0.5],
+    };
+    const sensor = {
+      matrix: [
+        [1, -0.0256],
+        [0.0242, 1.004],
+      ],
+      tangential: [0.0296, -0.0046],
+      scale: 340,
+    };
+    expect(lensProblem({ ...donut, sensor })).toBeNull();
+    expect(lensProblem({ ...donut, sensor: null })).toBeNull(); // as absent, as lens.py reads it
+    for (const bad of [
+      { ...sensor, tangential: [0.1, 0] },
+      {
+        ...sensor,
+        matrix: [
+          [1, 0.9],
+          [0, 1],
+        ],
+      },
+      {
+        ...sensor,
+        matrix: [
+          [0.3, 0],
+          [0, 1],
+        ],
+      },
+      { ...sensor, scale: 0 },
+      { ...sensor, matrix: [1, 0, 0, 1] },
+      'flat',
+    ])
+      expect(lensProblem({ ...donut, sensor: bad }), JSON.stringify(bad)).toMatch(/sensor must be/);
+  });
 });

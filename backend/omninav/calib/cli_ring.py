@@ -169,7 +169,7 @@ def _ring_text(ring: Any) -> str:
     if ring.ellipse_ratio > 1.01:
         lines.append(
             f"ellipse  the outer edge is an ellipse ({ring.ellipse_ratio:.3f}:1): the camera stretches the "
-            "picture, and lens profiles hold circles only"
+            "picture; `calib lens` fits the stretch (the profile's sensor), a ring alone cannot"
         )
     return "\n".join(lines)
 

@@ -4,6 +4,9 @@
 The model (Scaramuzza, Martinelli, Siegwart, "A Toolbox for Easily Calibrating Omnidirectional
 Cameras", IROS 2006; OCamCalib's MATLAB toolbox and its `calib_results.txt`):
 
+- Decentring (not OCamCalib's): a mirror off the camera's axis moves the sensor point by Brown-Conrady's
+  tangential term, ``(u, v) + s t((u, v) / s)`` with coefficients (p1, p2) and s the ring's outer radius,
+  before Eq. 1 (`Ocam.tangential`, `Ocam.unit`; (0, 0) is OCamCalib's model).
 - Eq. 1, sensor to pixel: in OCamCalib's order (row, column), ``p = [[c, d], [e, 1]] (u, v) + (yc, xc)``:
   an affine stretch and the centre. `Ocam.center` is kept as (x, y) = (column, row), as lens.json
   has it; `stretch` is (c, d, e) exactly as OCamCalib writes it (so it acts on (row, column)).
@@ -23,7 +26,9 @@ the cross-product constraint (SVD), r31/r32 from orthonormality, the sign choice
 squares for the polynomial and every view's t3; a coarse-to-fine search of the centre around the
 ring's centre minimising the linear solution's ray error; then Levenberg-Marquardt
 (`scipy.optimize.least_squares`, soft-L1 loss) on the reprojection error over centre, stretch,
-polynomial and poses. Held-out views are then posed with the model fixed and scored.
+polynomial and poses; then the same with the decentring free too, kept where it takes the RMS below
+DECENTRING_GAIN of the first (on a symmetric lens the two extra freedoms only trade against the
+centre). Held-out views are then posed with the model fixed and scored.
 
 Board labels: a chessboard's corners may come labelled from either end (180 degrees) or, seen
 through the donut's mirror, mirror-labelled. Neither changes the fit: every view has its own pose, a
@@ -47,13 +52,13 @@ from scipy.sparse import lil_matrix  # type: ignore[import-untyped]
 from scipy.spatial.transform import Rotation  # type: ignore[import-untyped]
 
 from ..errors import OmninavError
-from ..lens import Catadioptric, Sensor
+from ..lens import Catadioptric, Sensor, undo_decentring
 from .board import RingLike
 
 DEGREES = (4, 5, 6, 7)  # f's degree, chosen per fit: 4 is OCamCalib's default, a ring often needs more
 N_FIXED = 7  # the fit's intrinsics before f: centre (2), stretch (3), decentring (2)
 DECENTRING_GAIN = 0.8  # the mirror's decentring is fitted only where it takes the RMS below this share
-SENSOR_PX = 0.05  # a fitted stretch or decentring that moves no ring pixel this far is left out of lens.json
+SENSOR_PX = 0.25  # px: a stretch or decentring moving no ring pixel this far (a similarity aside) is left out
 STRETCH_WARN = 0.005  # a stretch more anisotropic than 0.5 % is more than a rendered lens ever shows
 
 
@@ -99,11 +104,10 @@ class Ocam:
         """(n, 2) pixels (x, y) -> (n, 2) sensor points (u, v) of Eq. 1 (u along rows)."""
         xy = np.asarray(xy, np.float64).reshape(-1, 2)
         rc = np.stack([xy[:, 1] - self.center[1], xy[:, 0] - self.center[0]], -1)
-        d: np.ndarray = np.linalg.solve(self._a(), rc.T).T
-        out = d
-        if self.tangential != (0.0, 0.0):  # undone by fixed-point steps (the term is small)
-            for _ in range(12):
-                out = d - self._tangential(out)
+        out: np.ndarray = np.linalg.solve(self._a(), rc.T).T
+        if self.tangential != (0.0, 0.0):
+            u, v = undo_decentring(out[:, 0], out[:, 1], self.tangential, self.unit)
+            out = np.stack([u, v], -1)
         return out
 
     def pixel(self, uv: np.ndarray) -> np.ndarray:
@@ -143,7 +147,8 @@ class Ocam:
 
     def anisotropy(self) -> float:
         """How far the stretch is from a similarity (rotation + scale): sigma_max / sigma_min - 1.
-        A similarity is absorbed by the polynomial and the poses; anything else lens.json cannot hold."""
+        A similarity is absorbed by the polynomial and the poses; the rest lens.json holds in its
+        `sensor` (profile_sensor)."""
         s = np.linalg.svd(self._a(), compute_uv=False)
         return float(s[0] / s[1] - 1.0)
 
@@ -632,7 +637,8 @@ def to_profile(
 ) -> tuple[Catadioptric, float]:
     """The lens.json profile of a fitted model: centre = the optical centre, r_inner/r_outer = the
     ring's measured edges (and `ring` = the measured ring), elevation = a `degree` polynomial of the
-    pixel radius fitted to atan2(f(rho), rho) in every direction.
+    radius fitted to atan2(f(rho), rho): the sensor radius rho where the profile has a `sensor`
+    (profile_sensor: the stretch and decentring it holds), else the pixel radius in every direction.
 
     `support` (px): the radii the board's corners covered (`OcamFit.support`). The polynomial is
     fitted there only and carried on to the ring's edges: a whole board never reaches an edge, and
@@ -640,7 +646,8 @@ def to_profile(
     smooth low-degree profile does not.
 
     Returns (profile, elevation residual deg: the largest difference between the profile and the
-    model over the supported radii, stretch included). Refuses a non-monotonic elevation."""
+    model over the supported radii; without a sensor the stretch's share included, with one the
+    polynomial's only). Refuses a non-monotonic elevation."""
     r_in, r_out = float(ring.r_inner), float(ring.r_outer)
     lo, hi = (max(r_in, support[0]), min(r_out, support[1])) if support else (r_in, r_out)
     if hi - lo < 0.25 * (r_out - r_in):
@@ -682,7 +689,9 @@ def profile_sensor(ocam: Ocam, r_outer: float) -> Sensor | None:
     """lens.json's `sensor` of a fitted model (lens.Sensor, in (x, y) = (column, row) order): the
     stretch [[c, d], [e, 1]] on (row, column) is [[1, e], [d, c]] on (x, y), the decentring's
     (p1, p2) on (u, v) = (row, column) is (p2, p1) on (x, y). None where neither moves a pixel of
-    the ring by SENSOR_PX (a lens with no stretch or decentring to speak of: rendered ones)."""
+    the ring by SENSOR_PX beyond what a similarity does (a rotation and a scale, which forward_deg
+    and the polynomial of the pixel radius absorb): a lens with no stretch or decentring to speak
+    of, as every rendered one, keeps a profile of circles."""
     c, d, e = ocam.stretch
     p1, p2 = ocam.tangential
     sensor = Sensor((1.0, e, d, c), (p2, p1), ocam.unit)
@@ -690,7 +699,10 @@ def profile_sensor(ocam: Ocam, r_outer: float) -> Sensor | None:
     r = np.concatenate([np.full(72, 0.5 * r_outer), np.full(72, r_outer)])
     ox, oy = r * np.cos(np.tile(phi, 2)), r * np.sin(np.tile(phi, 2))
     sx, sy = sensor.to_pixel(ox, oy)
-    return None if float(np.max(np.hypot(sx - ox, sy - oy))) < SENSOR_PX else sensor
+    m00, m01, m10, m11 = sensor.matrix
+    a, b = 0.5 * (m00 + m11), 0.5 * (m10 - m01)  # the matrix's nearest similarity [[a, -b], [b, a]]
+    moved = np.hypot(sx - (a * ox - b * oy), sy - (b * ox + a * oy))
+    return None if float(np.max(moved)) < SENSOR_PX else sensor
 
 
 # ---- forward and sense of rotation from the protocol ------------------------------------------

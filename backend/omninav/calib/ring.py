@@ -226,7 +226,7 @@ def ring_from_dict(d: Any, where: str = "ring") -> Ring:
     if not isinstance(d, dict):
         raise OmninavError(f"{where}: a ring must be a JSON object")
     size, c = d.get("image_size"), d.get("center")
-    if not isinstance(size, list) or len(size) != 2 or not all(isinstance(v, int) and v > 0 for v in size):
+    if not isinstance(size, list) or len(size) != 2 or not all(type(v) is int and v > 0 for v in size):
         raise OmninavError(f"{where}: 'image_size' must be [width, height] in pixels")
     if not isinstance(c, list) or len(c) != 2:
         raise OmninavError(f"{where}: 'center' must be [x, y] in pixels")

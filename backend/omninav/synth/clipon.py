@@ -52,6 +52,7 @@ def resized(lens: Catadioptric, scale: float) -> Catadioptric:
         r_inner=lens.r_inner * scale,
         r_outer=lens.r_outer * scale,
         elevation_poly=tuple(c / scale**k for k, c in enumerate(lens.elevation_poly)),
+        sensor=None if lens.sensor is None else dataclasses.replace(lens.sensor, scale=lens.sensor.scale * scale),
     )
 
 

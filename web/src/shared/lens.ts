@@ -95,6 +95,13 @@ export function radiusTable(lens: CatadioptricLens): (elevDeg: number) => number
  * Sensor.to_pixel, the same operations in the same order (the panoramas match to the byte).
  */
 export function sensorOffsets(sensor: LensSensor, ox: number, oy: number): [number, number] {
+  const out = [0, 0];
+  sensorInto(sensor, ox, oy, out, 0);
+  return [out[0], out[1]];
+}
+
+/** sensorOffsets into out[at], out[at + 1], allocating nothing (levelling's turned maps). */
+export function sensorInto(sensor: LensSensor, ox: number, oy: number, out: { [i: number]: number }, at: number): void {
   const [[m00, m01], [m10, m11]] = sensor.matrix;
   const [p1, p2] = sensor.tangential;
   const s = sensor.scale;
@@ -103,7 +110,8 @@ export function sensorOffsets(sensor: LensSensor, ox: number, oy: number): [numb
   const q = xn * xn + yn * yn;
   const ux = ox + s * (2.0 * p1 * xn * yn + p2 * (q + 2.0 * xn * xn));
   const uy = oy + s * (p1 * (q + 2.0 * yn * yn) + 2.0 * p2 * xn * yn);
-  return [m00 * ux + m01 * uy, m10 * ux + m11 * uy];
+  out[at] = m00 * ux + m01 * uy;
+  out[at + 1] = m10 * ux + m11 * uy;
 }
 
 /** The pixel (x, y) of a donut lens that sees the symmetric offset (ox, oy) from its centre. */
@@ -164,11 +172,11 @@ export function lensProblem(lens: unknown): string | null {
         (r.r_inner as number) < (r.r_outer as number);
       if (!ok) return 'its ring must be {"center": [x, y], "r_inner": r, "r_outer": R} with 0 <= r < R';
     }
-    if (l.sensor !== undefined) {
-      const v = l.sensor as Record<string, unknown> | null;
-      const m = v?.matrix;
-      const ok =
-        v !== null &&
+    if (l.sensor !== undefined && l.sensor !== null) {
+      // lens.py's _sensor: a matrix near the identity, a small decentring
+      const v = l.sensor as Record<string, unknown>;
+      const m = v.matrix as unknown[][];
+      const shaped =
         typeof v === 'object' &&
         Array.isArray(m) &&
         m.length === 2 &&
@@ -176,9 +184,24 @@ export function lensProblem(lens: unknown): string | null {
         Array.isArray(v.tangential) &&
         v.tangential.length === 2 &&
         v.tangential.every(num) &&
-        num(v.scale) &&
-        (v.scale as number) > 0;
-      if (!ok) return 'its sensor must be {"matrix": [[a, b], [c, d]], "tangential": [p1, p2], "scale": s}';
+        num(v.scale);
+      const [[a, b], [c, d]] = shaped
+        ? (m as number[][])
+        : [
+            [1, 0],
+            [0, 1],
+          ];
+      const p = shaped ? (v.tangential as number[]) : [0, 0];
+      const det = a * d - b * c;
+      const ok =
+        shaped &&
+        (v.scale as number) > 0 &&
+        det > 0.5 &&
+        det < 2 &&
+        Math.max(Math.abs(b), Math.abs(c)) < 0.5 &&
+        Math.max(Math.abs(p[0]), Math.abs(p[1])) <= 0.08;
+      if (!ok)
+        return 'its sensor must be {"matrix": [[a, b], [c, d]], "tangential": [p1, p2], "scale": s} (near the identity, |p| <= 0.08)';
     }
     return null;
   }

@@ -5,7 +5,7 @@
  * depends on the phone, the clip-on and the browser; the picture's door frames and corners say
  * the tilt by themselves.
  */
-import { directionToPixel, elevationSamples, sensorOffsets, type CatadioptricLens, type Lens } from '../shared/lens';
+import { directionToPixel, elevationSamples, sensorInto, type CatadioptricLens, type Lens } from '../shared/lens';
 import type { UnwarpMap } from './unwarp';
 
 /** The strongest tenth of the horizontal gradients are the edges whose lean counts. */
@@ -352,9 +352,9 @@ function rowTurn(t: Tilter, rot: number[]): RowTurn {
       const ca = hh > 0 ? c0 / hh : 1; // straight up or down: azimuth 0, as atan2(0, 0) says
       const sa = hh > 0 ? c1 / hh : 0;
       if (sensor) {
-        const [sx, sy] = sensorOffsets(sensor, r * (cF * ca - sign * sF * sa), r * (sF * ca + sign * cF * sa));
-        out[2 * c] = cx + sx;
-        out[2 * c + 1] = cy + sy;
+        sensorInto(sensor, r * (cF * ca - sign * sF * sa), r * (sF * ca + sign * cF * sa), out, 2 * c);
+        out[2 * c] += cx;
+        out[2 * c + 1] += cy;
       } else {
         out[2 * c] = cx + r * (cF * ca - sign * sF * sa);
         out[2 * c + 1] = cy + r * (sF * ca + sign * cF * sa);
