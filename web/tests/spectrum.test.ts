@@ -189,15 +189,15 @@ describe('numpy helpers the unwarp tables need', () => {
 
 describe('lens profiles the user loads', async () => {
   const { lensProblem } = await import('../src/shared/lens');
+  const donut = {
+    model: 'catadioptric',
+    image_size: [960, 720],
+    center: [487, 352],
+    r_inner: 105,
+    r_outer: 340,
+    elevation_poly: [-90, 0.5],
+  };
   it('accepts both models and names what is wrong', () => {
-    const donut = {
-      model: 'catadioptric',
-      image_size: [960, 720],
-      center: [487, 352],
-      r_inner: 105,
-      r_outer: 340,
-      elevation_poly: [-90, 0.5],
-    };
     expect(lensProblem(donut)).toBeNull();
     expect(lensProblem({ model: 'equirectangular', image_size: [1920, 960], forward_x: 960 })).toBeNull();
     expect(lensProblem({ ...donut, r_inner: 400 })).toMatch(/r_inner < r_outer/);
@@ -207,14 +207,6 @@ describe('lens profiles the user loads', async () => {
     expect(lensProblem(null)).toMatch(/not an object/);
   });
   it("holds a sensor to lens.py's bounds: near the identity, a small decentring", () => {
-    const donut = {
-      model: 'catadioptric',
-      image_size: [960, 720],
-      center: [487, 352],
-      r_inner: 105,
-      r_outer: 340,
-      elevation_poly: [-90, 0.5],
-    };
     const sensor = {
       matrix: [
         [1, -0.0256],
