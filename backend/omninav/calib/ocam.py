@@ -806,8 +806,11 @@ def synthetic_views(
     noise_px: float = 0.3,
     seed: int = 0,
     dist: tuple[float, float] = (1.0, 2.0),
+    project: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> list[SyntheticView]:
-    """Board views following the protocol, projected through `lens` (lens.direction_to_pixel): two
+    """Board views following the protocol, projected through `lens` (lens.direction_to_pixel; or
+    `project`, (azimuth, elevation) -> pixels, NaN where unseen: another camera model over the
+    lens's elevations, as tests/calib/test_calib_mirrors.py's mirrors): two
     views straight ahead, then moving to the LEFT (azimuth decreasing), then on round the ring at
     varied elevations, distances (`dist`, in board widths) and tilts, the printed face always
     towards the lens. Only views with every corner inside the ring are kept (a chessboard is found
@@ -840,7 +843,7 @@ def synthetic_views(
         basis = np.column_stack([xb, yb, zb]) @ Rotation.from_rotvec(tilt).as_matrix()
         p = d * zb + centred @ basis.T
         az, el = lens_direction(p)
-        x, y = direction_to_pixel(lens, az, el)
+        x, y = direction_to_pixel(lens, az, el) if project is None else project(az, el)
         truth = np.stack([x, y], -1)
         if not np.isfinite(truth).all():
             continue
