@@ -26,7 +26,7 @@ const SIX = {
   gray_world: true,
   n_harmonics: 16,
 };
-import { linspace, interp, polyval } from '../src/shared/lens';
+import { linspace, interp, polyval, type CatadioptricLens } from '../src/shared/lens';
 import { APP_OUTDATED, RecordMismatch } from '../src/client/problems';
 
 describe('float16 as numpy rounds it', () => {
@@ -238,5 +238,39 @@ describe('lens profiles the user loads', async () => {
       'flat',
     ])
       expect(lensProblem({ ...donut, sensor: bad }), JSON.stringify(bad)).toMatch(/sensor must be/);
+  });
+});
+
+describe("the admin page's drawing of a real mirror's profile", async () => {
+  const { sensorOutline } = await import('../src/admin/lens-view');
+  const { directionToPixel, radiusTable } = await import('../src/shared/lens');
+  const donut: CatadioptricLens = {
+    model: 'catadioptric',
+    image_size: [960, 720],
+    center: [487, 352],
+    r_inner: 105,
+    r_outer: 340,
+    elevation_poly: [-90, 0.5],
+    forward_deg: 90,
+  };
+  it('draws a profile without a sensor as circles, one with a sensor where the unwarp reads', () => {
+    expect(sensorOutline(donut, 340)).toBeNull();
+    const sensor = {
+      matrix: [
+        [1, -0.0256],
+        [0.0242, 1.004],
+      ],
+      tangential: [0.0296, -0.0046],
+      scale: 340,
+    } as const;
+    const real: CatadioptricLens = { ...donut, sensor: structuredClone(sensor) as CatadioptricLens['sensor'] };
+    const o = sensorOutline(real, 340, 8)!;
+    expect(o.points).toHaveLength(8);
+    // the forward point is the pixel the profile reads for straight ahead at the outer edge
+    const el = polyval(340, donut.elevation_poly);
+    const [fx, fy] = directionToPixel(real, radiusTable(real), 0, el);
+    expect(Math.hypot(o.forward[0] - fx, o.forward[1] - fy)).toBeLessThan(1e-6);
+    // and it is pixels away from the circle's (a real mirror's departure, not rounding)
+    expect(Math.hypot(o.forward[0] - 487, o.forward[1] - (352 + 340))).toBeGreaterThan(3);
   });
 });

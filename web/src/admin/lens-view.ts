@@ -3,8 +3,8 @@
  * as table rows: the ring's two circles and the forward direction of a donut lens, or the forward
  * column and the horizon of a 360 camera's frame, so that a wrong profile shows at a glance.
  */
-import type { Lens } from '../shared/lens';
-import { polyval } from '../shared/lens';
+import type { CatadioptricLens, Lens } from '../shared/lens';
+import { donutPixel, polyval } from '../shared/lens';
 
 const SVG = 'http://www.w3.org/2000/svg';
 
@@ -21,6 +21,26 @@ export function forwardPoint(center: readonly [number, number], forwardDeg: numb
 }
 
 /**
+ * Where a donut profile with a `sensor` (a real mirror's stretch and decentring) sees the circle
+ * of radius r and its forward point: the circle's `n` points and the forward one, through the
+ * sensor (lens.ts donutPixel), as the unwarp reads them. Without a sensor: null (a circle).
+ */
+export function sensorOutline(
+  lens: CatadioptricLens,
+  r: number,
+  n = 120,
+): { points: [number, number][]; forward: [number, number] } | null {
+  if (!lens.sensor) return null;
+  const points: [number, number][] = [];
+  for (let k = 0; k < n; k++) {
+    const t = (2 * Math.PI * k) / n;
+    points.push(donutPixel(lens, r * Math.cos(t), r * Math.sin(t)));
+  }
+  const a = ((lens.forward_deg ?? 0) * Math.PI) / 180;
+  return { points, forward: donutPixel(lens, r * Math.cos(a), r * Math.sin(a)) };
+}
+
+/**
  * The overlay for `lens` on a frame of `size` ([w, h] pixels, the video's; the lens's image_size
  * when unknown). Drawn in the frame's pixels (viewBox), so it scales with the image.
  */
@@ -33,10 +53,12 @@ export function lensOverlay(lens: Lens, size: readonly [number, number]): SVGSVG
   }) as SVGSVGElement;
   svg.classList.add('lens-overlay');
   const stroke = Math.max(2, Math.round(w / 240));
+  const shape = (attrs: Record<string, string | number>) =>
+    attrs.r !== undefined ? 'circle' : attrs.points !== undefined ? 'polygon' : 'line';
   const line = (attrs: Record<string, string | number>, colour: string, dash = '') => {
     // a dark halo under each line keeps it visible on light and dark frames
     svg.append(
-      svgEl(attrs.r !== undefined ? 'circle' : 'line', {
+      svgEl(shape(attrs), {
         ...attrs,
         class: 'halo',
         fill: 'none',
@@ -45,7 +67,7 @@ export function lensOverlay(lens: Lens, size: readonly [number, number]): SVGSVG
       }),
     );
     svg.append(
-      svgEl(attrs.r !== undefined ? 'circle' : 'line', {
+      svgEl(shape(attrs), {
         ...attrs,
         fill: 'none',
         stroke: colour,
@@ -56,9 +78,14 @@ export function lensOverlay(lens: Lens, size: readonly [number, number]): SVGSVG
   };
   if (lens.model === 'catadioptric') {
     const [cx, cy] = lens.center;
-    line({ cx, cy, r: lens.r_inner, class: 'ring-inner' }, '#00e5ff', `${stroke * 3} ${stroke * 2}`);
-    line({ cx, cy, r: lens.r_outer, class: 'ring-outer' }, '#ffd400');
-    const [fx, fy] = forwardPoint(lens.center, lens.forward_deg ?? 0, lens.r_outer);
+    // a real mirror's profile (a sensor): its ring as the unwarp reads it, not a circle
+    const inner = sensorOutline(lens, lens.r_inner);
+    const outer = sensorOutline(lens, lens.r_outer);
+    const ring = (o: ReturnType<typeof sensorOutline>, r: number, cls: string): Record<string, string | number> =>
+      o ? { points: o.points.map((p) => p.join(',')).join(' '), class: cls } : { cx, cy, r, class: cls };
+    line(ring(inner, lens.r_inner, 'ring-inner'), '#00e5ff', `${stroke * 3} ${stroke * 2}`);
+    line(ring(outer, lens.r_outer, 'ring-outer'), '#ffd400');
+    const [fx, fy] = outer ? outer.forward : forwardPoint(lens.center, lens.forward_deg ?? 0, lens.r_outer);
     line({ x1: cx, y1: cy, x2: fx, y2: fy, class: 'forward' }, '#ff3030');
     // the arrowhead at the ring
     const a = ((lens.forward_deg ?? 0) * Math.PI) / 180;
