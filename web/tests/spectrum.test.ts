@@ -187,16 +187,27 @@ describe('numpy helpers the unwarp tables need', () => {
   });
 });
 
+// a donut profile, and a real mirror's sensor (`calib lens` on OpenCV's real catadioptric corners)
+const DONUT: CatadioptricLens = {
+  model: 'catadioptric',
+  image_size: [960, 720],
+  center: [487, 352],
+  r_inner: 105,
+  r_outer: 340,
+  elevation_poly: [-90, 0.5],
+};
+const SENSOR: NonNullable<CatadioptricLens['sensor']> = {
+  matrix: [
+    [1, -0.0256],
+    [0.0242, 1.004],
+  ],
+  tangential: [0.0296, -0.0046],
+  scale: 340,
+};
+
 describe('lens profiles the user loads', async () => {
   const { lensProblem } = await import('../src/shared/lens');
-  const donut = {
-    model: 'catadioptric',
-    image_size: [960, 720],
-    center: [487, 352],
-    r_inner: 105,
-    r_outer: 340,
-    elevation_poly: [-90, 0.5],
-  };
+  const donut = DONUT;
   it('accepts both models and names what is wrong', () => {
     expect(lensProblem(donut)).toBeNull();
     expect(lensProblem({ model: 'equirectangular', image_size: [1920, 960], forward_x: 960 })).toBeNull();
@@ -207,14 +218,7 @@ describe('lens profiles the user loads', async () => {
     expect(lensProblem(null)).toMatch(/not an object/);
   });
   it("holds a sensor to lens.py's bounds: near the identity, a small decentring", () => {
-    const sensor = {
-      matrix: [
-        [1, -0.0256],
-        [0.0242, 1.004],
-      ],
-      tangential: [0.0296, -0.0046],
-      scale: 340,
-    };
+    const sensor = SENSOR;
     expect(lensProblem({ ...donut, sensor })).toBeNull();
     expect(lensProblem({ ...donut, sensor: null })).toBeNull(); // as absent, as lens.py reads it
     for (const bad of [
@@ -244,26 +248,10 @@ describe('lens profiles the user loads', async () => {
 describe("the admin page's drawing of a real mirror's profile", async () => {
   const { sensorOutline } = await import('../src/admin/lens-view');
   const { directionToPixel, radiusTable } = await import('../src/shared/lens');
-  const donut: CatadioptricLens = {
-    model: 'catadioptric',
-    image_size: [960, 720],
-    center: [487, 352],
-    r_inner: 105,
-    r_outer: 340,
-    elevation_poly: [-90, 0.5],
-    forward_deg: 90,
-  };
+  const donut: CatadioptricLens = { ...DONUT, forward_deg: 90 };
   it('draws a profile without a sensor as circles, one with a sensor where the unwarp reads', () => {
     expect(sensorOutline(donut, 340)).toBeNull();
-    const sensor = {
-      matrix: [
-        [1, -0.0256],
-        [0.0242, 1.004],
-      ],
-      tangential: [0.0296, -0.0046],
-      scale: 340,
-    } as const;
-    const real: CatadioptricLens = { ...donut, sensor: structuredClone(sensor) as CatadioptricLens['sensor'] };
+    const real: CatadioptricLens = { ...donut, sensor: SENSOR };
     const o = sensorOutline(real, 340, 8)!;
     expect(o.points).toHaveLength(8);
     // the forward point is the pixel the profile reads for straight ahead at the outer edge
