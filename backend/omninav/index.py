@@ -148,6 +148,12 @@ def select(
     return xp.take_along_axis(cand, part, axis=1), val
 
 
+def first_scores(qk: Any, first: Any) -> Any:
+    """(Q, d) query keys, (N, d) venue keys -> (Q, N) inner products, C-ordered: the venue's keys as
+    the first factor of the product (scan_top says why)."""
+    return namespace_of(first).ascontiguousarray((first @ qk.T).T)
+
+
 def scan_top(qk: Any, first: Any, k: int, sample: Any | None = None, chunk: int | None = None) -> tuple[Any, Any]:
     """(Q, d) query keys, (N, d) venue keys -> each query's k best venue frames by inner product
     and their scores ((Q, k), in any order): stage 1's first pass, top_k(qk @ first.T, k) fused.
@@ -167,7 +173,7 @@ def scan_top(qk: Any, first: Any, k: int, sample: Any | None = None, chunk: int 
     q, n = qk.shape[0], first.shape[0]
     k = min(k, n)
     if sample is None:
-        return top_k(xp.ascontiguousarray((first @ qk.T).T), k, ordered=False)
+        return top_k(first_scores(qk, first), k, ordered=False)
     thr = sample_threshold((sample @ qk.T).T, k, n)
     if not bool((thr > 0).all()):  # (inner products of magnitudes: never seen)
         return scan_top(qk, first, k)
@@ -276,7 +282,7 @@ class Index:
         if exclude is None:
             short, first_v = scan_top(first_q, self.first, s, self.sample, self.chunk)
         else:
-            short, first_v = top_k(self._masked(first_q @ self.first.T, exclude), s, ordered=False)
+            short, first_v = top_k(self._masked(first_scores(first_q, self.first), exclude), s, ordered=False)
         if self.basis is None:
             return _best_first(short, first_v)
         # the exact scores of the shortlists: every frame's against the clip's union of them in one

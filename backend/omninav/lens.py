@@ -21,33 +21,43 @@ from .errors import OmninavError, finite, read_json
 MAX_DECENTRING = 0.08
 
 
+def decentring(x: np.ndarray, y: np.ndarray, p: tuple[float, float], s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Brown-Conrady's tangential term t((x, y) / s) of offsets (x, y) px, in units of s: the
+    point is seen at (x, y) + s t. One formula for lens.json's Sensor and calib's Ocam (and the
+    phone's lens.ts `sensorInto`, in the same order)."""
+    p1, p2 = p
+    xn = x / s
+    yn = y / s
+    q = xn * xn + yn * yn
+    return 2.0 * p1 * xn * yn + p2 * (q + 2.0 * xn * xn), p1 * (q + 2.0 * yn * yn) + 2.0 * p2 * xn * yn
+
+
 def undo_decentring(ux: np.ndarray, uy: np.ndarray, p: tuple[float, float], s: float) -> tuple[np.ndarray, np.ndarray]:
     """The offsets (x, y) whose decentred point (x, y) + s t((x, y) / s) is (ux, uy), by Newton's
     method on the term's 2x2 Jacobian from (ux, uy) (the term is a few hundredths of the offset on
     a real mirror: three or four steps reach a millionth of a pixel). NaN where it does not
     converge: far enough out the quadratic term folds the plane, and no direction is seen there."""
     p1, p2 = p
-    x = np.asarray(ux, np.float64)
-    y = np.asarray(uy, np.float64)
-    ux, uy = x, y
+    ux = np.asarray(ux, np.float64)
+    uy = np.asarray(uy, np.float64)
+    x, y = ux, uy
     with np.errstate(all="ignore"):
-        for _ in range(10):
+        for step in range(11):
+            tx, ty = decentring(x, y, p, s)
+            fx, fy = x + s * tx - ux, y + s * ty - uy
             xn, yn = x / s, y / s
-            q = xn * xn + yn * yn
-            fx = x + s * (2.0 * p1 * xn * yn + p2 * (q + 2.0 * xn * xn)) - ux
-            fy = y + s * (p1 * (q + 2.0 * yn * yn) + 2.0 * p2 * xn * yn) - uy
-            a, b = 1.0 + 2.0 * p1 * yn + 6.0 * p2 * xn, 2.0 * p1 * xn + 2.0 * p2 * yn
-            d = 1.0 + 6.0 * p1 * yn + 2.0 * p2 * xn  # (the Jacobian is symmetric: c = b)
+            # the Jacobian [[a, b], [b, d]] (symmetric)
+            a, b, d = (
+                1.0 + 2.0 * p1 * yn + 6.0 * p2 * xn,
+                2.0 * p1 * xn + 2.0 * p2 * yn,
+                1.0 + 6.0 * p1 * yn + 2.0 * p2 * xn,
+            )
             det = a * d - b * b
+            if step == 10:
+                break
             x, y = x - (d * fx - b * fy) / det, y - (a * fy - b * fx) / det
-        xn, yn = x / s, y / s
-        q = xn * xn + yn * yn
-        fx = x + s * (2.0 * p1 * xn * yn + p2 * (q + 2.0 * xn * xn)) - ux
-        fy = y + s * (p1 * (q + 2.0 * yn * yn) + 2.0 * p2 * xn * yn) - uy
-        a, b = 1.0 + 2.0 * p1 * yn + 6.0 * p2 * xn, 2.0 * p1 * xn + 2.0 * p2 * yn
-        d = 1.0 + 6.0 * p1 * yn + 2.0 * p2 * xn
         # converged, and on the sheet that holds the centre (the Jacobian's determinant positive)
-        ok = (np.hypot(fx, fy) <= 1e-6 * s) & (a * d - b * b > 0)
+        ok = (np.hypot(fx, fy) <= 1e-6 * s) & (det > 0)
     return np.where(ok, x, np.nan), np.where(ok, y, np.nan)
 
 
@@ -72,13 +82,9 @@ class Sensor:
         """Symmetric offsets (px) -> the offsets from `center` of the pixels that see them
         (the phone's lens.ts `sensorOffsets` does the same operations in the same order)."""
         m00, m01, m10, m11 = self.matrix
-        p1, p2 = self.tangential
-        s = self.scale
-        xn = ox / s
-        yn = oy / s
-        q = xn * xn + yn * yn
-        ux = ox + s * (2.0 * p1 * xn * yn + p2 * (q + 2.0 * xn * xn))
-        uy = oy + s * (p1 * (q + 2.0 * yn * yn) + 2.0 * p2 * xn * yn)
+        tx, ty = decentring(ox, oy, self.tangential, self.scale)
+        ux = ox + self.scale * tx
+        uy = oy + self.scale * ty
         return m00 * ux + m01 * uy, m10 * ux + m11 * uy
 
     def from_pixel(self, dx: np.ndarray, dy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

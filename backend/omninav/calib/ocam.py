@@ -52,7 +52,7 @@ from scipy.sparse import lil_matrix  # type: ignore[import-untyped]
 from scipy.spatial.transform import Rotation  # type: ignore[import-untyped]
 
 from ..errors import OmninavError
-from ..lens import Catadioptric, Sensor, undo_decentring
+from ..lens import Catadioptric, Sensor, decentring, undo_decentring
 from .board import RingLike
 
 DEGREES = (4, 5, 6, 7)  # f's degree, chosen per fit: 4 is OCamCalib's default, a ring often needs more
@@ -89,12 +89,8 @@ class Ocam:
     unit: float = 1.0
 
     def _tangential(self, uv: np.ndarray) -> np.ndarray:
-        """(n, 2) sensor points -> their decentring offsets (n, 2)."""
-        p1, p2 = self.tangential
-        s = self.unit
-        x, y = uv[:, 0] / s, uv[:, 1] / s
-        q = x * x + y * y
-        return s * np.stack([2.0 * p1 * x * y + p2 * (q + 2.0 * x * x), p1 * (q + 2.0 * y * y) + 2.0 * p2 * x * y], -1)
+        """(n, 2) sensor points -> their decentring offsets (n, 2) (lens.decentring)."""
+        return self.unit * np.stack(decentring(uv[:, 0], uv[:, 1], self.tangential, self.unit), -1)
 
     def _a(self) -> np.ndarray:
         c, d, e = self.stretch
@@ -495,10 +491,17 @@ def _fit_ocam(
     # OCamCalib's model first (the decentring held at 0), then with the decentring free; the second
     # is kept only where it explains the corners clearly better (DECENTRING_GAIN): on a symmetric
     # lens its two extra freedoms would only trade against the centre
+    # Each view's residuals depend on the intrinsics and its own pose only: a sparse Jacobian, so
+    # finite differences cost n_intrinsics + 6 evaluations, not 6 per view.
+    sparsity = lil_matrix((2 * len(obs), len(x0)), dtype=int)
+    sparsity[:, :n_in] = 1
+    for j in range(len(fit_v)):
+        rows = np.flatnonzero(np.repeat(idx == j, 2))
+        sparsity[rows[:, None], n_in + 6 * j + np.arange(6)[None, :]] = 1
     free = np.ones(len(x0), bool)
     free[5:7] = False
-    sol = _lm(resid, x0, free, n_in, idx, len(fit_v))
-    dec = _lm(resid, sol.x, np.ones(len(x0), bool), n_in, idx, len(fit_v))
+    sol = _lm(resid, x0, free, sparsity)
+    dec = _lm(resid, sol.x, np.ones(len(x0), bool), sparsity)
     if _rms(dec.fun.reshape(-1, 2)) < DECENTRING_GAIN * _rms(sol.fun.reshape(-1, 2)):
         sol = dec
     ocam = _model(sol.x, powers, scale, image_size, nodes)
@@ -542,12 +545,9 @@ def _fit_ocam(
     )
 
 
-def _lm(
-    resid: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, free: np.ndarray, n_in: int, idx: np.ndarray, views: int
-) -> Any:
-    """least_squares on the parameters where `free` (the others held at x0's values), the
-    reprojection residuals' sparse Jacobian given: each view's depend on the intrinsics and its
-    own pose only, so finite differences cost n_intrinsics + 6 evaluations, not 6 per view."""
+def _lm(resid: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, free: np.ndarray, sparsity: Any) -> Any:
+    """least_squares on the parameters where `free` (the others held at x0's values), given the
+    residuals' Jacobian sparsity over all of them -> its result, `x` the whole parameter vector."""
     at = np.flatnonzero(free)
 
     def sub(y: np.ndarray) -> np.ndarray:
@@ -555,11 +555,6 @@ def _lm(
         x[at] = y
         return resid(x)
 
-    sparsity = lil_matrix((2 * len(idx), len(x0)), dtype=int)
-    sparsity[:, :n_in] = 1
-    for j in range(views):
-        rows = np.flatnonzero(np.repeat(idx == j, 2))
-        sparsity[rows[:, None], n_in + 6 * j + np.arange(6)[None, :]] = 1
     sol = least_squares(
         sub, x0[at], jac_sparsity=sparsity[:, at], loss="soft_l1", f_scale=1.0, x_scale="jac", max_nfev=200
     )
