@@ -164,7 +164,15 @@ def ring_golden(out: Path, rendered: list[np.ndarray] | None = None) -> None:
     few seconds) wear a real lens's surround; the golden donut frames above are bare renders."""
     from omninav.calib.lens_fit import fit_lens
     from omninav.calib.ring import find_ring_frame
-    from omninav.synth.clipon import Surround, covered_lens, plain_photo, reclip, ring_frames, wide_lens
+    from omninav.synth.clipon import (
+        Surround,
+        covered_lens,
+        plain_photo,
+        reclip,
+        ring_frames,
+        small_centre_frames,
+        wide_lens,
+    )
 
     out.mkdir(parents=True, exist_ok=True)
     if rendered is None:
@@ -173,7 +181,9 @@ def ring_golden(out: Path, rendered: list[np.ndarray] | None = None) -> None:
             _rgba(out, f"donut-default-{i}", bgr)
 
     lenses = {"donut": donut_lens(1.0), "wide": wide_lens(), "hd": hd_lens()}
-    recipe = json.dumps([RING_CASES, HOUSING_RIM, [lens.to_dict() for lens in lenses.values()], 1, "dim", "measured"])
+    recipe = json.dumps(
+        [RING_CASES, HOUSING_RIM, [lens.to_dict() for lens in lenses.values()], 1, "dim", "measured", "small-centre"]
+    )
     old = out / "ring.json"
     cached = old.exists() and json.loads(old.read_text()).get("recipe") == recipe
     items = []
@@ -209,6 +219,13 @@ def ring_golden(out: Path, rendered: list[np.ndarray] | None = None) -> None:
         _rgba(out, "ring-dim", ring_frames(dim, 1, seed=9, sur=Surround(light=0.35))[0])
     frames.append(
         ("ring-dim", cv2.imread(str(out / "ring-dim.png")), lenses["donut"], (*dim.center, dim.r_inner, dim.r_outer))
+    )
+    # a small mirror's dark centre, 3.6 px off the rim's centre (A8's window and its fill)
+    if not cached:
+        _rgba(out, "ring-small-centre", small_centre_frames(lenses["donut"], 1, 40.0, (3.0, -2.0), seed=12)[0])
+    base = lenses["donut"]
+    frames.append(
+        ("ring-small-centre", cv2.imread(str(out / "ring-small-centre.png")), base, (*base.center, 40.0, base.r_outer))
     )
     for stem in ("ring-plain", "ring-covered"):
         frames.append((stem, cv2.imread(str(out / f"{stem}.png")), lenses["donut"], None))

@@ -29,6 +29,7 @@ from omninav.synth.clipon import (
     plain_photo,
     reclip,
     ring_frames,
+    small_centre_frames,
 )
 
 HALF = geometries(0.5)
@@ -415,6 +416,41 @@ def test_cli_check_with_a_venue(media, tmp_path):
     assert p.returncode == 1 and "too far" in p.stdout
     p = run_cli("calib", "check", "nowhere", str(d / "shifted.mp4"), data=data)
     assert p.returncode == 2 and p.stderr.startswith("omninav: error: ")
+
+
+def test_a7_tries_the_next_candidate_when_the_narrow_run_finds_none(monkeypatch):
+    """A circle of the scene just inside the ring, fitted on its arcs, can put the centre where
+    the narrow run sees no ring (on a real hand-held clip-on video 13 of 31 frames were lost so):
+    the wide run's next candidate is then refined instead; a candidate without a circle is
+    skipped; none that gives one: no ring."""
+    from omninav.calib import ring as ring_mod
+
+    wide, narrow = ring_mod.OUTER_WINDOWS
+    runs = []
+
+    def fake(pts, grad, c, rlim, size, win):
+        runs.append((win, c))
+        if win == wide:
+            return [None, (10.0, 10.0, 50.0), (12.0, 11.0, 60.0)]
+        return [] if c == (10.0, 10.0) else [(12.5, 11.5, 60.5)]
+
+    monkeypatch.setattr(ring_mod, "_outer_circles", fake)
+    args = (np.zeros((0, 2)), np.zeros((0, 2)), (0.0, 0.0), (5, 99), (200, 200))
+    assert ring_mod._outer_circle(*args) == (12.5, 11.5, 60.5)
+    assert runs == [(wide, (0.0, 0.0)), (narrow, (10.0, 10.0)), (narrow, (12.0, 11.0))]
+    monkeypatch.setattr(ring_mod, "_outer_circles", lambda *a: [(10.0, 10.0, 50.0)] if a[-1] == wide else [None])
+    assert ring_mod._outer_circle(*args) is None
+
+
+def test_a_small_dark_centre_off_the_rims_centre():
+    """A small mirror's dark centre (26 coarse px: it crosses under half the angle bins) whose
+    centre sits 3.6 px off the rim's, as a decentred mirror's does: found (it was r_inner 0 before
+    step A8 allowed for both), and the ring keeps the rim's centre."""
+    lens = geometries(1.0)["donut"]
+    frames = small_centre_frames(lens, 2, 40.0, (3.0, -2.0), seed=4, sur=Surround(noise=3.0, jpeg=85))
+    r = find_ring(frames)
+    assert r.r_inner == pytest.approx(40.0, abs=1.0) and r.spread["r_inner_px"] < 0.5
+    assert r.center == pytest.approx(lens.center, abs=0.3) and r.r_outer == pytest.approx(lens.r_outer, abs=0.5)
 
 
 def test_a_fisheye_a_dim_room_and_heavy_noise():

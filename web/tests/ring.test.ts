@@ -108,7 +108,7 @@ const ring = (f: GoldenFrame): Ring | null => {
 describe('the ring in a frame, as the engine finds it', () => {
   it('the golden set has what it should: clip-ons, 1920x1080, a cut ring, no ring', () => {
     expect(frames.map((f) => f.stem)).toEqual(
-      expect.arrayContaining(['ring-hd', 'ring-cut', 'ring-dim', 'ring-plain', 'ring-housing']),
+      expect.arrayContaining(['ring-hd', 'ring-cut', 'ring-dim', 'ring-plain', 'ring-housing', 'ring-small-centre']),
     );
     expect(frames.find((f) => f.stem === 'ring-hd')!.size).toEqual([1920, 1080]);
     expect(frames.filter((f) => f.engine === null).length).toBeGreaterThanOrEqual(2);

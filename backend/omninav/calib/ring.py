@@ -38,17 +38,34 @@ A. Coarse stage, on a copy whose longer side is at most COARSE_MAX = 640 px.
     (a + r cos t, b + r sin t), t = (n + 0.5) 2 pi / 360, lies in -0.5 <= x <= cw - 0.5 and
     -0.5 <= y <= ch - 0.5; vis(r) = visible bins; cov(r) = visible bins with hit[q][n] for some
     q in r - W .. r + W; score(r) = cov(r) / vis(r), 0 when vis(r) < 36 (a tenth of the circle).
-    best = max score; no ring if best < MIN_COVERAGE = 0.5. The radius r1 is the SMALLEST r with
-    score(r) >= OUTER_PICK (0.8) * best that is a local maximum (score(r) >= score(r - 1) and
-    >= score(r + 1), a missing neighbour counting as -1): a bright plastic rim further out is as
-    complete a circle, but never inside the ring. Then the inward points with |d - r1| <= W + 1
-    (at least 20, else no ring) -> algebraic circle fit (B3) -> the circle (a1, b1, r1').
- 8. Inner radius around (a1, b1) from the second run: as 7 with W = 1 but with the "outward"
-    points (a dark centre: brighter outwards) and r from lo = floor(0.1 r1' + 0.5) to
-    hi = floor(0.9 r1' + 0.5) (only if lo >= 1 and hi > lo + 2); r2 = the first r of the highest
-    score if that score >= MIN_COVERAGE. Else the same again with the edge points of a fainter
-    Canny(blur, 8, 20) (CANNY_FAINT: a dim scene's inner edge); else r2 = 0 (no inner circle: a
-    fisheye, not a failure).
+    best = max score; no ring if best < MIN_COVERAGE = 0.5. The candidates are the r with
+    score(r) >= OUTER_PICK (0.8) * best that are local maxima (score(r) >= score(r - 1) and
+    >= score(r + 1), a missing neighbour counting as -1), SMALLEST first: a bright plastic rim
+    further out is as complete a circle, but never inside the ring. A candidate's circle: the
+    inward points with |d - r| <= W + 1 (at least 20, else it has none) -> algebraic circle fit
+    (B3). The first run's candidates are taken in turn, skipping those without a circle: the
+    second run around a candidate's centre gives the circle (a1, b1, r1') of its own first
+    candidate, or, when that has no circle, the next candidate of the first run is tried (a circle
+    of the scene just inside the ring, fitted on its arcs, can put the centre a few pixels off the
+    ring's, where the narrow window no longer sees the ring). No ring when none gives one.
+ 8. Inner radius around (a1, b1) (A9's circle, after A9): the "outward" points of A7 (a dark
+    centre: brighter outwards), r from lo = floor(0.1 r1' + 0.5) to hi = floor(0.9 r1' + 0.5)
+    (only if lo >= 1 and hi > lo + 2), with the window W = INNER_WINDOW (3: a mirror's dark centre
+    can sit a few pixels off its rim's centre) and score(r) = min(1, cov(r) / vis(r) / fill(r)),
+    fill(r) = min(1, 2 pi r / N_BINS): a circle of radius r crosses about 2 pi r of the bins, one
+    an edge pixel, so a small dark centre could never fill half of them. Candidates: the radii
+    whose score >= MIN_COVERAGE is a local maximum (as A7) and that are dark inside: at
+    INNER_DARK (0.75) of the N_BINS angles t_n whose two pixels (u, v) = (floor(a1 + q cos t_n +
+    0.5), floor(b1 + q sin t_n + 0.5)) at q = r + W + 2 and q = max(0, r - W - 2) lie in the image
+    (at least 36 of them), blur (A3) is brighter at the outer by more than INNER_STEP (4 grey
+    levels) (a scene's own circles, a floor's tiles under a fisheye, are brighter outwards at some
+    angles only). Of those at most s + gap (s the start
+    of A9's scene run around (a1, b1), gap of A9; all of them when none is, or without a run), the
+    largest: the scene begins at the dark centre's edge, and circles further in are the camera's
+    reflection, the mirror's post or a lens barrel. r2 = the median distance to (a1, b1) of the
+    outward points within W + 1 of that radius (at least 20, else none). Without one, the same
+    again with the edge points of a fainter Canny(blur, 8, 20) (CANNY_FAINT: a dim scene's inner
+    edge); else r2 = 0 (no inner circle: a fisheye, not a failure).
  9. Which annulus holds the scene (A9, around (a1, b1) of A7, before A8): a housing, its rim or a
     bright surround makes circles as complete as the mirror's edge, but only the scene has texture
     *along* the circle. The texture T(r), for r = 0 .. floor(r1 + 3 + gap): at the N_BINS angles
@@ -103,11 +120,12 @@ B. Sub-pixel stage, at full resolution.
     fewer than max(20, MIN_SHARE * m) points or the fit kept fewer than that (MIN_SHARE = 0.5,
     m = the number of that pass's angles in the image). The kept points of pass 2 are the outer
     edge points (for the ellipse check).
- 5. Inner circle (only if A gave r2 > 0): the same two passes with sign +1 around the outer
-    circle's final centre, starting at radius r2 (converted as B1), but instead of a circle fit
-    r_inner = the mean distance of the points to that centre, with the same two rounds of
-    3-sigma rejection (residual = distance - current mean). The centre stays the outer circle's:
-    the outer edge is the longer, sharper one. r_inner = 0 if a pass falls short as in B4.
+ 5. Inner circle (only if A gave r2 > 0): the same two passes with sign +1, the first around the
+    outer circle's final centre at radius r2 (converted as B1), the second around the first's
+    circle, each fitted as B3 (a fit whose centre lies more than 0.25 of its radius from the outer
+    circle's centre gives none); r_inner = the second pass's radius, 0 if a pass falls short as in
+    B4. The ring keeps the outer circle's centre (the outer edge is the longer, sharper one); the
+    dark centre's own centre, a few pixels off on a decentred mirror, is not reported.
  6. Radius convention: the radii are where the intensity crosses half way between the ring and
     its surround (the strongest derivative). EDGE_BIAS_PX = 0.0 would be subtracted from r_outer
     and added to r_inner: on the renderer's hard-edged rings (a pixel is on the ring when its
@@ -178,6 +196,10 @@ GAP: tuple[float, float] = (float(CONSTANTS["GAP"][0]), float(CONSTANTS["GAP"][1
 TEXTURE_FLOOR = float(CONSTANTS["TEXTURE_FLOOR"])
 # texture_ratio below it: the annulus called the scene hardly stands out (unsure)
 SURE_TEXTURE = float(CONSTANTS["SURE_TEXTURE"])
+INNER_WINDOW = int(CONSTANTS["INNER_WINDOW"])
+INNER_OFFSET = float(CONSTANTS["INNER_OFFSET"])
+INNER_DARK = float(CONSTANTS["INNER_DARK"])
+INNER_STEP = float(CONSTANTS["INNER_STEP"])
 
 
 class NoRing(Unusable):
@@ -292,21 +314,6 @@ def _fit_robust(pts: np.ndarray) -> tuple[tuple[float, float, float], np.ndarray
     return c, keep
 
 
-def _radius_robust(pts: np.ndarray, center: tuple[float, float]) -> tuple[float, np.ndarray]:
-    """B5: mean distance to a fixed centre with two rounds of 3-sigma rejection."""
-    d = np.hypot(pts[:, 0] - center[0], pts[:, 1] - center[1])
-    keep = np.ones(len(d), bool)
-    r = float(d.mean())
-    for _ in range(2):
-        e = np.abs(d - r)
-        sigma = max(0.05, 1.4826 * float(np.median(e[keep])))
-        keep = keep & (e <= 3.0 * sigma)
-        if not keep.any():
-            break
-        r = float(d[keep].mean())
-    return r, keep
-
-
 # ---- A: coarse ---------------------------------------------------------------------------------
 def _grey(frame: np.ndarray) -> np.ndarray:
     if frame.ndim == 3 and frame.shape[2] == 3:
@@ -334,25 +341,40 @@ def _coverage(
     return np.where(vis >= 36, cov / np.maximum(vis, 1), 0.0)
 
 
-def _outer_circle(
+def _outer_circles(
     pts: np.ndarray, grad: np.ndarray, c: tuple[float, float], rlim: tuple[int, int], size: tuple[int, int], win: int
-) -> tuple[float, float, float] | None:
-    """A7-A8 around centre c with a radius window +-win: the coarse outer circle, or None."""
+) -> list[tuple[float, float, float] | None]:
+    """A7 around centre c with a radius window +-win: the candidate outer circles, smallest radius
+    first (None for a candidate with too few points to fit); empty without a ring."""
     rmin, rmax = rlim
     hits, d, sel = _hits(pts, grad, c, rmax + win, outward=False)
     radii = np.arange(max(rmin, win + 1), rmax + 1)
     score = _coverage(hits, c, radii, size, win)
     best = float(score.max()) if len(score) else 0.0
     if best < MIN_COVERAGE:
-        return None
+        return []
     prev = np.concatenate([[-1.0], score[:-1]])
     nxt = np.concatenate([score[1:], [-1.0]])
-    cand = np.flatnonzero((score >= OUTER_PICK * best) & (score >= prev) & (score >= nxt))
-    r1 = float(radii[cand[0]])
-    near = sel & (np.abs(d - r1) <= win + 1.0)
-    if near.sum() < 20:
-        return None
-    return fit_circle_algebraic(pts[near])
+    out: list[tuple[float, float, float] | None] = []
+    for k in np.flatnonzero((score >= OUTER_PICK * best) & (score >= prev) & (score >= nxt)):
+        near = sel & (np.abs(d - float(radii[k])) <= win + 1.0)
+        out.append(fit_circle_algebraic(pts[near]) if near.sum() >= 20 else None)
+    return out
+
+
+def _outer_circle(
+    pts: np.ndarray, grad: np.ndarray, c: tuple[float, float], rlim: tuple[int, int], size: tuple[int, int]
+) -> tuple[float, float, float] | None:
+    """A7: the coarse outer circle around the votes' centre c, or None: the first run's candidates
+    in turn, each refined by the second run around its centre, until one gives a circle."""
+    wide, narrow = OUTER_WINDOWS
+    for circle in _outer_circles(pts, grad, c, rlim, size, wide):
+        if circle is None:
+            continue
+        got = _outer_circles(pts, grad, (circle[0], circle[1]), rlim, size, narrow)
+        if got and got[0] is not None:
+            return got[0]
+    return None
 
 
 def _hits(
@@ -388,17 +410,51 @@ def _edge_points(
     return pts, np.stack([gxe[ok] / g[ok], gye[ok] / g[ok]], 1)
 
 
+def _dark_inside(blur: np.ndarray, c: tuple[float, float], r: int) -> bool:
+    """A8: is the blurred picture brighter just outside radius r than just inside, all round?"""
+    ch, cw = blur.shape
+    t = 2.0 * np.pi * (np.arange(N_BINS) + 0.5) / N_BINS
+    q = np.array([[r + INNER_WINDOW + 2], [max(0, r - INNER_WINDOW - 2)]], np.float64)
+    u = np.floor(c[0] + q * np.cos(t) + 0.5).astype(np.int64)
+    v = np.floor(c[1] + q * np.sin(t) + 0.5).astype(np.int64)
+    ok = ((u >= 0) & (u < cw) & (v >= 0) & (v < ch)).all(0)
+    if ok.sum() < 36:
+        return False
+    g = blur[v[:, ok], u[:, ok]].astype(np.float64)
+    return bool(((g[0] - g[1]) > INNER_STEP).mean() >= INNER_DARK)
+
+
 def _inner_radius(
-    pts: np.ndarray, grad: np.ndarray, c: tuple[float, float], rlim: tuple[int, int], size: tuple[int, int]
+    blur: np.ndarray,
+    pts: np.ndarray,
+    grad: np.ndarray,
+    c: tuple[float, float],
+    rlim: tuple[int, int],
+    size: tuple[int, int],
+    scene_start: float | None,
+    gap: float,
 ) -> float:
-    """A8: the radius of the most complete circle of outward edges around c, or 0 (none)."""
+    """A8: the radius of the dark centre's circle of outward edges around c, or 0 (none)."""
     lo, hi = rlim
-    hits, _, _ = _hits(pts, grad, c, hi, outward=True)
-    radii = np.arange(lo, hi + 1)
-    sc = _coverage(hits, c, radii, size, 1)
-    if len(sc) and float(sc.max()) >= MIN_COVERAGE:
-        return float(radii[int(np.argmax(sc))])
-    return 0.0
+    win = INNER_WINDOW
+    hits, d, sel = _hits(pts, grad, c, hi + win, outward=True)
+    radii = np.arange(max(lo, win + 1), hi + 1)
+    if not len(radii):
+        return 0.0
+    fill = np.minimum(1.0, 2.0 * np.pi * radii / N_BINS)
+    sc = np.minimum(1.0, _coverage(hits, c, radii, size, win) / fill)
+    prev = np.concatenate([[-1.0], sc[:-1]])
+    nxt = np.concatenate([sc[1:], [-1.0]])
+    cand = radii[(sc >= MIN_COVERAGE) & (sc >= prev) & (sc >= nxt)]
+    cand = cand[[_dark_inside(blur, c, int(r)) for r in cand]] if len(cand) else cand
+    if not len(cand):
+        return 0.0
+    inside = cand[cand <= scene_start + gap] if scene_start is not None else cand
+    r = float((inside if len(inside) else cand)[-1])
+    near = sel & (np.abs(d - r) <= win + 1.0)
+    if near.sum() < 20:
+        return 0.0
+    return float(np.median(d[near]))
 
 
 @dataclass(frozen=True)
@@ -545,29 +601,27 @@ def coarse_ring(grey: np.ndarray) -> Coarse | None:
     if int(accb.flat[k]) < MIN_VOTES:
         return None
     c0 = (float(k % cw), float(k // cw))
-    # A7-A8: the outer circle, first tolerant of the votes' error, then around the better centre
-    circle: tuple[float, float, float] | None = (c0[0], c0[1], 0.0)
-    for win in OUTER_WINDOWS:
-        assert circle is not None
-        circle = _outer_circle(pts, grad, (circle[0], circle[1]), (rmin, rmax), (cw, ch), win)
-        if circle is None:
-            return None
-    assert circle is not None
+    # A7: the outer circle, first tolerant of the votes' error, then around the better centre
+    circle = _outer_circle(pts, grad, c0, (rmin, rmax), (cw, ch))
+    if circle is None:
+        return None
     # A9: is that circle the scene's edge, or a housing's outside it?
     t = _texture(gx, gy, (circle[0], circle[1]), int(math.floor(circle[2] + 3 + _gap(circle[2]))))
     (a1, b1, r1), osign, housing = _scene_outer(pts, grad, circle, _smooth(t), (cw, ch))
     if housing > 0:
         t = _texture(gx, gy, (a1, b1), int(math.floor(r1 + 3 + _gap(r1))))
-    # A8: the inner radius (a dark centre); a dim scene's faint inner edge: again with fainter edges
+    # A8: the inner radius (a dark centre) just inside where the scene starts; a dim scene's faint
+    # inner edge: again with fainter edges
+    run = _scene_run(_smooth(t), int(math.floor(r1)))
     lo, hi = int(math.floor(0.1 * r1 + 0.5)), int(math.floor(0.9 * r1 + 0.5))
     r2 = 0.0
     if hi > lo + 2 and lo >= 1:
-        r2 = _inner_radius(pts, grad, (a1, b1), (lo, hi), (cw, ch))
+        where = ((a1, b1), (lo, hi), (cw, ch), float(run[0]) if run is not None else None, _gap(r1))
+        r2 = _inner_radius(blur, pts, grad, *where)
         if r2 == 0.0:
             pts2, grad2 = _edge_points(blur, gx, gy, CANNY_FAINT)
-            r2 = _inner_radius(pts2, grad2, (a1, b1), (lo, hi), (cw, ch))
+            r2 = _inner_radius(blur, pts2, grad2, *where)
     # A9: the texture ratio, over the scene from its inner edge (or from where its texture starts)
-    run = _scene_run(_smooth(t), int(math.floor(r1)))
     start = r2 or (float(run[0]) if run is not None else 0.0)
     return Coarse(
         center=(a1, b1),
@@ -640,15 +694,17 @@ def _refine_outer(
 
 
 def _refine_inner(fine: np.ndarray, center: tuple[float, float], r0: float) -> float:
-    """B5: the inner radius around the outer circle's centre, or 0 without an inner edge."""
-    r = r0
+    """B5: the radius of the dark centre's own circle, starting around the outer circle's centre,
+    or 0 without an inner edge."""
+    c, r = center, r0
     for half in (6.0, 3.0):
-        pts, n_in = edge_points(fine, center, r, 1.0, half)
+        pts, n_in = edge_points(fine, c, r, 1.0, half)
         if n_in == 0 or len(pts) < 20 or len(pts) < MIN_SHARE * n_in:
             return 0.0
-        r, keep = _radius_robust(pts, center)
-        if keep.sum() < max(20, MIN_SHARE * n_in):
+        (cx, cy, r), keep = _fit_robust(pts)
+        if keep.sum() < max(20, MIN_SHARE * n_in) or math.hypot(cx - center[0], cy - center[1]) > INNER_OFFSET * r:
             return 0.0
+        c = (cx, cy)
     return r
 
 

@@ -164,6 +164,25 @@ def ring_frames(
     return frames
 
 
+def small_centre_frames(
+    lens: Catadioptric,
+    n: int,
+    radius: float,
+    offset: tuple[float, float],
+    seed: int = 0,
+    sur: Surround | None = None,
+) -> list[np.ndarray]:
+    """ring_frames() of a small mirror off its rim's axis: the dark centre (the camera's
+    reflection, the post) a disc of `radius` px whose centre is `offset` px from the ring's. The
+    frames' true ring is lens.center, `radius`, lens.r_outer."""
+    inner = max(1.0, radius - float(np.hypot(*offset)) - 2.0)  # the rendered one, under the disc
+    frames = ring_frames(dataclasses.replace(lens, r_inner=min(lens.r_inner, inner)), n, seed=seed, sur=sur)
+    at = (round((lens.center[0] + offset[0]) * 16), round((lens.center[1] + offset[1]) * 16))
+    for f in frames:  # (centre and radius in 1/16 px)
+        cv2.circle(f, at, round(radius * 16), (22, 22, 22), -1, lineType=cv2.LINE_AA, shift=4)
+    return frames
+
+
 @dataclass(frozen=True)
 class ClipOn:
     """One clip-on: the lens as it sat (its ring is the truth) and the frames filmed through it."""

@@ -77,6 +77,10 @@ const SCENE_SHARE: number = C.SCENE_SHARE;
 const SCENE_SMOOTH: number = C.SCENE_SMOOTH;
 const GAP = C.GAP as [number, number];
 const TEXTURE_FLOOR: number = C.TEXTURE_FLOOR;
+const INNER_WINDOW: number = C.INNER_WINDOW;
+const INNER_OFFSET: number = C.INNER_OFFSET;
+const INNER_DARK: number = C.INNER_DARK;
+const INNER_STEP: number = C.INNER_STEP;
 /** Pixels around the coarse circle that the sub-pixel stage may read (its profiles reach 6 px out). */
 const WINDOW_MARGIN = 12;
 
@@ -198,22 +202,6 @@ function fitRobust(xs: Float64Array, ys: Float64Array): [Circle, number[]] {
     c = fitCircleGeometric(xs, ys, keep, fitCircleAlgebraic(xs, ys, keep));
   }
   return [c, keep];
-}
-
-/** B5: mean distance to a fixed centre with two rounds of 3-sigma rejection. */
-function radiusRobust(xs: Float64Array, ys: Float64Array, center: [number, number]): [number, number] {
-  const d = Float64Array.from(xs, (x, i) => Math.hypot(x - center[0], ys[i] - center[1]));
-  const mean = (idx: number[]) => idx.reduce((s, i) => s + d[i], 0) / idx.length;
-  let keep = range(d.length);
-  let r = mean(keep);
-  for (let round = 0; round < 2; round++) {
-    const e = Float64Array.from(d, (v) => Math.abs(v - r));
-    const sigma = Math.max(0.05, 1.4826 * median(keep.map((i) => e[i])));
-    keep = keep.filter((i) => e[i] <= 3 * sigma);
-    if (!keep.length) break;
-    r = mean(keep);
-  }
-  return [r, keep.length];
 }
 
 /** A4: the coarse frame's edge pixels (row-major) and their unit gradients (towards the brighter side). */
@@ -529,27 +517,25 @@ function coarseStages(cv: RingCv, img: CvMat, w: number, h: number, cw: number, 
   let at = 0;
   for (let p = 0; p < cw * ch; p++) if (box[p] > best) [best, at] = [box[p], p];
   if (best < MIN_VOTES) return null;
-  // A7-A8: the outer circle, first tolerant of the votes' error, then around the better centre
-  let circle: Circle | null = [at % cw, Math.floor(at / cw), 0];
-  for (const win of OUTER_WINDOWS) {
-    circle = outerCircle(e, [circle[0], circle[1]], rmin, rmax, cw, ch, win);
-    if (!circle) return null;
-  }
+  // A7: the outer circle, first tolerant of the votes' error, then around the better centre
+  const circle = outerCircle(e, [at % cw, Math.floor(at / cw)], rmin, rmax, cw, ch);
+  if (!circle) return null;
   // A9: is that circle the scene's edge, or a housing's outside it?
   let t = texture(e, [circle[0], circle[1]], Math.floor(circle[2] + 3 + gapPx(circle[2])));
   const [[a1, b1, r1], outerSign, housing] = sceneOuter(e, circle, smooth(t), cw, ch);
   if (housing > 0) t = texture(e, [a1, b1], Math.floor(r1 + 3 + gapPx(r1)));
-  // A8: the inner radius (a dark centre)
+  // A8: the inner radius (a dark centre) just inside where the scene starts
+  const run = sceneRun(smooth(t), Math.floor(r1));
   const lo = Math.floor(0.1 * r1 + 0.5);
   const hi = Math.floor(0.9 * r1 + 0.5);
   let r2 = 0;
   if (hi > lo + 2 && lo >= 1) {
-    r2 = innerRadius(e, [a1, b1], lo, hi, cw, ch);
+    const where = { c: [a1, b1] as [number, number], lo, hi, cw, ch, start: run ? run[0] : null, gap: gapPx(r1) };
+    r2 = innerRadius(e, where);
     // a dim scene's faint inner edge: again with the edge points of a fainter Canny
-    if (r2 === 0) r2 = innerRadius(coarseEdges(cv, img, CANNY_FAINT), [a1, b1], lo, hi, cw, ch);
+    if (r2 === 0) r2 = innerRadius(coarseEdges(cv, img, CANNY_FAINT), where);
   }
   // A9: the texture ratio, over the scene from its inner edge (or from where its texture starts)
-  const run = sceneRun(smooth(t), Math.floor(r1));
   const start = r2 || (run ? run[0] : 0);
   return {
     center: [a1, b1],
@@ -562,22 +548,67 @@ function coarseStages(cv: RingCv, img: CvMat, w: number, h: number, cw: number, 
   };
 }
 
-/** A8: the radius in lo..hi of the widest coverage by outward points (a dark centre), else 0. */
-function innerRadius(e: Edges, c: [number, number], lo: number, hi: number, cw: number, ch: number): number {
-  const out = hits(e, c, hi, true);
-  const radii = range(hi - lo + 1).map((i) => i + lo);
-  const sc = coverage(out.table, c, radii, cw, ch, 1);
-  let k = 0;
-  for (let i = 1; i < sc.length; i++) if (sc[i] > sc[k]) k = i;
-  return sc.length && sc[k] >= MIN_COVERAGE ? radii[k] : 0;
+interface InnerSearch {
+  c: [number, number];
+  lo: number;
+  hi: number;
+  cw: number;
+  ch: number;
+  /** A9's scene run's start (null: no run). */
+  start: number | null;
+  gap: number;
+}
+
+/** A8: is the blurred picture brighter just outside radius r than just inside, all round? */
+function darkInside(e: Edges, c: [number, number], r: number): boolean {
+  const { blur, cols, rows } = e;
+  const qo = r + INNER_WINDOW + 2;
+  const qi = Math.max(0, r - INNER_WINDOW - 2);
+  let n = 0;
+  let brighter = 0;
+  for (let k = 0; k < N_BINS; k++) {
+    const uo = Math.floor(c[0] + qo * BIN_COS[k] + 0.5);
+    const vo = Math.floor(c[1] + qo * BIN_SIN[k] + 0.5);
+    const ui = Math.floor(c[0] + qi * BIN_COS[k] + 0.5);
+    const vi = Math.floor(c[1] + qi * BIN_SIN[k] + 0.5);
+    if (uo < 0 || uo >= cols || vo < 0 || vo >= rows || ui < 0 || ui >= cols || vi < 0 || vi >= rows) continue;
+    n++;
+    if (blur[vo * cols + uo] - blur[vi * cols + ui] > INNER_STEP) brighter++;
+  }
+  return n >= 36 && brighter / n >= INNER_DARK;
+}
+
+/** A8: the radius of the dark centre's circle of outward edges around c, or 0 (none). */
+function innerRadius(e: Edges, w: InnerSearch): number {
+  const win = INNER_WINDOW;
+  const out = hits(e, w.c, w.hi + win, true);
+  const r0 = Math.max(w.lo, win + 1);
+  const radii = range(Math.max(0, w.hi + 1 - r0)).map((i) => i + r0);
+  if (!radii.length) return 0;
+  const sc = coverage(out.table, w.c, radii, w.cw, w.ch, win).map((v, i) =>
+    Math.min(1, v / Math.min(1, (2 * Math.PI * radii[i]) / N_BINS)),
+  );
+  const cand: number[] = [];
+  for (let i = 0; i < sc.length; i++) {
+    const prev = i > 0 ? sc[i - 1] : -1;
+    const next = i < sc.length - 1 ? sc[i + 1] : -1;
+    if (sc[i] >= MIN_COVERAGE && sc[i] >= prev && sc[i] >= next && darkInside(e, w.c, radii[i])) cand.push(radii[i]);
+  }
+  if (!cand.length) return 0;
+  const start = w.start;
+  const inside = start === null ? cand : cand.filter((r) => r <= start + w.gap);
+  const r = (inside.length ? inside : cand)[(inside.length ? inside : cand).length - 1];
+  const near: number[] = [];
+  for (let i = 0; i < e.n; i++) if (out.sel[i] && Math.abs(out.dist[i] - r) <= win + 1) near.push(out.dist[i]);
+  return near.length < 20 ? 0 : median(near);
 }
 
 /**
- * A7: the coarse outer circle around centre c with a radius window +-win: the smallest radius
- * whose coverage is a local maximum near the best (a bright rim further out is as complete a
- * circle, but never inside the ring), then a circle through the inward points near it; or null.
+ * A7: the candidate outer circles around centre c with a radius window +-win, smallest radius first
+ * (null for a candidate with too few points to fit; a bright rim further out is as complete a
+ * circle, but never inside the ring); empty without a ring.
  */
-function outerCircle(
+function outerCircles(
   e: Edges,
   c: [number, number],
   rmin: number,
@@ -585,25 +616,38 @@ function outerCircle(
   cw: number,
   ch: number,
   win: number,
-): Circle | null {
+): (Circle | null)[] {
   const inward = hits(e, c, rmax + win, false);
   const r0 = Math.max(rmin, win + 1);
   const radii = range(Math.max(0, rmax + 1 - r0)).map((i) => i + r0);
   const score = coverage(inward.table, c, radii, cw, ch, win);
   let top = 0;
   for (const v of score) top = Math.max(top, v);
-  if (top < MIN_COVERAGE) return null;
-  let pick = -1;
-  for (let i = 0; i < score.length && pick < 0; i++) {
+  if (top < MIN_COVERAGE) return [];
+  const out: (Circle | null)[] = [];
+  for (let i = 0; i < score.length; i++) {
     const prev = i > 0 ? score[i - 1] : -1;
     const next = i < score.length - 1 ? score[i + 1] : -1;
-    if (score[i] >= OUTER_PICK * top && score[i] >= prev && score[i] >= next) pick = i;
+    if (!(score[i] >= OUTER_PICK * top && score[i] >= prev && score[i] >= next)) continue;
+    const near: number[] = [];
+    for (let j = 0; j < e.n; j++) if (inward.sel[j] && Math.abs(inward.dist[j] - radii[i]) <= win + 1) near.push(j);
+    out.push(near.length < 20 ? null : fitCircleAlgebraic(e.x, e.y, near));
   }
-  const r1 = radii[pick];
-  const near: number[] = [];
-  for (let i = 0; i < e.n; i++) if (inward.sel[i] && Math.abs(inward.dist[i] - r1) <= win + 1) near.push(i);
-  if (near.length < 20) return null;
-  return fitCircleAlgebraic(e.x, e.y, near);
+  return out;
+}
+
+/**
+ * A7: the coarse outer circle around the votes' centre c, or null: the first run's candidates in
+ * turn, each refined by the second run around its centre, until one gives a circle.
+ */
+function outerCircle(e: Edges, c: [number, number], rmin: number, rmax: number, cw: number, ch: number): Circle | null {
+  const [wide, narrow] = OUTER_WINDOWS;
+  for (const circle of outerCircles(e, c, rmin, rmax, cw, ch, wide)) {
+    if (!circle) continue;
+    const got = outerCircles(e, [circle[0], circle[1]], rmin, rmax, cw, ch, narrow);
+    if (got.length && got[0]) return got[0];
+  }
+  return null;
 }
 
 /**
@@ -726,15 +770,17 @@ function refineOuter(fine: Fine, circle: Circle, sign: number): Circle | null {
   return circle;
 }
 
-/** B5: the inner radius around the outer circle's centre, or 0 without an inner edge. */
+/** B5: the radius of the dark centre's own circle, starting around the outer circle's centre, or 0 without an inner edge. */
 function refineInner(fine: Fine, center: [number, number], r0: number): number {
+  let c = center;
   let r = r0;
   for (const half of [6, 3]) {
-    const { xs, ys, nIn } = edgePoints(fine, center, r, 1, half);
+    const { xs, ys, nIn } = edgePoints(fine, c, r, 1, half);
     if (nIn === 0 || xs.length < 20 || xs.length < MIN_SHARE * nIn) return 0;
-    const [rr, kept] = radiusRobust(xs, ys, center);
-    if (kept < Math.max(20, MIN_SHARE * nIn)) return 0;
-    r = rr;
+    const [[cx, cy, rr], keep] = fitRobust(xs, ys);
+    if (keep.length < Math.max(20, MIN_SHARE * nIn) || Math.hypot(cx - center[0], cy - center[1]) > INNER_OFFSET * rr)
+      return 0;
+    [c, r] = [[cx, cy], rr];
   }
   return r;
 }
