@@ -161,6 +161,31 @@ describe('the ring in a frame, as the engine finds it', () => {
     expect(Math.hypot(fit.dx, fit.dy)).toBeLessThan(0.025 * f.lens.r_outer);
   });
 
+  // real frames that cannot live in the repository (their licences), written by
+  // `python -m bench.real_rings IMAGE... -o DIR`: run with OMNINAV_REAL_RINGS=DIR
+  const REAL = process.env.OMNINAV_REAL_RINGS;
+  it.skipIf(!REAL)('real frames given by OMNINAV_REAL_RINGS: every ring within 0.5 px of the engine', () => {
+    const given: Pick<GoldenFrame, 'stem' | 'size' | 'engine'>[] = JSON.parse(
+      readFileSync(resolve(REAL!, 'ring.json'), 'utf8'),
+    ).frames;
+    expect(given.length).toBeGreaterThan(0);
+    for (const f of given) {
+      const got = findRingFrame(cv, new Uint8Array(readFileSync(resolve(REAL!, `${f.stem}.rgba`))), ...f.size);
+      const e = f.engine;
+      if (e === null) {
+        expect(got, f.stem).toBeNull();
+        continue;
+      }
+      expect(got, f.stem).not.toBeNull();
+      const d = Math.max(
+        Math.hypot(got!.center[0] - e.center[0], got!.center[1] - e.center[1]),
+        Math.abs(got!.r_inner - e.r_inner),
+        Math.abs(got!.r_outer - e.r_outer),
+      );
+      expect(d, f.stem).toBeLessThanOrEqual(0.5);
+    }
+  });
+
   it('a bright housing right against the mirror: the ring, not the housing, and a brighter surround', () => {
     const f = frames.find((g) => g.stem === 'ring-housing')!;
     const r = ring(f)!;

@@ -4,6 +4,10 @@ THE ALGORITHM (the browser's worker ports this text; Python and TypeScript must 
 ====================================================================================================
 Pixel coordinates: x right, y down, pixel (i, j) has its centre at x = i, y = j (the image spans
 -0.5 .. w - 0.5). Rounding is floor(v + 0.5) everywhere. Angles are atan2(dy, dx) in radians.
+The cosine and sine of the fixed angles (the bins, profiles and visibility points below) are
+rounded to multiples of 2^-40, floor(v 2^40 + 0.5) / 2^40, and lengths are sqrt(dx^2 + dy^2), never
+hypot: the C library and the browser's Math differ in the last bit there, and on a real picture's
+smooth ramp, where several samples of a profile's derivative tie, a last bit decides which is first.
 Only OpenCV operations that opencv.js has are used (cvtColor, resize INTER_AREA, GaussianBlur,
 Sobel, Canny), the rest is plain loops over arrays; no randomness.
 
@@ -15,7 +19,7 @@ A. Coarse stage, on a copy whose longer side is at most COARSE_MAX = 640 px.
     (v + 0.5) / sy - 0.5).
  3. blur = GaussianBlur(small, ksize 5x5, sigma 1.5, BORDER_DEFAULT); gx, gy = Sobel(blur,
     CV_32F, dx/dy = 1, ksize 3); edges = Canny(blur, 20, 50, aperture 3, L2gradient false).
- 4. Edge points: every pixel with edges != 0 and g = hypot(gx, gy) > 0, in row-major order, with
+ 4. Edge points: every pixel with edges != 0 and g = sqrt(gx^2 + gy^2) > 0, in row-major order, with
     its unit gradient (ux, uy) = (gx, gy) / g (it points towards the brighter side).
  5. Centre votes (a Hough transform along gradients): the outer edge of the ring is brighter on
     its inside, so its gradient points at the centre. Radii rmin = floor(0.15 min(cw, ch) + 0.5),
@@ -29,7 +33,7 @@ A. Coarse stage, on a copy whose longer side is at most COARSE_MAX = 640 px.
     two off: the wide box finds its middle, a 3x3 one lands anywhere on it under noise.)
  7. Outer circle around a centre (a, b) with a radius window W (OUTER_WINDOWS: run twice, W = 3
     around (a0, b0), then W = 1 around the centre of the circle the first run found). For every
-    edge point with d = hypot(x - a, y - b) > 0: the radial cosine c = (ux (x - a) +
+    edge point with d = sqrt((x - a)^2 + (y - b)^2) > 0: the radial cosine c = (ux (x - a) +
     uy (y - b)) / d; the point is "inward" if c < -RADIAL_COS (RADIAL_COS = 0.9: brighter towards
     the centre), "outward" if c > RADIAL_COS. Its angle bin is
     n = floor(mod(atan2(y - b, x - a), 2 pi) / (2 pi) * 360) (clamped to 0..359), its radius bin
@@ -109,7 +113,7 @@ B. Sub-pixel stage, at full resolution.
     angle t_k from (cx, cy).
  3. Circle fit of points: algebraic (Kasa: least squares of x^2 + y^2 + D x + E y + F = 0, solved
     about the points' mean for conditioning -> centre (-D/2, -E/2), radius sqrt(cx^2 + cy^2 - F)),
-    then geometric Gauss-Newton from it (residual e_i = hypot(x_i - cx, y_i - cy) - r, Jacobian
+    then geometric Gauss-Newton from it (residual e_i = sqrt((x_i - cx)^2 + (y_i - cy)^2) - r, Jacobian
     rows (-(x_i - cx)/d_i, -(y_i - cy)/d_i, -1); 3x3 normal equations; at most 20 steps, stopping
     after a step whose largest component is < 1e-6). Then twice: e_i = |residual| of every point
     to the current circle, sigma = max(0.05, 1.4826 * median of e_i over the points still kept);
@@ -202,6 +206,30 @@ INNER_DARK = float(CONSTANTS["INNER_DARK"])
 INNER_STEP = float(CONSTANTS["INNER_STEP"])
 
 
+def _dist(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    """sqrt(dx^2 + dy^2): every distance of the algorithm, as the phone's port sums it (hypot()
+    differs between the C library and the browser in the last bit)."""
+    out: np.ndarray = np.sqrt(dx * dx + dy * dy)
+    return out
+
+
+def unit_circle(n: int, half: bool) -> tuple[np.ndarray, np.ndarray]:
+    """cos and sin of 2 pi (k + 0.5 if half else k) / n, k = 0 .. n - 1, rounded to multiples of
+    2^-40 (the docstring above says why), as the phone's port computes them."""
+    key = (n, half)
+    got = _UNIT.get(key)
+    if got is None:
+        t = 2.0 * np.pi * (np.arange(n) + (0.5 if half else 0.0)) / n
+        got = _UNIT[key] = (
+            np.floor(np.cos(t) * 2.0**40 + 0.5) / 2.0**40,
+            np.floor(np.sin(t) * 2.0**40 + 0.5) / 2.0**40,
+        )
+    return got
+
+
+_UNIT: dict[tuple[int, bool], tuple[np.ndarray, np.ndarray]] = {}
+
+
 class NoRing(Unusable):
     """No donut ring in the frames: no lens attached, the lens covered, or an ordinary photo."""
 
@@ -265,9 +293,9 @@ def ring_from_dict(d: Any, where: str = "ring") -> Ring:
 def visible_share(center: tuple[float, float], radius: float, size: tuple[int, int]) -> float:
     """Share of the circle's circumference inside a (w, h) image (B7)."""
     w, h = size
-    t = 2.0 * np.pi * (np.arange(N_VISIBLE) + 0.5) / N_VISIBLE
-    x = center[0] + radius * np.cos(t)
-    y = center[1] + radius * np.sin(t)
+    ct, st = unit_circle(N_VISIBLE, True)
+    x = center[0] + radius * ct
+    y = center[1] + radius * st
     inside = (x >= -0.5) & (x <= w - 0.5) & (y >= -0.5) & (y <= h - 0.5)
     return float(inside.mean())
 
@@ -290,7 +318,7 @@ def fit_circle_geometric(pts: np.ndarray, init: tuple[float, float, float]) -> t
     cx, cy, r = init
     for _ in range(20):
         dx, dy = pts[:, 0] - cx, pts[:, 1] - cy
-        d = np.maximum(np.hypot(dx, dy), 1e-9)
+        d = np.maximum(np.sqrt(dx * dx + dy * dy), 1e-9)
         e = d - r
         j = np.stack([-dx / d, -dy / d, -np.ones_like(d)], 1)
         step = np.linalg.solve(j.T @ j, -(j.T @ e))
@@ -305,7 +333,7 @@ def _fit_robust(pts: np.ndarray) -> tuple[tuple[float, float, float], np.ndarray
     keep = np.ones(len(pts), bool)
     c = fit_circle_geometric(pts, fit_circle_algebraic(pts))
     for _ in range(2):
-        e = np.abs(np.hypot(pts[:, 0] - c[0], pts[:, 1] - c[1]) - c[2])
+        e = np.abs(_dist(pts[:, 0] - c[0], pts[:, 1] - c[1]) - c[2])
         sigma = max(0.05, 1.4826 * float(np.median(e[keep])))
         keep = keep & (e <= 3.0 * sigma)
         if keep.sum() < 3:
@@ -329,9 +357,9 @@ def _coverage(
 ) -> np.ndarray:
     """A7: per radius in `radii`, the share of visible angle bins with an edge hit at r-win..r+win."""
     cw, ch = size
-    t = 2.0 * np.pi * (np.arange(N_BINS) + 0.5) / N_BINS
-    x = center[0] + radii[:, None] * np.cos(t)[None, :]
-    y = center[1] + radii[:, None] * np.sin(t)[None, :]
+    ct, st = unit_circle(N_BINS, True)
+    x = center[0] + radii[:, None] * ct[None, :]
+    y = center[1] + radii[:, None] * st[None, :]
     inside = (x >= -0.5) & (x <= cw - 0.5) & (y >= -0.5) & (y <= ch - 0.5)
     near = np.zeros((len(radii), N_BINS), bool)
     for o in range(-win, win + 1):
@@ -383,7 +411,7 @@ def _hits(
     """A7: (rmax + 3, N_BINS) bool table of radial edge points around `center`, and the points'
     distances and a mask of which were radial in the asked sense."""
     dx, dy = pts[:, 0] - center[0], pts[:, 1] - center[1]
-    d = np.hypot(dx, dy)
+    d = _dist(dx, dy)
     ok = d > 0
     c = np.where(ok, (grad[:, 0] * dx + grad[:, 1] * dy) / np.maximum(d, 1e-9), 0.0)
     sel = ok & ((c > RADIAL_COS) if outward else (c < -RADIAL_COS))
@@ -404,7 +432,7 @@ def _edge_points(
     edges = cv2.Canny(blur, canny[0], canny[1], apertureSize=3, L2gradient=False)
     ys, xs = np.nonzero(edges)
     gxe, gye = gx[ys, xs].astype(np.float64), gy[ys, xs].astype(np.float64)
-    g = np.hypot(gxe, gye)
+    g = _dist(gxe, gye)
     ok = g > 0
     pts = np.stack([xs[ok], ys[ok]], 1).astype(np.float64)
     return pts, np.stack([gxe[ok] / g[ok], gye[ok] / g[ok]], 1)
@@ -413,10 +441,10 @@ def _edge_points(
 def _dark_inside(blur: np.ndarray, c: tuple[float, float], r: int) -> bool:
     """A8: is the blurred picture brighter just outside radius r than just inside, all round?"""
     ch, cw = blur.shape
-    t = 2.0 * np.pi * (np.arange(N_BINS) + 0.5) / N_BINS
+    ct, st = unit_circle(N_BINS, True)
     q = np.array([[r + INNER_WINDOW + 2], [max(0, r - INNER_WINDOW - 2)]], np.float64)
-    u = np.floor(c[0] + q * np.cos(t) + 0.5).astype(np.int64)
-    v = np.floor(c[1] + q * np.sin(t) + 0.5).astype(np.int64)
+    u = np.floor(c[0] + q * ct + 0.5).astype(np.int64)
+    v = np.floor(c[1] + q * st + 0.5).astype(np.int64)
     ok = ((u >= 0) & (u < cw) & (v >= 0) & (v < ch)).all(0)
     if ok.sum() < 36:
         return False
@@ -478,8 +506,7 @@ def _texture(gx: np.ndarray, gy: np.ndarray, c: tuple[float, float], rmax: int) 
     """A9: T(r) for r = 0 .. rmax, the mean tangential gradient along the circle of radius r
     (NaN where fewer than 36 of its angles fall in the image)."""
     ch, cw = gx.shape
-    t = 2.0 * np.pi * (np.arange(N_BINS) + 0.5) / N_BINS
-    ct, st = np.cos(t), np.sin(t)
+    ct, st = unit_circle(N_BINS, True)
     r = np.arange(rmax + 1, dtype=np.float64)[:, None]
     u = np.floor(c[0] + r * ct + 0.5).astype(np.int64)
     v = np.floor(c[1] + r * st + 0.5).astype(np.int64)
@@ -653,10 +680,10 @@ def edge_points(
     """B2: the sub-pixel edge on each radial profile across a circle: ((n, 2) points, number of
     profiles inside the image). sign -1: darker outwards (outer edge), +1: brighter outwards."""
     h, w = fine.shape
-    t = 2.0 * np.pi * np.arange(N_PROFILES) / N_PROFILES
+
     n_s = int(round(2 * half / PROFILE_STEP)) + 1
     s = -half + PROFILE_STEP * np.arange(n_s)
-    ct, st = np.cos(t)[:, None], np.sin(t)[:, None]
+    ct, st = (v[:, None] for v in unit_circle(N_PROFILES, False))
     x = center[0] + (radius + s[None, :]) * ct
     y = center[1] + (radius + s[None, :]) * st
     inside = ((x >= 0) & (x <= w - 1) & (y >= 0) & (y <= h - 1)).all(1)
@@ -702,7 +729,10 @@ def _refine_inner(fine: np.ndarray, center: tuple[float, float], r0: float) -> f
         if n_in == 0 or len(pts) < 20 or len(pts) < MIN_SHARE * n_in:
             return 0.0
         (cx, cy, r), keep = _fit_robust(pts)
-        if keep.sum() < max(20, MIN_SHARE * n_in) or math.hypot(cx - center[0], cy - center[1]) > INNER_OFFSET * r:
+        if (
+            keep.sum() < max(20, MIN_SHARE * n_in)
+            or math.sqrt((cx - center[0]) ** 2 + (cy - center[1]) ** 2) > INNER_OFFSET * r
+        ):
             return 0.0
         c = (cx, cy)
     return r

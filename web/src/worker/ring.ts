@@ -86,14 +86,36 @@ const WINDOW_MARGIN = 12;
 
 type Circle = [number, number, number];
 const f32 = Math.fround;
+/** Every length of the algorithm: sqrt(dx^2 + dy^2) as ring.py sums it, never Math.hypot (the two differ in the last bit). */
+const dist = (dx: number, dy: number) => Math.sqrt(dx * dx + dy * dy);
+
+/**
+ * cos and sin of 2 pi (k + 0.5 if half else k) / n, rounded to multiples of 2^-40 as ring.py's
+ * unit_circle rounds them (V8's Math and the C library differ in the last bit at some angles).
+ */
+export function unitCircle(n: number, half: boolean): [Float64Array, Float64Array] {
+  const key = `${n}:${half}`;
+  let got = UNIT.get(key);
+  if (!got) {
+    const round = (v: number) => Math.floor(v * 2 ** 40 + 0.5) / 2 ** 40;
+    const t = (k: number) => (2 * Math.PI * (k + (half ? 0.5 : 0))) / n;
+    got = [
+      Float64Array.from(range(n), (k) => round(Math.cos(t(k)))),
+      Float64Array.from(range(n), (k) => round(Math.sin(t(k)))),
+    ];
+    UNIT.set(key, got);
+  }
+  return got;
+}
+const UNIT = new Map<string, [Float64Array, Float64Array]>();
 
 /** B7: share of the circle's circumference inside a w x h image (which spans -0.5 .. w - 0.5). */
 export function visibleShare(center: readonly [number, number], r: number, w: number, h: number): number {
   let inside = 0;
+  const [cos, sin] = unitCircle(N_VISIBLE, true);
   for (let k = 0; k < N_VISIBLE; k++) {
-    const t = (2 * Math.PI * (k + 0.5)) / N_VISIBLE;
-    const x = center[0] + r * Math.cos(t);
-    const y = center[1] + r * Math.sin(t);
+    const x = center[0] + r * cos[k];
+    const y = center[1] + r * sin[k];
     if (x >= -0.5 && x <= w - 0.5 && y >= -0.5 && y <= h - 0.5) inside++;
   }
   return inside / N_VISIBLE;
@@ -170,7 +192,7 @@ export function fitCircleGeometric(
     for (let i = 0; i < idx.length; i++) {
       const dx = xs[idx[i]] - cx;
       const dy = ys[idx[i]] - cy;
-      const d = Math.max(Math.hypot(dx, dy), 1e-9);
+      const d = Math.max(Math.sqrt(dx * dx + dy * dy), 1e-9);
       const e = d - r;
       const j = [-dx / d, -dy / d, -1];
       for (let a = 0; a < 3; a++) {
@@ -195,7 +217,7 @@ function fitRobust(xs: Float64Array, ys: Float64Array): [Circle, number[]] {
   let keep = range(xs.length);
   let c = fitCircleGeometric(xs, ys, keep, fitCircleAlgebraic(xs, ys, keep));
   for (let round = 0; round < 2; round++) {
-    const e = Float64Array.from(xs, (x, i) => Math.abs(Math.hypot(x - c[0], ys[i] - c[1]) - c[2]));
+    const e = Float64Array.from(xs, (x, i) => Math.abs(dist(x - c[0], ys[i] - c[1]) - c[2]));
     const sigma = Math.max(0.05, 1.4826 * median(keep.map((i) => e[i])));
     keep = keep.filter((i) => e[i] <= 3 * sigma);
     if (keep.length < 3) break;
@@ -240,12 +262,12 @@ function sobelAt(g: Uint8Array, cols: number, rows: number, px: number, py: numb
 function hits(e: Edges, center: [number, number], rmax: number, outward: boolean) {
   const table = new Uint8Array((rmax + 3) * N_BINS);
   const sel = new Uint8Array(e.n);
-  const dist = new Float64Array(e.n);
+  const far = new Float64Array(e.n);
   for (let i = 0; i < e.n; i++) {
     const dx = e.x[i] - center[0];
     const dy = e.y[i] - center[1];
-    const d = Math.hypot(dx, dy);
-    dist[i] = d;
+    const d = dist(dx, dy);
+    far[i] = d;
     if (!(d > 0)) continue;
     const c = (e.ux[i] * dx + e.uy[i] * dy) / Math.max(d, 1e-9);
     if (outward ? !(c > RADIAL_COS) : !(c < -RADIAL_COS)) continue;
@@ -257,11 +279,10 @@ function hits(e: Edges, center: [number, number], rmax: number, outward: boolean
     table[q * N_BINS + n] = 1;
     sel[i] = 1;
   }
-  return { table, sel, dist };
+  return { table, sel, dist: far };
 }
 
-const BIN_COS = range(N_BINS).map((n) => Math.cos((2 * Math.PI * (n + 0.5)) / N_BINS));
-const BIN_SIN = range(N_BINS).map((n) => Math.sin((2 * Math.PI * (n + 0.5)) / N_BINS));
+const [BIN_COS, BIN_SIN] = unitCircle(N_BINS, true);
 
 /** A7: per radius, the share of the visible angle bins with an edge hit at r - win .. r + win. */
 function coverage(
@@ -720,10 +741,10 @@ function edgePoints(
   const xs: number[] = [];
   const ys: number[] = [];
   let nIn = 0;
+  const [cos, sin] = unitCircle(N_PROFILES, false);
   for (let k = 0; k < N_PROFILES; k++) {
-    const t = (2 * Math.PI * k) / N_PROFILES;
-    const ct = Math.cos(t);
-    const st = Math.sin(t);
+    const ct = cos[k];
+    const st = sin[k];
     let inside = true;
     for (let j = 0; j < nS && inside; j++) {
       const x = center[0] + (radius + (-half + PROFILE_STEP * j)) * ct;
@@ -778,7 +799,7 @@ function refineInner(fine: Fine, center: [number, number], r0: number): number {
     const { xs, ys, nIn } = edgePoints(fine, c, r, 1, half);
     if (nIn === 0 || xs.length < 20 || xs.length < MIN_SHARE * nIn) return 0;
     const [[cx, cy, rr], keep] = fitRobust(xs, ys);
-    if (keep.length < Math.max(20, MIN_SHARE * nIn) || Math.hypot(cx - center[0], cy - center[1]) > INNER_OFFSET * rr)
+    if (keep.length < Math.max(20, MIN_SHARE * nIn) || dist(cx - center[0], cy - center[1]) > INNER_OFFSET * rr)
       return 0;
     [c, r] = [[cx, cy], rr];
   }
