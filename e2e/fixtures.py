@@ -130,6 +130,8 @@ RING_CASES = [
     ("ring-larger", "donut", (0.0, 0.0), 1.05, 7),  # 5 % larger: the usable circle leaves the top
     ("ring-housing", "donut", (4.0, -3.0), 1.0, 11),  # a bright housing hugs the ring (HOUSING_RIM)
 ]
+# a small mirror's dark centre off its rim's centre: radius, offset (px), seed (synth.clipon.small_centre_frames)
+SMALL_CENTRE = (40.0, (3.0, -2.0), 12)
 # the bright annulus of a real clip-on's housing, right against the mirror's edge: brighter outside
 # the ring than in it, and a more complete circle further out (calib/ring.py, A9)
 HOUSING_RIM = (1.0, 1.15, 180.0)
@@ -182,7 +184,15 @@ def ring_golden(out: Path, rendered: list[np.ndarray] | None = None) -> None:
 
     lenses = {"donut": donut_lens(1.0), "wide": wide_lens(), "hd": hd_lens()}
     recipe = json.dumps(
-        [RING_CASES, HOUSING_RIM, [lens.to_dict() for lens in lenses.values()], 1, "dim", "measured", "small-centre"]
+        [
+            RING_CASES,
+            HOUSING_RIM,
+            [lens.to_dict() for lens in lenses.values()],
+            1,
+            "dim",
+            "measured",
+            ["small-centre", SMALL_CENTRE],
+        ]
     )
     old = out / "ring.json"
     cached = old.exists() and json.loads(old.read_text()).get("recipe") == recipe
@@ -222,10 +232,15 @@ def ring_golden(out: Path, rendered: list[np.ndarray] | None = None) -> None:
     )
     # a small mirror's dark centre, 3.6 px off the rim's centre (A8's window and its fill)
     if not cached:
-        _rgba(out, "ring-small-centre", small_centre_frames(lenses["donut"], 1, 40.0, (3.0, -2.0), seed=12)[0])
+        _rgba(out, "ring-small-centre", small_centre_frames(lenses["donut"], 1, *SMALL_CENTRE)[0])
     base = lenses["donut"]
     frames.append(
-        ("ring-small-centre", cv2.imread(str(out / "ring-small-centre.png")), base, (*base.center, 40.0, base.r_outer))
+        (
+            "ring-small-centre",
+            cv2.imread(str(out / "ring-small-centre.png")),
+            base,
+            (*base.center, SMALL_CENTRE[0], base.r_outer),
+        )
     )
     for stem in ("ring-plain", "ring-covered"):
         frames.append((stem, cv2.imread(str(out / f"{stem}.png")), lenses["donut"], None))

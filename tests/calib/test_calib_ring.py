@@ -442,15 +442,22 @@ def test_a7_tries_the_next_candidate_when_the_narrow_run_finds_none(monkeypatch)
     assert ring_mod._outer_circle(*args) is None
 
 
-def test_a_small_dark_centre_off_the_rims_centre():
+@pytest.mark.parametrize("offset", [(3.0, -2.0), (6.0, 4.0)])
+def test_a_small_dark_centre_off_the_rims_centre(offset, monkeypatch):
     """A small mirror's dark centre (26 coarse px: it crosses under half the angle bins) whose
-    centre sits 3.6 px off the rim's, as a decentred mirror's does: found (it was r_inner 0 before
-    step A8 allowed for both), and the ring keeps the rim's centre."""
+    centre sits 3.6 or 7.2 px off the rim's, as a real decentred mirror's does: found with its own
+    radius (it was r_inner 0 before A8's window and fill; B5 around the rim's centre lost the
+    second), and the ring keeps the rim's centre. A dark centre further off than INNER_OFFSET
+    of its radius is none."""
+    from omninav.calib import ring as ring_mod
+
     lens = geometries(1.0)["donut"]
-    frames = small_centre_frames(lens, 2, 40.0, (3.0, -2.0), seed=4, sur=Surround(noise=3.0, jpeg=85))
+    frames = small_centre_frames(lens, 2, 40.0, offset, seed=4, sur=Surround(noise=3.0, jpeg=85))
     r = find_ring(frames)
-    assert r.r_inner == pytest.approx(40.0, abs=1.0) and r.spread["r_inner_px"] < 0.5
+    assert r.r_inner == pytest.approx(40.0, abs=0.5) and r.spread["r_inner_px"] < 0.5
     assert r.center == pytest.approx(lens.center, abs=0.3) and r.r_outer == pytest.approx(lens.r_outer, abs=0.5)
+    monkeypatch.setattr(ring_mod, "INNER_OFFSET", 0.5 * float(np.hypot(*offset)) / 40.0)
+    assert find_ring(frames).r_inner == 0.0
 
 
 def test_a_fisheye_a_dim_room_and_heavy_noise():

@@ -32,7 +32,7 @@ A. Coarse stage, on a copy whose longer side is at most COARSE_MAX = 640 px.
     (The votes of a ring make a blob a few pixels wide, gradient directions being a degree or
     two off: the wide box finds its middle, a 3x3 one lands anywhere on it under noise.)
  7. Outer circle around a centre (a, b) with a radius window W (OUTER_WINDOWS: run twice, W = 3
-    around (a0, b0), then W = 1 around the centre of the circle the first run found). For every
+    around (a0, b0), then W = 1 around the centre of a circle the first run found). For every
     edge point with d = sqrt((x - a)^2 + (y - b)^2) > 0: the radial cosine c = (ux (x - a) +
     uy (y - b)) / d; the point is "inward" if c < -RADIAL_COS (RADIAL_COS = 0.9: brighter towards
     the centre), "outward" if c > RADIAL_COS. Its angle bin is
@@ -44,32 +44,34 @@ A. Coarse stage, on a copy whose longer side is at most COARSE_MAX = 640 px.
     q in r - W .. r + W; score(r) = cov(r) / vis(r), 0 when vis(r) < 36 (a tenth of the circle).
     best = max score; no ring if best < MIN_COVERAGE = 0.5. The candidates are the r with
     score(r) >= OUTER_PICK (0.8) * best that are local maxima (score(r) >= score(r - 1) and
-    >= score(r + 1), a missing neighbour counting as -1), SMALLEST first: a bright plastic rim
-    further out is as complete a circle, but never inside the ring. A candidate's circle: the
+    >= score(r + 1), a missing neighbour counting as -1), SMALLEST first, and of consecutive such
+    r only the first (a plateau is one candidate): a bright plastic rim further out is as
+    complete a circle, but never inside the ring. A candidate's circle: the
     inward points with |d - r| <= W + 1 (at least 20, else it has none) -> algebraic circle fit
     (B3). The first run's candidates are taken in turn, skipping those without a circle: the
     second run around a candidate's centre gives the circle (a1, b1, r1') of its own first
     candidate, or, when that has no circle, the next candidate of the first run is tried (a circle
     of the scene just inside the ring, fitted on its arcs, can put the centre a few pixels off the
     ring's, where the narrow window no longer sees the ring). No ring when none gives one.
- 8. Inner radius around (a1, b1) (A9's circle, after A9): the "outward" points of A7 (a dark
-    centre: brighter outwards), r from lo = floor(0.1 r1' + 0.5) to hi = floor(0.9 r1' + 0.5)
-    (only if lo >= 1 and hi > lo + 2), with the window W = INNER_WINDOW (3: a mirror's dark centre
-    can sit a few pixels off its rim's centre) and score(r) = min(1, cov(r) / vis(r) / fill(r)),
-    fill(r) = min(1, 2 pi r / N_BINS): a circle of radius r crosses about 2 pi r of the bins, one
-    an edge pixel, so a small dark centre could never fill half of them. Candidates: the radii
-    whose score >= MIN_COVERAGE is a local maximum (as A7) and that are dark inside: at
-    INNER_DARK (0.75) of the N_BINS angles t_n whose two pixels (u, v) = (floor(a1 + q cos t_n +
-    0.5), floor(b1 + q sin t_n + 0.5)) at q = r + W + 2 and q = max(0, r - W - 2) lie in the image
-    (at least 36 of them), blur (A3) is brighter at the outer by more than INNER_STEP (4 grey
-    levels) (a scene's own circles, a floor's tiles under a fisheye, are brighter outwards at some
-    angles only). Of those at most s + gap (s the start
-    of A9's scene run around (a1, b1), gap of A9; all of them when none is, or without a run), the
-    largest: the scene begins at the dark centre's edge, and circles further in are the camera's
-    reflection, the mirror's post or a lens barrel. r2 = the median distance to (a1, b1) of the
-    outward points within W + 1 of that radius (at least 20, else none). Without one, the same
-    again with the edge points of a fainter Canny(blur, 8, 20) (CANNY_FAINT: a dim scene's inner
-    edge); else r2 = 0 (no inner circle: a fisheye, not a failure).
+ 8. Inner circle around (a1, b1) (A9's circle, after A9): the "outward" points of A7 (a dark
+    centre: brighter outwards), r from max(lo, W + 1) to hi, lo = floor(0.1 r1 + 0.5), hi =
+    floor(0.9 r1 + 0.5) (only if lo >= 1 and hi > lo + 2), with the window W = INNER_WINDOW (3: a
+    mirror's dark centre can sit a few pixels off its rim's centre) and score(r) = cov(r) / vis(r)
+    / fill(r), fill(r) = min(1, 2 pi r / N_BINS): a circle of radius r crosses about 2 pi r of the
+    bins, one an edge pixel, so a small dark centre could never fill half of them (the score may
+    pass 1). Candidates: the r whose score >= MIN_COVERAGE is a local maximum (as A7) and that are
+    dark inside: at INNER_DARK (0.75) of the N_BINS angles t_n whose two pixels (u, v) = (floor(a1
+    + q cos t_n + 0.5), floor(b1 + q sin t_n + 0.5)) at q = r + W + 2 and q = max(0, r - W - 2) lie
+    in the image (at least 36 of them), blur (A3) is brighter at the outer by more than INNER_STEP
+    (4 grey levels) (a scene's own circles, a floor's tiles under a fisheye, are brighter outwards
+    at some angles only). The chosen r: the largest candidate at most s + gap (s the start of A9's
+    scene run around (a1, b1), gap of A9's; any candidate without a run): the scene begins at the
+    dark centre's edge, and circles further in are the camera's reflection, the mirror's post or a
+    lens barrel; when none is, the smallest candidate (a dim scene's texture starts further out).
+    The inner circle (a2, b2, r2): the algebraic fit (B3) of the outward points with |d - r| <=
+    W + 1 (at least 20, else none). Without one, the same again with the edge points of a fainter
+    Canny(blur, 8, 20) (CANNY_FAINT: a dim scene's inner edge); else r2 = 0 (no inner circle: a
+    fisheye, not a failure).
  9. Which annulus holds the scene (A9, around (a1, b1) of A7, before A8): a housing, its rim or a
     bright surround makes circles as complete as the mirror's edge, but only the scene has texture
     *along* the circle. The texture T(r), for r = 0 .. floor(r1 + 3 + gap): at the N_BINS angles
@@ -124,12 +126,13 @@ B. Sub-pixel stage, at full resolution.
     fewer than max(20, MIN_SHARE * m) points or the fit kept fewer than that (MIN_SHARE = 0.5,
     m = the number of that pass's angles in the image). The kept points of pass 2 are the outer
     edge points (for the ellipse check).
- 5. Inner circle (only if A gave r2 > 0): the same two passes with sign +1, the first around the
-    outer circle's final centre at radius r2 (converted as B1), the second around the first's
-    circle, each fitted as B3 (a fit whose centre lies more than 0.25 of its radius from the outer
-    circle's centre gives none); r_inner = the second pass's radius, 0 if a pass falls short as in
-    B4. The ring keeps the outer circle's centre (the outer edge is the longer, sharper one); the
-    dark centre's own centre, a few pixels off on a decentred mirror, is not reported.
+ 5. Inner circle (only if A gave r2 > 0): the same two passes with sign +1, the first around A8's
+    circle (a2, b2, r2), converted as B1, the second around the first's, each fitted as B3 (its
+    own centre: a decentred mirror's dark centre sits a few pixels off its rim's); a fit whose
+    centre lies more than INNER_OFFSET (0.25) of its radius from the outer circle's final centre
+    gives none, as does a pass that falls short as in B4 (r_inner = 0). r_inner = the second
+    pass's radius. The ring keeps the outer circle's centre (the outer edge is the longer, sharper
+    one); the dark centre's own centre is not reported.
  6. Radius convention: the radii are where the intensity crosses half way between the ring and
     its surround (the strongest derivative). EDGE_BIAS_PX = 0.0 would be subtracted from r_outer
     and added to r_inner: on the renderer's hard-edged rings (a pixel is on the ring when its
@@ -384,7 +387,10 @@ def _outer_circles(
     prev = np.concatenate([[-1.0], score[:-1]])
     nxt = np.concatenate([score[1:], [-1.0]])
     out: list[tuple[float, float, float] | None] = []
-    for k in np.flatnonzero((score >= OUTER_PICK * best) & (score >= prev) & (score >= nxt)):
+    ks = np.flatnonzero((score >= OUTER_PICK * best) & (score >= prev) & (score >= nxt))
+    for i, k in enumerate(ks):
+        if i > 0 and k == ks[i - 1] + 1:  # a plateau's radii are one candidate: its first
+            continue
         near = sel & (np.abs(d - float(radii[k])) <= win + 1.0)
         out.append(fit_circle_algebraic(pts[near]) if near.sum() >= 20 else None)
     return out
@@ -452,7 +458,7 @@ def _dark_inside(blur: np.ndarray, c: tuple[float, float], r: int) -> bool:
     return bool(((g[0] - g[1]) > INNER_STEP).mean() >= INNER_DARK)
 
 
-def _inner_radius(
+def _inner_circle(
     blur: np.ndarray,
     pts: np.ndarray,
     grad: np.ndarray,
@@ -461,28 +467,30 @@ def _inner_radius(
     size: tuple[int, int],
     scene_start: float | None,
     gap: float,
-) -> float:
-    """A8: the radius of the dark centre's circle of outward edges around c, or 0 (none)."""
+) -> tuple[float, float, float] | None:
+    """A8: the dark centre's circle of outward edges (found around c, fitted with its own centre),
+    or None."""
     lo, hi = rlim
     win = INNER_WINDOW
     hits, d, sel = _hits(pts, grad, c, hi + win, outward=True)
     radii = np.arange(max(lo, win + 1), hi + 1)
     if not len(radii):
-        return 0.0
-    fill = np.minimum(1.0, 2.0 * np.pi * radii / N_BINS)
-    sc = np.minimum(1.0, _coverage(hits, c, radii, size, win) / fill)
+        return None
+    sc = _coverage(hits, c, radii, size, win) / np.minimum(1.0, 2.0 * np.pi * radii / N_BINS)
     prev = np.concatenate([[-1.0], sc[:-1]])
     nxt = np.concatenate([sc[1:], [-1.0]])
     cand = radii[(sc >= MIN_COVERAGE) & (sc >= prev) & (sc >= nxt)]
     cand = cand[[_dark_inside(blur, c, int(r)) for r in cand]] if len(cand) else cand
     if not len(cand):
-        return 0.0
+        return None
     inside = cand[cand <= scene_start + gap] if scene_start is not None else cand
-    r = float((inside if len(inside) else cand)[-1])
+    # the largest inside where the scene starts; else (a dim scene's texture starts further out)
+    # the smallest
+    r = float(inside[-1] if len(inside) else cand[0])
     near = sel & (np.abs(d - r) <= win + 1.0)
     if near.sum() < 20:
-        return 0.0
-    return float(np.median(d[near]))
+        return None
+    return fit_circle_algebraic(pts[near])
 
 
 @dataclass(frozen=True)
@@ -496,6 +504,7 @@ class Coarse:
     outer_sign: float = -1.0  # B2's sign for the outer edge: -1 darker outside, +1 brighter
     housing: float = 0.0
     texture_ratio: float = 0.0
+    inner_center: tuple[float, float] | None = None  # A8: the dark centre's own centre
 
 
 def _gap(r: float) -> float:
@@ -641,13 +650,14 @@ def coarse_ring(grey: np.ndarray) -> Coarse | None:
     # inner edge: again with fainter edges
     run = _scene_run(_smooth(t), int(math.floor(r1)))
     lo, hi = int(math.floor(0.1 * r1 + 0.5)), int(math.floor(0.9 * r1 + 0.5))
-    r2 = 0.0
+    inner: tuple[float, float, float] | None = None
     if hi > lo + 2 and lo >= 1:
         where = ((a1, b1), (lo, hi), (cw, ch), float(run[0]) if run is not None else None, _gap(r1))
-        r2 = _inner_radius(blur, pts, grad, *where)
-        if r2 == 0.0:
+        inner = _inner_circle(blur, pts, grad, *where)
+        if inner is None:
             pts2, grad2 = _edge_points(blur, gx, gy, CANNY_FAINT)
-            r2 = _inner_radius(blur, pts2, grad2, *where)
+            inner = _inner_circle(blur, pts2, grad2, *where)
+    r2 = inner[2] if inner is not None else 0.0
     # A9: the texture ratio, over the scene from its inner edge (or from where its texture starts)
     start = r2 or (float(run[0]) if run is not None else 0.0)
     return Coarse(
@@ -655,6 +665,7 @@ def coarse_ring(grey: np.ndarray) -> Coarse | None:
         r_inner=r2,
         r_outer=r1,
         scale=(cw / w, ch / h),
+        inner_center=(inner[0], inner[1]) if inner is not None else None,
         outer_sign=osign,
         housing=housing,
         texture_ratio=_texture_ratio(t, start, r1),
@@ -720,19 +731,18 @@ def _refine_outer(
     return circle, pts[keep]
 
 
-def _refine_inner(fine: np.ndarray, center: tuple[float, float], r0: float) -> float:
-    """B5: the radius of the dark centre's own circle, starting around the outer circle's centre,
-    or 0 without an inner edge."""
-    c, r = center, r0
+def _refine_inner(fine: np.ndarray, center: tuple[float, float], start: tuple[float, float, float]) -> float:
+    """B5: the radius of the dark centre's own circle, from A8's circle `start`, or 0 without an
+    inner edge (or one further than INNER_OFFSET of its radius from the ring's `center`)."""
+    c, r = (start[0], start[1]), start[2]
     for half in (6.0, 3.0):
         pts, n_in = edge_points(fine, c, r, 1.0, half)
         if n_in == 0 or len(pts) < 20 or len(pts) < MIN_SHARE * n_in:
             return 0.0
         (cx, cy, r), keep = _fit_robust(pts)
-        if (
-            keep.sum() < max(20, MIN_SHARE * n_in)
-            or math.sqrt((cx - center[0]) ** 2 + (cy - center[1]) ** 2) > INNER_OFFSET * r
-        ):
+        dx, dy = cx - center[0], cy - center[1]
+        off = math.sqrt(dx * dx + dy * dy)
+        if keep.sum() < max(20, MIN_SHARE * n_in) or not off <= INNER_OFFSET * r:  # (a NaN fit: none)
             return 0.0
         c = (cx, cy)
     return r
@@ -772,7 +782,10 @@ def find_ring_frame(frame: np.ndarray) -> Ring | None:
     if got is None:
         return None
     (cx, cy, r_out), pts = got
-    r_in = _refine_inner(fine, (cx, cy), ri / s) if ri > 0 else 0.0
+    r_in = 0.0
+    if ri > 0 and coarse.inner_center is not None:
+        (ia, ib) = coarse.inner_center
+        r_in = _refine_inner(fine, (cx, cy), ((ia + 0.5) / sx - 0.5, (ib + 0.5) / sy - 0.5, ri / s))
     r_out -= EDGE_BIAS_PX
     if r_in > 0:
         r_in += EDGE_BIAS_PX

@@ -173,13 +173,16 @@ def small_centre_frames(
     sur: Surround | None = None,
 ) -> list[np.ndarray]:
     """ring_frames() of a small mirror off its rim's axis: the dark centre (the camera's
-    reflection, the post) a disc of `radius` px whose centre is `offset` px from the ring's. The
-    frames' true ring is lens.center, `radius`, lens.r_outer."""
+    reflection, the post) a disc of `radius` px whose centre is `offset` px from the ring's, hard
+    edged as the renderer's ring (a pixel is in it when its centre is). The frames' true ring is
+    lens.center, `radius` (the dark centre's own radius), lens.r_outer."""
     inner = max(1.0, radius - float(np.hypot(*offset)) - 2.0)  # the rendered one, under the disc
     frames = ring_frames(dataclasses.replace(lens, r_inner=min(lens.r_inner, inner)), n, seed=seed, sur=sur)
-    at = (round((lens.center[0] + offset[0]) * 16), round((lens.center[1] + offset[1]) * 16))
-    for f in frames:  # (centre and radius in 1/16 px)
-        cv2.circle(f, at, round(radius * 16), (22, 22, 22), -1, lineType=cv2.LINE_AA, shift=4)
+    h, w = frames[0].shape[:2]
+    y, x = np.mgrid[0:h, 0:w]
+    disc = np.hypot(x - (lens.center[0] + offset[0]), y - (lens.center[1] + offset[1])) <= radius
+    for f in frames:
+        f[disc] = 22
     return frames
 
 

@@ -1,6 +1,6 @@
 /**
  * The donut's ring in a camera frame, found without any target: a port of the engine's
- * calib/ring.py, whose docstring states the algorithm (steps A1-A8, B1-B7, C) and constants; the
+ * calib/ring.py, whose docstring states the algorithm (steps A1-A9, B1-B7, C) and constants; the
  * same numbers here, so that the phone and `omninav calib ring` agree within 0.5 px (they agree
  * within 0.01 px on the golden frames). opencv.js does the image work (cvtColor, resize,
  * GaussianBlur, Canny); Sobel at the edge pixels, votes, coverage, profiles and circle fits are
@@ -233,7 +233,7 @@ interface Edges {
   ux: Float64Array;
   uy: Float64Array;
   n: number;
-  /** A3's blurred coarse image (cols x rows), for A9's texture. */
+  /** A3's blurred coarse image (cols x rows), for A9's texture and A8's dark inside. */
   blur: Uint8Array;
   cols: number;
   rows: number;
@@ -386,6 +386,8 @@ interface Coarse {
   outerSign: number;
   housing: number;
   textureRatio: number;
+  /** A8: the dark centre's own centre. */
+  innerCenter: [number, number] | null;
 }
 
 const gapPx = (r: number) => GAP[0] * r + GAP[1];
@@ -549,18 +551,20 @@ function coarseStages(cv: RingCv, img: CvMat, w: number, h: number, cw: number, 
   const run = sceneRun(smooth(t), Math.floor(r1));
   const lo = Math.floor(0.1 * r1 + 0.5);
   const hi = Math.floor(0.9 * r1 + 0.5);
-  let r2 = 0;
+  let inner: Circle | null = null;
   if (hi > lo + 2 && lo >= 1) {
     const where = { c: [a1, b1] as [number, number], lo, hi, cw, ch, start: run ? run[0] : null, gap: gapPx(r1) };
-    r2 = innerRadius(e, where);
+    inner = innerCircle(e, where);
     // a dim scene's faint inner edge: again with the edge points of a fainter Canny
-    if (r2 === 0) r2 = innerRadius(coarseEdges(cv, img, CANNY_FAINT), where);
+    if (!inner) inner = innerCircle(coarseEdges(cv, img, CANNY_FAINT), where);
   }
   // A9: the texture ratio, over the scene from its inner edge (or from where its texture starts)
+  const r2 = inner ? inner[2] : 0;
   const start = r2 || (run ? run[0] : 0);
   return {
     center: [a1, b1],
     rInner: r2,
+    innerCenter: inner ? [inner[0], inner[1]] : null,
     rOuter: r1,
     scale: [cw / w, ch / h],
     outerSign,
@@ -599,15 +603,15 @@ function darkInside(e: Edges, c: [number, number], r: number): boolean {
   return n >= 36 && brighter / n >= INNER_DARK;
 }
 
-/** A8: the radius of the dark centre's circle of outward edges around c, or 0 (none). */
-function innerRadius(e: Edges, w: InnerSearch): number {
+/** A8: the dark centre's circle of outward edges (found around c, fitted with its own centre), or null. */
+function innerCircle(e: Edges, w: InnerSearch): Circle | null {
   const win = INNER_WINDOW;
   const out = hits(e, w.c, w.hi + win, true);
   const r0 = Math.max(w.lo, win + 1);
   const radii = range(Math.max(0, w.hi + 1 - r0)).map((i) => i + r0);
-  if (!radii.length) return 0;
-  const sc = coverage(out.table, w.c, radii, w.cw, w.ch, win).map((v, i) =>
-    Math.min(1, v / Math.min(1, (2 * Math.PI * radii[i]) / N_BINS)),
+  if (!radii.length) return null;
+  const sc = coverage(out.table, w.c, radii, w.cw, w.ch, win).map(
+    (v, i) => v / Math.min(1, (2 * Math.PI * radii[i]) / N_BINS),
   );
   const cand: number[] = [];
   for (let i = 0; i < sc.length; i++) {
@@ -615,13 +619,14 @@ function innerRadius(e: Edges, w: InnerSearch): number {
     const next = i < sc.length - 1 ? sc[i + 1] : -1;
     if (sc[i] >= MIN_COVERAGE && sc[i] >= prev && sc[i] >= next && darkInside(e, w.c, radii[i])) cand.push(radii[i]);
   }
-  if (!cand.length) return 0;
+  if (!cand.length) return null;
   const start = w.start;
   const inside = start === null ? cand : cand.filter((r) => r <= start + w.gap);
-  const r = (inside.length ? inside : cand)[(inside.length ? inside : cand).length - 1];
+  // the largest inside where the scene starts; else (a dim scene's texture starts further out) the smallest
+  const r = inside.length ? inside[inside.length - 1] : cand[0];
   const near: number[] = [];
-  for (let i = 0; i < e.n; i++) if (out.sel[i] && Math.abs(out.dist[i] - r) <= win + 1) near.push(out.dist[i]);
-  return near.length < 20 ? 0 : median(near);
+  for (let i = 0; i < e.n; i++) if (out.sel[i] && Math.abs(out.dist[i] - r) <= win + 1) near.push(i);
+  return near.length < 20 ? null : fitCircleAlgebraic(e.x, e.y, near);
 }
 
 /**
@@ -646,10 +651,14 @@ function outerCircles(
   for (const v of score) top = Math.max(top, v);
   if (top < MIN_COVERAGE) return [];
   const out: (Circle | null)[] = [];
+  let last = -2;
   for (let i = 0; i < score.length; i++) {
     const prev = i > 0 ? score[i - 1] : -1;
     const next = i < score.length - 1 ? score[i + 1] : -1;
     if (!(score[i] >= OUTER_PICK * top && score[i] >= prev && score[i] >= next)) continue;
+    const run = last === i - 1; // a plateau's radii are one candidate: its first
+    last = i;
+    if (run) continue;
     const near: number[] = [];
     for (let j = 0; j < e.n; j++) if (inward.sel[j] && Math.abs(inward.dist[j] - radii[i]) <= win + 1) near.push(j);
     out.push(near.length < 20 ? null : fitCircleAlgebraic(e.x, e.y, near));
@@ -791,15 +800,19 @@ function refineOuter(fine: Fine, circle: Circle, sign: number): Circle | null {
   return circle;
 }
 
-/** B5: the radius of the dark centre's own circle, starting around the outer circle's centre, or 0 without an inner edge. */
-function refineInner(fine: Fine, center: [number, number], r0: number): number {
-  let c = center;
-  let r = r0;
+/**
+ * B5: the radius of the dark centre's own circle, from A8's circle `start`, or 0 without an inner
+ * edge (or one further than INNER_OFFSET of its radius from the ring's `center`).
+ */
+function refineInner(fine: Fine, center: [number, number], start: Circle): number {
+  let c: [number, number] = [start[0], start[1]];
+  let r = start[2];
   for (const half of [6, 3]) {
     const { xs, ys, nIn } = edgePoints(fine, c, r, 1, half);
     if (nIn === 0 || xs.length < 20 || xs.length < MIN_SHARE * nIn) return 0;
     const [[cx, cy, rr], keep] = fitRobust(xs, ys);
-    if (keep.length < Math.max(20, MIN_SHARE * nIn) || dist(cx - center[0], cy - center[1]) > INNER_OFFSET * rr)
+    // (a NaN fit gives none)
+    if (keep.length < Math.max(20, MIN_SHARE * nIn) || !(dist(cx - center[0], cy - center[1]) <= INNER_OFFSET * rr))
       return 0;
     [c, r] = [[cx, cy], rr];
   }
@@ -836,7 +849,9 @@ export function findRingFrame(
     // blur is the slowest step), or the whole frame should a profile reach further
     const refine = (fine: Fine): [Circle | null, number] => {
       const outer = refineOuter(fine, start, coarse.outerSign);
-      return [outer, outer && ri > 0 ? refineInner(fine, [outer[0], outer[1]], ri / s) : 0];
+      const ic = coarse.innerCenter;
+      const inner: Circle | null = ic && ri > 0 ? [(ic[0] + 0.5) / sx - 0.5, (ic[1] + 0.5) / sy - 0.5, ri / s] : null;
+      return [outer, outer && inner ? refineInner(fine, [outer[0], outer[1]], inner) : 0];
     };
     let got: [Circle | null, number];
     try {
