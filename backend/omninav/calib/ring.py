@@ -223,10 +223,10 @@ def unit_circle(n: int, half: bool) -> tuple[np.ndarray, np.ndarray]:
     got = _UNIT.get(key)
     if got is None:
         t = 2.0 * np.pi * (np.arange(n) + (0.5 if half else 0.0)) / n
-        got = _UNIT[key] = (
-            np.floor(np.cos(t) * 2.0**40 + 0.5) / 2.0**40,
-            np.floor(np.sin(t) * 2.0**40 + 0.5) / 2.0**40,
-        )
+        got = (np.floor(np.cos(t) * 2.0**40 + 0.5) / 2.0**40, np.floor(np.sin(t) * 2.0**40 + 0.5) / 2.0**40)
+        for a in got:
+            a.flags.writeable = False  # shared by every caller
+        _UNIT[key] = got
     return got
 
 
