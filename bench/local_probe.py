@@ -60,8 +60,8 @@ def panorama_map(lens: Any) -> tuple[Any, np.ndarray, np.ndarray]:
 
 
 def features(orb: Any, frame: np.ndarray, pmap: tuple[Any, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """(n, 3) unit bearing vectors (x east of the panorama's zero, y up... a right-handed frame)
-    and (n, 32) ORB descriptors of a frame's panorama."""
+    """(n, 3) unit bearing vectors (x = cos e sin a, y = cos e cos a, z = sin e: azimuth a from the
+    panorama's first column, elevation e up) and (n, 32) ORB descriptors of a frame's panorama."""
     m, el, az = pmap
     pano = cv2.cvtColor(unwarp(frame, m), cv2.COLOR_BGR2GRAY)
     kp, des = orb.detectAndCompute(pano, None)
@@ -201,8 +201,8 @@ def probe(pack: Path, venue: str, n_features: int) -> dict[str, Any]:
     queries = []
     for truth, spec, fps in query_spectra(pack, venue, loc):
         t = np.arange(len(spec)) / fps
-        m, _ = loc.search_clip(spec, t)
-        queries.append((truth, loc.estimate(spec, t), places(m, loc.xy)))
+        m, times = loc.search_clip(spec, t)
+        queries.append((truth, loc.aggregated(m, times), places(m, loc.xy)))
     ver = Verifier(loc, src / "model.mp4", model_lens, {r for _, _, p in queries for r in p}, n_features)
     rows = []
     for truth, e, cand in queries:
@@ -231,8 +231,8 @@ def probe_own(family: str, seed: int, n_features: int) -> dict[str, Any]:
     clips = []
     for s0 in range(0, len(t) - n + 1, n):
         w = slice(s0, s0 + n)
-        m, _ = loc.search_clip(spec[w], t[w])
-        clips.append((int(idx[s0 + n - 1]), xy[s0 + n - 1], loc.estimate(spec[w], t[w]), places(m, loc.xy)))
+        m, times = loc.search_clip(spec[w], t[w])
+        clips.append((int(idx[s0 + n - 1]), xy[s0 + n - 1], loc.aggregated(m, times), places(m, loc.xy)))
     ver = Verifier(
         loc, root / "model.mp4", load_lens(root / "model_lens.json"), {r for *_, p in clips for r in p}, n_features
     )

@@ -34,10 +34,11 @@ import cv2
 import numpy as np
 
 from omninav.extract import Extractor
-from omninav.lens import Catadioptric, Sensor
+from omninav.lens import Catadioptric
 from omninav.presets import FEATURE_KEYS, TWO_BANDS, resolve, settings_id
 from omninav.spectrum import encode_binary
 from omninav.synth import QUERY, donut_lens, equirect_lens
+from omninav.synth.clipon import REAL_MIRROR_SENSOR
 from omninav.synth.scene import build_scene
 from omninav.synth.walks import Perturb, Pose, render_frames
 from omninav.unwarp import unwarp
@@ -85,10 +86,6 @@ def golden_frames() -> list[np.ndarray]:
     return [f for _, f in render_frames(build_scene(0, "small"), donut_lens(1.0), POSES, LOOK, seed=7)]
 
 
-# the decentred fit's sensor on OpenCV's real catadioptric corners (tests/calib/test_calib_corners.py)
-GOLDEN_SENSOR = Sensor((1.0, -0.02556, 0.02424, 1.00408), (0.0296, -0.00463), 340.0)
-
-
 def golden(out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
     scene = build_scene(0, "small")
@@ -108,7 +105,7 @@ def golden(out: Path) -> None:
         _case(out, "donut-tilted", donut, "default", tilted),
         # a real mirror's profile (`calib lens` on a real catadioptric camera: a skewed stretch and
         # decentring, lens.json's `sensor`), read on the same frames: the phone's sums are the engine's
-        _case(out, "donut-sensor", replace(donut, sensor=GOLDEN_SENSOR), "default", [dframes[0], tilted[0]]),
+        _case(out, "donut-sensor", replace(donut, sensor=REAL_MIRROR_SENSOR), "default", [dframes[0], tilted[0]]),
     ]
     (out / "golden.json").write_text(json.dumps({"cases": cases}, indent=1))
     ring_golden(out, dframes)

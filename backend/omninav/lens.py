@@ -8,6 +8,7 @@ elevation is 0 at the horizon and positive upwards.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -16,9 +17,14 @@ import numpy as np
 
 from .errors import OmninavError, finite, read_json
 
-# A real mirror's decentring is a few hundredths; up to this the term folds the plane no nearer the
-# centre than twice `scale` (about 1 / (6 |p|)), outside any ring, so every pixel has one direction
-MAX_DECENTRING = 0.08
+# lens.json's `sensor` bounds, shared with the phone's lens.ts: a real mirror's decentring is a few
+# hundredths, and up to MAX_DECENTRING the term folds the plane no nearer the centre than twice
+# `scale` (about 1 / (6 |p|)), outside any ring, so every pixel has one direction; the matrix near
+# the identity (its determinant within DETERMINANT, off-diagonals under MAX_SKEW)
+SENSOR_LIMITS: dict[str, Any] = json.loads((Path(__file__).parent / "sensor_limits.json").read_text())
+MAX_DECENTRING = float(SENSOR_LIMITS["MAX_DECENTRING"])
+DETERMINANT: tuple[float, float] = (float(SENSOR_LIMITS["DETERMINANT"][0]), float(SENSOR_LIMITS["DETERMINANT"][1]))
+MAX_SKEW = float(SENSOR_LIMITS["MAX_SKEW"])
 
 
 def decentring(x: np.ndarray, y: np.ndarray, p: tuple[float, float], s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -254,7 +260,9 @@ def _sensor(v: Any, where: str) -> Sensor | None:
     s = _num(v.get("scale"), "sensor", where)
     det = mat[0] * mat[3] - mat[1] * mat[2]
     # near the identity and a small decentring (a real mirror's is a few hundredths)
-    if not (s > 0 and 0.5 < det < 2.0 and max(abs(mat[1]), abs(mat[2])) < 0.5 and max(map(abs, p)) <= MAX_DECENTRING):
+    lo, hi = DETERMINANT
+    near = lo < det < hi and max(abs(mat[1]), abs(mat[2])) < MAX_SKEW and max(map(abs, p)) <= MAX_DECENTRING
+    if not (s > 0 and near):
         raise OmninavError(f"{where}: lens field 'sensor' must be {shape}")
     return Sensor((mat[0], mat[1], mat[2], mat[3]), (p[0], p[1]), s)
 

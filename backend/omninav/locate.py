@@ -112,7 +112,11 @@ class Locator:
     def estimate(self, q_spec: np.ndarray, times: np.ndarray | None = None, aggregate: str | None = None) -> Estimate:
         agg = self._aggregation(aggregate)
         m, times = self.search_clip(q_spec, times)
-        return AGGREGATORS[agg](m, self.xy, times, self.conf)
+        return self.aggregated(m, times, agg)
+
+    def aggregated(self, m: Matches, times: np.ndarray, aggregate: str | None = None) -> Estimate:
+        """A clip's matches and times (search_clip's) -> its answer, aggregated as estimate() does."""
+        return AGGREGATORS[self._aggregation(aggregate)](m, self.xy, times, self.conf)
 
     def _aggregation(self, aggregate: str | None) -> str:
         agg = aggregate or self.conf["aggregate"]

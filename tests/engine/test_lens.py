@@ -8,16 +8,13 @@ from omninav.calib.lens_fit import scaled_lens
 from omninav.errors import OmninavError
 from omninav.lens import (
     Catadioptric,
-    Sensor,
     direction_to_pixel,
     lens_from_dict,
     load_lens,
     pixel_to_direction,
 )
 from omninav.synth import donut_lens, equirect_lens
-
-# a real mirror's sensor (`calib lens` on OpenCV's real catadioptric corners, scaled to the donut)
-REAL_SENSOR = Sensor((1.0, -0.02556, 0.02424, 1.00408), (0.0296, -0.00463), 340.0)
+from omninav.synth.clipon import REAL_MIRROR_SENSOR
 
 
 @pytest.mark.parametrize(
@@ -27,7 +24,7 @@ REAL_SENSOR = Sensor((1.0, -0.02556, 0.02424, 1.00408), (0.0296, -0.00463), 340.
         donut_lens(0.5),
         equirect_lens(),
         Catadioptric((640, 480), (320, 240), 50, 200, (-60.0, 0.4), 0.0, False),
-        replace(donut_lens(), sensor=REAL_SENSOR),
+        replace(donut_lens(), sensor=REAL_MIRROR_SENSOR),
     ],
 )
 def test_direction_pixel_round_trip(lens):
@@ -81,16 +78,16 @@ def test_bad_profiles(patch, msg):
 def test_a_sensor_moves_the_pixels_as_its_matrix_and_decentring_say():
     """lens.json's `sensor`: the symmetric offset o is seen at center + M (o + s t(o / s))."""
     plain = donut_lens()
-    lens = replace(plain, sensor=REAL_SENSOR)
+    lens = replace(plain, sensor=REAL_MIRROR_SENSOR)
     az, el = np.array([0.0, 90.0, 200.0]), np.array([-20.0, 0.0, 10.0])
     x0, y0 = direction_to_pixel(plain, az, el)
     ox, oy = x0 - plain.center[0], y0 - plain.center[1]
-    p1, p2 = REAL_SENSOR.tangential
+    p1, p2 = REAL_MIRROR_SENSOR.tangential
     xn, yn = ox / 340.0, oy / 340.0
     q = xn**2 + yn**2
     ux = ox + 340.0 * (2 * p1 * xn * yn + p2 * (q + 2 * xn**2))
     uy = oy + 340.0 * (p1 * (q + 2 * yn**2) + 2 * p2 * xn * yn)
-    m = np.array(REAL_SENSOR.matrix).reshape(2, 2)
+    m = np.array(REAL_MIRROR_SENSOR.matrix).reshape(2, 2)
     x, y = direction_to_pixel(lens, az, el)
     assert np.allclose(x - plain.center[0], m[0, 0] * ux + m[0, 1] * uy)
     assert np.allclose(y - plain.center[1], m[1, 0] * ux + m[1, 1] * uy)
@@ -100,7 +97,7 @@ def test_a_sensor_moves_the_pixels_as_its_matrix_and_decentring_say():
 
 def test_a_scaled_profile_scales_its_sensor_with_the_picture():
     """A re-clipped lens whose picture is 5 % larger sees each direction 5 % farther out."""
-    lens = replace(donut_lens(), sensor=REAL_SENSOR)
+    lens = replace(donut_lens(), sensor=REAL_MIRROR_SENSOR)
     big = scaled_lens(lens, (3.0, -2.0), 1.05)
     az, el = np.linspace(0, 350, 36), np.full(36, 5.0)
     x, y = direction_to_pixel(lens, az, el)

@@ -499,7 +499,7 @@ def _fit_ocam(
         rows = np.flatnonzero(np.repeat(idx == j, 2))
         sparsity[rows[:, None], n_in + 6 * j + np.arange(6)[None, :]] = 1
     free = np.ones(len(x0), bool)
-    free[5:7] = False
+    free[N_FIXED - 2 : N_FIXED] = False  # the decentring (p1, p2), the intrinsics' last two
     sol = _lm(resid, x0, free, sparsity)
     dec = _lm(resid, sol.x, np.ones(len(x0), bool), sparsity)
     if _rms(dec.fun.reshape(-1, 2)) < DECENTRING_GAIN * _rms(sol.fun.reshape(-1, 2)):
@@ -721,8 +721,7 @@ def board_angles(detections: Sequence[View], ocam: Ocam) -> Iterator[tuple[int, 
         c = Rotation.from_rotvec(rvec).as_matrix() @ o3.mean(0) + tvec
         # the image angle of the symmetric model, as lens.json's azimuth has it (the sensor point,
         # (u, v) = (row, column)): a pixel's own angle differs by the stretch and the decentring
-        n = math.hypot(c[0], c[1])
-        yield v.frame, math.degrees(math.atan2(c[0] / n, c[1] / n)) if n > 0 else 0.0
+        yield v.frame, math.degrees(math.atan2(c[0], c[1]))
 
 
 def _wrap(a: float) -> float:

@@ -19,11 +19,16 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..lens import Catadioptric
+from ..lens import Catadioptric, Sensor
 from . import donut_lens
 from .render import CameraModel, PanoGrid, camera_frame, world_panorama
 from .scene import Scene, build_scene
 from .walks import default_routes, grid_for
+
+# a real mirror's sensor (lens.json `sensor`): what `calib lens` fits on OpenCV's real catadioptric
+# corners (tests/calib/test_calib_corners.py), a skewed stretch and decentring, its unit the donut's
+# outer radius: for renders, golden frames and tests that need a real mirror's profile
+REAL_MIRROR_SENSOR = Sensor((1.0, -0.02556, 0.02424, 1.00408), (0.0296, -0.00463), 340.0)
 
 
 def wide_lens() -> Catadioptric:

@@ -2,6 +2,7 @@
  * Lens profiles (docs/formats.md `lens.json`): which camera pixel looks in which direction, computed
  * exactly as the engine's lens.py does (NumPy's linspace, interp and polyval included).
  */
+import LIMITS from '../../../backend/omninav/sensor_limits.json';
 
 export interface CatadioptricLens {
   model: 'catadioptric';
@@ -140,6 +141,26 @@ export function directionToPixel(
   return [x, ((90 - el) * h) / 180 - 0.5];
 }
 
+const finite = (v: unknown): v is number => typeof v === 'number' && Number.isFinite(v);
+
+/** lens.py's _sensor: a matrix near the identity and a small decentring (sensor_limits.json). */
+function sensorOk(v: unknown): boolean {
+  if (typeof v !== 'object' || v === null) return false;
+  const { matrix: m, tangential: p, scale } = v as Record<string, unknown>;
+  const pair = (r: unknown): r is [number, number] => Array.isArray(r) && r.length === 2 && r.every(finite);
+  if (!(Array.isArray(m) && m.length === 2 && m.every(pair) && pair(p) && finite(scale))) return false;
+  const [[a, b], [c, d]] = m as [number, number][];
+  const det = a * d - b * c;
+  const [lo, hi] = LIMITS.DETERMINANT;
+  return (
+    scale > 0 &&
+    det > lo &&
+    det < hi &&
+    Math.max(Math.abs(b), Math.abs(c)) < LIMITS.MAX_SKEW &&
+    Math.max(Math.abs(p[0]), Math.abs(p[1])) <= LIMITS.MAX_DECENTRING
+  );
+}
+
 /** Why a lens profile cannot be used, or null when it can (the server validates it fully). */
 export function lensProblem(lens: unknown): string | null {
   if (typeof lens !== 'object' || lens === null) return 'the lens profile is not an object';
@@ -147,14 +168,14 @@ export function lensProblem(lens: unknown): string | null {
   const size = l.image_size;
   if (!Array.isArray(size) || size.length !== 2 || !size.every((v) => Number.isInteger(v) && v > 0))
     return "the lens profile's image_size must be [width, height]";
-  const num = (v: unknown) => typeof v === 'number' && Number.isFinite(v);
   if (l.model === 'catadioptric') {
-    if (!Array.isArray(l.center) || l.center.length !== 2 || !l.center.every(num)) return 'its center must be [x, y]';
-    if (!Array.isArray(l.elevation_poly) || !l.elevation_poly.length || !l.elevation_poly.every(num))
+    if (!Array.isArray(l.center) || l.center.length !== 2 || !l.center.every(finite))
+      return 'its center must be [x, y]';
+    if (!Array.isArray(l.elevation_poly) || !l.elevation_poly.length || !l.elevation_poly.every(finite))
       return 'its elevation_poly must be a list of numbers';
     if (
-      !num(l.r_inner) ||
-      !num(l.r_outer) ||
+      !finite(l.r_inner) ||
+      !finite(l.r_outer) ||
       !((l.r_inner as number) >= 0 && (l.r_inner as number) < (l.r_outer as number))
     )
       return 'it needs 0 <= r_inner < r_outer';
@@ -165,44 +186,15 @@ export function lensProblem(lens: unknown): string | null {
         typeof r === 'object' &&
         Array.isArray(r.center) &&
         r.center.length === 2 &&
-        r.center.every(num) &&
-        num(r.r_inner) &&
-        num(r.r_outer) &&
+        r.center.every(finite) &&
+        finite(r.r_inner) &&
+        finite(r.r_outer) &&
         (r.r_inner as number) >= 0 &&
         (r.r_inner as number) < (r.r_outer as number);
       if (!ok) return 'its ring must be {"center": [x, y], "r_inner": r, "r_outer": R} with 0 <= r < R';
     }
-    if (l.sensor !== undefined && l.sensor !== null) {
-      // lens.py's _sensor: a matrix near the identity, a small decentring
-      const v = l.sensor as Record<string, unknown>;
-      const m = v.matrix as unknown[][];
-      const shaped =
-        typeof v === 'object' &&
-        Array.isArray(m) &&
-        m.length === 2 &&
-        m.every((row) => Array.isArray(row) && row.length === 2 && row.every(num)) &&
-        Array.isArray(v.tangential) &&
-        v.tangential.length === 2 &&
-        v.tangential.every(num) &&
-        num(v.scale);
-      const [[a, b], [c, d]] = shaped
-        ? (m as number[][])
-        : [
-            [1, 0],
-            [0, 1],
-          ];
-      const p = shaped ? (v.tangential as number[]) : [0, 0];
-      const det = a * d - b * c;
-      const ok =
-        shaped &&
-        (v.scale as number) > 0 &&
-        det > 0.5 &&
-        det < 2 &&
-        Math.max(Math.abs(b), Math.abs(c)) < 0.5 &&
-        Math.max(Math.abs(p[0]), Math.abs(p[1])) <= 0.08;
-      if (!ok)
-        return 'its sensor must be {"matrix": [[a, b], [c, d]], "tangential": [p1, p2], "scale": s} (near the identity, |p| <= 0.08)';
-    }
+    if (l.sensor !== undefined && l.sensor !== null && !sensorOk(l.sensor))
+      return `its sensor must be {"matrix": [[a, b], [c, d]], "tangential": [p1, p2], "scale": s} (near the identity, |p| <= ${LIMITS.MAX_DECENTRING})`;
     return null;
   }
   if (l.model === 'equirectangular')
