@@ -52,6 +52,9 @@ CONFIGS.update(
                 "band_channels": [["I", "dI"]] * 3 + [["O1", "O2", "dO1", "dO2"]],
             },
         ),
+        # the venue option presets.py calls "verified": the default, its candidates checked by
+        # local features (verify.py) where a clip is located from its frames
+        "verified": ("verified", {}),
         "overlap-bands": (
             "default",
             {

@@ -30,6 +30,7 @@ from bench.common import machine
 from bench.scoring import conf_of, scores, summary
 from bench.venues import cached_venue, search_tag, settings
 from omninav.aggregate import confidence
+from omninav.calib.correct import FIRST
 from omninav.heading import wrap_deg
 from omninav.lens import load_lens
 from omninav.locate import Locator, clip_frames
@@ -86,7 +87,14 @@ def rows_for(pack: Path, venue: str, tag: str, conf: dict[str, Any], elev: float
         return list(json.loads(cache.read_text()))
     rows = []
     for truth, spec, fps in query_spectra(pack, venue, loc, elev):
-        e = loc.estimate(spec, np.arange(len(spec)) / fps)
+        m, times = loc.search_clip(spec, np.arange(len(spec)) / fps)
+        e = loc.aggregated(m, times)
+        moved = None
+        if loc.verifies:  # as `omninav locate` verifies the clip's frames (Locator.locate_frames)
+            frames, _ = clip_frames(pack / venue / "queries" / truth["clip"], loc.conf["model_fps"])
+            c = loc.clip_lens(elevation_off(load_lens(pack / venue / "lens.json"), elev))
+            list(c.spectra(frames[:FIRST]))  # (the clip's lens is decided on its first frames)
+            e, moved = loc.verified(frames[-1], c.lens, m, e)
         rows.append(
             {
                 "clip": truth["clip"],
@@ -98,6 +106,7 @@ def rows_for(pack: Path, venue: str, tag: str, conf: dict[str, Any], elev: float
                 "support": e.support,
                 "rival": e.rival,
                 "agree": e.agree,
+                **({"moved": True, "confidence": moved} if moved is not None else {}),
             }
         )
     cache.write_text(json.dumps(rows))

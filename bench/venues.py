@@ -19,7 +19,7 @@ import numpy as np
 
 from bench.ablation import CONFIGS as LADDER
 from omninav.aggregate import SURE, confidence
-from omninav.evaluate import evaluate_spectra, query_spectra
+from omninav.evaluate import clip_frames_of, clip_starts, evaluate_spectra, query_spectra, walk_frames
 from omninav.lens import load_lens
 from omninav.locate import Locator
 from omninav.model_venue import model_video
@@ -27,6 +27,7 @@ from omninav.presets import resolve
 from omninav.store import Store
 from omninav.synth import upgrade_names
 from omninav.synth.families import FAMILIES, make_family_dataset
+from omninav.verify import MOVED_CONFIDENCE
 from omninav.walk_path import load_walk_path
 
 DATA = Path("data") / "families"
@@ -89,11 +90,16 @@ def venue_key(tag: str, settings: dict[str, Any]) -> str:
     The confidence model is not part of what is modelled (a recalibration reuses the venue), nor
     is tracking (tracking.py's track_* keys: a venue modelled before them is the same venue), nor
     how a clip is searched (SEARCH_KEYS: the answers' cache is named by them, rows_for), nor the
-    settings' format version."""
+    settings' format version, nor verification's margin (or its absence: local_features null)."""
     kept = {
         k: v
         for k, v in settings.items()
-        if k not in CONFIDENCE_KEYS and k not in SEARCH_KEYS and not k.startswith("track_") and k != "version"
+        if k not in CONFIDENCE_KEYS
+        and k not in SEARCH_KEYS
+        and not k.startswith("track_")
+        and k != "version"
+        and k != "local_margin"
+        and not (k == "local_features" and v is None)  # (venues modelled before them)
     }
     return f"{tag}-{hashlib.sha1(json.dumps(kept, sort_keys=True).encode()).hexdigest()[:10]}"
 
@@ -138,7 +144,12 @@ def rows_for(
         )
         agg = CONFIGS[config][2]
         for c in todo:
-            rows = evaluate_spectra(loc, *spec, aggregate=agg, clip_s=c).rows
+            ends = None
+            if loc.verifies:  # each clip's last frame, verified as `omninav evaluate` does
+                n = clip_frames_of(loc, c)
+                ends_at = {int(spec[4][s + n - 1]) for s in clip_starts(len(spec[1]), n, False)}
+                ends = walk_frames(loc, root / "query.mp4", load_lens(root / "lens.json"), ends_at)
+            rows = evaluate_spectra(loc, *spec, aggregate=agg, clip_s=c, ends=ends).rows
             for r in rows:
                 r.update(family=family, split=FAMILIES[family].split, seed=seed, config=config, clip_s=c)
             have[f"{c:g}"] = rows
@@ -158,7 +169,7 @@ def search_tag(conf: dict[str, Any]) -> str:
 def rescore(rows: list[dict[str, Any]], conf: dict[str, Any]) -> np.ndarray:
     """The confidence each answer gets from the confidence model in `conf` (not the one stored
     when the rows were made: a recalibration is judged without running anything again)."""
-    return np.array([confidence(r, conf) for r in rows])
+    return np.array([MOVED_CONFIDENCE if r.get("moved") else confidence(r, conf) for r in rows])
 
 
 def summarise(rows: list[dict[str, Any]], conf: dict[str, Any]) -> dict[str, Any]:

@@ -112,6 +112,24 @@ def evaluate_args(ds, plot):
     ]
 
 
+def test_a_verified_venue_is_made_and_asked_as_any_other(clips, small_ds, tmp_path):
+    """The `verified` venue option from the command line: created with its preset, modelled (its
+    local features stored beside the frames), asked with clips that are frames."""
+    d, truth = clips
+    data = tmp_path / "data"
+    run_cli("venue", "create", "ver", "--preset", "verified", data=data, check=True)
+    out = json.loads(cli_model(small_ds, "ver", data).stdout)
+    assert out["frames_added"] > 100
+    gen = next((data / "venues" / "ver").glob("gen-*"))
+    assert json.loads((gen / "settings.json").read_text())["local_features"] == 900
+    assert np.load(gen / "local_descriptors.npy").shape[1] == 32
+    p = run_cli("locate", "ver", str(d / "q1.avi"), str(d / "q2"), "--lens", str(small_ds.lens), data=data, check=True)
+    for line in p.stdout.strip().splitlines():
+        a = json.loads(line)
+        (tx, ty), _ = truth[a["clip"]]
+        assert np.hypot(a["x"] - tx, a["y"] - ty) < 2.0
+
+
 def test_evaluate_reports_and_plots(cli_venue, small_ds, tmp_path):
     png = tmp_path / "fig.png"
     p = run_cli(

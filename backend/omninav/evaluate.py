@@ -120,7 +120,59 @@ def evaluate(
     tail: bool = False,
 ) -> Evaluation:
     spec, t, xy, hd, idx = query_spectra(loc, video, walk_path, lens, progress)
-    return evaluate_spectra(loc, spec, t, xy, hd, idx, aggregate, clip_s, tail)
+    ends = None
+    if loc.verifies:  # each clip's last frame, for its local features (verify.py)
+        n = clip_frames_of(loc, clip_s)
+        ends = walk_frames(loc, video, lens, {int(idx[s + n - 1]) for s in clip_starts(len(t), n, tail)})
+    return evaluate_spectra(loc, spec, t, xy, hd, idx, aggregate, clip_s, tail, ends)
+
+
+def clip_frames_of(loc: Locator, clip_s: float) -> int:
+    """Sampled frames in a clip of `clip_s` seconds."""
+    return max(1, int(round(clip_s * loc.conf["model_fps"])))
+
+
+def clip_starts(frames: int, n: int, tail: bool) -> list[int]:
+    """The first sampled frame of each clip of `n` of a walk of `frames` (evaluate_spectra's)."""
+    starts = list(range(0, frames - n + 1, n))
+    if tail and starts and starts[-1] + n < frames:
+        starts.append(frames - n)
+    return starts
+
+
+@dataclass
+class WalkFrames:
+    """Some frames of a walk by their index, and the walk's lens as it sat (corrected on its first
+    sampled frames, as walk_spectra corrects it)."""
+
+    frames: dict[int, np.ndarray]
+    lens: Lens
+
+
+def walk_frames(loc: Locator, video: Path, lens: Lens | None, wanted: set[int]) -> WalkFrames:
+    """The walk's frames of index `wanted`, decoded in one pass, and its corrected lens."""
+    from .calib.correct import FIRST
+
+    stride = 1
+    if video.is_dir():
+        files = sorted(f for f in video.iterdir() if f.suffix.lower() in IMAGE_EXT)
+        got = {i: _image(files[i]) for i in sorted(wanted) if i < len(files)}
+        first = [_image(f) for f in files[:FIRST]]
+    else:
+        info = VideoInfo(video)
+        vfps = info.fps if info.fps > 0 else DEFAULT_CLIP_FPS
+        stride = max(1, int(round(vfps / loc.conf["model_fps"])))
+        got, first = {}, []
+        for i, frame in iter_video(info, last=max(wanted | {stride * (FIRST - 1)})):
+            if i in wanted:
+                got[i] = frame
+            if i % stride == 0 and len(first) < FIRST:
+                first.append(frame)
+    clip = loc.clip_lens(lens)
+    for f in first:
+        clip.feed(f)
+    clip.flush()
+    return WalkFrames(got, clip.lens)
 
 
 def evaluate_spectra(
@@ -133,20 +185,26 @@ def evaluate_spectra(
     aggregate: str | None = None,
     clip_s: float = 1.0,
     tail: bool = False,
+    ends: WalkFrames | None = None,
 ) -> Evaluation:
     """evaluate() on a walk's spectra already extracted (query_spectra's output): consecutive
     clips of `clip_s`, each answered at its last frame. Several clip lengths or aggregations of one
     walk then cost one extraction. `tail`: the frames after the last whole clip are scored too, as
     a clip ending at the walk's last frame (it overlaps the one before): every second of an
-    admin's evaluation walk is scored (the benchmarks' clips stay as they were measured)."""
-    n = max(1, int(round(clip_s * loc.conf["model_fps"])))
+    admin's evaluation walk is scored (the benchmarks' clips stay as they were measured). `ends`:
+    the clips' last frames, with which a venue with local features verifies each clip as `locate`
+    does (a moved answer's row says `moved`)."""
+    n = clip_frames_of(loc, clip_s)
     ev = Evaluation()
-    starts = list(range(0, len(t) - n + 1, n))
-    if tail and starts and starts[-1] + n < len(t):
-        starts.append(len(t) - n)
-    for s in starts:
+    for s in clip_starts(len(t), n, tail):
         w = slice(s, s + n)
-        e = loc.estimate(spec[w], t[w], aggregate)
+        conf = None
+        if ends is not None and int(idx[s + n - 1]) in ends.frames:
+            m, times = loc.search_clip(spec[w], t[w])
+            e = loc.aggregated(m, times, aggregate)
+            e, conf = loc.verified(ends.frames[int(idx[s + n - 1])], ends.lens, m, e)
+        else:
+            e = loc.estimate(spec[w], t[w], aggregate)
         tx, ty = xy[s + n - 1]
         ev.rows.append(
             {
@@ -161,11 +219,12 @@ def evaluate_spectra(
                 "err_m": float(np.hypot(e.x - tx, e.y - ty)),
                 "heading_err_deg": float(wrap_deg(e.heading - hd[s + n - 1])),
                 "venue_row": e.venue_row,
-                "confidence": confidence(e, loc.conf),
+                "confidence": confidence(e, loc.conf) if conf is None else conf,
                 "support": e.support,
                 "rival": e.rival,
                 "agree": e.agree,
                 "frames": n,
+                **({"moved": True} if conf is not None else {}),
             }
         )
     return ev

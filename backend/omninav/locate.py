@@ -99,6 +99,7 @@ class Locator:
         self._frame_lock = threading.Lock()
         self._frame_k = 0
         self._frame_m: dict[int, tuple[np.ndarray, ...]] = {}  # frame_matches, by venue frame row
+        self._place_of: np.ndarray | None = None  # verify.place_of_rows, made at the first verification
 
     def extractor(self, lens: Lens | None) -> Extractor:
         """The extractor of a lens (default: the venue's), from a small shared cache."""
@@ -129,7 +130,7 @@ class Locator:
         `--set`, a test): checked, and the search parameters read again. Feature settings cannot
         change (the venue's frames were made with them, and so are the Locator's extractors), nor
         the keys' projection (the index)."""
-        fixed = sorted(set(changes) & {*FEATURE_KEYS, "key_dims", "key_project_above"})
+        fixed = sorted(set(changes) & {*FEATURE_KEYS, "key_dims", "key_project_above", "local_features"})
         if fixed:
             raise OmninavError(f"{', '.join(fixed)}: fixed when the venue was modelled")
         conf = {**self.conf, **changes}
@@ -306,13 +307,14 @@ class Locator:
         )
         return out
 
-    def answer(self, e: Estimate, clip: str) -> dict[str, Any]:
+    def answer(self, e: Estimate, clip: str, conf: float | None = None) -> dict[str, Any]:
+        """The docs/formats.md answer of an estimate (its confidence: `conf`, else the model's)."""
         return {
             "clip": clip,
             "x": round(e.x, 3),
             "y": round(e.y, 3),
             "heading_deg": answer_heading(e.heading),
-            "confidence": round(confidence(e, self.conf), 3),
+            "confidence": round(confidence(e, self.conf) if conf is None else conf, 3),
             "floor": self.floor,
             "place": self.nearest_place(e.x, e.y),
             "frame": int(self.gen.frames["frame"][e.venue_row]),
@@ -343,12 +345,52 @@ class Locator:
         fps: float | None = None,
         aggregate: str | None = None,
     ) -> dict[str, Any]:
+        """A clip's frames -> the answer; verified by local features where the venue has them."""
         ext = self.extractor(lens)
         for f in frames[:1]:
             ext.check_frame(f, clip)
-        spec, _ = clip_spectra(lens or self.gen.lens, frames, self._extractors.spectrum, clip=clip)
+        spec, c = clip_spectra(lens or self.gen.lens, frames, self._extractors.spectrum, clip=clip)
         times = np.arange(len(frames)) / (fps or DEFAULT_CLIP_FPS)
-        return self.answer(self.estimate(spec, times, aggregate), clip)
+        m, times = self.search_clip(spec, times)
+        e = self.aggregated(m, times, aggregate)
+        if self.verifies:
+            ev, cf = self.verified(frames[-1], c.lens, m, e)
+            return self.answer(ev, clip, cf)
+        return self.answer(e, clip)
+
+    @property
+    def verifies(self) -> bool:
+        """Whether the venue has local features to verify a clip's frames with (verify.py)."""
+        return self.gen.local is not None and bool(self.conf.get("local_features"))
+
+    def verified(self, frame: np.ndarray, lens: Lens, m: Matches, e: Estimate) -> tuple[Estimate, float | None]:
+        """A clip's global answer checked by local features of its last `frame` (through the clip's
+        corrected `lens`) against its candidate places: the answer moved to another place, with
+        verify.MOVED_CONFIDENCE, or as it was (None: the model's confidence)."""
+        from .verify import MOVED_CONFIDENCE, place_of_rows, verify
+
+        assert self.gen.local is not None
+        if self._place_of is None:
+            self._place_of = place_of_rows(self.gen.frames, self.gen.local)
+        v = verify(
+            frame,
+            lens,
+            m,
+            self.xy,
+            self.gen.local,
+            self._place_of,
+            (e.x, e.y),
+            int(self.conf["local_features"]),
+            float(self.conf["local_margin"]),
+        )
+        if v.moved_to is None:
+            return e, None
+        r = v.moved_to
+        q, j = np.nonzero(m.index == r)
+        at = int(np.lexsort((-m.score[q, j], -q))[0])  # the latest frame's match with that row
+        x, y = self.xy[r]
+        moved = Estimate(float(x), float(y), float(m.heading[q[at], j[at]]), r, e.support, e.rival, e.agree)
+        return moved, MOVED_CONFIDENCE
 
 
 def read_record(path: Path, conf: dict[str, Any]) -> np.ndarray:

@@ -27,6 +27,7 @@ from .extract import Extractors
 from .lens import Lens
 from .presets import resolve
 from .store import FRAME_DTYPE, Generation, Store
+from .verify import SPACING_M, LocalFeatures, detect, one_place
 from .video import VideoInfo, extract_threads, in_order, iter_video, on_pool
 from .walk_path import WalkPath
 
@@ -98,22 +99,30 @@ def _plan(src: VideoSource, settings: dict[str, Any]) -> _Plan:
 Submit = Callable[[Lens], Callable[[np.ndarray], Future[np.ndarray]]]
 
 
-def _extract(p: _Plan, tick: Callable[[], None], submit: Submit, ahead: int) -> tuple[np.ndarray, np.ndarray]:
-    """One video's sampled frames -> (rows FRAME_DTYPE without `video`, spectra).
+def _extract(
+    p: _Plan, tick: Callable[[], None], submit: Submit, ahead: int, n_local: int | None = None
+) -> tuple[np.ndarray, np.ndarray, LocalFeatures | None]:
+    """One video's sampled frames -> (rows FRAME_DTYPE without `video`, spectra, local features or
+    None).
 
     Each frame is decoded once (on the reader thread, up to the walk path's last frame) and handed
     to `submit`'s threads or processes, at most `ahead` frames in flight; the spectra come back in
-    frame order."""
+    frame order. With `n_local` keypoints, a frame every verify.SPACING_M of the walk also gets its
+    local features (verify.detect, on a thread of its own, through the lens as it sat)."""
     # the lens as it sat in this video: a walk filmed after the lens was clipped on again is
     # extracted through the profile moved to its ring, as every query clip is (calib/correct.py)
     clip = ClipLens(p.src.lens, submit)
     rows, specs = [], []
     seen = -1
+    spaced: list[tuple[int, np.ndarray]] = []  # (frame number, frame) waiting for the clip's lens
+    last_xy: np.ndarray | None = None
+    local: list[tuple[int, Future[tuple[np.ndarray, np.ndarray]]]] = []
+    orb = ThreadPoolExecutor(1, thread_name_prefix="omninav-local") if n_local else None
 
     def posed() -> Iterator[tuple[tuple[float, float, float, float, int], np.ndarray]]:
         """The sampled frames that the walk path covers, each with its row (x, y, heading, t, frame);
         the poses are looked up POSE_BLOCK sampled frames a call, not frame by frame."""
-        nonlocal seen
+        nonlocal seen, last_xy
         at = -POSE_BLOCK  # the first sampled frame (counted from p.first) of the block looked up
         for i, frame in iter_video(p.info, stride=p.stride, start=p.first, last=p.last):
             seen = i
@@ -123,12 +132,31 @@ def _extract(p: _Plan, tick: Callable[[], None], submit: Submit, ahead: int) -> 
                 t = (p.first + p.stride * np.arange(at, at + POSE_BLOCK)) / p.vfps
                 xy, hd, ok = p.src.walk_path.pose_at(t)
             if ok[k - at]:
+                if orb is not None and (last_xy is None or np.hypot(*(xy[k - at] - last_xy)) >= SPACING_M):
+                    last_xy = xy[k - at].copy()
+                    spaced.append((i, frame))
                 yield (xy[k - at, 0], xy[k - at, 1], hd[k - at], t[k - at], i), frame
 
-    for row, spec in in_order(clip, posed(), ahead):
-        rows.append(row)
-        specs.append(spec)
-        tick()
+    def detect_spaced() -> None:
+        """Hand the spaced frames to the ORB thread, once the clip's lens is decided."""
+        assert orb is not None and n_local is not None
+        while spaced:
+            i, frame = spaced.pop(0)
+            local.append((i, orb.submit(detect, frame, clip.lens, n_local)))
+
+    try:
+        for row, spec in in_order(clip, posed(), ahead):
+            rows.append(row)
+            specs.append(spec)
+            if orb is not None:
+                detect_spaced()
+            tick()
+        if orb is not None:
+            detect_spaced()
+            found = [one_place(-1, i, *f.result()) for i, f in local]
+    finally:
+        if orb is not None:
+            orb.shutdown(cancel_futures=True)
     if (w := clip.warning(p.src.video.name)) is not None:
         log.warning(w)
     _check_complete(p, seen)
@@ -140,7 +168,7 @@ def _extract(p: _Plan, tick: Callable[[], None], submit: Submit, ahead: int) -> 
     arr = np.array(rows, np.float64)
     new["x"], new["y"], new["heading"], new["t"] = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3]
     new["frame"] = arr[:, 4].astype(np.int32)
-    return new, np.stack(specs)
+    return new, np.stack(specs), (sum(found, LocalFeatures.empty()) if orb is not None else None)
 
 
 def _check_complete(p: _Plan, seen: int) -> None:
@@ -208,8 +236,8 @@ def model_videos(
             submit = on_pool(threads, Extractors(settings, size=2).spectrum)
         for p in plans:
             ts = time.perf_counter()
-            rows, specs = _extract(p, tick, submit, ahead=2 * workers)
-            extracted.append((p, rows, specs, time.perf_counter() - ts))
+            rows, specs, local = _extract(p, tick, submit, ahead=2 * workers, n_local=settings.get("local_features"))
+            extracted.append((p, rows, specs, local, time.perf_counter() - ts))
     with store.lock(venue_id):  # read the live generation and commit the next as one step
         return _merge_commit(store, venue_id, settings, sources[-1].lens, extracted, before_commit, anew)
 
@@ -228,7 +256,7 @@ def _merge_commit(
     venue_id: str,
     settings: dict[str, Any],
     lens: Lens,
-    extracted: list[tuple[_Plan, np.ndarray, np.ndarray, float]],
+    extracted: list[tuple[_Plan, np.ndarray, np.ndarray, LocalFeatures | None, float]],
     before_commit: Callable[[], None] | None = None,
     anew: bool = False,
 ) -> list[ModelResult]:
@@ -236,25 +264,33 @@ def _merge_commit(
     videos = list(old.videos) if old else []
     frames = old.frames if old is not None else np.zeros(0, FRAME_DTYPE)
     spectra = old.spectra if old is not None else np.zeros((0,) + extracted[0][2].shape[1:], np.complex64)
+    local = old.local if old is not None else None
+    if local is None and settings.get("local_features"):
+        local = LocalFeatures.empty()
     results = []
-    for p, rows, specs, secs in extracted:
+    for p, rows, specs, found, secs in extracted:
         name = p.src.video.name
         if name in videos:  # re-modelling a video replaces its frames
             vid = videos.index(name)
             keep = frames["video"] != vid
             frames, spectra = frames[keep], spectra[keep]
+            if local is not None:
+                local = local.keep(local.places["video"] != vid)
         else:
             videos.append(name)
             vid = len(videos) - 1
         rows["video"] = vid
         frames = np.concatenate([frames, rows])
         spectra = np.concatenate([spectra, specs])
+        if local is not None and found is not None:
+            found.places["video"] = vid
+            local = local + found
         vid_secs = (int(rows["frame"][-1]) - p.first + 1) / p.vfps
         results.append(ModelResult(venue_id, name, len(rows), 0, secs, vid_secs))
     if before_commit:
         before_commit()
     # the lens of the last video is the venue's default query lens (for clients that send frames)
-    store.commit(venue_id, Generation(settings, lens, frames, spectra, videos))
+    store.commit(venue_id, Generation(settings, lens, frames, spectra, videos, local=local))
     for r in results:
         r.total_frames = len(frames)
     return results
@@ -290,5 +326,9 @@ def _remove(store: Store, venue_id: str, name: str) -> int:
     frames = old.frames[keep].copy()
     frames["video"] -= (frames["video"] > vid).astype(np.int32)  # renumber: videos.json loses one entry
     videos = [v for v in old.videos if v != name]
-    store.commit(venue_id, Generation(old.settings, old.lens, frames, old.spectra[keep], videos))
+    local = old.local
+    if local is not None:
+        local = local.keep(local.places["video"] != vid)
+        local.places["video"] -= (local.places["video"] > vid).astype(np.int32)
+    store.commit(venue_id, Generation(old.settings, old.lens, frames, old.spectra[keep], videos, local=local))
     return int((~keep).sum())

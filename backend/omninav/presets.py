@@ -82,6 +82,13 @@ PRESETS: dict[str, dict[str, Any]] = {
     },
 }
 
+# A venue option (issue 43): the default's features, and ORB keypoints stored for a modelled frame
+# every half metre (verify.py, ~34 KB each); a clip located from its frames (a video, frames, the
+# CLI) has its candidate places checked by them, and the answer moves where the geometry says so.
+# Not the default: the phone sends no local features yet, and real imagery with positions to judge
+# it on is still missing (docs/decisions.md, "Local features").
+PRESETS["verified"] = {**PRESETS["default"], "local_features": 900}
+
 
 # The default preset's bands before per-band channels (two bands, every channel in each: 12 curves,
 # 768 bytes a frame), and without levelling (it came later): venues modelled then keep them; what

@@ -357,6 +357,36 @@ class ModellingSettings:
 
 
 @dataclass(frozen=True)
+class VerifySettings:
+    """Local features that verify a clip's candidate places (verify.py): stored when the venue is
+    modelled, read when a clip is located from its frames."""
+
+    local_features: int | None = _field(
+        None,
+        Rule(
+            "int",
+            (
+                "ORB keypoints kept of each panorama, stored for a modelled frame every half metre "
+                "and found in a clip's last frame; null: no local features (fixed when modelled)."
+            ),
+            "keypoints",
+            lo=100,
+            hi=5000,
+            optional=True,
+        ),
+    )
+    local_margin: float = _field(
+        2.0,
+        Rule(
+            "number",
+            "The answer moves to another candidate place only with this many times the inliers of its own.",
+            "x",
+            lo=1,
+        ),
+    )
+
+
+@dataclass(frozen=True)
 class TrackingSettings:
     """The tracking filter (tracking.py, docs/tracking.md): a venue modelled before a key existed
     reads its default."""
@@ -616,6 +646,7 @@ STAGES: tuple[tuple[type, str], ...] = (
     (AggregationSettings, "aggregation and confidence (aggregate.py)"),
     (ModellingSettings, "modelling (model_venue.py)"),
     (TrackingSettings, "tracking (tracking.py)"),
+    (VerifySettings, "verification by local features (verify.py)"),
 )
 OWN_KEYS = ("preset", "version")  # besides the stages' fields: the preset's name, the format
 

@@ -17,9 +17,17 @@ from dataclasses import fields
 from typing import Any
 
 from .errors import Conflict, OmninavError
-from .settings import DEFAULTS, AggregationSettings, ModellingSettings, SearchSettings, TrackingSettings, check
+from .settings import (
+    DEFAULTS,
+    AggregationSettings,
+    ModellingSettings,
+    SearchSettings,
+    TrackingSettings,
+    VerifySettings,
+    check,
+)
 
-VERSION = 3  # the settings' format today
+VERSION = 4  # the settings' format today
 
 
 # Confidence models once shipped as the default and refit since: a venue whose settings carry one
@@ -85,10 +93,19 @@ def _to_3_search_and_tracking(conf: dict[str, Any]) -> dict[str, Any]:
     return conf
 
 
+def _to_4_verify(conf: dict[str, Any]) -> dict[str, Any]:
+    """4: a venue modelled before local features has none stored (`local_features` null) and
+    today's margin."""
+    for f in fields(VerifySettings):
+        conf.setdefault(f.name, copy.deepcopy(DEFAULTS[f.name]))
+    return conf
+
+
 MIGRATIONS: tuple[Callable[[dict[str, Any]], dict[str, Any]], ...] = (
     _to_1_confidence,
     _to_2_later_features,
     _to_3_search_and_tracking,
+    _to_4_verify,
 )
 assert len(MIGRATIONS) == VERSION
 

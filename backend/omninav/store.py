@@ -4,6 +4,8 @@
     <data>/venues/<id>/gen-000003/      settings.json, lens.json, frames.npy, spectra.npy, videos.json,
                                         keys.npy[, first.npy, basis.npy] (the index's arrays,
                                         index.py), keys_t.npy (for the release before `first`)
+                                        [, local_places.npy, local_bearings.npy,
+                                        local_descriptors.npy] (local features, verify.py)
 
 A modelling run writes a complete new generation beside the live one and only then swaps CURRENT,
 so a run that is interrupted (Ctrl-C, crash, power) leaves the venue answering as before.
@@ -23,7 +25,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -33,7 +35,11 @@ from .lens import Lens, lens_from_dict
 from .settings import SearchSettings
 from .settings_upgrade import upgrade
 
+if TYPE_CHECKING:
+    from .verify import LocalFeatures
+
 INDEX_ARRAYS = ("keys", "first", "basis", "keys_t")  # keys_t: generations before `first` (index.first_keys)
+LOCAL_ARRAYS = ("places", "bearings", "descriptors")  # verify.LocalFeatures' fields, in order
 VENUE_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$")
 
 # One row per modelled frame; `video` names the modelling video it came from.
@@ -76,6 +82,7 @@ class Generation:
     spectra: np.ndarray  # (N, C, K) complex64
     videos: list[str]
     arrays: dict[str, np.ndarray] | None = None  # index_arrays(): memory-mapped by every reader
+    local: LocalFeatures | None = None  # verify.py: a venue modelled with `local_features`
 
 
 def key_dims_for(settings: dict[str, Any], n_frames: int) -> int:
@@ -127,7 +134,12 @@ class Store:
         spectra = np.load(g / "spectra.npy", mmap_mode=mode)
         videos = json.loads((g / "videos.json").read_text())
         arrays = {k: np.load(g / f"{k}.npy", mmap_mode=mode) for k in INDEX_ARRAYS if (g / f"{k}.npy").is_file()}
-        return Generation(settings, lens, frames, spectra, videos, arrays if "keys" in arrays else None)
+        local = None
+        if (g / "local_places.npy").is_file():
+            from .verify import LocalFeatures  # (OpenCV: imported where a venue has local features)
+
+            local = LocalFeatures(*(np.load(g / f"local_{k}.npy", mmap_mode=mode) for k in LOCAL_ARRAYS))
+        return Generation(settings, lens, frames, spectra, videos, arrays if "keys" in arrays else None, local)
 
     def frame_count(self, venue_id: str) -> int:
         """Frames of the live generation, from the array's header alone (no index, no spectra)."""
@@ -209,6 +221,9 @@ class Store:
             arrays["keys_t"] = np.ascontiguousarray(first_keys(arrays).T)
             for k, a in arrays.items():
                 np.save(tmp / f"{k}.npy", a)
+        if gen.local is not None:
+            for k in LOCAL_ARRAYS:
+                np.save(tmp / f"local_{k}.npy", np.ascontiguousarray(getattr(gen.local, k)))
         (tmp / "settings.json").write_text(json.dumps(gen.settings, indent=1))
         (tmp / "lens.json").write_text(json.dumps(gen.lens.to_dict(), indent=1))
         (tmp / "videos.json").write_text(json.dumps(gen.videos))

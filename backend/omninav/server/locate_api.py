@@ -34,6 +34,7 @@ from ..catalog.sessions import Session, check_session_id
 from ..describe import DEFAULT_STYLE, Style, describe
 from ..errors import NotFound, OmninavError
 from ..extract import Extractor
+from ..lens import Lens
 from ..locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, Locator, answer_heading
 from ..media import decode_image, iter_sampled, probe_image, probe_mp4, same_size, sampled_count
 from ..motion import Motion
@@ -89,10 +90,21 @@ def _check_duration(frames: int, fps: float) -> None:
         )
 
 
-def _read_clip(
-    cat: Catalog, venue_id: str, rt: Runtime, max_frames: int, fps: float | None
-) -> tuple[np.ndarray, float | None, str]:
-    """The request body -> ((F, C, K) spectra, fps or None, what it was). `fps`: the query's."""
+@dataclass
+class SentClip:
+    """A locate request's clip: its (F, C, K) spectra, its frame rate where the body says one,
+    what was sent ("features" or "frames"), and for frames the last one with the lens it was seen
+    through (corrected for this clip): what local features verify (verify.py)."""
+
+    spec: np.ndarray
+    fps: float | None
+    kind: str
+    last: np.ndarray | None = None
+    lens: Lens | None = None
+
+
+def _read_clip(cat: Catalog, venue_id: str, rt: Runtime, max_frames: int, fps: float | None) -> SentClip:
+    """The request body -> the clip it sent. `fps`: the query's."""
     loc = rt.locator
     ct = request.mimetype
     if ct in RECORD_TYPES or ct == "application/json":
@@ -107,28 +119,28 @@ def _read_clip(
             isinstance(rec_fps, bool) or not isinstance(rec_fps, int | float) or not 0 < rec_fps <= 240
         ):
             raise ApiError(400, "'fps' must be a number in (0, 240]")
-        return decode_json(obj, loc.conf), rec_fps, "features"
+        return SentClip(decode_json(obj, loc.conf), rec_fps, "features")
     if ct in RECORD_TYPES:
         spec = decode_binary(request.get_data(), loc.conf)
         if len(spec) > max_frames:
             raise ApiError(413, f"too many frames: {len(spec)} (a clip may have at most {max_frames})")
-        return spec, None, "features"
+        return SentClip(spec, None, "features")
     if ct == "multipart/form-data":
         files = request.files.getlist("frame")
         video = request.files.get("video")
         if video is not None and not files:
-            return (*_video_spectra(video.read(), *_clip_lens(cat, venue_id, loc), loc, max_frames), "frames")
+            return _video_spectra(video.read(), *_clip_lens(cat, venue_id, loc), loc, max_frames)
         if not files:
             raise ApiError(400, "a multipart locate request needs 'frame' files (JPEG/PNG, in order) or one 'video'")
         if len(files) > max_frames:
             raise ApiError(413, f"too many frames: {len(files)} (a clip may have at most {max_frames})")
         _check_duration(len(files), fps or DEFAULT_CLIP_FPS)  # before any frame is decoded
         images = [(f.read(), f"frame {i} ({f.filename})") for i, f in enumerate(files)]
-        return _image_spectra(images, *_clip_lens(cat, venue_id, loc), loc), None, "frames"
+        return _image_spectra(images, *_clip_lens(cat, venue_id, loc), loc)
     if ct in ("image/jpeg", "image/png"):
-        return _image_spectra([(request.get_data(), "the frame")], *_clip_lens(cat, venue_id, loc), loc), None, "frames"
+        return _image_spectra([(request.get_data(), "the frame")], *_clip_lens(cat, venue_id, loc), loc)
     if ct.startswith("video/"):
-        return (*_video_spectra(request.get_data(), *_clip_lens(cat, venue_id, loc), loc, max_frames), "frames")
+        return _video_spectra(request.get_data(), *_clip_lens(cat, venue_id, loc), loc, max_frames)
     raise ApiError(
         415,
         f"unsupported Content-Type {ct or 'none'}: send a feature record (application/json or "
@@ -158,10 +170,11 @@ def _check_record_size(conf: dict[str, Any], max_frames: int, as_json: bool) -> 
         raise ApiError(413, f"the JSON feature record has more arrays than one of at most {max_frames} frames can")
 
 
-def _image_spectra(images: list[tuple[bytes, str]], ext: Extractor, lens_name: str, loc: Locator) -> np.ndarray:
-    """JPEG/PNG frames -> (F, C, K) spectra. Every header is checked against the lens's frame size
-    before any frame is decoded, and each frame becomes its spectrum before the next is decoded:
-    the request holds one decoded frame, of the size the lens allows, whatever it sent."""
+def _image_spectra(images: list[tuple[bytes, str]], ext: Extractor, lens_name: str, loc: Locator) -> SentClip:
+    """JPEG/PNG frames -> their clip (spectra; the last frame where the venue verifies). Every
+    header is checked against the lens's frame size before any frame is decoded, and each frame
+    becomes its spectrum before the next is decoded: the request holds one decoded frame, of the
+    size the lens allows, whatever it sent."""
     want = ext.lens.image_size
     for data, what in images:
         head = probe_image(data)
@@ -183,7 +196,7 @@ def _image_spectra(images: list[tuple[bytes, str]], ext: Extractor, lens_name: s
         out.extend(clip.feed(img))
     out.extend(clip.flush())
     _log_lens(clip)
-    return np.stack(out)
+    return SentClip(np.stack(out), None, "frames", img if loc.verifies else None, clip.lens)
 
 
 def _check_frame(ext: Extractor, frame: np.ndarray, what: str) -> None:
@@ -198,11 +211,9 @@ def _log_lens(clip: ClipLens[np.ndarray]) -> None:
         log.warning(w)
 
 
-def _video_spectra(
-    data: bytes, ext: Extractor, lens_name: str, loc: Locator, max_frames: int
-) -> tuple[np.ndarray, float]:
-    """An MP4/QuickTime clip -> ((F, C, K) spectra of its frames sampled at the venue's modelling
-    rate, ending at its last frame; the sampled frame rate).
+def _video_spectra(data: bytes, ext: Extractor, lens_name: str, loc: Locator, max_frames: int) -> SentClip:
+    """An MP4/QuickTime clip -> its clip: spectra of its frames sampled at the venue's modelling
+    rate, ending at its last frame; the sampled frame rate; the last frame where the venue verifies.
 
     The container's boxes say the frame size, the frame count and the duration: all are checked
     before the clip is written to a file or any frame is decoded, and decoding stops at the count
@@ -227,6 +238,7 @@ def _video_spectra(
             f"too many frames: {sampled_count(v.frames, stride)} after sampling (a clip may have at most {max_frames})",
         )
     spectra: list[np.ndarray] = []
+    last = None
     clip = loc.clip_lens(ext.lens)  # corrected for where the ring sits in this clip
     with tempfile.TemporaryDirectory(prefix="omninav-clip-") as d:
         p = Path(d) / "clip.mp4"
@@ -238,11 +250,12 @@ def _video_spectra(
                 )
             _check_frame(ext, frame, f"the video's sampled frame {i}")
             spectra.extend(clip.feed(frame))
+            last = frame if loc.verifies else None
     spectra.extend(clip.flush())
     _log_lens(clip)
     if not spectra:
         raise ApiError(422, "the video does not decode (no readable frames)")
-    return np.stack(spectra), (v.fps or DEFAULT_CLIP_FPS) / stride
+    return SentClip(np.stack(spectra), (v.fps or DEFAULT_CLIP_FPS) / stride, "frames", last, clip.lens)
 
 
 def accuracy_m(confidence: float, low: float) -> float | None:
@@ -323,7 +336,8 @@ def locate(venue_id: str) -> Any:
     rt = svc.runtimes.get(venue_id)
     targets = _targets(venue_id, rt, track.to) if track is not None and track.to is not None else []
     asked_fps = _float_arg("fps", 0, 240)
-    spec, body_fps, kind = _read_clip(svc.catalog, venue_id, rt, app.config["MAX_LOCATE_FRAMES"], asked_fps)
+    sent = _read_clip(svc.catalog, venue_id, rt, app.config["MAX_LOCATE_FRAMES"], asked_fps)
+    spec, body_fps, kind = sent.spec, sent.fps, sent.kind
     # a video's frames are timed by the video itself (as sampled); ?fps= times what carries none
     video_fps = body_fps if kind == "frames" else None
     fps = video_fps or asked_fps or body_fps or DEFAULT_CLIP_FPS
@@ -331,8 +345,11 @@ def locate(venue_id: str) -> Any:
     clip = request.args.get("clip", "clip")[:200]
     loc = rt.locator
     if track is None:
-        e = loc.estimate(spec, np.arange(len(spec)) / fps)
-        ans = loc.answer(e, clip)
+        m, times = loc.search_clip(spec, np.arange(len(spec)) / fps)
+        e, conf = loc.aggregated(m, times), None
+        if sent.last is not None and sent.lens is not None:  # a venue with local features: verified
+            e, conf = loc.verified(sent.last, sent.lens, m, e)
+        ans = loc.answer(e, clip, conf)
         floor = rt.video_floor[int(loc.gen.frames["video"][e.venue_row])]
         ambiguous = False
     else:

@@ -30,6 +30,7 @@ export function mount(root: HTMLElement, ctx: AdminContext): () => void {
   for (const [v, label] of [
     ['default', 'default (recommended)'],
     ['wide', 'wide (one wide band: for a building where the default’s evaluation walk misses)'],
+    ['verified', 'verified (the default, and local features that check clips sent as video or frames)'],
     ['paper', 'paper (as published)'],
     ['six', 'six (the paper’s six curves over one band)'],
   ])

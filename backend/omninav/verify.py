@@ -1,0 +1,276 @@
+"""Verify: local features check the global search's candidate places, and may move the answer.
+
+The global curves compare whole panoramas; a metre or two of viewpoint, people or another light
+moves every curve at once. Local features do not: ORB keypoints and their binary descriptors on
+the unwarped panorama (every elevation the lens sees, STEP_DEG a pixel), matched with Lowe's ratio
+test, then checked for one rigid motion between the two panoramas: an essential matrix on the
+keypoints' bearing vectors, by RANSAC. A place whose modelled panorama shares many such inliers
+with the clip's last frame was seen from near where the user stands.
+
+A venue modelled with `local_features` set (the `verified` preset) stores, for one modelled frame
+every SPACING_M of each walk, its keypoints' bearings and descriptors (`LocalFeatures`, in the
+generation beside the spectra: docs/formats.md). A clip located from its frames (the CLI, a
+video or frames sent to the server) is then verified: its candidate places are the global
+search's (the last frame's shared best first, then the clip's other frames', one a PLACE_M), each
+scored by its inliers with the clip's last frame; the answer moves to the place with the most,
+where it has at least MIN_INLIERS and at least `local_margin` times the global answer's place's.
+A moved answer is said with MOVED_CONFIDENCE: below "sure" until a calibration has enough moved
+answers to fit (the tuning families moved one answer in 344 clips; docs/decisions.md).
+
+The essential-matrix RANSAC is our own (batched 8-point, NumPy): OpenCV's `findEssentialMat`
+takes pinhole image points, and a panorama's bearings cover the sphere (half of them behind any
+pinhole); the libraries that take bearing vectors (OpenGV) have no maintained Python wheels.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .index import Matches
+from .lens import Lens
+from .unwarp import UnwarpMap, panorama_elevations, unwarp
+
+STEP_DEG = 0.25  # the local panorama's pixel, in degrees of azimuth and elevation
+EL_TOP, EL_BOTTOM = 60.0, -80.0  # elevations looked at; the rows the lens sees are kept
+SPACING_M = 0.5  # one modelled frame with local features every this far along a walk
+PLACE_M = 2.0  # candidates closer than this are one place
+PLACES = 10  # candidate places verified a clip
+RATIO = 0.8  # Lowe's ratio test on Hamming distances
+MIN_INLIERS = 20  # fewer inliers prove nothing (a random pair of panoramas shares 5-15)
+RANSAC_ITERS = 300
+INLIER_DEG = 0.5  # a match's angular distance from its epipolar plane, to count as an inlier
+MOVED_CONFIDENCE = 0.75  # a moved answer's confidence: below aggregate.SURE (not yet calibrated)
+DESCRIPTOR_BYTES = 32  # ORB's
+
+LOCAL_DTYPE = np.dtype([("video", "<i4"), ("frame", "<i4"), ("start", "<i8"), ("count", "<i4")])
+
+
+@dataclass
+class LocalFeatures:
+    """A venue's stored local features: per place (a modelled frame, by video and frame number)
+    its slice of the keypoints' unit bearings (x = cos e sin a, y = cos e cos a, z = sin e) and
+    ORB descriptors."""
+
+    places: np.ndarray  # (P,) LOCAL_DTYPE
+    bearings: np.ndarray  # (T, 3) float16
+    descriptors: np.ndarray  # (T, 32) uint8
+
+    @staticmethod
+    def empty() -> LocalFeatures:
+        return LocalFeatures(
+            np.zeros(0, LOCAL_DTYPE), np.zeros((0, 3), np.float16), np.zeros((0, DESCRIPTOR_BYTES), np.uint8)
+        )
+
+    def of(self, place: int) -> tuple[np.ndarray, np.ndarray]:
+        """A place's (bearings float32, descriptors)."""
+        p = self.places[place]
+        s = slice(int(p["start"]), int(p["start"]) + int(p["count"]))
+        return np.asarray(self.bearings[s], np.float32), np.asarray(self.descriptors[s])
+
+    def keep(self, mask: np.ndarray) -> LocalFeatures:
+        """The places where `mask` holds, their keypoints packed anew."""
+        places = np.asarray(self.places)[mask]
+        parts = [slice(int(p["start"]), int(p["start"]) + int(p["count"])) for p in places]
+        out = places.copy()
+        out["start"] = np.concatenate([[0], np.cumsum(places["count"])[:-1]]) if len(places) else []
+        return LocalFeatures(
+            out,
+            np.concatenate([self.bearings[s] for s in parts]) if parts else LocalFeatures.empty().bearings,
+            np.concatenate([self.descriptors[s] for s in parts]) if parts else LocalFeatures.empty().descriptors,
+        )
+
+    def __add__(self, other: LocalFeatures) -> LocalFeatures:
+        more = np.asarray(other.places).copy()
+        more["start"] += len(self.bearings)
+        return LocalFeatures(
+            np.concatenate([np.asarray(self.places), more]),
+            np.concatenate([np.asarray(self.bearings), np.asarray(other.bearings)]),
+            np.concatenate([np.asarray(self.descriptors), np.asarray(other.descriptors)]),
+        )
+
+    def nbytes(self) -> int:
+        return int(self.places.nbytes + self.bearings.nbytes + self.descriptors.nbytes)
+
+
+def one_place(video: int, frame: int, bearings: np.ndarray, descriptors: np.ndarray) -> LocalFeatures:
+    places = np.zeros(1, LOCAL_DTYPE)
+    places[0] = (video, frame, 0, len(bearings))
+    return LocalFeatures(places, bearings.astype(np.float16), descriptors.astype(np.uint8))
+
+
+@dataclass(frozen=True)
+class PanoramaMap:
+    """The local panorama of a lens: its remap, and its rows' elevations and columns' azimuths
+    (degrees)."""
+
+    remap: UnwarpMap
+    el: np.ndarray
+    az: np.ndarray
+
+
+def _lens_key(lens: Lens) -> str:
+    return json.dumps(lens.to_dict(), sort_keys=True)
+
+
+COARSE = 4  # the local panorama's remap is computed every COARSE pixels and interpolated
+
+
+@functools.lru_cache(maxsize=8)
+def _panorama_map(key: str) -> PanoramaMap:
+    """The remap computed on a grid COARSE times coarser (the lens's directions every degree),
+    then interpolated bilinearly: a clip-on lens's profile is corrected per clip, so every clip
+    has its own map, and the full grid's directions cost ~60 ms (the coarse one ~4 ms; over a
+    degree the map's curvature moves a pixel by < 0.01 px)."""
+    from .lens import direction_to_pixel, lens_from_dict
+
+    lens = lens_from_dict(json.loads(key))
+    step_c = STEP_DEG * COARSE
+    el_c = panorama_elevations(EL_TOP, EL_BOTTOM, step_c)
+    width = int(round(360.0 / STEP_DEG))
+    az_c = (np.arange(-1, width // COARSE + 2) + 0.5) * step_c  # one column beyond each end
+    x, y = direction_to_pixel(lens, *np.meshgrid(az_c, el_c))
+    seen = (np.isfinite(x) & np.isfinite(y)).all(axis=1)
+    az = (np.arange(width) + 0.5) * STEP_DEG
+    if seen.sum() < 2:
+        empty = np.zeros((0, width), np.float32)
+        return PanoramaMap(UnwarpMap(empty, empty, np.zeros(0, np.float32), empty.astype(bool), 0), np.zeros(0), az)
+    el_c, x, y = el_c[seen], x[seen].astype(np.float32), y[seen].astype(np.float32)
+    el = panorama_elevations(float(el_c[0]), float(el_c[-1]), STEP_DEG)
+    u, v = np.meshgrid((az - az_c[0]) / step_c, (el_c[0] - el) / step_c)
+    u, v = u.astype(np.float32), v.astype(np.float32)
+    mx = cv2.remap(x, u, v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    my = cv2.remap(y, u, v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    remap = UnwarpMap(mx, my, el.astype(np.float32), np.ones(mx.shape, bool), cv2.BORDER_CONSTANT)
+    return PanoramaMap(remap, el, az)
+
+
+def panorama_map(lens: Lens) -> PanoramaMap:
+    """The local panorama of `lens` (the rows every column of which the lens sees), cached."""
+    return _panorama_map(_lens_key(lens))
+
+
+def detect(frame: np.ndarray, lens: Lens, n_features: int) -> tuple[np.ndarray, np.ndarray]:
+    """A frame -> ((n, 3) float32 unit bearings, (n, 32) uint8 ORB descriptors) of its panorama."""
+    pm = panorama_map(lens)
+    if len(pm.el) < 32:  # a lens that sees no band of elevations all round
+        return np.zeros((0, 3), np.float32), np.zeros((0, DESCRIPTOR_BYTES), np.uint8)
+    pano = cv2.cvtColor(unwarp(frame, pm.remap), cv2.COLOR_BGR2GRAY)
+    kp, des = cv2.ORB.create(nfeatures=n_features).detectAndCompute(pano, None)
+    if des is None or not kp:
+        return np.zeros((0, 3), np.float32), np.zeros((0, DESCRIPTOR_BYTES), np.uint8)
+    pt = np.array([k.pt for k in kp])
+    a = np.radians(np.interp(pt[:, 0], np.arange(len(pm.az)), pm.az))
+    e = np.radians(np.interp(pt[:, 1], np.arange(len(pm.el)), pm.el))
+    b = np.stack([np.cos(e) * np.sin(a), np.cos(e) * np.cos(a), np.sin(e)], 1)
+    return b.astype(np.float32), des
+
+
+def ratio_matches(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
+    """(m, 2) index pairs (into d1, d2) passing Lowe's ratio test (Hamming, brute force)."""
+    if len(d1) < 2 or len(d2) < 2:
+        return np.zeros((0, 2), np.int64)
+    pairs = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(np.ascontiguousarray(d1), np.ascontiguousarray(d2), k=2)
+    out = [(p[0].queryIdx, p[0].trainIdx) for p in pairs if len(p) == 2 and p[0].distance < RATIO * p[1].distance]
+    return np.array(out, np.int64).reshape(-1, 2)
+
+
+def essential_inliers(b1: np.ndarray, b2: np.ndarray, seed: int = 0) -> int:
+    """The most matched bearing pairs (b1[i], b2[i]) consistent with one essential matrix
+    (b2^T E b1 = 0): RANSAC_ITERS 8-point hypotheses at once, each made rank 2; a pair is an inlier
+    within INLIER_DEG of its epipolar plane. Seeded: the same pairs give the same count."""
+    n = len(b1)
+    if n < 8:
+        return 0
+    b1, b2 = np.asarray(b1, np.float64), np.asarray(b2, np.float64)
+    a = np.einsum("ni,nj->nij", b2, b1).reshape(n, 9)
+    rng = np.random.default_rng(seed)
+    pick = np.argsort(rng.random((RANSAC_ITERS, n)), axis=1)[:, :8]  # 8 distinct pairs a hypothesis
+    _, _, vt = np.linalg.svd(a[pick])  # (iters, 9, 9)
+    e = vt[:, -1].reshape(-1, 3, 3)
+    u, _, vt2 = np.linalg.svd(e)
+    e = u @ (np.array([1.0, 1.0, 0.0])[:, None] * vt2)
+    eb1 = np.einsum("kij,nj->kni", e, b1)  # epipolar planes' normals in camera 2
+    dist = np.abs(np.einsum("ni,kni->kn", b2, eb1)) / np.maximum(np.linalg.norm(eb1, axis=2), 1e-12)
+    return int((dist < np.sin(np.radians(INLIER_DEG))).sum(axis=1).max())
+
+
+def candidate_rows(m: Matches, xy: np.ndarray) -> list[int]:
+    """A clip's candidate venue rows, best first, one a place (PLACE_M apart), at most PLACES: the
+    last frame's matches by score, then every other frame's."""
+    last = m.index[-1][np.argsort(-m.score[-1])]
+    rest = m.index[:-1].ravel()[np.argsort(-m.score[:-1].ravel())]
+    kept: list[int] = []
+    for r in np.concatenate([last, rest]):
+        if all(np.hypot(*(xy[r] - xy[k])) >= PLACE_M for k in kept):
+            kept.append(int(r))
+            if len(kept) == PLACES:
+                break
+    return kept
+
+
+def place_of_rows(frames: np.ndarray, local: LocalFeatures) -> np.ndarray:
+    """(N,) for each venue frame the stored place of the same video nearest in frame number, -1
+    where its video has none."""
+    pv = np.asarray(local.places["video"], np.int64)
+    pf = np.asarray(local.places["frame"], np.int64)
+    order = np.lexsort((pf, pv))
+    key = (pv[order] << 32) + pf[order]
+    rv, rf = np.asarray(frames["video"], np.int64), np.asarray(frames["frame"], np.int64)
+    rkey = (rv << 32) + rf
+    hi = np.clip(np.searchsorted(key, rkey), 0, max(len(key) - 1, 0))
+    lo = np.clip(hi - 1, 0, max(len(key) - 1, 0))
+    out = np.full(len(rkey), -1, np.int64)
+    if not len(key):
+        return out
+    for j in (lo, hi):
+        same = pv[order][j] == rv
+        better = same & ((out < 0) | (np.abs(pf[order][j] - rf) < np.abs(pf[np.maximum(out, 0)] - rf)))
+        out = np.where(better, order[j], out)
+    return out
+
+
+@dataclass
+class Verdict:
+    """What verification made of a clip: its candidate rows, their inliers, and the row the answer
+    moves to (None: the global answer stands)."""
+
+    rows: list[int]
+    inliers: list[int]
+    moved_to: int | None
+
+
+def verify(
+    frame: np.ndarray,
+    lens: Lens,
+    m: Matches,
+    xy: np.ndarray,
+    local: LocalFeatures,
+    place_of: np.ndarray,
+    global_xy: tuple[float, float],
+    n_features: int,
+    margin: float,
+) -> Verdict:
+    """The clip's last frame (through the lens corrected for the clip) against its candidate places."""
+    rows = candidate_rows(m, xy)
+    qb, qd = detect(frame, lens, n_features)
+    inl = []
+    for r in rows:
+        p = int(place_of[r])
+        if p < 0:
+            inl.append(0)
+            continue
+        vb, vd = local.of(p)
+        mt = ratio_matches(qd, vd)
+        inl.append(essential_inliers(qb[mt[:, 0]], vb[mt[:, 1]]) if len(mt) >= 8 else 0)
+    if not rows:
+        return Verdict(rows, inl, None)
+    best = int(np.argmax(inl))
+    g = np.asarray(global_xy, np.float64)
+    at_global = max((n for r, n in zip(rows, inl, strict=True) if np.hypot(*(xy[r] - g)) < PLACE_M), default=0)
+    moves = inl[best] >= MIN_INLIERS and inl[best] > at_global and inl[best] >= margin * at_global
+    return Verdict(rows, inl, rows[best] if moves else None)

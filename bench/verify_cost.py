@@ -1,0 +1,80 @@
+"""What the `verified` venue option costs (verify.py): modelling, storage and locating a clip.
+
+On each foreign pack venue (or any pack folder with model.mp4, track.json, lens.json and queries/),
+modelled once as `default` and once as `verified` in the same run (fresh stores, so both model
+times are measured here), then every query clip located from its frames as `omninav locate`
+does (Locator.locate_frames: extraction, search, aggregation and, for `verified`, verification),
+alternating the two venues clip by clip. Printed per venue: the model time of each, the local
+features' bytes per 1,000 modelled frames, and the locate time's median and p90 of each.
+
+    python -m bench.verify_cost [--pack DIR] [--venues inst21] [--clips 30]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from bench.common import machine
+from bench.foreign import PACK, pack_venues
+from omninav.lens import load_lens
+from omninav.locate import Locator, clip_frames
+from omninav.model_venue import model_video
+from omninav.presets import resolve
+from omninav.store import Store
+from omninav.walk_path import load_walk_path
+
+
+def run(pack: Path, venue: str, clips: int) -> None:
+    src = pack / venue
+    model_lens = load_lens(src / ("model_lens.json" if (src / "model_lens.json").is_file() else "lens.json"))
+    lens = load_lens(src / "lens.json")
+    walk = load_walk_path(src / "track.json")
+    with tempfile.TemporaryDirectory(prefix="omninav-verify-cost-") as d:
+        locs, model_s = {}, {}
+        for preset in ("default", "verified"):
+            st = Store(Path(d) / preset)
+            t = time.perf_counter()
+            model_video(st, venue, src / "model.mp4", walk, model_lens, settings=resolve(preset))
+            model_s[preset] = time.perf_counter() - t
+            locs[preset] = Locator(st, venue, device="cpu")
+        local = locs["verified"].gen.local
+        assert local is not None
+        n_frames = len(locs["verified"].gen.frames)
+        names = sorted(p.name for p in (src / "queries").iterdir())[:clips]
+        ms: dict[str, list[float]] = {p: [] for p in locs}
+        for name in names:
+            frames, fps = clip_frames(src / "queries" / name, locs["default"].conf["model_fps"])
+            for preset, loc in locs.items():
+                t = time.perf_counter()
+                loc.locate_frames(frames, name, lens, fps)
+                ms[preset].append(1e3 * (time.perf_counter() - t))
+    print(
+        f"{venue}: {n_frames} modelled frames, {len(local.places)} places with local features, "
+        f"{local.nbytes() / n_frames * 1000 / 1e6:.1f} MB per 1,000 frames"
+    )
+    for preset in locs:
+        a = np.array(ms[preset])
+        print(
+            f"  {preset:<9} modelled in {model_s[preset]:5.1f} s; locate a clip from its frames "
+            f"median {np.median(a):6.1f} ms, p90 {np.percentile(a, 90):6.1f} ms ({len(a)} clips)"
+        )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--pack", type=Path, default=PACK)
+    ap.add_argument("--venues", default="inst21")
+    ap.add_argument("--clips", type=int, default=30)
+    a = ap.parse_args()
+    print(f"machine: {machine()}")
+    for venue in pack_venues(a.pack) if a.venues == "all" else a.venues.split(","):
+        run(a.pack, venue, a.clips)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,189 @@
+"""Verification by local features (verify.py): the geometry, the stored features as a venue's
+videos come and go, and a clip whose global answer is wrong moved to where it was filmed."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from omninav.errors import OmninavError
+from omninav.index import Matches
+from omninav.lens import load_lens
+from omninav.locate import Locator
+from omninav.model_venue import model_video, remove_video
+from omninav.presets import resolve
+from omninav.settings_upgrade import upgrade
+from omninav.store import Store
+from omninav.verify import (
+    MIN_INLIERS,
+    MOVED_CONFIDENCE,
+    SPACING_M,
+    LocalFeatures,
+    essential_inliers,
+    one_place,
+    place_of_rows,
+    verify,
+)
+from omninav.walk_path import load_walk_path
+from server_helpers import query_clip
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def _rot_z(deg: float) -> np.ndarray:
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def test_bearings_of_one_scene_from_two_places_are_inliers_and_shuffled_ones_are_not():
+    rng = np.random.default_rng(1)
+    pts = rng.uniform(-8, 8, (200, 3)) * [1, 1, 0.3]  # a room's points around both cameras
+    pts = pts[np.linalg.norm(pts[:, :2], axis=1) > 1.5]
+    r, t = _rot_z(37.0), np.array([0.8, -0.5, 0.0])  # camera 2: turned 37 degrees, 0.94 m away
+    b1 = _unit(pts)
+    b2 = _unit((pts - t) @ r)  # the same points in camera 2's frame
+    n = len(b1)
+    assert essential_inliers(b1, b2) >= 0.95 * n
+    wrong = b2[rng.permutation(n)]
+    assert essential_inliers(b1, wrong) < 0.2 * n
+    assert essential_inliers(b1[:7], b2[:7]) == 0  # fewer than the 8-point algorithm needs
+    assert essential_inliers(b1, b2, seed=3) == essential_inliers(b1, b2, seed=3)
+
+
+def _places(*spec: tuple[int, int, int]) -> LocalFeatures:
+    out = LocalFeatures.empty()
+    for video, frame, n in spec:
+        out = out + one_place(video, frame, np.full((n, 3), frame, np.float32), np.full((n, 32), frame, np.uint8))
+    return out
+
+
+def test_local_features_keep_their_places_slices_when_places_go():
+    lf = _places((0, 3, 2), (0, 9, 4), (1, 5, 3))
+    b, d = lf.of(1)
+    assert len(b) == 4 and (d == 9).all()
+    kept = lf.keep(lf.places["video"] != 0)
+    assert list(kept.places["start"]) == [0] and len(kept.bearings) == 3
+    assert (kept.of(0)[1] == 5).all()
+    assert len(lf.keep(np.zeros(3, bool)).places) == 0
+
+
+def test_each_venue_frame_finds_the_nearest_place_of_its_own_video():
+    lf = _places((0, 0, 1), (0, 10, 1), (1, 4, 1))
+    frames = np.zeros(5, [("frame", "<i4"), ("video", "<i4")])
+    frames["frame"], frames["video"] = [0, 6, 9, 4, 2], [0, 0, 0, 1, 2]
+    assert list(place_of_rows(frames, lf)) == [0, 1, 1, 2, -1]
+    assert list(place_of_rows(frames, LocalFeatures.empty())) == [-1] * 5
+
+
+@pytest.fixture(scope="module")
+def verified(small_ds, tmp_path_factory) -> tuple[Store, str]:
+    """The small venue modelled with the `verified` preset."""
+    st = Store(tmp_path_factory.mktemp("verified"))
+    walk = load_walk_path(small_ds.model_walk_path)
+    model_video(
+        st,
+        "lab",
+        small_ds.model_video,
+        walk,
+        load_lens(small_ds.root / "model_lens.json"),
+        settings=resolve("verified"),
+    )
+    return st, "lab"
+
+
+def test_a_verified_venue_stores_a_place_every_half_metre_of_its_walk(verified):
+    st, vid = verified
+    g = st.load(vid)
+    assert g.local is not None and g.settings["local_features"] == 900
+    xy = np.stack([g.frames["x"], g.frames["y"]], 1)
+    step = float(np.hypot(*np.diff(xy, axis=0).T).max())  # the walk between two sampled frames
+    row = np.searchsorted(g.frames["frame"], g.local.places["frame"])
+    assert np.array_equal(g.frames["frame"][row], g.local.places["frame"]) and row[0] == 0
+    gaps = np.hypot(*np.diff(xy[row], axis=0).T)
+    assert gaps.min() >= SPACING_M and gaps.max() <= SPACING_M + step + 1e-6
+    assert 300 <= np.median(g.local.places["count"]) <= 900
+    assert np.allclose(np.linalg.norm(np.asarray(g.local.bearings, np.float32), axis=1), 1, atol=2e-3)
+
+
+def test_local_features_follow_the_venues_videos(verified, small_ds, tmp_path):
+    import shutil
+
+    shutil.copytree(verified[0].root, tmp_path / "data")
+    st = Store(tmp_path / "data")
+    first = st.load("lab").local
+    assert first is not None
+    model_video(st, "lab", small_ds.query_video, load_walk_path(small_ds.query_walk_path), load_lens(small_ds.lens))
+    both = st.load("lab").local
+    assert both is not None and set(both.places["video"]) == {0, 1} and len(both.places) > len(first.places)
+    remove_video(st, "lab", "model.mp4")  # the first video goes: the second one's places are video 0
+    left = st.load("lab")
+    assert left.local is not None and set(left.local.places["video"]) == {0}
+    assert len(left.local.places) == len(both.places) - len(first.places)
+    assert np.array_equal(left.local.descriptors, both.descriptors[len(first.descriptors) :])
+
+
+def test_a_wrong_global_answer_moves_to_the_place_the_geometry_confirms(verified, small_ds):
+    st, vid = verified
+    loc = Locator(st, vid)
+    frames, (tx, ty, _) = query_clip(small_ds, 60)
+    truth = int(np.argmin(np.hypot(loc.xy[:, 0] - tx, loc.xy[:, 1] - ty)))
+    far = int(np.argmax(np.hypot(loc.xy[:, 0] - tx, loc.xy[:, 1] - ty)))
+    # the global search ranked a far place first and the true one second
+    m = Matches(np.array([[far, truth]]), np.array([[0.9, 0.8]]), np.array([[0.9, 0.6]]), np.array([[10.0, 20.0]]))
+    lens = load_lens(small_ds.lens)
+    v = verify(frames[-1], lens, m, loc.xy, loc.gen.local, place_of_rows(loc.gen.frames, loc.gen.local),
+               tuple(loc.xy[far]), 900, 2.0)  # fmt: skip
+    assert v.rows == [far, truth]
+    assert v.inliers[1] >= MIN_INLIERS and v.inliers[1] >= 2 * v.inliers[0] and v.moved_to == truth
+    # where the global answer is the true place, it stands
+    m2 = Matches(m.index[:, ::-1], m.coarse, m.score, m.heading)
+    v2 = verify(frames[-1], lens, m2, loc.xy, loc.gen.local, place_of_rows(loc.gen.frames, loc.gen.local),
+                tuple(loc.xy[truth]), 900, 2.0)  # fmt: skip
+    assert v2.moved_to is None
+    # and the Locator says a moved answer with its own confidence, at the true place, facing the match's way
+    e = loc.aggregated(m, np.zeros(1))
+    moved, conf = loc.verified(frames[-1], lens, m, e)
+    assert conf == MOVED_CONFIDENCE and moved.venue_row == truth and moved.heading == pytest.approx(20.0)
+
+
+def test_a_verified_venue_locates_clips_from_frames_as_well_as_the_default(verified, modelled, small_ds):
+    plain, ver = Locator(*modelled), Locator(*verified)
+    assert not plain.verifies and ver.verifies
+    lens = load_lens(small_ds.lens)
+    for start in (0, 60, 120):
+        frames, (tx, ty, _) = query_clip(small_ds, start)
+        a = ver.locate_frames(frames, "c", lens, 10.0)
+        assert np.hypot(a["x"] - tx, a["y"] - ty) < 1.0
+
+
+def test_local_features_are_fixed_when_modelled_and_absent_from_older_venues(verified):
+    loc = Locator(*verified)
+    with pytest.raises(OmninavError, match="local_features"):
+        loc.change_settings({"local_features": 500})
+    loc.change_settings({"local_margin": 3.0})
+    assert loc.conf["local_margin"] == 3.0
+    old = {k: v for k, v in resolve("default").items() if k not in ("local_features", "local_margin")}
+    old["version"] = 3
+    assert upgrade(old)["local_features"] is None and upgrade(old)["local_margin"] == 2.0
+    with pytest.raises(OmninavError, match="local_features"):
+        resolve("default", {"local_features": 50})
+
+
+def test_an_evaluation_walk_is_verified_clip_by_clip_as_locate_verifies(verified, small_ds, monkeypatch):
+    from omninav.evaluate import evaluate
+
+    loc = Locator(*verified)
+    calls: list[tuple[int, int]] = []
+    real = Locator.verified
+
+    def spy(self, frame, lens, m, e):
+        calls.append(frame.shape[:2])
+        return real(self, frame, lens, m, e)
+
+    monkeypatch.setattr(Locator, "verified", spy)
+    ev = evaluate(loc, small_ds.query_video, load_walk_path(small_ds.query_walk_path), load_lens(small_ds.lens))
+    assert len(calls) == len(ev.rows) > 10 and set(calls) == {(360, 480)}
+    s = ev.summary()
+    assert s["within_2m"] >= 0.9
