@@ -87,14 +87,13 @@ def rows_for(pack: Path, venue: str, tag: str, conf: dict[str, Any], elev: float
         return list(json.loads(cache.read_text()))
     rows = []
     for truth, spec, fps in query_spectra(pack, venue, loc, elev):
-        m, times = loc.search_clip(spec, np.arange(len(spec)) / fps)
-        e = loc.aggregated(m, times)
-        moved = None
+        local = None
         if loc.verifies:  # as `omninav locate` verifies the clip's frames (Locator.locate_frames)
             frames, _ = clip_frames(pack / venue / "queries" / truth["clip"], loc.conf["model_fps"])
             c = loc.clip_lens(elevation_off(load_lens(pack / venue / "lens.json"), elev))
             list(c.spectra(frames[:FIRST]))  # (the clip's lens is decided on its first frames)
-            e, moved = loc.verified(frames[-1], c.lens, m, e)
+            local = loc.local_features(frames[-1], c.lens)
+        e, moved = loc.estimate_local(spec, np.arange(len(spec)) / fps, None, local)
         rows.append(
             {
                 "clip": truth["clip"],

@@ -19,7 +19,7 @@ import numpy as np
 
 from bench.ablation import CONFIGS as LADDER
 from omninav.aggregate import SURE, confidence
-from omninav.evaluate import clip_frames_of, clip_starts, evaluate_spectra, query_spectra, walk_frames
+from omninav.evaluate import clip_ends, evaluate_spectra, query_spectra, walk_local
 from omninav.lens import load_lens
 from omninav.locate import Locator
 from omninav.model_venue import model_video
@@ -145,10 +145,10 @@ def rows_for(
         agg = CONFIGS[config][2]
         for c in todo:
             ends = None
-            if loc.verifies:  # each clip's last frame, verified as `omninav evaluate` does
-                n = clip_frames_of(loc, c)
-                ends_at = {int(spec[4][s + n - 1]) for s in clip_starts(len(spec[1]), n, False)}
-                ends = walk_frames(loc, root / "query.mp4", load_lens(root / "lens.json"), ends_at)
+            if loc.verifies:  # each clip verified by its last frame, as `omninav evaluate` does
+                walk = load_walk_path(root / "query_walk_path.json")
+                at = clip_ends(loc, spec[4], c, False)
+                ends = walk_local(loc, root / "query.mp4", load_lens(root / "lens.json"), at, walk.fps)
             rows = evaluate_spectra(loc, *spec, aggregate=agg, clip_s=c, ends=ends).rows
             for r in rows:
                 r.update(family=family, split=FAMILIES[family].split, seed=seed, config=config, clip_s=c)

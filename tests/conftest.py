@@ -79,6 +79,47 @@ def modelled(small_ds: Dataset, tmp_path_factory: pytest.TempPathFactory) -> tup
 
 
 @pytest.fixture(scope="session")
+def verified(small_ds: Dataset, tmp_path_factory: pytest.TempPathFactory) -> tuple[Store, str]:
+    """The small venue modelled with the `verified` preset (local features, verify.py)."""
+    from omninav.presets import resolve
+
+    st = Store(tmp_path_factory.mktemp("verified"))
+    walk = load_walk_path(small_ds.model_walk_path)
+    lens = load_lens(small_ds.root / "model_lens.json")
+    model_video(st, "lab", small_ds.model_video, walk, lens, settings=resolve("verified"))
+    return st, "lab"
+
+
+@pytest.fixture
+def wrong_global(monkeypatch: pytest.MonkeyPatch, verified: tuple[Store, str], small_ds: Dataset) -> Any:
+    """Every clip's global search ranks the place farthest from the query walk's frame 69 first
+    (its true place second) and aggregates to it: only verification can answer right. Gives that
+    clip's frames (60-69), its true pose and its true venue row."""
+    from omninav.aggregate import Estimate
+    from omninav.index import Matches
+    from omninav.locate import Locator
+    from server_helpers import far_and_truth, query_clip
+
+    loc = Locator(*verified)
+    frames, (tx, ty, th) = query_clip(small_ds, 60)
+    far, truth = far_and_truth(loc, tx, ty)
+    search_clip = Locator.search_clip
+
+    def search(self: Locator, q_spec: np.ndarray, times: Any) -> tuple[Matches, np.ndarray]:
+        _, times = search_clip(self, q_spec, times)
+        q = len(times)
+        rows, score = np.tile([[far, truth]], (q, 1)), np.tile([[0.9, 0.6]], (q, 1))
+        return Matches(rows, np.full((q, 2), 0.9), score, np.zeros((q, 2))), times
+
+    def aggregated(self: Locator, m: Matches, times: np.ndarray, aggregate: str | None = None) -> Estimate:
+        return Estimate(float(self.xy[far, 0]), float(self.xy[far, 1]), 0.0, far, 0.99, 0.0, 1.0)
+
+    monkeypatch.setattr(Locator, "search_clip", search)
+    monkeypatch.setattr(Locator, "aggregated", aggregated)
+    return frames, (tx, ty, th), truth
+
+
+@pytest.fixture(scope="session")
 def quick_demo_render(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The quick demo's rendered venue (demo.render: about 25 s on two cores), made once a run and
     copied into each data folder that starts the quick demo (`seed_quick_demo`)."""

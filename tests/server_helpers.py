@@ -100,3 +100,9 @@ def clip_spectra(ds: Any, frames: list[np.ndarray], conf: dict) -> np.ndarray:
 
 def heading_error(a: float, b: float) -> float:
     return abs((a - b + 180.0) % 360.0 - 180.0)
+
+
+def far_and_truth(loc: Any, tx: float, ty: float) -> tuple[int, int]:
+    """The venue rows farthest from and nearest to (tx, ty)."""
+    d = np.hypot(loc.xy[:, 0] - tx, loc.xy[:, 1] - ty)
+    return int(np.argmax(d)), int(np.argmin(d))

@@ -123,10 +123,16 @@ def test_a_verified_venue_is_made_and_asked_as_any_other(clips, small_ds, tmp_pa
     gen = next((data / "venues" / "ver").glob("gen-*"))
     assert json.loads((gen / "settings.json").read_text())["local_features"] == 900
     assert np.load(gen / "local_descriptors.npy").shape[1] == 32
-    p = run_cli("locate", "ver", str(d / "q1.avi"), str(d / "q2"), "--lens", str(small_ds.lens), data=data, check=True)
-    for line in p.stdout.strip().splitlines():
-        a = json.loads(line)
-        (tx, ty), _ = truth[a["clip"]]
+    # a phone's record for this venue carries the clip's last frame's local features (version 2)
+    rec = tmp_path / "q1.onv"
+    run_cli("features", "ver", str(d / "q1.avi"), "--lens", str(small_ds.lens), "-o", str(rec), data=data, check=True)
+    assert rec.read_bytes()[3] == 2 and rec.stat().st_size > 9000 + 20000
+    clips = [str(d / "q1.avi"), str(d / "q2"), str(rec)]
+    p = run_cli("locate", "ver", *clips, "--lens", str(small_ds.lens), data=data, check=True)
+    answers = [json.loads(line) for line in p.stdout.strip().splitlines()]
+    assert [a["clip"] for a in answers] == ["q1.avi", "q2", "q1.onv"]
+    for a in answers:
+        (tx, ty), _ = truth[a["clip"].replace(".onv", ".avi")]
         assert np.hypot(a["x"] - tx, a["y"] - ty) < 2.0
 
 

@@ -279,7 +279,8 @@ def locate(
             raise OmninavError(f"{c}: clip not found")
     for c in clips:
         if c.suffix.lower() in RECORD_SUFFIXES:  # features extracted elsewhere (a phone)
-            answer = loc.locate_spectra(read_record(c, loc.conf), c.name, None, aggregate)
+            spec, local = read_record(c, loc.conf)
+            answer = loc.locate_spectra(spec, c.name, None, aggregate, local)
         else:
             frames, fps = clip_frames(c, loc.conf["model_fps"])
             answer = loc.locate_frames(frames, c.name, lens, fps, aggregate)
@@ -338,7 +339,8 @@ def track(
 @click.option("--lens", "lens_path", type=click.Path(path_type=Path), help="Lens of the clip (default: the venue's).")
 @click.option("-o", "--out", type=click.Path(path_type=Path), help="Write here; .onv is binary, else JSON.")
 def features(venue_id: str, clip: Path, lens_path: Path | None, out: Path | None) -> None:
-    """Extract CLIP's feature record with VENUE's settings: what a phone sends instead of images."""
+    """Extract CLIP's feature record with VENUE's settings: what a phone sends instead of images
+    (for a venue with local features, its last frame's too: a version-2 record)."""
     from .calib.correct import clip_spectra
     from .extract import Extractors
     from .lens import load_lens
@@ -358,11 +360,16 @@ def features(venue_id: str, clip: Path, lens_path: Path | None, out: Path | None
     exts = Extractors(conf)
     frames, _ = clip_frames(clip, conf["model_fps"])
     exts.get(lens).check_frame(frames[0], str(clip))
-    spec, _ = clip_spectra(lens, frames, exts.spectrum, clip=str(clip))
+    spec, c = clip_spectra(lens, frames, exts.spectrum, clip=str(clip))
+    local = None
+    if conf.get("local_features"):  # a venue that verifies: its last frame's local features too
+        from .verify import detect
+
+        local = detect(frames[-1], c.lens, int(conf["local_features"]))
     if out is not None and out.suffix.lower() == ".onv":
-        out.write_bytes(encode_binary(spec, conf))
+        out.write_bytes(encode_binary(spec, conf, local))
     else:
-        text = json.dumps(encode_json(spec, conf), separators=(",", ":"))
+        text = json.dumps(encode_json(spec, conf, local), separators=(",", ":"))
         if out is None:
             click.echo(text)
         else:

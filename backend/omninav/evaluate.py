@@ -16,10 +16,11 @@ from typing import Any
 import numpy as np
 
 from .aggregate import SURE, Estimate, confidence
+from .calib.correct import FIRST
 from .errors import OmninavError
 from .heading import wrap_deg
 from .lens import Lens
-from .locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, Locator
+from .locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, LocalQuery, Locator
 from .model_venue import Progress
 from .motion import Imu
 from .quality import AMBIGUOUS_MARGIN, RADIUS_M
@@ -62,11 +63,11 @@ def query_spectra(
     return spec[ok], t[ok], xy[ok], hd[ok], idx[ok]
 
 
-def walk_spectra(
-    loc: Locator, video: Path, lens: Lens | None, progress: Progress | None = None, fps: float = DEFAULT_CLIP_FPS
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A walk (a video, or a directory of frame images filmed at `fps`) sampled at the venue's
-    model_fps -> spectra (F, C, K), times (s, the video's clock), frame index."""
+def _sampled(
+    loc: Locator, video: Path, fps: float, last: int | None = None
+) -> tuple[Iterator[tuple[int, np.ndarray]], int, float]:
+    """A walk's frames sampled at the venue's model_fps (up to frame `last`), how many there will
+    be, and the walk's frame rate (a directory of images is filmed at `fps`)."""
     if video.is_dir():
         files = sorted(f for f in video.iterdir() if f.suffix.lower() in IMAGE_EXT)
         if not files:
@@ -76,18 +77,27 @@ def walk_spectra(
         info = VideoInfo(video)
         vfps, n_frames = (info.fps if info.fps > 0 else fps), info.frames
     stride = max(1, int(round(vfps / loc.conf["model_fps"])))
+    end = n_frames if last is None or video.is_dir() and last >= n_frames else last + 1
+    frames: Iterator[tuple[int, np.ndarray]]
+    if video.is_dir():
+        frames = ((i, _image(files[i])) for i in range(0, end, stride))
+    else:
+        frames = iter_video(info, stride=stride, last=last)
+    return frames, max(1, -(-n_frames // stride)), vfps
+
+
+def walk_spectra(
+    loc: Locator, video: Path, lens: Lens | None, progress: Progress | None = None, fps: float = DEFAULT_CLIP_FPS
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A walk (a video, or a directory of frame images filmed at `fps`) sampled at the venue's
+    model_fps -> spectra (F, C, K), times (s, the video's clock), frame index."""
+    frames, total, vfps = _sampled(loc, video, fps)
     ext = loc.extractor(lens)
     # the walk's lens as it sits in this walk: the ring is measured on its first frames
     clip = loc.clip_lens(lens, lambda f: ext.check_frame(f, str(video)))
     specs: list[np.ndarray] = []
     idx: list[int] = []
-    total = max(1, -(-n_frames // stride))
     t0 = time.perf_counter()
-    frames: Iterator[tuple[int, np.ndarray]]
-    if video.is_dir():
-        frames = ((i, _image(files[i])) for i in range(0, len(files), stride))
-    else:
-        frames = iter_video(info, stride=stride)
     for i, frame in frames:
         specs.extend(clip.feed(frame))
         idx.append(i)
@@ -98,6 +108,24 @@ def walk_spectra(
         raise OmninavError(f"{video}: no frames")
     t = np.array(idx) / vfps  # the video's rate: a walk path's fps only counts its own frame numbers
     return np.stack(specs), t, np.array(idx)
+
+
+def walk_local(
+    loc: Locator, video: Path, lens: Lens | None, wanted: set[int], fps: float = DEFAULT_CLIP_FPS
+) -> dict[int, LocalQuery]:
+    """The local features of the walk's sampled frames of index `wanted` (each clip's last frame),
+    through the walk's lens as walk_spectra corrects it (on the same first sampled frames), in a
+    second decoding pass: only the features are kept (~34 KB a frame), never the frames."""
+    frames, _, _ = _sampled(loc, video, fps, max(wanted, default=0))
+    clip = loc.clip_lens(lens)
+    out: dict[int, LocalQuery] = {}
+    for n, (i, frame) in enumerate(frames):
+        if n < FIRST:
+            clip.feed(frame)  # (decides the lens on the first FIRST frames)
+        if i in wanted:
+            clip.flush()
+            out[i] = loc.local_features(frame, clip.lens)
+    return out
 
 
 def _image(path: Path) -> np.ndarray:
@@ -120,10 +148,7 @@ def evaluate(
     tail: bool = False,
 ) -> Evaluation:
     spec, t, xy, hd, idx = query_spectra(loc, video, walk_path, lens, progress)
-    ends = None
-    if loc.verifies:  # each clip's last frame, for its local features (verify.py)
-        n = clip_frames_of(loc, clip_s)
-        ends = walk_frames(loc, video, lens, {int(idx[s + n - 1]) for s in clip_starts(len(t), n, tail)})
+    ends = walk_local(loc, video, lens, clip_ends(loc, idx, clip_s, tail), walk_path.fps) if loc.verifies else None
     return evaluate_spectra(loc, spec, t, xy, hd, idx, aggregate, clip_s, tail, ends)
 
 
@@ -140,39 +165,10 @@ def clip_starts(frames: int, n: int, tail: bool) -> list[int]:
     return starts
 
 
-@dataclass
-class WalkFrames:
-    """Some frames of a walk by their index, and the walk's lens as it sat (corrected on its first
-    sampled frames, as walk_spectra corrects it)."""
-
-    frames: dict[int, np.ndarray]
-    lens: Lens
-
-
-def walk_frames(loc: Locator, video: Path, lens: Lens | None, wanted: set[int]) -> WalkFrames:
-    """The walk's frames of index `wanted`, decoded in one pass, and its corrected lens."""
-    from .calib.correct import FIRST
-
-    stride = 1
-    if video.is_dir():
-        files = sorted(f for f in video.iterdir() if f.suffix.lower() in IMAGE_EXT)
-        got = {i: _image(files[i]) for i in sorted(wanted) if i < len(files)}
-        first = [_image(f) for f in files[:FIRST]]
-    else:
-        info = VideoInfo(video)
-        vfps = info.fps if info.fps > 0 else DEFAULT_CLIP_FPS
-        stride = max(1, int(round(vfps / loc.conf["model_fps"])))
-        got, first = {}, []
-        for i, frame in iter_video(info, last=max(wanted | {stride * (FIRST - 1)})):
-            if i in wanted:
-                got[i] = frame
-            if i % stride == 0 and len(first) < FIRST:
-                first.append(frame)
-    clip = loc.clip_lens(lens)
-    for f in first:
-        clip.feed(f)
-    clip.flush()
-    return WalkFrames(got, clip.lens)
+def clip_ends(loc: Locator, idx: np.ndarray, clip_s: float, tail: bool) -> set[int]:
+    """The frame index of each clip's last frame, as evaluate_spectra cuts the walk's frames `idx`."""
+    n = clip_frames_of(loc, clip_s)
+    return {int(idx[s + n - 1]) for s in clip_starts(len(idx), n, tail)}
 
 
 def evaluate_spectra(
@@ -185,24 +181,22 @@ def evaluate_spectra(
     aggregate: str | None = None,
     clip_s: float = 1.0,
     tail: bool = False,
-    ends: WalkFrames | None = None,
+    ends: dict[int, LocalQuery] | None = None,
 ) -> Evaluation:
     """evaluate() on a walk's spectra already extracted (query_spectra's output): consecutive
     clips of `clip_s`, each answered at its last frame. Several clip lengths or aggregations of one
     walk then cost one extraction. `tail`: the frames after the last whole clip are scored too, as
     a clip ending at the walk's last frame (it overlaps the one before): every second of an
     admin's evaluation walk is scored (the benchmarks' clips stay as they were measured). `ends`:
-    the clips' last frames, with which a venue with local features verifies each clip as `locate`
-    does (a moved answer's row says `moved`)."""
+    the local features of the clips' last frames (walk_local), with which a venue that has its own
+    verifies each clip as `locate` does (a moved answer's row says `moved`)."""
     n = clip_frames_of(loc, clip_s)
     ev = Evaluation()
     for s in clip_starts(len(t), n, tail):
         w = slice(s, s + n)
         conf = None
-        if ends is not None and int(idx[s + n - 1]) in ends.frames:
-            m, times = loc.search_clip(spec[w], t[w])
-            e = loc.aggregated(m, times, aggregate)
-            e, conf = loc.verified(ends.frames[int(idx[s + n - 1])], ends.lens, m, e)
+        if ends is not None and int(idx[s + n - 1]) in ends:
+            e, conf = loc.estimate_local(spec[w], t[w], aggregate, ends[int(idx[s + n - 1])])
         else:
             e = loc.estimate(spec[w], t[w], aggregate)
         tx, ty = xy[s + n - 1]

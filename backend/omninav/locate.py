@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+import logging
 import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import cv2
 import numpy as np
 
 from .aggregate import AGGREGATORS, SPAN_S, Estimate, confidence
+from .arrays import to_numpy
 from .calib.correct import ClipLens, clip_spectra
 from .errors import OmninavError
 from .extract import Extractor, Extractors
@@ -36,6 +39,8 @@ DEFAULT_CLIP_FPS = 10.0  # timing assumed for a directory of frames, which carri
 MAX_CLIP_S = 5.0
 MAX_CLIP_FRAMES = 60
 MATCH_FIELDS = tuple(f.name for f in fields(Matches))
+LocalQuery = tuple[np.ndarray, np.ndarray]  # a clip's last frame's local features: bearings, descriptors
+log = logging.getLogger("omninav.locate")
 
 
 def clip_groups(times: np.ndarray) -> np.ndarray:
@@ -331,11 +336,18 @@ class Locator:
         return str(places[int(np.argmin(d))]["name"])
 
     def locate_spectra(
-        self, spec: np.ndarray, clip: str, fps: float | None = None, aggregate: str | None = None
+        self,
+        spec: np.ndarray,
+        clip: str,
+        fps: float | None = None,
+        aggregate: str | None = None,
+        local: LocalQuery | None = None,
     ) -> dict[str, Any]:
-        """A clip's decoded feature record -> the answer (what the phone's request becomes)."""
+        """A clip's decoded feature record -> the answer (what the phone's request becomes);
+        verified where the record brings its last frame's local features and the venue has some."""
         times = np.arange(len(spec)) / (fps or DEFAULT_CLIP_FPS)
-        return self.answer(self.estimate(spec, times, aggregate), clip)
+        e, conf = self.estimate_local(spec, times, aggregate, local)
+        return self.answer(e, clip, conf)
 
     def locate_frames(
         self,
@@ -351,64 +363,78 @@ class Locator:
             ext.check_frame(f, clip)
         spec, c = clip_spectra(lens or self.gen.lens, frames, self._extractors.spectrum, clip=clip)
         times = np.arange(len(frames)) / (fps or DEFAULT_CLIP_FPS)
-        m, times = self.search_clip(spec, times)
-        e = self.aggregated(m, times, aggregate)
-        if self.verifies:
-            ev, cf = self.verified(frames[-1], c.lens, m, e)
-            return self.answer(ev, clip, cf)
-        return self.answer(e, clip)
+        local = self.local_features(frames[-1], c.lens) if self.verifies else None
+        e, conf = self.estimate_local(spec, times, aggregate, local)
+        return self.answer(e, clip, conf)
 
     @property
     def verifies(self) -> bool:
-        """Whether the venue has local features to verify a clip's frames with (verify.py)."""
+        """Whether the venue has local features to verify a clip with (verify.py)."""
         return self.gen.local is not None and bool(self.conf.get("local_features"))
 
-    def verified(self, frame: np.ndarray, lens: Lens, m: Matches, e: Estimate) -> tuple[Estimate, float | None]:
-        """A clip's global answer checked by local features of its last `frame` (through the clip's
-        corrected `lens`) against its candidate places: the answer moved to another place, with
-        verify.MOVED_CONFIDENCE, or as it was (None: the model's confidence)."""
+    def local_features(self, frame: np.ndarray, lens: Lens) -> LocalQuery:
+        """A clip's last frame -> its local features (verify.detect), seen through `lens` (the
+        clip's, corrected for where its ring sits), as many as the venue keeps a place."""
+        from .verify import detect
+
+        return detect(frame, lens, int(self.conf["local_features"]))
+
+    def estimate_local(
+        self, q_spec: np.ndarray, times: np.ndarray, aggregate: str | None, local: LocalQuery | None
+    ) -> tuple[Estimate, float | None]:
+        """estimate(), then verified by the clip's last frame's `local` features where there are
+        some and the venue has its own: (the estimate, None: the model's confidence) or the answer
+        moved (verified)."""
+        m, times = self.search_clip(q_spec, times)
+        e = self.aggregated(m, times, aggregate)
+        if local is None or not self.verifies:
+            return e, None
+        return self.verified(local, m, e, q_spec[-1])
+
+    def verified(
+        self, local: LocalQuery, m: Matches, e: Estimate, last_spec: np.ndarray
+    ) -> tuple[Estimate, float | None]:
+        """A clip's global answer checked by its last frame's local features against its candidate
+        places: the answer moved to another place, with verify.MOVED_CONFIDENCE and the heading of
+        the last frame's spectrum `last_spec` (C, K) at that place (stage 2's phase correlation),
+        or as it was (None: the model's confidence). Verification only ever adds to the answer: an
+        error in it is logged and the global answer stands."""
         from .verify import MOVED_CONFIDENCE, place_of_rows, verify
 
         assert self.gen.local is not None
-        if self._place_of is None:
-            self._place_of = place_of_rows(self.gen.frames, self.gen.local)
-        v = verify(
-            frame,
-            lens,
-            m,
-            self.xy,
-            self.gen.local,
-            self._place_of,
-            (e.x, e.y),
-            int(self.conf["local_features"]),
-            float(self.conf["local_margin"]),
-        )
+        try:
+            if self._place_of is None:
+                self._place_of = place_of_rows(self.gen.frames, self.gen.local)
+            v = verify(local, m, self.xy, self.gen.local, self._place_of, e.venue_row, float(self.conf["local_margin"]))
+        except (cv2.error, np.linalg.LinAlgError, ValueError) as err:
+            log.warning("verification failed, the global answer stands: %s", err)
+            return e, None
         if v.moved_to is None:
             return e, None
         r = v.moved_to
-        q, j = np.nonzero(m.index == r)
-        at = int(np.lexsort((-m.score[q, j], -q))[0])  # the latest frame's match with that row
+        _, heading = self.index.verify(np.asarray(last_spec)[None], np.array([[r]]))
         x, y = self.xy[r]
-        moved = Estimate(float(x), float(y), float(m.heading[q[at], j[at]]), r, e.support, e.rival, e.agree)
-        return moved, MOVED_CONFIDENCE
+        h = float(to_numpy(heading).ravel()[0])
+        return Estimate(float(x), float(y), h, r, e.support, e.rival, e.agree), MOVED_CONFIDENCE
 
 
-def read_record(path: Path, conf: dict[str, Any]) -> np.ndarray:
-    """A feature record file (.onv binary or .json) -> (F, C, K) spectra, checked against conf."""
+def read_record(path: Path, conf: dict[str, Any]) -> tuple[np.ndarray, LocalQuery | None]:
+    """A feature record file (.onv binary or .json) -> ((F, C, K) spectra, its local features or
+    None), checked against conf."""
     import json
 
-    from .spectrum import decode_binary, decode_json
+    from .spectrum import decode_binary_local, decode_json_local
 
     if not path.is_file():
         raise OmninavError(f"{path}: feature record not found")
     try:
         if path.suffix.lower() == ".onv":
-            return decode_binary(path.read_bytes(), conf)
+            return decode_binary_local(path.read_bytes(), conf)
         try:
             obj = json.loads(path.read_text())
         except (UnicodeDecodeError, json.JSONDecodeError) as e:
             raise OmninavError(f"feature record is not readable JSON ({e})") from None
-        return decode_json(obj, conf)
+        return decode_json_local(obj, conf)
     except OmninavError as e:  # say which of several files on the command line was wrong
         raise OmninavError(f"{path}: {e}") from None
 

@@ -27,7 +27,7 @@ from .extract import Extractors
 from .lens import Lens
 from .presets import resolve
 from .store import FRAME_DTYPE, Generation, Store
-from .verify import SPACING_M, LocalFeatures, detect, one_place
+from .verify import SPACING_M, LocalFeatures, concat, detect, one_place
 from .video import VideoInfo, extract_threads, in_order, iter_video, on_pool
 from .walk_path import WalkPath
 
@@ -137,12 +137,18 @@ def _extract(
                     spaced.append((i, frame))
                 yield (xy[k - at, 0], xy[k - at, 1], hd[k - at], t[k - at], i), frame
 
+    found: list[LocalFeatures] = []
+
     def detect_spaced() -> None:
-        """Hand the spaced frames to the ORB thread, once the clip's lens is decided."""
+        """Hand the spaced frames to the ORB thread, once the clip's lens is decided, and collect
+        what it found; at most `ahead` frames wait there (each holds a decoded frame)."""
         assert orb is not None and n_local is not None
         while spaced:
             i, frame = spaced.pop(0)
             local.append((i, orb.submit(detect, frame, clip.lens, n_local)))
+        while local and (local[0][1].done() or len(local) > ahead):
+            i, f = local.pop(0)
+            found.append(one_place(-1, i, *f.result()))
 
     try:
         for row, spec in in_order(clip, posed(), ahead):
@@ -153,7 +159,7 @@ def _extract(
             tick()
         if orb is not None:
             detect_spaced()
-            found = [one_place(-1, i, *f.result()) for i, f in local]
+            found.extend(one_place(-1, i, *f.result()) for i, f in local)
     finally:
         if orb is not None:
             orb.shutdown(cancel_futures=True)
@@ -168,7 +174,7 @@ def _extract(
     arr = np.array(rows, np.float64)
     new["x"], new["y"], new["heading"], new["t"] = arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3]
     new["frame"] = arr[:, 4].astype(np.int32)
-    return new, np.stack(specs), (sum(found, LocalFeatures.empty()) if orb is not None else None)
+    return new, np.stack(specs), (concat(found) if orb is not None else None)
 
 
 def _check_complete(p: _Plan, seen: int) -> None:

@@ -7,10 +7,14 @@ The record (version 1) holds the leading K harmonics of each of the C curves:
 magnitudes as float16 and phases as int16 (2*pi / 65536 rad steps, far finer than the heading
 needs), so 4*C*K bytes plus a 20-byte header that names the settings the record was made with
 (`presets.settings_id`): 14 curves x 16 harmonics (the default preset) = 916 bytes for one frame.
+Version 2 adds the clip's last frame's local features after the phases (verify.py: at most 880
+ORB keypoints, 36 bytes each), for a venue that verifies; version 1 stays what it was.
 """
 
 from __future__ import annotations
 
+import base64
+import binascii
 import math
 import struct
 from typing import Any
@@ -21,7 +25,20 @@ from .errors import OmninavError
 from .presets import n_curves, settings_id
 
 RECORD_VERSION = 1
+LOCAL_VERSION = 2  # a record with a local block (docs/formats.md, "Local block")
+VERSIONS = (RECORD_VERSION, LOCAL_VERSION)
 MAGIC = b"ONV"
+LOCAL_MAGIC = b"LOC"
+_LOCAL_HEAD = struct.Struct("<3sxI")  # magic, keypoints N; then N uint16 az, N int16 el, N x 32 bytes
+LOCAL_HEAD_BYTES = _LOCAL_HEAD.size
+LOCAL_BYTES_PER_KEYPOINT = 2 + 2 + 32
+MAX_LOCAL_KEYPOINTS = 880  # 8 + 36 x 880 = 31,688 bytes: a request's local features within 32 KB
+LOCAL_MAX_BYTES = LOCAL_HEAD_BYTES + LOCAL_BYTES_PER_KEYPOINT * MAX_LOCAL_KEYPOINTS
+# a JSON local block at most: per keypoint two integers (6 bytes and a comma each) and 44 base64
+# characters of descriptor, and the keys
+LOCAL_JSON_BYTES = 256 + MAX_LOCAL_KEYPOINTS * (2 * 7 + 44)
+AZ_STEP = 360.0 / 65536.0  # degrees a unit of a keypoint's azimuth
+EL_STEP = 0.01  # ... and of its elevation
 # magic, version, n_curves, n_harmonics, pano_width, n_frames, settings id
 _HEADER = struct.Struct("<3sBHHHII2x")
 HEADER_BYTES = _HEADER.size
@@ -72,45 +89,117 @@ def _join(mag: np.ndarray, ph: np.ndarray) -> np.ndarray:
     return out
 
 
-def encode_binary(spec: np.ndarray, conf: dict[str, Any]) -> bytes:
-    """(F, C, K) or (C, K) complex spectra -> the version-1 binary record (little endian)."""
+def encode_binary(spec: np.ndarray, conf: dict[str, Any], local: tuple[np.ndarray, np.ndarray] | None = None) -> bytes:
+    """(F, C, K) or (C, K) complex spectra -> the binary record (little endian): version 1, or 2
+    with the clip's last frame's local features (`local`: (N, 3) unit bearings, (N, 32) ORB
+    descriptors; the first MAX_LOCAL_KEYPOINTS kept)."""
     s = spec[None] if spec.ndim == 2 else spec
     f, c, k = s.shape
     mag, ph = _split(s)
-    head = _HEADER.pack(MAGIC, RECORD_VERSION, c, k, conf["pano_width"], f, settings_id(conf))
-    return head + mag.astype("<f2").tobytes() + ph.astype("<i2").tobytes()
+    ver = RECORD_VERSION if local is None else LOCAL_VERSION
+    head = _HEADER.pack(MAGIC, ver, c, k, conf["pano_width"], f, settings_id(conf))
+    body = head + mag.astype("<f2").tobytes() + ph.astype("<i2").tobytes()
+    if local is None:
+        return body
+    az, el, desc = _local_units(*local)
+    return body + _LOCAL_HEAD.pack(LOCAL_MAGIC, len(az)) + az.tobytes() + el.tobytes() + desc.tobytes()
+
+
+def _local_units(bearings: np.ndarray, desc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bearings and descriptors -> the record's (N,) uint16 azimuths, (N,) int16 elevations and
+    (N, 32) uint8 descriptors, at most MAX_LOCAL_KEYPOINTS."""
+    b = np.asarray(bearings, np.float64)[:MAX_LOCAL_KEYPOINTS]
+    az = np.degrees(np.arctan2(b[:, 0], b[:, 1])) % 360.0
+    el = np.degrees(np.arcsin(np.clip(b[:, 2], -1.0, 1.0)))
+    az_u = (np.round(az / AZ_STEP).astype(np.int64) % 65536).astype("<u2")
+    el_u = np.round(el / EL_STEP).astype("<i2")
+    return az_u, el_u, np.ascontiguousarray(desc[:MAX_LOCAL_KEYPOINTS], np.uint8)
+
+
+def _bearings(az_u: np.ndarray, el_u: np.ndarray) -> np.ndarray:
+    """The record's azimuth and elevation units -> (N, 3) float32 unit bearings."""
+    a = np.radians(az_u.astype(np.float64) * AZ_STEP)
+    e = np.radians(el_u.astype(np.float64) * EL_STEP)
+    return np.stack([np.cos(e) * np.sin(a), np.cos(e) * np.cos(a), np.sin(e)], 1).astype(np.float32)
+
+
+def _local_block(buf: bytes, at: int) -> tuple[np.ndarray, np.ndarray]:
+    """The local block of a version-2 binary record at byte `at` -> (bearings, descriptors)."""
+    if len(buf) < at + LOCAL_HEAD_BYTES:
+        raise OmninavError(
+            f"feature record version 2 has no local block after its phases ({len(buf)} bytes, the block starts at {at})"
+        )
+    magic, n = _LOCAL_HEAD.unpack_from(buf, at)
+    if magic != LOCAL_MAGIC:
+        raise OmninavError("feature record's local block does not start with 'LOC'")
+    if n > MAX_LOCAL_KEYPOINTS:
+        raise OmninavError(f"feature record's local block has {n} keypoints; at most {MAX_LOCAL_KEYPOINTS}")
+    want = at + LOCAL_HEAD_BYTES + LOCAL_BYTES_PER_KEYPOINT * n
+    if len(buf) != want:
+        raise OmninavError(
+            f"feature record is {len(buf)} bytes, but its headers say {want} (its local block: {n} keypoints)"
+        )
+    at += LOCAL_HEAD_BYTES
+    az = np.frombuffer(buf, "<u2", n, at)
+    el = np.frombuffer(buf, "<i2", n, at + 2 * n)
+    _check_elevations(el)
+    desc = np.frombuffer(buf, np.uint8, 32 * n, at + 4 * n).reshape(n, 32)
+    return _bearings(az, el), desc
+
+
+def _check_elevations(el: np.ndarray) -> None:
+    if el.size and (np.abs(el.astype(np.int64)) > round(90 / EL_STEP)).any():
+        raise OmninavError("feature record's local elevations must lie in [-90, 90] degrees")
 
 
 def decode_binary(buf: bytes, expect: dict[str, Any] | None = None) -> np.ndarray:
     """Binary record -> (F, C, K) complex64; every malformation raises OmninavError naming it."""
+    return decode_binary_local(buf, expect)[0]
+
+
+def decode_binary_local(
+    buf: bytes, expect: dict[str, Any] | None = None
+) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+    """Binary record -> ((F, C, K) complex64, its local features or None (version 1))."""
     if len(buf) < _HEADER.size:
         raise OmninavError(f"feature record too short: {len(buf)} bytes, header is {_HEADER.size}")
     magic, ver, c, k, w, f, sid = _HEADER.unpack_from(buf)
     if magic != MAGIC:
         raise OmninavError("not an omninav feature record (bad magic)")
-    if ver != RECORD_VERSION:
-        raise OmninavError(f"feature record version {ver} is not supported (expected 1)")
+    if ver not in VERSIONS:
+        raise OmninavError(f"feature record version {ver} is not supported (expected 1 or 2)")
     n = f * c * k
     if c == 0 or k == 0 or f == 0:
         raise OmninavError("feature record holds no frames, curves or harmonics")
     want = _HEADER.size + n * 4
-    if len(buf) != want:
+    if len(buf) != want and (ver == RECORD_VERSION or len(buf) < want):
         # what the header claims, so a truncated record and a header of garbage both read plainly
         raise OmninavError(
             f"feature record is {len(buf)} bytes, but its header says {f} x {c} x {k} (frames x curves x "
             f"harmonics), which take {want} bytes"
         )
+    local = _local_block(buf, want) if ver == LOCAL_VERSION else None
     mag = np.frombuffer(buf, "<f2", n, _HEADER.size).reshape(f, c, k)
     ph = np.frombuffer(buf, "<i2", n, _HEADER.size + 2 * n).reshape(f, c, k)
     _check(mag, c, k, w, sid, expect)
-    return _join(mag, ph)
+    return _join(mag, ph), local
 
 
-def encode_json(spec: np.ndarray, conf: dict[str, Any]) -> dict[str, Any]:
+def encode_json(
+    spec: np.ndarray, conf: dict[str, Any], local: tuple[np.ndarray, np.ndarray] | None = None
+) -> dict[str, Any]:
     s = spec[None] if spec.ndim == 2 else spec
     mag, ph = _split(s)
+    extra: dict[str, Any] = {}
+    if local is not None:
+        az, el, desc = _local_units(*local)
+        extra["local"] = {
+            "az": az.astype(int).tolist(),
+            "el": el.astype(int).tolist(),
+            "descriptors": base64.b64encode(desc.tobytes()).decode(),
+        }
     return {
-        "version": RECORD_VERSION,
+        "version": RECORD_VERSION if local is None else LOCAL_VERSION,
         "preset": conf.get("preset", "default"),
         "settings_id": settings_id(conf),
         "pano_width": conf["pano_width"],
@@ -118,16 +207,51 @@ def encode_json(spec: np.ndarray, conf: dict[str, Any]) -> dict[str, Any]:
         "n_harmonics": int(s.shape[2]),
         "mag": mag.astype(np.float64).tolist(),  # float16 values print exactly
         "phase": ph.astype(int).tolist(),
+        **extra,
     }
 
 
 def decode_json(obj: Any, expect: dict[str, Any] | None = None) -> np.ndarray:
+    return decode_json_local(obj, expect)[0]
+
+
+def _json_local(obj: Any) -> tuple[np.ndarray, np.ndarray]:
+    """A version-2 JSON record's 'local' -> (bearings, descriptors)."""
+    if not isinstance(obj, dict):
+        raise OmninavError("feature record version 2 needs 'local': {'az', 'el', 'descriptors'}")
+    az, el, d = obj.get("az"), obj.get("el"), obj.get("descriptors")
+    if not isinstance(az, list) or not isinstance(el, list) or not isinstance(d, str):
+        raise OmninavError("'local' needs 'az' and 'el' (lists of integers) and 'descriptors' (base64)")
+    n = len(az)
+    if n > MAX_LOCAL_KEYPOINTS or len(el) != n or len(d) != 4 * -(-32 * n // 3):
+        raise OmninavError(
+            f"'local' must hold at most {MAX_LOCAL_KEYPOINTS} keypoints, as many elevations as azimuths "
+            "and 32 bytes of descriptor each"
+        )
+    if not all(type(v) is int and 0 <= v < 65536 for v in az) or not all(type(v) is int for v in el):
+        raise OmninavError("'local' azimuths must be integers in [0, 65535] and elevations integers")
+    el_a = np.asarray(el, np.int64)
+    _check_elevations(el_a)
+    try:
+        raw = base64.b64decode(d, validate=True)
+    except binascii.Error:
+        raise OmninavError("'local' descriptors are not base64") from None
+    if len(raw) != 32 * n:
+        raise OmninavError(f"'local' descriptors hold {len(raw)} bytes; {n} keypoints take {32 * n}")
+    return _bearings(np.asarray(az), el_a), np.frombuffer(raw, np.uint8).reshape(n, 32)
+
+
+def decode_json_local(
+    obj: Any, expect: dict[str, Any] | None = None
+) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+    """JSON record -> ((F, C, K) complex64, its local features or None (version 1))."""
     if not isinstance(obj, dict):
         raise OmninavError("feature record must be a JSON object")
     if "version" not in obj:
         raise OmninavError("not an omninav feature record (it has no 'version')")
-    if obj.get("version") != RECORD_VERSION:
+    if obj.get("version") not in VERSIONS or isinstance(obj.get("version"), bool):
         raise OmninavError(f"feature record version {obj.get('version')!r} is not supported")
+    local = _json_local(obj.get("local")) if obj["version"] == LOCAL_VERSION else None
     try:
         mag = np.asarray(obj["mag"], dtype=np.float64)
         ph = np.asarray(obj["phase"], dtype=np.float64)
@@ -151,7 +275,7 @@ def decode_json(obj: Any, expect: dict[str, Any] | None = None) -> np.ndarray:
     if w is None:
         raise OmninavError("feature record 'pano_width' must be an integer")
     _check(mag, c, k, w, sid, expect)
-    return _join(mag.astype(np.float16), ph.astype(np.int16))
+    return _join(mag.astype(np.float16), ph.astype(np.int16)), local
 
 
 def _whole(v: Any) -> int | None:

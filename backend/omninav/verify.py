@@ -9,11 +9,13 @@ with the clip's last frame was seen from near where the user stands.
 
 A venue modelled with `local_features` set (the `verified` preset) stores, for one modelled frame
 every SPACING_M of each walk, its keypoints' bearings and descriptors (`LocalFeatures`, in the
-generation beside the spectra: docs/formats.md). A clip located from its frames (the CLI, a
-video or frames sent to the server) is then verified: its candidate places are the global
-search's (the last frame's shared best first, then the clip's other frames', one a PLACE_M), each
-scored by its inliers with the clip's last frame; the answer moves to the place with the most,
-where it has at least MIN_INLIERS and at least `local_margin` times the global answer's place's.
+generation beside the spectra: docs/formats.md). A single clip that brings its last frame's
+local features (found in its frames: the CLI, a video or frames sent to the server, an
+evaluation walk; or carried by a version-2 record) is then verified: its candidate places are the
+global answer's, then the global search's (the last frame's shared best, then the clip's other
+frames', one a PLACE_M), each scored by its inliers with the clip's last frame; the answer moves
+to the place with the most, where it has at least MIN_INLIERS and at least `local_margin` times
+the global answer's place's.
 A moved answer is said with MOVED_CONFIDENCE: below "sure" until a calibration has enough moved
 answers to fit (the tuning families moved one answer in 344 clips; docs/decisions.md).
 
@@ -41,8 +43,9 @@ SPACING_M = 0.5  # one modelled frame with local features every this far along a
 PLACE_M = 2.0  # candidates closer than this are one place
 PLACES = 10  # candidate places verified a clip
 RATIO = 0.8  # Lowe's ratio test on Hamming distances
-MIN_INLIERS = 20  # fewer inliers prove nothing (a random pair of panoramas shares 5-15)
-RANSAC_ITERS = 300
+MIN_INLIERS = 20  # fewer prove nothing (two unrelated panoramas' 900 keypoints share up to ~19)
+RANSAC_ITERS = 500
+REFITS = 3  # LO-RANSAC's refits of the best hypothesis on its inliers
 INLIER_DEG = 0.5  # a match's angular distance from its epipolar plane, to count as an inlier
 MOVED_CONFIDENCE = 0.75  # a moved answer's confidence: below aggregate.SURE (not yet calibrated)
 DESCRIPTOR_BYTES = 32  # ORB's
@@ -85,16 +88,24 @@ class LocalFeatures:
         )
 
     def __add__(self, other: LocalFeatures) -> LocalFeatures:
-        more = np.asarray(other.places).copy()
-        more["start"] += len(self.bearings)
-        return LocalFeatures(
-            np.concatenate([np.asarray(self.places), more]),
-            np.concatenate([np.asarray(self.bearings), np.asarray(other.bearings)]),
-            np.concatenate([np.asarray(self.descriptors), np.asarray(other.descriptors)]),
-        )
+        return concat([self, other])
 
     def nbytes(self) -> int:
         return int(self.places.nbytes + self.bearings.nbytes + self.descriptors.nbytes)
+
+
+def concat(parts: list[LocalFeatures]) -> LocalFeatures:
+    """Several LocalFeatures as one, in order (each part's places' slices moved along)."""
+    if not parts:
+        return LocalFeatures.empty()
+    places = np.concatenate([np.asarray(p.places) for p in parts])
+    offset = np.cumsum([0] + [len(p.bearings) for p in parts[:-1]])
+    places["start"] += np.repeat(offset, [len(p.places) for p in parts])
+    return LocalFeatures(
+        places,
+        np.concatenate([np.asarray(p.bearings) for p in parts]),
+        np.concatenate([np.asarray(p.descriptors) for p in parts]),
+    )
 
 
 def one_place(video: int, frame: int, bearings: np.ndarray, descriptors: np.ndarray) -> LocalFeatures:
@@ -179,33 +190,62 @@ def ratio_matches(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
     return np.array(out, np.int64).reshape(-1, 2)
 
 
+def _essential(a: np.ndarray) -> np.ndarray:
+    """(..., m, 9) rows of b2 (x) b1 -> (..., 3, 3) the least-squares essential matrix of each set,
+    made rank 2 (two equal singular values)."""
+    _, vec = np.linalg.eigh(np.swapaxes(a, -1, -2) @ a)  # the null vector: the least eigenvalue's
+    e = vec[..., :, 0].reshape(*a.shape[:-2], 3, 3)
+    u, _, vt2 = np.linalg.svd(e)
+    out: np.ndarray = u @ (np.array([1.0, 1.0, 0.0])[:, None] * vt2)
+    return out
+
+
+def _inliers(e: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) essential matrices -> (..., n) whether each pair lies within INLIER_DEG of its
+    epipolar plane."""
+    eb1 = e @ b1.T  # (..., 3, n): the epipolar planes' normals in camera 2
+    dist = np.abs((eb1 * b2.T).sum(axis=-2)) / np.maximum(np.linalg.norm(eb1, axis=-2), 1e-12)
+    out: np.ndarray = dist < np.sin(np.radians(INLIER_DEG))
+    return out
+
+
 def essential_inliers(b1: np.ndarray, b2: np.ndarray, seed: int = 0) -> int:
     """The most matched bearing pairs (b1[i], b2[i]) consistent with one essential matrix
-    (b2^T E b1 = 0): RANSAC_ITERS 8-point hypotheses at once, each made rank 2; a pair is an inlier
-    within INLIER_DEG of its epipolar plane. Seeded: the same pairs give the same count."""
+    (b2^T E b1 = 0): RANSAC_ITERS 8-point hypotheses at once, then the best one refit on its
+    inliers while that finds more (LO-RANSAC: with a third of the matches inliers, few 8-point
+    samples are clean, and the refit recovers what a near-clean sample's matrix misses). A pair is
+    an inlier within INLIER_DEG of its epipolar plane. Seeded: the same pairs give the same count.
+    Where fewer than about 40 % of the matches are inliers, 300 samples of 8 seldom hold a clean
+    one and the count comes out low (a minimal solver for upright cameras would not)."""
     n = len(b1)
     if n < 8:
         return 0
     b1, b2 = np.asarray(b1, np.float64), np.asarray(b2, np.float64)
+    if not (np.isfinite(b1).all() and np.isfinite(b2).all()):
+        return 0
     a = np.einsum("ni,nj->nij", b2, b1).reshape(n, 9)
     rng = np.random.default_rng(seed)
-    pick = np.argsort(rng.random((RANSAC_ITERS, n)), axis=1)[:, :8]  # 8 distinct pairs a hypothesis
-    _, _, vt = np.linalg.svd(a[pick])  # (iters, 9, 9)
-    e = vt[:, -1].reshape(-1, 3, 3)
-    u, _, vt2 = np.linalg.svd(e)
-    e = u @ (np.array([1.0, 1.0, 0.0])[:, None] * vt2)
-    eb1 = np.einsum("kij,nj->kni", e, b1)  # epipolar planes' normals in camera 2
-    dist = np.abs(np.einsum("ni,kni->kn", b2, eb1)) / np.maximum(np.linalg.norm(eb1, axis=2), 1e-12)
-    return int((dist < np.sin(np.radians(INLIER_DEG))).sum(axis=1).max())
+    pick = rng.integers(0, n, (RANSAC_ITERS, 8))  # (a repeated pair makes one useless hypothesis)
+    ok = _inliers(_essential(a[pick]), b1, b2)
+    best = ok[int(ok.sum(axis=1).argmax())]
+    for _ in range(REFITS):
+        if best.sum() < 8:
+            break
+        again = _inliers(_essential(a[best]), b1, b2)
+        if again.sum() <= best.sum():
+            break
+        best = again
+    return int(best.sum())
 
 
-def candidate_rows(m: Matches, xy: np.ndarray) -> list[int]:
-    """A clip's candidate venue rows, best first, one a place (PLACE_M apart), at most PLACES: the
-    last frame's matches by score, then every other frame's."""
+def candidate_rows(m: Matches, xy: np.ndarray, first: int | None = None) -> list[int]:
+    """A clip's candidate venue rows, one a place (PLACE_M apart), at most PLACES: `first` (the
+    global answer's row: its place is always scored), then the last frame's matches by score, then
+    every other frame's."""
     last = m.index[-1][np.argsort(-m.score[-1])]
     rest = m.index[:-1].ravel()[np.argsort(-m.score[:-1].ravel())]
     kept: list[int] = []
-    for r in np.concatenate([last, rest]):
+    for r in np.concatenate([[] if first is None else [first], last, rest]).astype(np.int64):
         if all(np.hypot(*(xy[r] - xy[k])) >= PLACE_M for k in kept):
             kept.append(int(r))
             if len(kept) == PLACES:
@@ -214,23 +254,23 @@ def candidate_rows(m: Matches, xy: np.ndarray) -> list[int]:
 
 
 def place_of_rows(frames: np.ndarray, local: LocalFeatures) -> np.ndarray:
-    """(N,) for each venue frame the stored place of the same video nearest in frame number, -1
-    where its video has none."""
+    """(N,) for each venue frame the stored place of its video at or before it (at most SPACING_M
+    behind, as modelling spaces them), else the first after it; -1 where its video has none."""
     pv = np.asarray(local.places["video"], np.int64)
     pf = np.asarray(local.places["frame"], np.int64)
     order = np.lexsort((pf, pv))
     key = (pv[order] << 32) + pf[order]
     rv, rf = np.asarray(frames["video"], np.int64), np.asarray(frames["frame"], np.int64)
-    rkey = (rv << 32) + rf
-    hi = np.clip(np.searchsorted(key, rkey), 0, max(len(key) - 1, 0))
-    lo = np.clip(hi - 1, 0, max(len(key) - 1, 0))
-    out = np.full(len(rkey), -1, np.int64)
+    out = np.full(len(rv), -1, np.int64)
     if not len(key):
         return out
-    for j in (lo, hi):
-        same = pv[order][j] == rv
-        better = same & ((out < 0) | (np.abs(pf[order][j] - rf) < np.abs(pf[np.maximum(out, 0)] - rf)))
-        out = np.where(better, order[j], out)
+    rkey = (rv << 32) + rf
+    at = np.searchsorted(key, rkey, side="right") - 1  # the last place at or before
+    before = (at >= 0) & (pv[order][np.maximum(at, 0)] == rv)
+    after = np.minimum(at + 1, len(key) - 1)
+    later = ~before & (pv[order][after] == rv)
+    out[before] = order[at[before]]
+    out[later] = order[after[later]]
     return out
 
 
@@ -245,19 +285,18 @@ class Verdict:
 
 
 def verify(
-    frame: np.ndarray,
-    lens: Lens,
+    query: tuple[np.ndarray, np.ndarray],
     m: Matches,
     xy: np.ndarray,
     local: LocalFeatures,
     place_of: np.ndarray,
-    global_xy: tuple[float, float],
-    n_features: int,
+    global_row: int,
     margin: float,
 ) -> Verdict:
-    """The clip's last frame (through the lens corrected for the clip) against its candidate places."""
-    rows = candidate_rows(m, xy)
-    qb, qd = detect(frame, lens, n_features)
+    """The clip's last frame's local features (`query`: bearings, descriptors) against its
+    candidate places (the global answer's row's first)."""
+    rows = candidate_rows(m, xy, global_row)
+    qb, qd = query
     inl = []
     for r in rows:
         p = int(place_of[r])
@@ -270,7 +309,7 @@ def verify(
     if not rows:
         return Verdict(rows, inl, None)
     best = int(np.argmax(inl))
-    g = np.asarray(global_xy, np.float64)
+    g = xy[global_row]
     at_global = max((n for r, n in zip(rows, inl, strict=True) if np.hypot(*(xy[r] - g)) < PLACE_M), default=0)
     moves = inl[best] >= MIN_INLIERS and inl[best] > at_global and inl[best] >= margin * at_global
     return Verdict(rows, inl, rows[best] if moves else None)

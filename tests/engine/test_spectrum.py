@@ -9,9 +9,13 @@ from omninav.errors import OmninavError
 from omninav.presets import TWO_BANDS, n_curves, resolve, settings_id
 from omninav.spectrum import (
     HEADER_BYTES,
+    LOCAL_MAX_BYTES,
+    MAX_LOCAL_KEYPOINTS,
     MAX_RECORD_BYTES,
     decode_binary,
+    decode_binary_local,
     decode_json,
+    decode_json_local,
     encode_binary,
     encode_json,
     quantise,
@@ -80,12 +84,66 @@ def test_malformed_json_records():
     with pytest.raises(OmninavError, match="missing"):
         decode_json({"version": 1}, conf)
     with pytest.raises(OmninavError, match="version"):
-        decode_json({**good, "version": 2}, conf)
+        decode_json({**good, "version": 3}, conf)
     half = np.concatenate([spec, spec * 0.5])  # the third frame at a quarter of the energy
     for decode, record in ((decode_json, encode_json(half, conf)), (decode_binary, encode_binary(half, conf))):
         with pytest.raises(OmninavError, match="frame 2 is not at unit energy.*sum to 0.25"):
             decode(record, conf)
     assert decode_json(encode_json(np.concatenate([spec, 0 * spec]), conf), conf).shape == (4, *spec.shape[1:])
+
+
+def _local(n: int, seed: int = 5) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    b = rng.normal(size=(n, 3))
+    return b / np.linalg.norm(b, axis=1, keepdims=True), rng.integers(0, 256, (n, 32), dtype=np.uint8)
+
+
+def test_a_version_2_record_carries_its_last_frames_local_features_within_32_kb():
+    conf = resolve("verified")
+    spec = unit_spec(conf, 10)
+    b, d = _local(1000)
+    for decode, record in (
+        (decode_binary_local, encode_binary(spec, conf, (b, d))),
+        (decode_json_local, encode_json(spec, conf, (b, d))),
+    ):
+        got, local = decode(record, conf)
+        assert np.array_equal(got, decode_binary(encode_binary(spec, conf), conf))
+        assert local is not None and len(local[0]) == MAX_LOCAL_KEYPOINTS  # the first 880 kept
+        angle = np.degrees(np.linalg.norm(local[0] - b[:MAX_LOCAL_KEYPOINTS], axis=1))  # (small angles)
+        assert angle.max() < 0.01 and np.array_equal(local[1], d[:MAX_LOCAL_KEYPOINTS])
+    block = len(encode_binary(spec, conf, (b, d))) - len(encode_binary(spec, conf))
+    assert block == LOCAL_MAX_BYTES <= 32 * 1024
+    assert decode_binary_local(encode_binary(spec, conf), conf)[1] is None  # version 1: none
+    assert decode_binary_local(encode_binary(spec, conf, _local(0)), conf)[1][0].shape == (0, 3)
+
+
+def test_malformed_local_blocks_are_refused():
+    conf = resolve("verified")
+    spec = unit_spec(conf, 1)
+    good = encode_binary(spec, conf, _local(10))
+    at = len(encode_binary(spec, conf))
+    for bad, msg in (
+        (good[:-1], "headers say"),
+        (good[:at], "no local block"),
+        (good[:at] + b"XYZ" + good[at + 3 :], "'LOC'"),
+        (good[: at + 4] + (881).to_bytes(4, "little") + good[at + 8 :], "at most 880"),
+        (good[: at + 8 + 20] + (9001).to_bytes(2, "little") + good[at + 30 :], r"\[-90, 90\]"),
+    ):
+        with pytest.raises(OmninavError, match=msg):
+            decode_binary_local(bad, conf)
+    j = encode_json(spec, conf, _local(10))
+    for local, msg in (
+        (None, "needs 'local'"),
+        ({**j["local"], "descriptors": "!!!" + j["local"]["descriptors"][3:]}, "base64"),
+        ({**j["local"], "el": j["local"]["el"][:-1]}, "as many elevations"),
+        ({**j["local"], "az": [70000] * 10}, "azimuths must be integers"),
+        ({**j["local"], "el": [True] * 10}, "elevations integers"),
+        ({**j["local"], "el": [9001] * 10}, r"\[-90, 90\]"),
+        ({"az": [0] * 881, "el": [0] * 881, "descriptors": ""}, "at most 880"),
+        ({"az": [0], "el": [0], "descriptors": "A" * 44}, "hold 33 bytes"),  # (no padding)
+    ):
+        with pytest.raises(OmninavError, match=msg):
+            decode_json_local({**j, "local": local}, conf)
 
 
 def test_records_made_with_other_settings_are_refused():

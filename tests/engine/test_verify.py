@@ -13,6 +13,7 @@ from omninav.locate import Locator
 from omninav.model_venue import model_video, remove_video
 from omninav.presets import resolve
 from omninav.settings_upgrade import upgrade
+from omninav.spectrum import decode_binary_local, encode_binary
 from omninav.store import Store
 from omninav.verify import (
     MIN_INLIERS,
@@ -25,7 +26,7 @@ from omninav.verify import (
     verify,
 )
 from omninav.walk_path import load_walk_path
-from server_helpers import query_clip
+from server_helpers import clip_spectra, far_and_truth, heading_error, query_clip
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -69,28 +70,14 @@ def test_local_features_keep_their_places_slices_when_places_go():
     assert len(lf.keep(np.zeros(3, bool)).places) == 0
 
 
-def test_each_venue_frame_finds_the_nearest_place_of_its_own_video():
-    lf = _places((0, 0, 1), (0, 10, 1), (1, 4, 1))
-    frames = np.zeros(5, [("frame", "<i4"), ("video", "<i4")])
-    frames["frame"], frames["video"] = [0, 6, 9, 4, 2], [0, 0, 0, 1, 2]
-    assert list(place_of_rows(frames, lf)) == [0, 1, 1, 2, -1]
-    assert list(place_of_rows(frames, LocalFeatures.empty())) == [-1] * 5
-
-
-@pytest.fixture(scope="module")
-def verified(small_ds, tmp_path_factory) -> tuple[Store, str]:
-    """The small venue modelled with the `verified` preset."""
-    st = Store(tmp_path_factory.mktemp("verified"))
-    walk = load_walk_path(small_ds.model_walk_path)
-    model_video(
-        st,
-        "lab",
-        small_ds.model_video,
-        walk,
-        load_lens(small_ds.root / "model_lens.json"),
-        settings=resolve("verified"),
-    )
-    return st, "lab"
+def test_each_venue_frame_finds_the_place_of_its_own_video_at_or_before_it():
+    lf = _places((1, 4, 1), (0, 0, 1), (0, 10, 1))  # (stored in any order)
+    frames = np.zeros(6, [("frame", "<i4"), ("video", "<i4")])
+    frames["frame"], frames["video"] = [0, 6, 10, 11, 1, 2], [0, 0, 0, 0, 1, 2]
+    # modelling keeps a place at most SPACING_M behind every frame: the one at or before it
+    # (video 1's frame 1 comes before its first place: the first after it)
+    assert list(place_of_rows(frames, lf)) == [1, 1, 2, 2, 0, -1]
+    assert list(place_of_rows(frames, LocalFeatures.empty())) == [-1] * 6
 
 
 def test_a_verified_venue_stores_a_place_every_half_metre_of_its_walk(verified):
@@ -127,35 +114,79 @@ def test_local_features_follow_the_venues_videos(verified, small_ds, tmp_path):
 def test_a_wrong_global_answer_moves_to_the_place_the_geometry_confirms(verified, small_ds):
     st, vid = verified
     loc = Locator(st, vid)
-    frames, (tx, ty, _) = query_clip(small_ds, 60)
-    truth = int(np.argmin(np.hypot(loc.xy[:, 0] - tx, loc.xy[:, 1] - ty)))
-    far = int(np.argmax(np.hypot(loc.xy[:, 0] - tx, loc.xy[:, 1] - ty)))
+    frames, (tx, ty, th) = query_clip(small_ds, 60)
+    far, truth = far_and_truth(loc, tx, ty)
     # the global search ranked a far place first and the true one second
     m = Matches(np.array([[far, truth]]), np.array([[0.9, 0.8]]), np.array([[0.9, 0.6]]), np.array([[10.0, 20.0]]))
     lens = load_lens(small_ds.lens)
-    v = verify(frames[-1], lens, m, loc.xy, loc.gen.local, place_of_rows(loc.gen.frames, loc.gen.local),
-               tuple(loc.xy[far]), 900, 2.0)  # fmt: skip
+    q = loc.local_features(frames[-1], lens)
+    place_of = place_of_rows(loc.gen.frames, loc.gen.local)
+    v = verify(q, m, loc.xy, loc.gen.local, place_of, far, 2.0)
     assert v.rows == [far, truth]
     assert v.inliers[1] >= MIN_INLIERS and v.inliers[1] >= 2 * v.inliers[0] and v.moved_to == truth
-    # where the global answer is the true place, it stands
-    m2 = Matches(m.index[:, ::-1], m.coarse, m.score, m.heading)
-    v2 = verify(frames[-1], lens, m2, loc.xy, loc.gen.local, place_of_rows(loc.gen.frames, loc.gen.local),
-                tuple(loc.xy[truth]), 900, 2.0)  # fmt: skip
-    assert v2.moved_to is None
-    # and the Locator says a moved answer with its own confidence, at the true place, facing the match's way
+    # where the global answer is the true place, it stands; and its place is scored even where no
+    # frame's matches hold it
+    assert verify(q, m, loc.xy, loc.gen.local, place_of, truth, 2.0).moved_to is None
+    only_far = Matches(np.array([[far]]), np.array([[0.9]]), np.array([[0.9]]), np.array([[10.0]]))
+    assert verify(q, only_far, loc.xy, loc.gen.local, place_of, truth, 2.0).rows[0] == truth
+    # and the Locator says a moved answer with its own confidence, at the true place, facing the
+    # way the last frame's curves say there (not the far match's heading)
     e = loc.aggregated(m, np.zeros(1))
-    moved, conf = loc.verified(frames[-1], lens, m, e)
-    assert conf == MOVED_CONFIDENCE and moved.venue_row == truth and moved.heading == pytest.approx(20.0)
+    moved, conf = loc.verified(q, m, e, clip_spectra(small_ds, frames, loc.conf)[-1])
+    assert conf == MOVED_CONFIDENCE and moved.venue_row == truth
+    assert heading_error(moved.heading, th) < 5.0
 
 
-def test_a_verified_venue_locates_clips_from_frames_as_well_as_the_default(verified, modelled, small_ds):
-    plain, ver = Locator(*modelled), Locator(*verified)
-    assert not plain.verifies and ver.verifies
+def test_a_clip_sent_as_frames_or_as_a_record_with_local_features_is_moved(wrong_global, verified, small_ds):
+    frames, (tx, ty, th), truth = wrong_global
+    loc = Locator(*verified)
+    lens = load_lens(small_ds.lens)
+    a = loc.locate_frames(frames, "c", lens, 10.0)
+    assert a["confidence"] == MOVED_CONFIDENCE and np.hypot(a["x"] - tx, a["y"] - ty) < 1.0
+    assert heading_error(a["heading_deg"], th) < 5.0
+    spec = clip_spectra(small_ds, frames, loc.conf)
+    rec = decode_binary_local(encode_binary(spec, loc.conf, loc.local_features(frames[-1], lens)), loc.conf)
+    b = loc.locate_spectra(*rec[:1], "c", 10.0, None, rec[1])
+    assert b["confidence"] == MOVED_CONFIDENCE and np.hypot(b["x"] - tx, b["y"] - ty) < 1.0
+    plain = loc.locate_spectra(spec, "c", 10.0)  # a version-1 record: the global answer, wrong here
+    assert np.hypot(plain["x"] - tx, plain["y"] - ty) > 5.0 and plain["confidence"] != MOVED_CONFIDENCE
+
+
+def test_an_evaluation_walk_is_verified_clip_by_clip(wrong_global, verified, small_ds):
+    from omninav.evaluate import evaluate
+
+    loc = Locator(*verified)
+    ev = evaluate(loc, small_ds.query_video, load_walk_path(small_ds.query_walk_path), load_lens(small_ds.lens))
+    # every clip's global answer is the far place; the clip that ends at frame 69 is moved home
+    [row] = [r for r in ev.rows if r["frame"] == 69]
+    assert row.get("moved") and row["err_m"] < 1.0 and row["confidence"] == MOVED_CONFIDENCE
+    assert sum(bool(r.get("moved")) for r in ev.rows) >= 1
+
+
+def test_a_verified_venue_locates_clips_from_frames_as_well_as_the_default(verified, small_ds):
+    ver = Locator(*verified)
     lens = load_lens(small_ds.lens)
     for start in (0, 60, 120):
         frames, (tx, ty, _) = query_clip(small_ds, start)
         a = ver.locate_frames(frames, "c", lens, 10.0)
         assert np.hypot(a["x"] - tx, a["y"] - ty) < 1.0
+
+
+def test_an_error_in_verification_leaves_the_global_answer(verified, small_ds, monkeypatch, caplog):
+    import cv2
+
+    from omninav import verify as verify_mod
+
+    loc = Locator(*verified)
+    frames, (tx, ty, _) = query_clip(small_ds, 60)
+
+    def broken(*a, **k):
+        raise cv2.error("broken")
+
+    monkeypatch.setattr(verify_mod, "verify", broken)
+    a = loc.locate_frames(frames, "c", load_lens(small_ds.lens), 10.0)
+    assert np.hypot(a["x"] - tx, a["y"] - ty) < 1.0 and a["confidence"] != MOVED_CONFIDENCE
+    assert "verification failed" in caplog.text
 
 
 def test_local_features_are_fixed_when_modelled_and_absent_from_older_venues(verified):
@@ -169,21 +200,3 @@ def test_local_features_are_fixed_when_modelled_and_absent_from_older_venues(ver
     assert upgrade(old)["local_features"] is None and upgrade(old)["local_margin"] == 2.0
     with pytest.raises(OmninavError, match="local_features"):
         resolve("default", {"local_features": 50})
-
-
-def test_an_evaluation_walk_is_verified_clip_by_clip_as_locate_verifies(verified, small_ds, monkeypatch):
-    from omninav.evaluate import evaluate
-
-    loc = Locator(*verified)
-    calls: list[tuple[int, int]] = []
-    real = Locator.verified
-
-    def spy(self, frame, lens, m, e):
-        calls.append(frame.shape[:2])
-        return real(self, frame, lens, m, e)
-
-    monkeypatch.setattr(Locator, "verified", spy)
-    ev = evaluate(loc, small_ds.query_video, load_walk_path(small_ds.query_walk_path), load_lens(small_ds.lens))
-    assert len(calls) == len(ev.rows) > 10 and set(calls) == {(360, 480)}
-    s = ev.summary()
-    assert s["within_2m"] >= 0.9

@@ -89,43 +89,46 @@ def test_a_video_is_timed_by_itself_not_by_the_fps_argument(api, small_ds, tmp_p
     assert np.hypot(r.json["x"] - truth[0], r.json["y"] - truth[1]) <= 2.0
 
 
-def test_a_verified_venue_checks_clips_sent_as_video_or_frames(small_ds, tmp_path, monkeypatch):
-    """A venue with the `verified` preset: a video or frames sent to locate are verified by local
-    features (their last frame, through the clip's lens); a feature record, which carries none, is
-    answered by the curves alone."""
+def test_a_verified_venue_checks_clips_sent_as_video_frames_or_a_record_with_local_features(
+    verified, wrong_global, small_ds, tmp_path
+):
+    """A venue with the `verified` preset, every clip's global answer made wrong: a video, frames,
+    and a version-2 record (binary and JSON: the last frame's local features) are moved to where
+    the clip was filmed, said at 0.75; a version-1 record, which carries none, keeps the global
+    (wrong) answer."""
     from omninav.lens import load_lens
-    from omninav.model_venue import model_video
+    from omninav.spectrum import encode_binary, encode_json
     from omninav.synth.walks import write_video
-    from omninav.walk_path import load_walk_path
+    from omninav.verify import MOVED_CONFIDENCE
 
+    frames, (tx, ty, _), _ = wrong_global
     data = tmp_path / "data"
+    shutil.copytree(verified[0].root, data)
     app = create_app({"DATA": str(data), "ADMIN_TOKEN": TOKEN, "JOB_RUNNER": False, "LOCATE_RATE": 0.0})
     cat = app.extensions["omninav"].catalog
     cat.venues.create("lab", "Lab", preset="verified")
     cat.lenses.put("lab", "donut", json.loads((small_ds.root / "model_lens.json").read_text()))
-    walk = load_walk_path(small_ds.model_walk_path)
-    model_lens = load_lens(small_ds.root / "model_lens.json")
-    model_video(cat.store, "lab", small_ds.model_video, walk, model_lens, settings=cat.venues.settings("lab"))
-    seen: list[np.ndarray] = []
-    verified = Locator.verified
-
-    def spy(self, frame, lens, m, e):
-        seen.append(frame)
-        return verified(self, frame, lens, m, e)
-
-    monkeypatch.setattr(Locator, "verified", spy)
     api = Api(app.test_client())
-    frames, truth = query_clip(small_ds, 60, n=10)
+
+    def moved(r) -> bool:
+        assert r.status_code == 200, r.json
+        near = np.hypot(r.json["x"] - tx, r.json["y"] - ty) < 1.0
+        return bool(near and r.json["confidence"] == MOVED_CONFIDENCE)
+
     path = tmp_path / "clip.mp4"
     write_video(path, frames, 10.0, (frames[0].shape[1], frames[0].shape[0]))
-    r = api.post("/api/venues/lab/locate?lens=donut", data=path.read_bytes(), content_type="video/mp4")
-    assert r.status_code == 200 and np.hypot(r.json["x"] - truth[0], r.json["y"] - truth[1]) <= 2.0, r.json
-    assert len(seen) == 1 and seen[0].shape == frames[-1].shape
-    jpgs = [("frame", (io.BytesIO(cv2.imencode(".jpg", f)[1].tobytes()), f"{i}.jpg")) for i, f in enumerate(frames)]
-    r = api.post("/api/venues/lab/locate?lens=donut", data={"frame": [j[1] for j in jpgs]})
-    assert r.status_code == 200 and np.hypot(r.json["x"] - truth[0], r.json["y"] - truth[1]) <= 2.0, r.json
-    assert len(seen) == 2
+    assert moved(api.post("/api/venues/lab/locate?lens=donut", data=path.read_bytes(), content_type="video/mp4"))
+    jpgs = [(io.BytesIO(cv2.imencode(".jpg", f)[1].tobytes()), f"{i}.jpg") for i, f in enumerate(frames)]
+    assert moved(api.post("/api/venues/lab/locate?lens=donut", data={"frame": jpgs}))
     conf = cat.venues.settings("lab")
-    r = api.post("/api/venues/lab/locate", data=encode_binary(clip_spectra(small_ds, frames, conf), conf),
-                 content_type="application/octet-stream")  # fmt: skip
-    assert r.status_code == 200 and len(seen) == 2
+    spec = clip_spectra(small_ds, frames, conf)
+    local = Locator(*verified).local_features(frames[-1], load_lens(small_ds.lens))
+    body = encode_binary(spec, conf, local)
+    assert len(body) - len(encode_binary(spec, conf)) <= 32 * 1024  # the local block's budget
+    assert moved(api.post("/api/venues/lab/locate", data=body, content_type="application/octet-stream"))
+    r = api.post(
+        "/api/venues/lab/locate", data=json.dumps(encode_json(spec, conf, local)), content_type="application/json"
+    )
+    assert moved(r)
+    plain = api.post("/api/venues/lab/locate", data=encode_binary(spec, conf), content_type="application/octet-stream")
+    assert plain.status_code == 200 and not moved(plain)

@@ -34,13 +34,19 @@ from ..catalog.sessions import Session, check_session_id
 from ..describe import DEFAULT_STYLE, Style, describe
 from ..errors import NotFound, OmninavError
 from ..extract import Extractor
-from ..lens import Lens
-from ..locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, Locator, answer_heading
+from ..locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, LocalQuery, Locator, answer_heading
 from ..media import decode_image, iter_sampled, probe_image, probe_mp4, same_size, sampled_count
 from ..motion import Motion
 from ..presets import n_curves
 from ..route import guide
-from ..spectrum import HEADER_BYTES, decode_binary, decode_json, record_bytes_per_frame
+from ..spectrum import (
+    HEADER_BYTES,
+    LOCAL_JSON_BYTES,
+    LOCAL_MAX_BYTES,
+    decode_binary_local,
+    decode_json_local,
+    record_bytes_per_frame,
+)
 from ..tracking_state import TrackState
 from ..walkgraph import WalkGraph
 from .http import ApiError, client_address, json_body
@@ -93,14 +99,13 @@ def _check_duration(frames: int, fps: float) -> None:
 @dataclass
 class SentClip:
     """A locate request's clip: its (F, C, K) spectra, its frame rate where the body says one,
-    what was sent ("features" or "frames"), and for frames the last one with the lens it was seen
-    through (corrected for this clip): what local features verify (verify.py)."""
+    what was sent ("features" or "frames"), and its last frame's local features where the venue
+    verifies (verify.py): found in the last frame sent, or carried by a version-2 record."""
 
     spec: np.ndarray
     fps: float | None
     kind: str
-    last: np.ndarray | None = None
-    lens: Lens | None = None
+    local: LocalQuery | None = None
 
 
 def _read_clip(cat: Catalog, venue_id: str, rt: Runtime, max_frames: int, fps: float | None) -> SentClip:
@@ -119,12 +124,13 @@ def _read_clip(cat: Catalog, venue_id: str, rt: Runtime, max_frames: int, fps: f
             isinstance(rec_fps, bool) or not isinstance(rec_fps, int | float) or not 0 < rec_fps <= 240
         ):
             raise ApiError(400, "'fps' must be a number in (0, 240]")
-        return SentClip(decode_json(obj, loc.conf), rec_fps, "features")
+        spec, local = decode_json_local(obj, loc.conf)
+        return SentClip(spec, rec_fps, "features", local)
     if ct in RECORD_TYPES:
-        spec = decode_binary(request.get_data(), loc.conf)
+        spec, local = decode_binary_local(request.get_data(), loc.conf)
         if len(spec) > max_frames:
             raise ApiError(413, f"too many frames: {len(spec)} (a clip may have at most {max_frames})")
-        return SentClip(spec, None, "features")
+        return SentClip(spec, None, "features", local)
     if ct == "multipart/form-data":
         files = request.files.getlist("frame")
         video = request.files.get("video")
@@ -152,20 +158,21 @@ def _check_record_size(conf: dict[str, Any], max_frames: int, as_json: bool) -> 
     """413 for a feature record longer than one of `max_frames` frames can be, before it is parsed:
     parsing is what costs (31 MB of JSON numbers took 410 MB and 6 s to parse and refuse)."""
     n = request.content_length if request.content_length is not None else len(request.get_data(cache=True))
-    if not as_json:  # binary: a fixed header, then 4 bytes a harmonic of a curve
-        frames = (n - HEADER_BYTES) // record_bytes_per_frame(conf)
+    if not as_json:  # binary: a fixed header, 4 bytes a harmonic of a curve, maybe a local block
+        frames = max(0, n - HEADER_BYTES - LOCAL_MAX_BYTES) // record_bytes_per_frame(conf)
         if frames > max_frames:
             raise ApiError(413, f"too many frames: {frames} (a clip may have at most {max_frames})")
         return
     # JSON: two numbers a harmonic of a curve, each at most JSON_NUMBER_BYTES however it is printed
     limit = JSON_HEAD_BYTES + max_frames * 2 * n_curves(conf) * conf["n_harmonics"] * JSON_NUMBER_BYTES
+    limit += LOCAL_JSON_BYTES  # a version-2 record's local features
     if n > limit:
         raise ApiError(
             413, f"the JSON feature record is {n} bytes; one of at most {max_frames} frames is at most {limit}"
         )
     # and its arrays: 'mag' and 'phase' are [frames][curves][harmonics]; parsing a body of small
     # arrays costs what its bytes allow (200,000 '[[0]]' in 1.2 MB took 0.7 s to parse and refuse)
-    arrays = 2 * (1 + max_frames * (1 + n_curves(conf))) + 16
+    arrays = 2 * (1 + max_frames * (1 + n_curves(conf))) + 16 + 2  # (+ the local block's two)
     if request.get_data(cache=True).count(b"[") > arrays:
         raise ApiError(413, f"the JSON feature record has more arrays than one of at most {max_frames} frames can")
 
@@ -188,15 +195,17 @@ def _image_spectra(images: list[tuple[bytes, str]], ext: Extractor, lens_name: s
             )
     clip = loc.clip_lens(ext.lens)  # corrected for where the ring sits in this clip
     out = []
+    last: np.ndarray | None = None
     for data, what in images:
-        img = decode_image(data)
-        if img is None:
+        last = decode_image(data)
+        if last is None:
             raise ApiError(422, f"{what} is not a readable JPEG or PNG image")
-        _check_frame(ext, img, what)
-        out.extend(clip.feed(img))
+        _check_frame(ext, last, what)
+        out.extend(clip.feed(last))
     out.extend(clip.flush())
     _log_lens(clip)
-    return SentClip(np.stack(out), None, "frames", img if loc.verifies else None, clip.lens)
+    local = loc.local_features(last, clip.lens) if loc.verifies and last is not None else None
+    return SentClip(np.stack(out), None, "frames", local)
 
 
 def _check_frame(ext: Extractor, frame: np.ndarray, what: str) -> None:
@@ -250,12 +259,13 @@ def _video_spectra(data: bytes, ext: Extractor, lens_name: str, loc: Locator, ma
                 )
             _check_frame(ext, frame, f"the video's sampled frame {i}")
             spectra.extend(clip.feed(frame))
-            last = frame if loc.verifies else None
+            last = frame
     spectra.extend(clip.flush())
     _log_lens(clip)
     if not spectra:
         raise ApiError(422, "the video does not decode (no readable frames)")
-    return SentClip(np.stack(spectra), (v.fps or DEFAULT_CLIP_FPS) / stride, "frames", last, clip.lens)
+    local = loc.local_features(last, clip.lens) if loc.verifies and last is not None else None
+    return SentClip(np.stack(spectra), (v.fps or DEFAULT_CLIP_FPS) / stride, "frames", local)
 
 
 def accuracy_m(confidence: float, low: float) -> float | None:
@@ -345,10 +355,7 @@ def locate(venue_id: str) -> Any:
     clip = request.args.get("clip", "clip")[:200]
     loc = rt.locator
     if track is None:
-        m, times = loc.search_clip(spec, np.arange(len(spec)) / fps)
-        e, conf = loc.aggregated(m, times), None
-        if sent.last is not None and sent.lens is not None:  # a venue with local features: verified
-            e, conf = loc.verified(sent.last, sent.lens, m, e)
+        e, conf = loc.estimate_local(spec, np.arange(len(spec)) / fps, None, sent.local)  # (verified)
         ans = loc.answer(e, clip, conf)
         floor = rt.video_floor[int(loc.gen.frames["video"][e.venue_row])]
         ambiguous = False
