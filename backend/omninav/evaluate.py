@@ -124,7 +124,8 @@ def walk_local(
             clip.feed(frame)  # (decides the lens on the first FIRST frames)
         if i in wanted:
             clip.flush()
-            out[i] = loc.local_features(frame, clip.lens)
+            if (q := loc.local_features(frame, clip.lens)) is not None:
+                out[i] = q
     return out
 
 

@@ -372,12 +372,17 @@ class Locator:
         """Whether the venue has local features to verify a clip with (verify.py)."""
         return self.gen.local is not None and bool(self.conf.get("local_features"))
 
-    def local_features(self, frame: np.ndarray, lens: Lens) -> LocalQuery:
+    def local_features(self, frame: np.ndarray, lens: Lens) -> LocalQuery | None:
         """A clip's last frame -> its local features (verify.detect), seen through `lens` (the
-        clip's, corrected for where its ring sits), as many as the venue keeps a place."""
+        clip's, corrected for where its ring sits), as many as the venue keeps a place; None where
+        OpenCV fails on it (logged: the clip is answered by its curves)."""
         from .verify import detect
 
-        return detect(frame, lens, int(self.conf["local_features"]))
+        try:
+            return detect(frame, lens, int(self.conf["local_features"]))
+        except (cv2.error, ValueError) as err:
+            log.warning("local features not found, the clip is not verified: %s", err)
+            return None
 
     def estimate_local(
         self, q_spec: np.ndarray, times: np.ndarray, aggregate: str | None, local: LocalQuery | None
@@ -406,15 +411,15 @@ class Locator:
             if self._place_of is None:
                 self._place_of = place_of_rows(self.gen.frames, self.gen.local)
             v = verify(local, m, self.xy, self.gen.local, self._place_of, e.venue_row, float(self.conf["local_margin"]))
+            if v.moved_to is None:
+                return e, None
+            r = v.moved_to
+            _, heading = self.index.verify(np.asarray(last_spec)[None], np.array([[r]]))
+            h = float(to_numpy(heading).ravel()[0])
         except (cv2.error, np.linalg.LinAlgError, ValueError) as err:
             log.warning("verification failed, the global answer stands: %s", err)
             return e, None
-        if v.moved_to is None:
-            return e, None
-        r = v.moved_to
-        _, heading = self.index.verify(np.asarray(last_spec)[None], np.array([[r]]))
         x, y = self.xy[r]
-        h = float(to_numpy(heading).ravel()[0])
         return Estimate(float(x), float(y), h, r, e.support, e.rival, e.agree), MOVED_CONFIDENCE
 
 

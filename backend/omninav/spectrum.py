@@ -29,7 +29,7 @@ LOCAL_VERSION = 2  # a record with a local block (docs/formats.md, "Local block"
 VERSIONS = (RECORD_VERSION, LOCAL_VERSION)
 MAGIC = b"ONV"
 LOCAL_MAGIC = b"LOC"
-_LOCAL_HEAD = struct.Struct("<3sxI")  # magic, keypoints N; then N uint16 az, N int16 el, N x 32 bytes
+_LOCAL_HEAD = struct.Struct("<3sBI")  # magic, keypoints N; then N uint16 az, N int16 el, N x 32 bytes
 LOCAL_HEAD_BYTES = _LOCAL_HEAD.size
 LOCAL_BYTES_PER_KEYPOINT = 2 + 2 + 32
 MAX_LOCAL_KEYPOINTS = 880  # 8 + 36 x 880 = 31,688 bytes: a request's local features within 32 KB
@@ -39,6 +39,7 @@ LOCAL_MAX_BYTES = LOCAL_HEAD_BYTES + LOCAL_BYTES_PER_KEYPOINT * MAX_LOCAL_KEYPOI
 LOCAL_JSON_BYTES = 256 + MAX_LOCAL_KEYPOINTS * (2 * 7 + 44)
 AZ_STEP = 360.0 / 65536.0  # degrees a unit of a keypoint's azimuth
 EL_STEP = 0.01  # ... and of its elevation
+EL_MAX = 9000  # 90 degrees
 # magic, version, n_curves, n_harmonics, pano_width, n_frames, settings id
 _HEADER = struct.Struct("<3sBHHHII2x")
 HEADER_BYTES = _HEADER.size
@@ -102,7 +103,7 @@ def encode_binary(spec: np.ndarray, conf: dict[str, Any], local: tuple[np.ndarra
     if local is None:
         return body
     az, el, desc = _local_units(*local)
-    return body + _LOCAL_HEAD.pack(LOCAL_MAGIC, len(az)) + az.tobytes() + el.tobytes() + desc.tobytes()
+    return body + _LOCAL_HEAD.pack(LOCAL_MAGIC, 0, len(az)) + az.tobytes() + el.tobytes() + desc.tobytes()
 
 
 def _local_units(bearings: np.ndarray, desc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -110,7 +111,7 @@ def _local_units(bearings: np.ndarray, desc: np.ndarray) -> tuple[np.ndarray, np
     (N, 32) uint8 descriptors, at most MAX_LOCAL_KEYPOINTS."""
     b = np.asarray(bearings, np.float64)[:MAX_LOCAL_KEYPOINTS]
     az = np.degrees(np.arctan2(b[:, 0], b[:, 1])) % 360.0
-    el = np.degrees(np.arcsin(np.clip(b[:, 2], -1.0, 1.0)))
+    el = np.degrees(np.arctan2(b[:, 2], np.hypot(b[:, 0], b[:, 1])))
     az_u = (np.round(az / AZ_STEP).astype(np.int64) % 65536).astype("<u2")
     el_u = np.round(el / EL_STEP).astype("<i2")
     return az_u, el_u, np.ascontiguousarray(desc[:MAX_LOCAL_KEYPOINTS], np.uint8)
@@ -129,9 +130,9 @@ def _local_block(buf: bytes, at: int) -> tuple[np.ndarray, np.ndarray]:
         raise OmninavError(
             f"feature record version 2 has no local block after its phases ({len(buf)} bytes, the block starts at {at})"
         )
-    magic, n = _LOCAL_HEAD.unpack_from(buf, at)
-    if magic != LOCAL_MAGIC:
-        raise OmninavError("feature record's local block does not start with 'LOC'")
+    magic, pad, n = _LOCAL_HEAD.unpack_from(buf, at)
+    if magic != LOCAL_MAGIC or pad != 0:
+        raise OmninavError("feature record's local block does not start with 'LOC' and a zero byte")
     if n > MAX_LOCAL_KEYPOINTS:
         raise OmninavError(f"feature record's local block has {n} keypoints; at most {MAX_LOCAL_KEYPOINTS}")
     want = at + LOCAL_HEAD_BYTES + LOCAL_BYTES_PER_KEYPOINT * n
@@ -148,7 +149,7 @@ def _local_block(buf: bytes, at: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _check_elevations(el: np.ndarray) -> None:
-    if el.size and (np.abs(el.astype(np.int64)) > round(90 / EL_STEP)).any():
+    if el.size and (np.abs(el.astype(np.int64)) > EL_MAX).any():
         raise OmninavError("feature record's local elevations must lie in [-90, 90] degrees")
 
 
@@ -228,17 +229,17 @@ def _json_local(obj: Any) -> tuple[np.ndarray, np.ndarray]:
             f"'local' must hold at most {MAX_LOCAL_KEYPOINTS} keypoints, as many elevations as azimuths "
             "and 32 bytes of descriptor each"
         )
-    if not all(type(v) is int and 0 <= v < 65536 for v in az) or not all(type(v) is int for v in el):
-        raise OmninavError("'local' azimuths must be integers in [0, 65535] and elevations integers")
-    el_a = np.asarray(el, np.int64)
-    _check_elevations(el_a)
+    if not all(type(v) is int and 0 <= v < 65536 for v in az):
+        raise OmninavError("'local' azimuths must be integers in [0, 65535]")
+    if not all(type(v) is int and abs(v) <= EL_MAX for v in el):
+        raise OmninavError(f"'local' elevations must be integers in [-{EL_MAX}, {EL_MAX}] ([-90, 90] degrees)")
     try:
         raw = base64.b64decode(d, validate=True)
-    except binascii.Error:
+    except (binascii.Error, ValueError):  # (a non-ASCII string is a ValueError)
         raise OmninavError("'local' descriptors are not base64") from None
     if len(raw) != 32 * n:
         raise OmninavError(f"'local' descriptors hold {len(raw)} bytes; {n} keypoints take {32 * n}")
-    return _bearings(np.asarray(az), el_a), np.frombuffer(raw, np.uint8).reshape(n, 32)
+    return _bearings(np.asarray(az), np.asarray(el)), np.frombuffer(raw, np.uint8).reshape(n, 32)
 
 
 def decode_json_local(
@@ -251,6 +252,8 @@ def decode_json_local(
         raise OmninavError("not an omninav feature record (it has no 'version')")
     if obj.get("version") not in VERSIONS or isinstance(obj.get("version"), bool):
         raise OmninavError(f"feature record version {obj.get('version')!r} is not supported")
+    if obj["version"] == RECORD_VERSION and "local" in obj:
+        raise OmninavError("a feature record with 'local' is version 2")
     local = _json_local(obj.get("local")) if obj["version"] == LOCAL_VERSION else None
     try:
         mag = np.asarray(obj["mag"], dtype=np.float64)

@@ -215,7 +215,7 @@ def essential_inliers(b1: np.ndarray, b2: np.ndarray, seed: int = 0) -> int:
     inliers while that finds more (LO-RANSAC: with a third of the matches inliers, few 8-point
     samples are clean, and the refit recovers what a near-clean sample's matrix misses). A pair is
     an inlier within INLIER_DEG of its epipolar plane. Seeded: the same pairs give the same count.
-    Where fewer than about 40 % of the matches are inliers, 300 samples of 8 seldom hold a clean
+    Where fewer than about 40 % of the matches are inliers, RANSAC_ITERS samples of 8 seldom hold a clean
     one and the count comes out low (a minimal solver for upright cameras would not)."""
     n = len(b1)
     if n < 8:

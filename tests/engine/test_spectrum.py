@@ -126,6 +126,7 @@ def test_malformed_local_blocks_are_refused():
         (good[:-1], "headers say"),
         (good[:at], "no local block"),
         (good[:at] + b"XYZ" + good[at + 3 :], "'LOC'"),
+        (good[: at + 3] + b"\x01" + good[at + 4 :], "zero byte"),
         (good[: at + 4] + (881).to_bytes(4, "little") + good[at + 8 :], "at most 880"),
         (good[: at + 8 + 20] + (9001).to_bytes(2, "little") + good[at + 30 :], r"\[-90, 90\]"),
     ):
@@ -137,13 +138,17 @@ def test_malformed_local_blocks_are_refused():
         ({**j["local"], "descriptors": "!!!" + j["local"]["descriptors"][3:]}, "base64"),
         ({**j["local"], "el": j["local"]["el"][:-1]}, "as many elevations"),
         ({**j["local"], "az": [70000] * 10}, "azimuths must be integers"),
-        ({**j["local"], "el": [True] * 10}, "elevations integers"),
+        ({**j["local"], "el": [True] * 10}, "elevations must be integers"),
         ({**j["local"], "el": [9001] * 10}, r"\[-90, 90\]"),
+        ({**j["local"], "el": [10**30] * 10}, r"\[-90, 90\]"),
+        ({**j["local"], "descriptors": "é" * len(j["local"]["descriptors"])}, "base64"),
         ({"az": [0] * 881, "el": [0] * 881, "descriptors": ""}, "at most 880"),
         ({"az": [0], "el": [0], "descriptors": "A" * 44}, "hold 33 bytes"),  # (no padding)
     ):
         with pytest.raises(OmninavError, match=msg):
             decode_json_local({**j, "local": local}, conf)
+    with pytest.raises(OmninavError, match="is version 2"):
+        decode_json_local({**j, "version": 1}, conf)
 
 
 def test_records_made_with_other_settings_are_refused():

@@ -34,6 +34,7 @@ from ..catalog.sessions import Session, check_session_id
 from ..describe import DEFAULT_STYLE, Style, describe
 from ..errors import NotFound, OmninavError
 from ..extract import Extractor
+from ..lens import Lens
 from ..locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, LocalQuery, Locator, answer_heading
 from ..media import decode_image, iter_sampled, probe_image, probe_mp4, same_size, sampled_count
 from ..motion import Motion
@@ -99,13 +100,21 @@ def _check_duration(frames: int, fps: float) -> None:
 @dataclass
 class SentClip:
     """A locate request's clip: its (F, C, K) spectra, its frame rate where the body says one,
-    what was sent ("features" or "frames"), and its last frame's local features where the venue
-    verifies (verify.py): found in the last frame sent, or carried by a version-2 record."""
+    what was sent ("features" or "frames"), and what local features verify (verify.py) with: a
+    version-2 record's, or the last frame sent and the lens it was seen through (corrected for
+    this clip), whose features are found only where a single clip is verified."""
 
     spec: np.ndarray
     fps: float | None
     kind: str
     local: LocalQuery | None = None
+    last: np.ndarray | None = None
+    lens: Lens | None = None
+
+    def local_features(self, loc: Locator) -> LocalQuery | None:
+        if self.local is None and self.last is not None and self.lens is not None and loc.verifies:
+            return loc.local_features(self.last, self.lens)
+        return self.local
 
 
 def _read_clip(cat: Catalog, venue_id: str, rt: Runtime, max_frames: int, fps: float | None) -> SentClip:
@@ -204,8 +213,7 @@ def _image_spectra(images: list[tuple[bytes, str]], ext: Extractor, lens_name: s
         out.extend(clip.feed(last))
     out.extend(clip.flush())
     _log_lens(clip)
-    local = loc.local_features(last, clip.lens) if loc.verifies and last is not None else None
-    return SentClip(np.stack(out), None, "frames", local)
+    return SentClip(np.stack(out), None, "frames", None, last, clip.lens)
 
 
 def _check_frame(ext: Extractor, frame: np.ndarray, what: str) -> None:
@@ -264,8 +272,7 @@ def _video_spectra(data: bytes, ext: Extractor, lens_name: str, loc: Locator, ma
     _log_lens(clip)
     if not spectra:
         raise ApiError(422, "the video does not decode (no readable frames)")
-    local = loc.local_features(last, clip.lens) if loc.verifies and last is not None else None
-    return SentClip(np.stack(spectra), (v.fps or DEFAULT_CLIP_FPS) / stride, "frames", local)
+    return SentClip(np.stack(spectra), (v.fps or DEFAULT_CLIP_FPS) / stride, "frames", None, last, clip.lens)
 
 
 def accuracy_m(confidence: float, low: float) -> float | None:
@@ -355,7 +362,7 @@ def locate(venue_id: str) -> Any:
     clip = request.args.get("clip", "clip")[:200]
     loc = rt.locator
     if track is None:
-        e, conf = loc.estimate_local(spec, np.arange(len(spec)) / fps, None, sent.local)  # (verified)
+        e, conf = loc.estimate_local(spec, np.arange(len(spec)) / fps, None, sent.local_features(loc))
         ans = loc.answer(e, clip, conf)
         floor = rt.video_floor[int(loc.gen.frames["video"][e.venue_row])]
         ambiguous = False
