@@ -394,33 +394,36 @@ class Locator:
         e = self.aggregated(m, times, aggregate)
         if local is None or not self.verifies:
             return e, None
-        return self.verified(local, m, e, q_spec[-1])
+        return self.verified(local, m, e, q_spec)
 
     def verified(
-        self, local: LocalQuery, m: Matches, e: Estimate, last_spec: np.ndarray
+        self, local: LocalQuery, m: Matches, e: Estimate, last_specs: np.ndarray
     ) -> tuple[Estimate, float | None]:
         """A clip's global answer checked by its last frame's local features against its candidate
         places: the answer moved to another place, with verify.MOVED_CONFIDENCE and the heading of
-        the last frame's spectrum `last_spec` (C, K) at that place (stage 2's phase correlation),
+        the last frame's spectrum (of the clip's `last_specs`, (F, C, K)) at that place (stage 2's
+        phase correlation),
         or as it was (None: the model's confidence). Verification only ever adds to the answer: an
         error in it is logged and the global answer stands."""
-        from .verify import MOVED_CONFIDENCE, place_of_rows, verify
+        from . import verify as vfy
 
         assert self.gen.local is not None
         try:
             if self._place_of is None:
-                self._place_of = place_of_rows(self.gen.frames, self.gen.local)
-            v = verify(local, m, self.xy, self.gen.local, self._place_of, e.venue_row, float(self.conf["local_margin"]))
+                self._place_of = vfy.place_of_rows(self.gen.frames, self.gen.local)
+            wide = self.index.search(last_specs[-vfy.WIDE_FRAMES :], vfy.WIDE_K) if vfy.WIDE_K else None
+            margin = float(self.conf["local_margin"])
+            v = vfy.verify(local, m, self.xy, self.gen.local, self._place_of, e.venue_row, margin, wide)
             if v.moved_to is None:
                 return e, None
             r = v.moved_to
-            _, heading = self.index.verify(np.asarray(last_spec)[None], np.array([[r]]))
+            _, heading = self.index.verify(np.asarray(last_specs[-1])[None], np.array([[r]]))
             h = float(to_numpy(heading).ravel()[0])
         except (cv2.error, np.linalg.LinAlgError, ValueError) as err:
             log.warning("verification failed, the global answer stands: %s", err)
             return e, None
         x, y = self.xy[r]
-        return Estimate(float(x), float(y), h, r, e.support, e.rival, e.agree), MOVED_CONFIDENCE
+        return Estimate(float(x), float(y), h, r, e.support, e.rival, e.agree), vfy.MOVED_CONFIDENCE
 
 
 def read_record(path: Path, conf: dict[str, Any]) -> tuple[np.ndarray, LocalQuery | None]:

@@ -13,7 +13,8 @@ generation beside the spectra: docs/formats.md). A single clip that brings its l
 local features (found in its frames: the CLI, a video or frames sent to the server, an
 evaluation walk; or carried by a version-2 record) is then verified: its candidate places are the
 global answer's, then the global search's (the last frame's shared best, then the clip's other
-frames', one a PLACE_M), each scored by its inliers with the clip's last frame; the answer moves
+frames' and the last WIDE_FRAMES frames' own WIDE_K best, one a PLACE_M, at most PLACES), each
+scored by its inliers with the clip's last frame; the answer moves
 to the place with the most, where it has at least MIN_INLIERS and at least `local_margin` times
 the global answer's place's.
 A moved answer is said with MOVED_CONFIDENCE: below "sure" until a calibration has enough moved
@@ -41,10 +42,14 @@ STEP_DEG = 0.25  # the local panorama's pixel, in degrees of azimuth and elevati
 EL_TOP, EL_BOTTOM = 60.0, -80.0  # elevations looked at; the rows the lens sees are kept
 SPACING_M = 0.5  # one modelled frame with local features every this far along a walk
 PLACE_M = 2.0  # candidates closer than this are one place
-PLACES = 10  # candidate places verified a clip
+PLACES = 20  # candidate places verified a clip
+WIDE_K = 64  # the last WIDE_FRAMES frames' own search, this many candidates each (0: none)
+WIDE_FRAMES = 3
 RATIO = 0.8  # Lowe's ratio test on Hamming distances
 MIN_INLIERS = 20  # fewer prove nothing (two unrelated panoramas' 900 keypoints share up to ~19)
-RANSAC_ITERS = 500
+RANSAC_ITERS = 500  # at most; drawn RANSAC_BATCH at a time until one clean sample is RANSAC_SURE
+RANSAC_BATCH = 100
+RANSAC_SURE = 0.99
 REFITS = 3  # LO-RANSAC's refits of the best hypothesis on its inliers
 INLIER_DEG = 0.5  # a match's angular distance from its epipolar plane, to count as an inlier
 MOVED_CONFIDENCE = 0.75  # a moved answer's confidence: below aggregate.SURE (not yet calibrated)
@@ -193,8 +198,12 @@ def ratio_matches(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
 def _essential(a: np.ndarray) -> np.ndarray:
     """(..., m, 9) rows of b2 (x) b1 -> (..., 3, 3) the least-squares essential matrix of each set,
     made rank 2 (two equal singular values)."""
-    _, vec = np.linalg.eigh(np.swapaxes(a, -1, -2) @ a)  # the null vector: the least eigenvalue's
-    e = vec[..., :, 0].reshape(*a.shape[:-2], 3, 3)
+    if a.shape[-2] == 8:  # a sample's null vector: the one direction QR's Q adds to 8 rows (2x eigh's speed)
+        q, _ = np.linalg.qr(np.swapaxes(a, -1, -2), mode="complete")
+        e = q[..., :, -1].reshape(*a.shape[:-2], 3, 3)
+    else:  # least squares: the least eigenvalue's vector
+        _, vec = np.linalg.eigh(np.swapaxes(a, -1, -2) @ a)
+        e = vec[..., :, 0].reshape(*a.shape[:-2], 3, 3)
     u, _, vt2 = np.linalg.svd(e)
     out: np.ndarray = u @ (np.array([1.0, 1.0, 0.0])[:, None] * vt2)
     return out
@@ -207,6 +216,17 @@ def _inliers(e: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
     dist = np.abs((eb1 * b2.T).sum(axis=-2)) / np.maximum(np.linalg.norm(eb1, axis=-2), 1e-12)
     out: np.ndarray = dist < np.sin(np.radians(INLIER_DEG))
     return out
+
+
+def _samples_needed(inlier_share: float) -> int:
+    """Samples of 8 after which one clean sample has been drawn with RANSAC_SURE probability, were
+    `inlier_share` of the pairs inliers."""
+    clean = inlier_share**8
+    if clean <= 0.0:
+        return RANSAC_ITERS
+    if clean >= 1.0:
+        return 1
+    return int(np.ceil(np.log(1.0 - RANSAC_SURE) / np.log(1.0 - clean)))
 
 
 def essential_inliers(b1: np.ndarray, b2: np.ndarray, seed: int = 0) -> int:
@@ -225,9 +245,15 @@ def essential_inliers(b1: np.ndarray, b2: np.ndarray, seed: int = 0) -> int:
         return 0
     a = np.einsum("ni,nj->nij", b2, b1).reshape(n, 9)
     rng = np.random.default_rng(seed)
-    pick = rng.integers(0, n, (RANSAC_ITERS, 8))  # (a repeated pair makes one useless hypothesis)
-    ok = _inliers(_essential(a[pick]), b1, b2)
-    best = ok[int(ok.sum(axis=1).argmax())]
+    best = np.zeros(n, bool)
+    done = 0
+    while done < min(RANSAC_ITERS, _samples_needed(best.sum() / n)):
+        pick = rng.integers(0, n, (RANSAC_BATCH, 8))  # (a repeated pair makes one useless hypothesis)
+        ok = _inliers(_essential(a[pick]), b1, b2)
+        top = ok[int(ok.sum(axis=1).argmax())]
+        if top.sum() > best.sum():
+            best = top
+        done += RANSAC_BATCH
     for _ in range(REFITS):
         if best.sum() < 8:
             break
@@ -238,12 +264,17 @@ def essential_inliers(b1: np.ndarray, b2: np.ndarray, seed: int = 0) -> int:
     return int(best.sum())
 
 
-def candidate_rows(m: Matches, xy: np.ndarray, first: int | None = None) -> list[int]:
+def candidate_rows(m: Matches, xy: np.ndarray, first: int | None = None, wide: Matches | None = None) -> list[int]:
     """A clip's candidate venue rows, one a place (PLACE_M apart), at most PLACES: `first` (the
     global answer's row: its place is always scored), then the last frame's matches by score, then
-    every other frame's."""
+    every other frame's and the `wide` search's, by score."""
     last = m.index[-1][np.argsort(-m.score[-1])]
-    rest = m.index[:-1].ravel()[np.argsort(-m.score[:-1].ravel())]
+    more_idx, more_score = [m.index[:-1].ravel()], [m.score[:-1].ravel()]
+    if wide is not None:
+        more_idx.append(np.asarray(wide.index).ravel())
+        more_score.append(np.asarray(wide.score).ravel())
+    idx, score = np.concatenate(more_idx), np.concatenate(more_score)
+    rest = idx[np.argsort(-score, kind="stable")]
     kept: list[int] = []
     for r in np.concatenate([[] if first is None else [first], last, rest]).astype(np.int64):
         if all(np.hypot(*(xy[r] - xy[k])) >= PLACE_M for k in kept):
@@ -292,20 +323,24 @@ def verify(
     place_of: np.ndarray,
     global_row: int,
     margin: float,
+    wide: Matches | None = None,
 ) -> Verdict:
     """The clip's last frame's local features (`query`: bearings, descriptors) against its
-    candidate places (the global answer's row's first)."""
-    rows = candidate_rows(m, xy, global_row)
+    candidate places (the global answer's row's first; `wide`: a wider search's matches)."""
+    rows = candidate_rows(m, xy, global_row, wide)
     qb, qd = query
     inl = []
-    for r in rows:
+    for i, r in enumerate(rows):
         p = int(place_of[r])
         if p < 0:
             inl.append(0)
             continue
         vb, vd = local.of(p)
         mt = ratio_matches(qd, vd)
-        inl.append(essential_inliers(qb[mt[:, 0]], vb[mt[:, 1]]) if len(mt) >= 8 else 0)
+        # fewer matches than MIN_INLIERS cannot move the answer there; the global answer's place
+        # (the first, and the only one within PLACE_M of it) is counted all the same: it sets the bar
+        enough = len(mt) >= (8 if i == 0 else MIN_INLIERS)
+        inl.append(essential_inliers(qb[mt[:, 0]], vb[mt[:, 1]]) if enough else 0)
     if not rows:
         return Verdict(rows, inl, None)
     best = int(np.argmax(inl))

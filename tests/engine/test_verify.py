@@ -132,7 +132,7 @@ def test_a_wrong_global_answer_moves_to_the_place_the_geometry_confirms(verified
     # and the Locator says a moved answer with its own confidence, at the true place, facing the
     # way the last frame's curves say there (not the far match's heading)
     e = loc.aggregated(m, np.zeros(1))
-    moved, conf = loc.verified(q, m, e, clip_spectra(small_ds, frames, loc.conf)[-1])
+    moved, conf = loc.verified(q, m, e, clip_spectra(small_ds, frames, loc.conf))
     assert conf == MOVED_CONFIDENCE and moved.venue_row == truth
     assert heading_error(moved.heading, th) < 5.0
 
