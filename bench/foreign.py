@@ -43,6 +43,11 @@ def pack_venues(pack: Path) -> list[str]:
     return sorted(p.name for p in pack.iterdir() if (p / "model.mp4").is_file() and (p / "truth.json").is_file())
 
 
+def chosen_venues(pack: Path, spec: str) -> list[str]:
+    """A bench's `--venues`: "all" (the pack's), or names, comma-separated."""
+    return pack_venues(pack) if spec == "all" else [v for v in spec.split(",") if v]
+
+
 def modelled(pack: Path, venue: str, tag: str, conf: dict[str, Any]) -> Locator:
     """The pack venue's walk modelled with `conf` (as `omninav model` does), once per settings."""
     src = pack / venue
@@ -133,7 +138,7 @@ def main() -> None:
     a = ap.parse_args()
     if not a.pack.is_dir():
         raise SystemExit(f"{a.pack}: no foreign pack there (--pack)")
-    venues = pack_venues(a.pack) if a.venues == "all" else a.venues.split(",")
+    venues = chosen_venues(a.pack, a.venues)
     over = settings(a.set)
     print(f"machine: {machine()}")
     if over:

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.common import machine
-from bench.foreign import PACK, pack_venues
+from bench.foreign import PACK, chosen_venues
 from omninav.lens import load_lens
 from omninav.locate import Locator, clip_frames
 from omninav.model_venue import model_video
@@ -72,7 +72,7 @@ def main() -> None:
     ap.add_argument("--clips", type=int, default=30)
     a = ap.parse_args()
     print(f"machine: {machine()}")
-    for venue in pack_venues(a.pack) if a.venues == "all" else a.venues.split(","):
+    for venue in chosen_venues(a.pack, a.venues):
         run(a.pack, venue, a.clips)
 
 

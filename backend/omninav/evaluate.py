@@ -20,10 +20,11 @@ from .calib.correct import FIRST
 from .errors import OmninavError
 from .heading import wrap_deg
 from .lens import Lens
-from .locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, LocalQuery, Locator
+from .locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, Locator
 from .model_venue import Progress
 from .motion import Imu
 from .quality import AMBIGUOUS_MARGIN, RADIUS_M
+from .spectrum import LocalQuery
 from .tracking_state import TrackPose, TrackState
 from .video import IMAGE_EXT, VideoInfo, iter_video
 from .walk_path import WalkPath

@@ -21,6 +21,7 @@ from .index import Index, Matches
 from .lens import Lens
 from .presets import FEATURE_KEYS
 from .settings import SearchSettings, check
+from .spectrum import LocalQuery
 from .store import Store
 
 if TYPE_CHECKING:
@@ -39,7 +40,6 @@ DEFAULT_CLIP_FPS = 10.0  # timing assumed for a directory of frames, which carri
 MAX_CLIP_S = 5.0
 MAX_CLIP_FRAMES = 60
 MATCH_FIELDS = tuple(f.name for f in fields(Matches))
-LocalQuery = tuple[np.ndarray, np.ndarray]  # a clip's last frame's local features: bearings, descriptors
 log = logging.getLogger("omninav.locate")
 
 

@@ -24,6 +24,7 @@ import numpy as np
 from .errors import OmninavError
 from .presets import n_curves, settings_id
 
+LocalQuery = tuple[np.ndarray, np.ndarray]  # a frame's local features: (N, 3) bearings, (N, 32) descriptors
 RECORD_VERSION = 1
 LOCAL_VERSION = 2  # a record with a local block (docs/formats.md, "Local block")
 VERSIONS = (RECORD_VERSION, LOCAL_VERSION)
@@ -90,7 +91,7 @@ def _join(mag: np.ndarray, ph: np.ndarray) -> np.ndarray:
     return out
 
 
-def encode_binary(spec: np.ndarray, conf: dict[str, Any], local: tuple[np.ndarray, np.ndarray] | None = None) -> bytes:
+def encode_binary(spec: np.ndarray, conf: dict[str, Any], local: LocalQuery | None = None) -> bytes:
     """(F, C, K) or (C, K) complex spectra -> the binary record (little endian): version 1, or 2
     with the clip's last frame's local features (`local`: (N, 3) unit bearings, (N, 32) ORB
     descriptors; the first MAX_LOCAL_KEYPOINTS kept)."""
@@ -106,6 +107,14 @@ def encode_binary(spec: np.ndarray, conf: dict[str, Any], local: tuple[np.ndarra
     return body + _LOCAL_HEAD.pack(LOCAL_MAGIC, 0, len(az)) + az.tobytes() + el.tobytes() + desc.tobytes()
 
 
+def bearing_vectors(az_deg: np.ndarray, el_deg: np.ndarray) -> np.ndarray:
+    """Azimuths (clockwise from the lens's forward direction) and elevations, degrees -> (N, 3)
+    float32 unit bearings, x = cos e sin a, y = cos e cos a, z = sin e: a keypoint's direction, in
+    the record and in a venue's local features (verify.py)."""
+    a, e = np.radians(np.asarray(az_deg, np.float64)), np.radians(np.asarray(el_deg, np.float64))
+    return np.stack([np.cos(e) * np.sin(a), np.cos(e) * np.cos(a), np.sin(e)], 1).astype(np.float32)
+
+
 def _local_units(bearings: np.ndarray, desc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Bearings and descriptors -> the record's (N,) uint16 azimuths, (N,) int16 elevations and
     (N, 32) uint8 descriptors, at most MAX_LOCAL_KEYPOINTS."""
@@ -119,12 +128,10 @@ def _local_units(bearings: np.ndarray, desc: np.ndarray) -> tuple[np.ndarray, np
 
 def _bearings(az_u: np.ndarray, el_u: np.ndarray) -> np.ndarray:
     """The record's azimuth and elevation units -> (N, 3) float32 unit bearings."""
-    a = np.radians(az_u.astype(np.float64) * AZ_STEP)
-    e = np.radians(el_u.astype(np.float64) * EL_STEP)
-    return np.stack([np.cos(e) * np.sin(a), np.cos(e) * np.cos(a), np.sin(e)], 1).astype(np.float32)
+    return bearing_vectors(az_u.astype(np.float64) * AZ_STEP, el_u.astype(np.float64) * EL_STEP)
 
 
-def _local_block(buf: bytes, at: int) -> tuple[np.ndarray, np.ndarray]:
+def _local_block(buf: bytes, at: int) -> LocalQuery:
     """The local block of a version-2 binary record at byte `at` -> (bearings, descriptors)."""
     if len(buf) < at + LOCAL_HEAD_BYTES:
         raise OmninavError(
@@ -158,9 +165,7 @@ def decode_binary(buf: bytes, expect: dict[str, Any] | None = None) -> np.ndarra
     return decode_binary_local(buf, expect)[0]
 
 
-def decode_binary_local(
-    buf: bytes, expect: dict[str, Any] | None = None
-) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+def decode_binary_local(buf: bytes, expect: dict[str, Any] | None = None) -> tuple[np.ndarray, LocalQuery | None]:
     """Binary record -> ((F, C, K) complex64, its local features or None (version 1))."""
     if len(buf) < _HEADER.size:
         raise OmninavError(f"feature record too short: {len(buf)} bytes, header is {_HEADER.size}")
@@ -186,9 +191,7 @@ def decode_binary_local(
     return _join(mag, ph), local
 
 
-def encode_json(
-    spec: np.ndarray, conf: dict[str, Any], local: tuple[np.ndarray, np.ndarray] | None = None
-) -> dict[str, Any]:
+def encode_json(spec: np.ndarray, conf: dict[str, Any], local: LocalQuery | None = None) -> dict[str, Any]:
     s = spec[None] if spec.ndim == 2 else spec
     mag, ph = _split(s)
     extra: dict[str, Any] = {}
@@ -216,7 +219,7 @@ def decode_json(obj: Any, expect: dict[str, Any] | None = None) -> np.ndarray:
     return decode_json_local(obj, expect)[0]
 
 
-def _json_local(obj: Any) -> tuple[np.ndarray, np.ndarray]:
+def _json_local(obj: Any) -> LocalQuery:
     """A version-2 JSON record's 'local' -> (bearings, descriptors)."""
     if not isinstance(obj, dict):
         raise OmninavError("feature record version 2 needs 'local': {'az', 'el', 'descriptors'}")
@@ -242,9 +245,7 @@ def _json_local(obj: Any) -> tuple[np.ndarray, np.ndarray]:
     return _bearings(np.asarray(az), np.asarray(el)), np.frombuffer(raw, np.uint8).reshape(n, 32)
 
 
-def decode_json_local(
-    obj: Any, expect: dict[str, Any] | None = None
-) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+def decode_json_local(obj: Any, expect: dict[str, Any] | None = None) -> tuple[np.ndarray, LocalQuery | None]:
     """JSON record -> ((F, C, K) complex64, its local features or None (version 1))."""
     if not isinstance(obj, dict):
         raise OmninavError("feature record must be a JSON object")

@@ -28,7 +28,6 @@ pinhole); the libraries that take bearing vectors (OpenGV) have no maintained Py
 from __future__ import annotations
 
 import functools
-import json
 from dataclasses import dataclass
 
 import cv2
@@ -36,7 +35,8 @@ import numpy as np
 
 from .index import Matches
 from .lens import Lens
-from .unwarp import UnwarpMap, panorama_elevations, unwarp
+from .spectrum import LocalQuery, bearing_vectors
+from .unwarp import UnwarpMap, build_map, panorama_elevations, unwarp
 
 STEP_DEG = 0.25  # the local panorama's pixel, in degrees of azimuth and elevation
 EL_TOP, EL_BOTTOM = 60.0, -80.0  # elevations looked at; the rows the lens sees are kept
@@ -74,7 +74,7 @@ class LocalFeatures:
             np.zeros(0, LOCAL_DTYPE), np.zeros((0, 3), np.float16), np.zeros((0, DESCRIPTOR_BYTES), np.uint8)
         )
 
-    def of(self, place: int) -> tuple[np.ndarray, np.ndarray]:
+    def of(self, place: int) -> LocalQuery:
         """A place's (bearings float32, descriptors)."""
         p = self.places[place]
         s = slice(int(p["start"]), int(p["start"]) + int(p["count"]))
@@ -129,35 +129,30 @@ class PanoramaMap:
     az: np.ndarray
 
 
-def _lens_key(lens: Lens) -> str:
-    return json.dumps(lens.to_dict(), sort_keys=True)
-
-
 COARSE = 4  # the local panorama's remap is computed every COARSE pixels and interpolated
 
 
 @functools.lru_cache(maxsize=8)
-def _panorama_map(key: str) -> PanoramaMap:
-    """The remap computed on a grid COARSE times coarser (the lens's directions every degree),
-    then interpolated bilinearly: a clip-on lens's profile is corrected per clip, so every clip
-    has its own map, and the full grid's directions cost ~60 ms (the coarse one ~4 ms; over a
-    degree the map's curvature moves a pixel by < 0.01 px)."""
-    from .lens import direction_to_pixel, lens_from_dict
-
-    lens = lens_from_dict(json.loads(key))
+def panorama_map(lens: Lens) -> PanoramaMap:
+    """The local panorama of `lens` (the rows every column of which the lens sees), cached. Its
+    remap is unwarp.build_map's on a grid COARSE times coarser (the lens's directions every degree),
+    interpolated bilinearly: a clip-on lens's profile is corrected per clip, so every clip has its
+    own map, and the full grid's directions cost ~60 ms (the coarse one ~4 ms; over a degree the
+    map's curvature moves a pixel by < 0.01 px)."""
     step_c = STEP_DEG * COARSE
-    el_c = panorama_elevations(EL_TOP, EL_BOTTOM, step_c)
     width = int(round(360.0 / STEP_DEG))
-    az_c = (np.arange(-1, width // COARSE + 2) + 0.5) * step_c  # one column beyond each end
-    x, y = direction_to_pixel(lens, *np.meshgrid(az_c, el_c))
-    seen = (np.isfinite(x) & np.isfinite(y)).all(axis=1)
+    el_c = panorama_elevations(EL_TOP, EL_BOTTOM, step_c)
+    coarse = build_map(lens, el_c, width // COARSE)
+    seen = coarse.valid.all(axis=1)
     az = (np.arange(width) + 0.5) * STEP_DEG
     if seen.sum() < 2:
         empty = np.zeros((0, width), np.float32)
         return PanoramaMap(UnwarpMap(empty, empty, np.zeros(0, np.float32), empty.astype(bool), 0), np.zeros(0), az)
-    el_c, x, y = el_c[seen], x[seen].astype(np.float32), y[seen].astype(np.float32)
+    el_c = el_c[seen]
+    # one coarse column beyond each end, the azimuth wrapping round: column j + 1 looks at (j + 0.5) * step_c
+    x, y = (np.concatenate([m[seen][:, -1:], m[seen], m[seen][:, :1]], 1) for m in (coarse.map_x, coarse.map_y))
     el = panorama_elevations(float(el_c[0]), float(el_c[-1]), STEP_DEG)
-    u, v = np.meshgrid((az - az_c[0]) / step_c, (el_c[0] - el) / step_c)
+    u, v = np.meshgrid(az / step_c + 0.5, (el_c[0] - el) / step_c)
     u, v = u.astype(np.float32), v.astype(np.float32)
     mx = cv2.remap(x, u, v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     my = cv2.remap(y, u, v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
@@ -165,25 +160,24 @@ def _panorama_map(key: str) -> PanoramaMap:
     return PanoramaMap(remap, el, az)
 
 
-def panorama_map(lens: Lens) -> PanoramaMap:
-    """The local panorama of `lens` (the rows every column of which the lens sees), cached."""
-    return _panorama_map(_lens_key(lens))
+def _none() -> LocalQuery:
+    """No keypoints."""
+    return np.zeros((0, 3), np.float32), np.zeros((0, DESCRIPTOR_BYTES), np.uint8)
 
 
-def detect(frame: np.ndarray, lens: Lens, n_features: int) -> tuple[np.ndarray, np.ndarray]:
+def detect(frame: np.ndarray, lens: Lens, n_features: int) -> LocalQuery:
     """A frame -> ((n, 3) float32 unit bearings, (n, 32) uint8 ORB descriptors) of its panorama."""
     pm = panorama_map(lens)
     if len(pm.el) < 32:  # a lens that sees no band of elevations all round
-        return np.zeros((0, 3), np.float32), np.zeros((0, DESCRIPTOR_BYTES), np.uint8)
+        return _none()
     pano = cv2.cvtColor(unwarp(frame, pm.remap), cv2.COLOR_BGR2GRAY)
     kp, des = cv2.ORB.create(nfeatures=n_features).detectAndCompute(pano, None)
     if des is None or not kp:
-        return np.zeros((0, 3), np.float32), np.zeros((0, DESCRIPTOR_BYTES), np.uint8)
+        return _none()
     pt = np.array([k.pt for k in kp])
-    a = np.radians(np.interp(pt[:, 0], np.arange(len(pm.az)), pm.az))
-    e = np.radians(np.interp(pt[:, 1], np.arange(len(pm.el)), pm.el))
-    b = np.stack([np.cos(e) * np.sin(a), np.cos(e) * np.cos(a), np.sin(e)], 1)
-    return b.astype(np.float32), des
+    az = np.interp(pt[:, 0], np.arange(len(pm.az)), pm.az)
+    el = np.interp(pt[:, 1], np.arange(len(pm.el)), pm.el)
+    return bearing_vectors(az, el), des
 
 
 def ratio_matches(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
@@ -231,7 +225,8 @@ def _samples_needed(inlier_share: float) -> int:
 
 def essential_inliers(b1: np.ndarray, b2: np.ndarray, seed: int = 0) -> int:
     """The most matched bearing pairs (b1[i], b2[i]) consistent with one essential matrix
-    (b2^T E b1 = 0): RANSAC_ITERS 8-point hypotheses at once, then the best one refit on its
+    (b2^T E b1 = 0): 8-point hypotheses RANSAC_BATCH at a time (at most RANSAC_ITERS, fewer where
+    the best so far makes a clean sample already RANSAC_SURE), then the best one refit on its
     inliers while that finds more (LO-RANSAC: with a third of the matches inliers, few 8-point
     samples are clean, and the refit recovers what a near-clean sample's matrix misses). A pair is
     an inlier within INLIER_DEG of its epipolar plane. Seeded: the same pairs give the same count.
@@ -316,7 +311,7 @@ class Verdict:
 
 
 def verify(
-    query: tuple[np.ndarray, np.ndarray],
+    query: LocalQuery,
     m: Matches,
     xy: np.ndarray,
     local: LocalFeatures,
@@ -344,7 +339,6 @@ def verify(
     if not rows:
         return Verdict(rows, inl, None)
     best = int(np.argmax(inl))
-    g = xy[global_row]
-    at_global = max((n for r, n in zip(rows, inl, strict=True) if np.hypot(*(xy[r] - g)) < PLACE_M), default=0)
+    at_global = inl[0]  # (the global answer's place: the first, the others PLACE_M or more from it)
     moves = inl[best] >= MIN_INLIERS and inl[best] > at_global and inl[best] >= margin * at_global
     return Verdict(rows, inl, rows[best] if moves else None)

@@ -35,7 +35,7 @@ from ..describe import DEFAULT_STYLE, Style, describe
 from ..errors import NotFound, OmninavError
 from ..extract import Extractor
 from ..lens import Lens
-from ..locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, LocalQuery, Locator, answer_heading
+from ..locate import DEFAULT_CLIP_FPS, MAX_CLIP_S, Locator, answer_heading
 from ..media import decode_image, iter_sampled, probe_image, probe_mp4, same_size, sampled_count
 from ..motion import Motion
 from ..presets import n_curves
@@ -44,6 +44,7 @@ from ..spectrum import (
     HEADER_BYTES,
     LOCAL_JSON_BYTES,
     LOCAL_MAX_BYTES,
+    LocalQuery,
     decode_binary_local,
     decode_json_local,
     record_bytes_per_frame,
