@@ -4,8 +4,11 @@ On each foreign pack venue (or any pack folder with model.mp4, track.json, lens.
 modelled once as `default` and once as `verified` in the same run (fresh stores, so both model
 times are measured here), then every query clip located from its frames as `omninav locate`
 does (Locator.locate_frames: extraction, search, aggregation and, for `verified`, verification),
-alternating the two venues clip by clip. Printed per venue: the model time of each, the local
-features' bytes per 1,000 modelled frames, and the locate time's median and p90 of each.
+alternating the two venues clip by clip; and located from the record a phone sends (what the
+server does with a request: the record decoded, searched, aggregated and, for `verified`, a
+version-2 record's keypoints verified; HTTP and nginx, ~1-3 ms, not included). Printed per venue:
+the model time of each, the local features' bytes per 1,000 modelled frames, and each locate
+time's median and p90.
 
     python -m bench.verify_cost [--pack DIR] [--venues inst21] [--clips 30]
 """
@@ -21,10 +24,13 @@ import numpy as np
 
 from bench.common import machine
 from bench.foreign import PACK, chosen_venues
+from omninav.calib.correct import clip_spectra
+from omninav.extract import Extractors
 from omninav.lens import load_lens
 from omninav.locate import Locator, clip_frames
 from omninav.model_venue import model_video
 from omninav.presets import resolve
+from omninav.spectrum import decode_binary_local, encode_binary
 from omninav.store import Store
 from omninav.walk_path import load_walk_path
 
@@ -47,12 +53,25 @@ def run(pack: Path, venue: str, clips: int) -> None:
         n_frames = len(locs["verified"].gen.frames)
         names = sorted(p.name for p in (src / "queries").iterdir())[:clips]
         ms: dict[str, list[float]] = {p: [] for p in locs}
+        extractors = Extractors(locs["default"].conf)  # both presets' curves are the default's
+        rec_ms: dict[str, list[float]] = {p: [] for p in locs}
+        rec_bytes: dict[str, list[int]] = {p: [] for p in locs}
         for name in names:
             frames, fps = clip_frames(src / "queries" / name, locs["default"].conf["model_fps"])
             for preset, loc in locs.items():
                 t = time.perf_counter()
                 loc.locate_frames(frames, name, lens, fps)
                 ms[preset].append(1e3 * (time.perf_counter() - t))
+            # the phone's record of the clip: version 1 for the default venue, 2 for `verified`
+            spec, c = clip_spectra(lens, frames, extractors.spectrum, clip=name)
+            for preset, loc in locs.items():
+                local = loc.local_features(frames[-1], c.lens) if loc.verifies else None
+                rec = encode_binary(spec, loc.conf, local)
+                rec_bytes[preset].append(len(rec))
+                t = time.perf_counter()
+                got, lq = decode_binary_local(rec, loc.conf)
+                loc.locate_spectra(got, name, fps, local=lq)
+                rec_ms[preset].append(1e3 * (time.perf_counter() - t))
     print(
         f"{venue}: {n_frames} modelled frames, {len(local.places)} places with local features, "
         f"{local.nbytes() / n_frames * 1000 / 1e6:.1f} MB per 1,000 frames"
@@ -62,6 +81,11 @@ def run(pack: Path, venue: str, clips: int) -> None:
         print(
             f"  {preset:<9} modelled in {model_s[preset]:5.1f} s; locate a clip from its frames "
             f"median {np.median(a):6.1f} ms, p90 {np.percentile(a, 90):6.1f} ms ({len(a)} clips)"
+        )
+        r = np.array(rec_ms[preset])
+        print(
+            f"  {'':<9} from its record ({np.median(rec_bytes[preset]) / 1024:.1f} KB): "
+            f"median {np.median(r):6.1f} ms, p90 {np.percentile(r, 90):6.1f} ms"
         )
 
 

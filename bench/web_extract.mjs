@@ -1,6 +1,7 @@
 // Feature extraction in headless Chromium (the app's own worker: ImageBitmap -> OffscreenCanvas ->
 // the worker's extractor -> record) per 960x720 donut frame, against the Python engine's extractor
-// on the same frames in the same run (the baseline). Prints the machine it ran on.
+// on the same frames in the same run (the baseline); and the local features of a frame (a verifying
+// venue's keypoints) beside the engine's. Prints the machine it ran on.
 //   node bench/web_extract.mjs [repeats] [--baseline DIR]
 // With --baseline, an older version is timed beside this one, frame by frame in turns (ABBA), so
 // that a busy machine slows both alike: DIR/web is its web app built (`npx vite build --outDir
@@ -30,7 +31,7 @@ execFileSync(PY, [resolve(ROOT, 'e2e/fixtures.py'), 'golden', GOLDEN], { stdio: 
 
 // the engine: its Extractor on the same three frames, single-threaded, same count (and the
 // baseline's, in turns, when given)
-const engine = JSON.parse(
+const { ms: engine, local: engineLocal } = JSON.parse(
   execFileSync(PY, [
     '-c',
     `
@@ -57,7 +58,13 @@ with threadpool_limits(1):
         for k in order:
             t = time.perf_counter(); exts[k].spectrum(frames[i % len(frames)]); dt = (time.perf_counter() - t) * 1e3
             if i >= ${WARM}: ms[k].append(dt)
-print(json.dumps(ms))
+from omninav.verify import detect
+lens = lens_from_dict(g["lens"])
+local = []
+for i in range(${WARM} + int(sys.argv[2])):
+    t = time.perf_counter(); detect(frames[i % len(frames)], lens, 900); dt = (time.perf_counter() - t) * 1e3
+    if i >= ${WARM}: local.append(dt)
+print(json.dumps({"ms": ms, "local": local}))
 `,
     GOLDEN,
     String(repeats),
@@ -127,6 +134,9 @@ try {
     console.log(`engine (Python, NumPy + OpenCV, 1 thread), per frame: ${fmt(engine[0])}`);
     console.log(`ratio browser / engine (median): ${(r.timing.medianMs / pct(engine[0], 0.5)).toFixed(2)}`);
     console.log(`record: ${rec} bytes per frame + 20-byte header; a 10-frame clip sends ${20 + 10 * rec} bytes`);
+    console.log(
+      `local features (worker/local.ts: grey, remap, ORB 900), the last frame of a press: browser ${r.local.timing.frames} frames median ${r.local.timing.medianMs.toFixed(2)} ms, p90 ${r.local.timing.p90Ms.toFixed(2)} ms; engine (verify.detect, 1 thread) ${fmt(engineLocal)}`,
+    );
   } else {
     console.log(
       `960x720 donut frames, preset default; ${repeats} frames each, in turns (after ${WARM} warm-up each); wall ${((Date.now() - t0) / 1000).toFixed(1)} s`,

@@ -36,12 +36,13 @@ import numpy as np
 from omninav.extract import Extractor
 from omninav.lens import Catadioptric
 from omninav.presets import FEATURE_KEYS, TWO_BANDS, resolve, settings_id
-from omninav.spectrum import encode_binary
+from omninav.spectrum import encode_binary, encode_local
 from omninav.synth import QUERY, donut_lens, equirect_lens
 from omninav.synth.clipon import REAL_MIRROR_SENSOR
 from omninav.synth.scene import build_scene
 from omninav.synth.walks import Perturb, Pose, render_frames
 from omninav.unwarp import unwarp
+from omninav.verify import detect, grey_panorama, panorama_map
 
 # poses in the small synthetic layout (scene.py): corridor points, headings all round
 POSES = [Pose(0.0, 6.0, 2.0, 30.0), Pose(0.1, 14.5, 2.2, 200.0), Pose(0.2, 20.0, 8.0, 300.0)]
@@ -78,6 +79,34 @@ def _case(out: Path, name: str, lens, preset: str, frames: list[np.ndarray], ove
     }
 
 
+LOCAL_FEATURES = 900  # the `verified` preset's
+
+
+def _local_case(out: Path, name: str, lens, frames: list[np.ndarray], rgba: str) -> dict:
+    """The engine's local features of each frame (verify.py): the panorama's remap (NAME.localmap:
+    x then y, float32), each frame's grey panorama (STEM.lgrey) and its keypoints as a record's
+    local block (STEM.local, docs/formats.md). The frames are those of the golden case `rgba`."""
+    pm = panorama_map(lens)
+    (out / f"{name}.localmap").write_bytes(
+        pm.remap.map_x.astype("<f4").tobytes() + pm.remap.map_y.astype("<f4").tobytes()
+    )
+    stems = []
+    for i, bgr in enumerate(frames):
+        stem = f"{name}-{i}"
+        (out / f"{stem}.lgrey").write_bytes(grey_panorama(bgr, pm).tobytes())
+        (out / f"{stem}.local").write_bytes(encode_local(detect(bgr, lens, LOCAL_FEATURES)))
+        stems.append({"stem": stem, "rgba": f"{rgba}-{i}"})
+    rows, cols = pm.remap.map_x.shape
+    return {
+        "name": name,
+        "lens": lens.to_dict(),
+        "n_features": LOCAL_FEATURES,
+        "shape": [rows, cols],
+        "el": [float(pm.el[0]), float(pm.el[-1])],
+        "frames": stems,
+    }
+
+
 LOOK = replace(QUERY, people=0, lateral_m=0.0)  # a colour cast, gain, tilt and noise, as a phone sees
 
 
@@ -107,7 +136,11 @@ def golden(out: Path) -> None:
         # decentring, lens.json's `sensor`), read on the same frames: the phone's sums are the engine's
         _case(out, "donut-sensor", replace(donut, sensor=REAL_MIRROR_SENSOR), "default", [dframes[0], tilted[0]]),
     ]
-    (out / "golden.json").write_text(json.dumps({"cases": cases}, indent=1))
+    local = [
+        _local_case(out, "local-donut", donut, dframes, "donut-default"),
+        _local_case(out, "local-equirect", eq, eframes, "equirect-default"),
+    ]
+    (out / "golden.json").write_text(json.dumps({"cases": cases, "local": local}, indent=1))
     ring_golden(out, dframes)
 
 

@@ -4,7 +4,7 @@ import { readFileSync } from 'node:fs';
 import { resolve } from 'node:path';
 import { expect, test } from '@playwright/test';
 import type { SelfTestResult } from '../web/src/client/selftest';
-import { recordFrame, relativeError } from '../web/src/shared/record';
+import { localBlock, recordFrame, relativeError } from '../web/src/shared/record';
 import { GOLDEN, base } from './env';
 
 test("the browser extracts the engine's records (relative error <= 1e-3) and its curves", async ({ page }) => {
@@ -38,5 +38,31 @@ test("the browser extracts the engine's records (relative error <= 1e-3) and its
   test.info().annotations.push({
     type: 'extraction',
     description: `${r.timing.medianMs.toFixed(1)} ms median per 960x720 frame`,
+  });
+  // local features (worker/local.ts): of the engine's keypoints, the share the browser finds alike
+  // (a unit of bearing, the same descriptor); opencv.js's ORB picks its last few otherwise at ties
+  expect(r.local.frames.map((f) => f.stem)).toEqual([
+    'local-donut-0',
+    'local-donut-1',
+    'local-donut-2',
+    'local-equirect-0',
+  ]);
+  for (const f of r.local.frames) {
+    const w = localBlock(new Uint8Array(readFileSync(resolve(GOLDEN, `${f.stem}.local`))));
+    let same = 0;
+    for (let i = 0; i < w.az.length; i++) {
+      let hit = false;
+      for (let j = 0; j < f.az.length && !hit; j++)
+        hit =
+          Math.abs(f.az[j] - w.az[i]) <= 1 &&
+          Math.abs(f.el[j] - w.el[i]) <= 1 &&
+          w.desc.subarray(32 * i, 32 * i + 32).every((b, k) => b === f.desc[32 * j + k]);
+      same += hit ? 1 : 0;
+    }
+    expect(same / w.az.length, `${f.stem}: the engine's keypoints found alike`).toBeGreaterThan(0.95);
+  }
+  test.info().annotations.push({
+    type: 'local features',
+    description: `${r.local.timing.medianMs.toFixed(1)} ms median, p90 ${r.local.timing.p90Ms.toFixed(1)} ms per 960x720 donut frame`,
   });
 });

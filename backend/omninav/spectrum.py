@@ -101,10 +101,14 @@ def encode_binary(spec: np.ndarray, conf: dict[str, Any], local: LocalQuery | No
     ver = RECORD_VERSION if local is None else LOCAL_VERSION
     head = _HEADER.pack(MAGIC, ver, c, k, conf["pano_width"], f, settings_id(conf))
     body = head + mag.astype("<f2").tobytes() + ph.astype("<i2").tobytes()
-    if local is None:
-        return body
+    return body if local is None else body + encode_local(local)
+
+
+def encode_local(local: LocalQuery) -> bytes:
+    """(N, 3) unit bearings and (N, 32) ORB descriptors -> a version-2 record's local block (the
+    first MAX_LOCAL_KEYPOINTS kept)."""
     az, el, desc = _local_units(*local)
-    return body + _LOCAL_HEAD.pack(LOCAL_MAGIC, 0, len(az)) + az.tobytes() + el.tobytes() + desc.tobytes()
+    return _LOCAL_HEAD.pack(LOCAL_MAGIC, 0, len(az)) + az.tobytes() + el.tobytes() + desc.tobytes()
 
 
 def bearing_vectors(az_deg: np.ndarray, el_deg: np.ndarray) -> np.ndarray:

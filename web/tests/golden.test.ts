@@ -1,17 +1,22 @@
 // The TypeScript extractor (with the same opencv.js as the browser, here in Node) against the
-// engine's golden files, stage by stage: panorama bytes, curves, and the record.
+// engine's golden files, stage by stage: panorama bytes, curves, and the record; and the local
+// features (worker/local.ts against verify.py): the map, the grey panorama, the keypoints.
 import { readFileSync } from 'node:fs';
 import { createRequire } from 'node:module';
 import { resolve } from 'node:path';
 import { beforeAll, describe, expect, it } from 'vitest';
 import { Extractor, readyCv, type Cv } from '../src/worker/extract';
+import { LocalDetector, localMap, type LocalCv } from '../src/worker/local';
 import type { Lens } from '../src/shared/lens';
 import type { FeatureSettings } from '../src/shared/settings';
 import {
   HEADER_BYTES,
   encodeRecord,
   fromHalf,
+  MAX_LOCAL_KEYPOINTS,
+  localBlock,
   recordFrame,
+  recordLocal,
   relativeError,
   type FrameSpectrum,
 } from '../src/shared/record';
@@ -26,10 +31,20 @@ interface Case {
   frames: { stem: string }[];
 }
 
+interface LocalCase {
+  name: string;
+  lens: Lens;
+  n_features: number;
+  shape: [number, number];
+  el: [number, number];
+  frames: { stem: string; rgba: string }[];
+}
+
 // made once per run of this file, before its cases are listed (they come from golden.json)
 const GOLDEN = makeGoldens();
 const read = (f: string) => new Uint8Array(readFileSync(resolve(GOLDEN, f)));
-const cases = (): Case[] => JSON.parse(readFileSync(resolve(GOLDEN, 'golden.json'), 'utf8')).cases;
+const golden = () => JSON.parse(readFileSync(resolve(GOLDEN, 'golden.json'), 'utf8'));
+const cases = (): Case[] => golden().cases;
 
 let cv: Cv;
 beforeAll(async () => {
@@ -71,4 +86,78 @@ describe('golden parity with the Python engine', () => {
       ext.delete();
     });
   }
+});
+
+describe('local features: parity with the engine (verify.py)', () => {
+  for (const c of golden().local as LocalCase[]) {
+    it(`${c.name}: the map, the grey panorama and the keypoints match`, () => {
+      const [rows, cols] = c.shape;
+      const m = localMap(c.lens)!;
+      expect([m.rows, m.cols, m.elTop, m.elBottom]).toEqual([rows, cols, ...c.el]);
+      const want = new Float32Array(read(`${c.name}.localmap`).buffer.slice(0));
+      let d = 0;
+      for (let i = 0; i < rows * cols; i++)
+        d = Math.max(d, Math.abs(m.mapX[i] - want[i]), Math.abs(m.mapY[i] - want[rows * cols + i]));
+      expect(d, 'remap tables (px)').toBeLessThan(1e-3);
+      const det = new LocalDetector(cv as unknown as LocalCv, c.lens, c.n_features);
+      try {
+        for (const { stem, rgba } of c.frames) {
+          const frame = read(`${rgba}.rgba`);
+          const grey = det.grey(frame);
+          const wg = read(`${stem}.lgrey`);
+          let off = 0;
+          for (let i = 0; i < wg.length; i++) off += Math.abs(grey[i] - wg[i]) > 0 ? 1 : 0;
+          expect(grey.length).toBe(wg.length);
+          expect(off / wg.length, `${stem}: grey pixels that differ`).toBeLessThan(1e-3);
+          const got = det.detect(frame);
+          const w = localBlock(read(`${stem}.local`));
+          // both detect the venue's 900 and send the first 880 (ORB's order): what the phone sends,
+          // its record's local block, against the engine's
+          expect(got.az.length).toBe(c.n_features);
+          const spectrum = recordFrame(read('donut-default-0.rec'));
+          const sentNow = recordLocal(encodeRecord([spectrum], cases()[0].settings, 0, got))!;
+          expect(sentNow.az.length).toBe(w.az.length);
+          const alike = (i: number, j: number) =>
+            Math.abs(sentNow.az[j] - w.az[i]) <= 1 &&
+            Math.abs(sentNow.el[j] - w.el[i]) <= 1 &&
+            sentNow.desc.subarray(32 * j, 32 * j + 32).every((b, k) => b === w.desc[32 * i + k]);
+          // each of the engine's keypoints sent by the phone too: the same bearing (within a unit,
+          // a rounding tie) and descriptor (in another order: ORB keeps its best by a partial sort)
+          let same = 0;
+          for (let i = 0; i < w.az.length; i++) {
+            let hit = false;
+            for (let j = 0; j < sentNow.az.length && !hit; j++) hit = alike(i, j);
+            same += hit ? 1 : 0;
+          }
+          expect(same / w.az.length, `${stem}: the engine's keypoints the phone sends alike`).toBeGreaterThan(0.95);
+        }
+      } finally {
+        det.delete();
+      }
+    });
+  }
+
+  it('a version-2 record carries the keypoints as the engine writes them', () => {
+    const c = (golden().local as LocalCase[])[0];
+    const w = read(`${c.frames[0].stem}.local`);
+    const local = localBlock(w);
+    const spectrum = recordFrame(read('donut-default-0.rec'));
+    const s = cases()[0];
+    const rec = encodeRecord([spectrum], s.settings, s.settings_id, local);
+    expect(rec[3]).toBe(2);
+    expect(Array.from(rec.slice(rec.length - w.length))).toEqual(Array.from(w));
+    expect(recordLocal(rec)!.az).toEqual(local.az);
+    expect(recordLocal(encodeRecord([spectrum], s.settings, s.settings_id))).toBeNull();
+    // more than a record holds: the first MAX_LOCAL_KEYPOINTS go, in order
+    const n = MAX_LOCAL_KEYPOINTS + 20;
+    const many = {
+      az: Uint16Array.from({ length: n }, (_, i) => i),
+      el: Int16Array.from({ length: n }, (_, i) => -i),
+      desc: Uint8Array.from({ length: 32 * n }, (_, i) => i >> 5),
+    };
+    const cut = recordLocal(encodeRecord([spectrum], s.settings, s.settings_id, many))!;
+    expect(cut.az).toEqual(many.az.slice(0, MAX_LOCAL_KEYPOINTS));
+    expect(cut.el).toEqual(many.el.slice(0, MAX_LOCAL_KEYPOINTS));
+    expect(cut.desc).toEqual(many.desc.slice(0, 32 * MAX_LOCAL_KEYPOINTS));
+  });
 });

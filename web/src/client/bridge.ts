@@ -1,11 +1,13 @@
 /** The page's side of the feature worker: promises for frames, one worker per page. */
 import type { Lens } from '../shared/lens';
 import type { FeatureSettings } from '../shared/settings';
-import type { FrameSpectrum } from '../shared/record';
+import type { FrameSpectrum, LocalBlock } from '../shared/record';
 import type { FromWorker, LensCheck, Look, ToWorker } from '../shared/protocol';
 
 export interface FrameResult extends FrameSpectrum {
   ms: number;
+  /** Its request's id in the worker (absent from fakes): what `local()` names a frame by. */
+  id?: number;
   /** The frame's look (mean grey, step across the ring's edge): tells an abrupt change. */
   look?: Look;
   pano?: Uint8Array;
@@ -88,7 +90,26 @@ export class ExtractorClient {
   /** One frame (the bitmap is transferred, and closed by the worker). */
   async extract(bitmap: ImageBitmap, keep = false): Promise<FrameResult> {
     const m = await this.request({ type: 'frame', id: this.nextId++, bitmap, keep }, 'features', [bitmap]);
-    return { mag: m.mag, phase: m.phase, ms: m.ms, look: m.look, pano: m.pano, curves: m.curves };
+    return { id: m.id, mag: m.mag, phase: m.phase, ms: m.ms, look: m.look, pano: m.pano, curves: m.curves };
+  }
+
+  /**
+   * Local features wanted from now on, `n` ORB keypoints a frame (0: none): the worker keeps the
+   * last few frames for them and makes its detector ready now (not on a press's path); its time.
+   * Keeps the lens and any correction of it: only `configure` changes those.
+   */
+  async prepareLocal(n: number): Promise<number> {
+    return (await this.request({ type: 'prepare', id: this.nextId++, n }, 'prepared')).ms;
+  }
+
+  /**
+   * The local features of a frame extracted lately (`frame`: its FrameResult's id, one of the last
+   * three extracted; prepareLocal first): its keypoints (none where the lens sees too few rows all
+   * round) and the worker's time for them.
+   */
+  async local(frame: number): Promise<LocalBlock & { ms: number }> {
+    const m = await this.request({ type: 'local', id: this.nextId++, frame }, 'local');
+    return { az: m.az, el: m.el, desc: m.desc, ms: m.ms };
   }
 
   /**

@@ -24,6 +24,12 @@ export interface Prefs {
    * once, for about a tenth of a core the while.
    */
   ready: boolean;
+  /**
+   * Send the keypoints of a clip's last frame where the venue verifies answers with them (a
+   * `verified` venue): surer answers, at the cost of a little more of the scene leaving the phone
+   * (README, Privacy). Off until the user turns it on.
+   */
+  keypoints: boolean;
 }
 
 const KEY = 'omninav.prefs';
@@ -38,6 +44,7 @@ export const DEFAULTS: Prefs = {
   interval: 3,
   myLens: null,
   ready: true,
+  keypoints: false,
 };
 
 export function loadPrefs(): Prefs {

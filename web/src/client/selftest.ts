@@ -15,8 +15,21 @@ interface Case {
   frames: { stem: string }[];
 }
 
+/** A golden frame's local features as the engine made them (e2e/fixtures.py `_local_case`). */
+interface LocalCase {
+  name: string;
+  lens: Lens;
+  n_features: number;
+  frames: { stem: string; rgba: string }[];
+}
+
 export interface SelfTestResult {
   loadMs: number;
+  /** Each golden frame's local features from the worker, and their timing on the donut frames. */
+  local: {
+    frames: { stem: string; az: number[]; el: number[]; desc: number[]; ms: number }[];
+    timing: { frames: number; medianMs: number; p90Ms: number };
+  };
   cases: { name: string; frames: { stem: string; mag: number[]; phase: number[]; curves: number[]; ms: number }[] }[];
   timing: { frames: number; medianMs: number; p90Ms: number; width: number; height: number };
 }
@@ -34,10 +47,12 @@ async function bitmap(url: string): Promise<ImageBitmap> {
 }
 
 async function run(base: string, repeats: number): Promise<SelfTestResult> {
-  const cases: Case[] = (await (await fetch(`${base}/golden.json`)).json()).cases;
+  const golden = await (await fetch(`${base}/golden.json`)).json();
+  const cases: Case[] = golden.cases;
   const ext = new ExtractorClient();
   const out: SelfTestResult = {
     loadMs: 0,
+    local: { frames: [], timing: { frames: 0, medianMs: 0, p90Ms: 0 } },
     cases: [],
     timing: { frames: 0, medianMs: 0, p90Ms: 0, width: 0, height: 0 },
   };
@@ -70,6 +85,7 @@ async function run(base: string, repeats: number): Promise<SelfTestResult> {
     ms.push(r.ms);
   }
   ms.sort((a, b) => a - b);
+  out.local = await local(ext, base, golden.local ?? [], cases, repeats);
   out.timing = {
     frames: ms.length,
     medianMs: ms[ms.length >> 1],
@@ -80,6 +96,48 @@ async function run(base: string, repeats: number): Promise<SelfTestResult> {
   return out;
 }
 
+/**
+ * The local features of each golden frame (extracted first: the worker takes them of the last
+ * frame it extracted), then their time on the donut frames, `repeats` times in turn.
+ */
+async function local(
+  ext: ExtractorClient,
+  base: string,
+  lcases: LocalCase[],
+  cases: Case[],
+  repeats: number,
+): Promise<SelfTestResult['local']> {
+  const frames = [];
+  const ms: number[] = [];
+  for (const lc of lcases) {
+    await ext.configure(lc.lens, cases[0].settings);
+    await ext.prepareLocal(lc.n_features);
+    for (const f of lc.frames) {
+      const fr = await ext.extract(await bitmap(`${base}/${f.rgba}.png`));
+      const r = await ext.local(fr.id!);
+      frames.push({ stem: f.stem, az: Array.from(r.az), el: Array.from(r.el), desc: Array.from(r.desc), ms: r.ms });
+    }
+  }
+  const lc = lcases[0];
+  if (lc) {
+    await ext.configure(lc.lens, cases[0].settings);
+    await ext.prepareLocal(lc.n_features); // the detector made here, not in the first timed frame
+    const bms = await Promise.all(lc.frames.map((f) => bitmap(`${base}/${f.rgba}.png`)));
+    const canvas = new OffscreenCanvas(bms[0].width, bms[0].height);
+    const cx = canvas.getContext('2d')!;
+    for (let i = 0; i < repeats; i++) {
+      cx.drawImage(bms[i % bms.length], 0, 0); // extract() takes its bitmap: a fresh one each time
+      const fr = await ext.extract(await createImageBitmap(canvas));
+      ms.push((await ext.local(fr.id!)).ms);
+    }
+  }
+  ms.sort((a, b) => a - b);
+  return {
+    frames,
+    timing: { frames: ms.length, medianMs: ms[ms.length >> 1] ?? 0, p90Ms: ms[Math.floor(ms.length * 0.9)] ?? 0 },
+  };
+}
+
 const params = new URLSearchParams(location.search);
 const golden = params.get('golden');
 const el = document.getElementById('result')!;
@@ -87,7 +145,9 @@ if (golden) {
   window.selftest = run(golden.replace(/\/golden\.json$/, ''), Number(params.get('repeats') ?? 60));
   window.selftest.then(
     (r) =>
-      (el.textContent = `Done: extraction ${r.timing.medianMs.toFixed(1)} ms per ${r.timing.width}x${r.timing.height} frame (median of ${r.timing.frames}).`),
+      (el.textContent =
+        `Done: extraction ${r.timing.medianMs.toFixed(1)} ms per ${r.timing.width}x${r.timing.height} frame ` +
+        `(median of ${r.timing.frames}); local features ${r.local.timing.medianMs.toFixed(1)} ms a frame.`),
     (e) => (el.textContent = `Failed: ${e}`),
   );
 } else {

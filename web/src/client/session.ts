@@ -36,7 +36,7 @@ import { LensWatch, checkLensOn, lensWords, phoneStorage } from './lenscheck';
 import type { Motion, MotionFeed, MotionReading } from './motion';
 import type { Lens } from '../shared/lens';
 import type { LensCheck } from '../shared/protocol';
-import { encodeRecord, recordMismatch, unknownFeatureKeys } from '../shared/record';
+import { encodeRecord, recordMismatch, unknownFeatureKeys, type LocalBlock } from '../shared/record';
 import type { Prefs } from './prefs';
 import { NO_FRAMES, NO_LENS, RecordMismatch, mapUpdated, problemText, staleOrNot } from './problems';
 import type { Cue } from './speech';
@@ -80,6 +80,9 @@ const RECHECK_MS = 500;
 const REFILM_PX = 1;
 /** How often a turn of "Keep telling me" looks again while a sentence is still being spoken. */
 const BUSY_POLL_MS = 500;
+/** On the venue line of a venue that checks answers with keypoints the user has not allowed. */
+export const VERIFY_HINT =
+  'This building can double-check answers if you turn on Send keypoints in Settings; that sends a little more about what your camera sees.';
 /** The name the user's own lens profile is offered under, beside the venue's. */
 export const MY_LENS = 'my lens';
 
@@ -144,6 +147,9 @@ export interface Located {
   kept: boolean;
   /** The worker's share of the time while standing by (0-1), or null (no standby yet). */
   duty: number | null;
+  /** Keypoints sent with the clip's last frame (a verifying venue, allowed in Settings), and their time in the worker. */
+  keypoints?: number | null;
+  keypointMs?: number;
 }
 
 export interface SessionEvents {
@@ -254,6 +260,8 @@ export class Session extends Emitter<SessionEvents> {
    * answered, since one films at a time (read by located() and by "Keep telling me").
    */
   private lastKept = false;
+  /** The keypoints a frame the worker was last told are wanted (prepareLocal; -1: its telling failed). */
+  private localPrepared = 0;
 
   constructor(private readonly o: SessionOptions) {
     super();
@@ -288,6 +296,11 @@ export class Session extends Emitter<SessionEvents> {
     if (key === 'venue') {
       this.venue = null;
       void this.loadVenue();
+    } else if (key === 'keypoints' && this.venue) {
+      this.setLine(this.lineOf(this.venue)); // the hint comes or goes
+      // the worker readied for them (or let go of them) now, not on the next press; the lens and
+      // its correction stay as they are
+      if (this.ext) void this.prepareLocal(this.ext, this.venue);
     }
   }
 
@@ -333,24 +346,65 @@ export class Session extends Emitter<SessionEvents> {
       const lens = this.chosenLens(v);
       this.emit('lenses', { names: Object.keys(this.lensesOf(v)), chosen: lens?.[0] ?? '' });
       const missing = want && want !== id ? `This server has no venue “${want}”; showing ${v.name} instead. ` : '';
-      const mismatch = mismatchOf(v); // shown now on the venue line, not only when the user asks
-      this.setLine(
-        missing +
-          (!v.modelled
-            ? `Venue: ${v.name}. Not modelled yet.`
-            : mismatch
-              ? `Venue: ${v.name}. ${mismatch.message}`
-              : `Venue: ${v.name}. Ready (${v.frames} modelled frames).`),
-      );
+      this.setLine(missing + this.lineOf(v));
       if (lens) {
         this.ext ??= new ExtractorClient();
-        this.ext.configure(lens[1], v.features.settings).catch(() => undefined); // warm up; errors surface on use
+        // warm up (errors surface on use); the keypoints' detector too, so the standby keeps frames for them
+        const ext = this.ext;
+        ext
+          .configure(lens[1], v.features.settings)
+          .then(() => this.prepareLocal(ext, v))
+          .catch(() => undefined);
       }
       this.emit('venue', v);
       return v;
     } catch (e) {
       return this.setLine(e instanceof Unreachable ? UNREACHABLE : `The venue did not load: ${(e as Error).message}`);
     }
+  }
+
+  /** The venue line of a loaded venue: its name and state, or why this app cannot use it. */
+  private lineOf(v: Venue): string {
+    const mismatch = mismatchOf(v); // shown now on the venue line, not only when the user asks
+    if (!v.modelled) return `Venue: ${v.name}. Not modelled yet.`;
+    if (mismatch) return `Venue: ${v.name}. ${mismatch.message}`;
+    return `Venue: ${v.name}. Ready (${v.frames} modelled frames).${this.verifyHint(v)}`;
+  }
+
+  /**
+   * The ORB keypoints to send with a single request's last frame: the venue's count where it
+   * verifies answers with them and the user allowed it (Settings), else 0.
+   */
+  keypointsFor(v: Venue): number {
+    return this.prefs.keypoints === true ? (v.features.settings.local_features ?? 0) : 0;
+  }
+
+  /**
+   * The worker told how many keypoints a frame are wanted now (keypointsFor), when that changed:
+   * it keeps its last frames and a detector only while some are. A failure leaves the curves to
+   * answer (and is tried again at the next request).
+   */
+  private async prepareLocal(ext: ExtractorClient, v: Venue): Promise<void> {
+    const n = this.keypointsFor(v);
+    if (n === this.localPrepared) return;
+    this.localPrepared = n;
+    await ext.prepareLocal(n).catch(() => (this.localPrepared = -1));
+  }
+
+  /** Said on the venue line where the venue could check answers and the user has not allowed it. */
+  private verifyHint(v: Venue): string {
+    return v.features.settings.local_features && this.prefs.keypoints !== true ? ` ${VERIFY_HINT}` : '';
+  }
+
+  /**
+   * The keypoints of a clip's last frame where they are to be sent now (keypointsFor: the setting
+   * is read at each request, so turning it off stops the very next one), else null. The worker
+   * keeps the last few frames it extracted: asked as soon as the clip is complete. A failure
+   * leaves the curves to answer alone.
+   */
+  private keypoints(ext: ExtractorClient, v: Venue, clip: Clip): Promise<(LocalBlock & { ms: number }) | null> {
+    const last = clip.frames[clip.frames.length - 1]?.id;
+    return this.keypointsFor(v) && last !== undefined ? ext.local(last).catch(() => null) : Promise.resolve(null);
   }
 
   private setLine(text: string): null {
@@ -372,7 +426,7 @@ export class Session extends Emitter<SessionEvents> {
     const lens = this.chosenLens(v);
     if (!lens) throw new ApiProblem(422, NO_LENS);
     const ext = (this.ext ??= new ExtractorClient());
-    const configured = ext.configure(lens[1], v.features.settings);
+    const configured = ext.configure(lens[1], v.features.settings).then(() => this.prepareLocal(ext, v));
     const video = this.o.video;
     // a stream ends when the phone locks or another app takes the camera: open it again
     if (this.stream?.getVideoTracks().every((t) => t.readyState === 'ended')) this.stream = null;
@@ -504,12 +558,15 @@ export class Session extends Emitter<SessionEvents> {
       const { v, ext } = r;
       voice.cue('start');
       let clip = await this.firstClip(r);
-      let record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id);
+      // the keypoints of the clip's last frame: asked before the worker is given the next one
+      const first = this.keypoints(ext, v, clip);
       // film on while the first second is answered: an unsure answer then needs no gap in the clip
       const more = { stopped: false };
       filming = this.filming = more;
       const rest = captureClip(video, ext, MORE_FRAMES, CLIP_INTERVAL_MS, () => more.stopped, clip);
       rest.catch(() => undefined); // a failure matters only when the frames are used (filmMore)
+      let local = await first;
+      let record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id, local);
       const ask = (): Promise<Answer> =>
         locate(v.id, record, clip.fps, `web-${Date.now()}`).catch((e: unknown) => {
           throw staleOrNot(e, v.features.settings_id);
@@ -520,7 +577,11 @@ export class Session extends Emitter<SessionEvents> {
         if (!marked) mark('answer');
         marked = true;
         this.lastAnswer = a;
-        this.emit('answer', this.located(a, r, clip, record.length, rttMs));
+        this.emit('answer', {
+          ...this.located(a, r, clip, record.length, rttMs),
+          keypoints: local ? local.az.length : null,
+          keypointMs: local?.ms,
+        });
         this.tell(a, v, quiet, false);
       };
       let t0 = performance.now();
@@ -538,7 +599,8 @@ export class Session extends Emitter<SessionEvents> {
       const longer = await this.filmMore(clip, rest, more, !probable);
       if (!longer) return; // stopped: nothing sent, nothing more said
       clip = longer;
-      record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id);
+      local = await this.keypoints(ext, v, clip); // of the longer clip's last frame
+      record = encodeRecord(clip.frames, v.features.settings, v.features.settings_id, local);
       t0 = performance.now();
       const b = await ask();
       // not sure after a "probably" is no news: it would take back the place the user just heard

@@ -2,6 +2,7 @@
 import type { Lens } from './lens';
 import type { FeatureSettings } from './settings';
 import type { Ring, Verdict } from '../worker/ring';
+import type { LocalBlock } from './record';
 
 /**
  * Two cheap numbers per frame that tell an abrupt change of the picture (the lens clipped off or
@@ -41,7 +42,11 @@ export type ToWorker =
   /** One camera frame; `keep` returns the panorama and curves too (self-test only). */
   | { type: 'frame'; id: number; bitmap: ImageBitmap; keep?: boolean }
   /** A few camera frames: find the ring in each, compare with the profile, use the corrected one. */
-  | { type: 'lens'; id: number; bitmaps: ImageBitmap[] };
+  | { type: 'lens'; id: number; bitmaps: ImageBitmap[] }
+  /** From now on keep frames for local features, `n` ORB keypoints (0: none), the detector made ready now. */
+  | { type: 'prepare'; id: number; n: number }
+  /** The local features of a frame extracted lately (`frame`: its 'frame' request's id; worker/local.ts). */
+  | { type: 'local'; id: number; frame: number };
 
 export type FromWorker =
   | { type: 'ready'; id: number; loadMs: number }
@@ -56,4 +61,6 @@ export type FromWorker =
       curves?: Float32Array;
     }
   | { type: 'lens'; id: number; check: LensCheck }
+  | ({ type: 'local'; id: number; ms: number } & LocalBlock)
+  | { type: 'prepared'; id: number; ms: number }
   | { type: 'error'; id?: number; message: string };

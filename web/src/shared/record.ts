@@ -1,10 +1,29 @@
 /**
- * The compact feature record the phone sends (the engine's spectrum.py, record version 1).
- * Magnitudes travel as float16, phases as int16 steps of 2*pi/65536: 4 bytes per harmonic.
+ * The compact feature record the phone sends (the engine's spectrum.py): version 1, the curves;
+ * version 2, the curves and one frame's local features (docs/formats.md). Magnitudes travel as
+ * float16, phases as int16 steps of 2*pi/65536: 4 bytes per harmonic.
  */
 import { KNOWN_FEATURE_KEYS, nCurves, type FeatureSettings, type VenueFeatures } from './settings';
 
 export const RECORD_VERSION = 1;
+/** A record with a local block after its phases. */
+export const LOCAL_VERSION = 2;
+/** Degrees a unit of a keypoint's azimuth (uint16) and of its elevation (int16). */
+export const AZ_STEP_DEG = 360 / 65536;
+export const EL_STEP_DEG = 0.01;
+/** The local block: "LOC", a zero byte, uint32 N; then N uint16 azimuths, N int16 elevations, N x 32 descriptor bytes. */
+export const LOCAL_HEAD_BYTES = 8;
+export const LOCAL_BYTES_PER_KEYPOINT = 2 + 2 + 32;
+/** 8 + 36 x 880 = 31,688 bytes: a request's local features within 32 KB (the server refuses more). */
+export const MAX_LOCAL_KEYPOINTS = 880;
+
+/** One frame's local features, in the record's units (worker/local.ts makes them). */
+export interface LocalBlock {
+  az: Uint16Array;
+  el: Int16Array;
+  /** N x 32 ORB descriptor bytes */
+  desc: Uint8Array;
+}
 
 /**
  * The version-1 header, field by field, in the engine's order (spectrum.py's struct `<3sBHHHII2x`,
@@ -119,14 +138,24 @@ export function dequantise(s: FrameSpectrum): { re: Float64Array; im: Float64Arr
   return { re, im };
 }
 
-/** Frames -> the version-1 binary record: the header (HEADER_FIELDS), then all magnitudes, then all phases. */
-export function encodeRecord(frames: FrameSpectrum[], s: FeatureSettings, settingsId: number): Uint8Array {
+/**
+ * Frames -> the binary record: the header (HEADER_FIELDS), then all magnitudes, then all phases;
+ * with `local`, version 2 and its local block after the phases (the first MAX_LOCAL_KEYPOINTS).
+ */
+export function encodeRecord(
+  frames: FrameSpectrum[],
+  s: FeatureSettings,
+  settingsId: number,
+  local?: LocalBlock | null,
+): Uint8Array {
   if (!frames.length) throw new Error('a record needs at least one frame');
   const ck = frames[0].mag.length;
-  const out = new Uint8Array(HEADER_BYTES + BYTES_PER_HARMONIC * ck * frames.length);
+  const n = local ? Math.min(local.az.length, MAX_LOCAL_KEYPOINTS) : 0;
+  const curves = HEADER_BYTES + BYTES_PER_HARMONIC * ck * frames.length;
+  const out = new Uint8Array(curves + (local ? LOCAL_HEAD_BYTES + LOCAL_BYTES_PER_KEYPOINT * n : 0));
   const dv = new DataView(out.buffer);
   out.set([0x4f, 0x4e, 0x56], HEADER_AT.magic); // "ONV"
-  dv.setUint8(HEADER_AT.version, RECORD_VERSION);
+  dv.setUint8(HEADER_AT.version, local ? LOCAL_VERSION : RECORD_VERSION);
   dv.setUint16(HEADER_AT.curves, nCurves(s), true);
   dv.setUint16(HEADER_AT.harmonics, s.n_harmonics, true);
   dv.setUint16(HEADER_AT.pano_width, s.pano_width, true);
@@ -135,7 +164,37 @@ export function encodeRecord(frames: FrameSpectrum[], s: FeatureSettings, settin
   let o = HEADER_BYTES;
   for (const f of frames) for (const m of f.mag) (dv.setUint16(o, m, true), (o += 2));
   for (const f of frames) for (const p of f.phase) (dv.setInt16(o, p, true), (o += 2));
+  if (local) {
+    out.set([0x4c, 0x4f, 0x43, 0], o); // "LOC", a zero byte
+    dv.setUint32(o + 4, n, true);
+    o += LOCAL_HEAD_BYTES;
+    for (let i = 0; i < n; i++) dv.setUint16(o + 2 * i, local.az[i], true);
+    for (let i = 0; i < n; i++) dv.setInt16(o + 2 * n + 2 * i, local.el[i], true);
+    out.set(local.desc.subarray(0, 32 * n), o + 4 * n);
+  }
   return out;
+}
+
+/** The local block of a version-2 record (the checks are the server's; this trusts the record), or null. */
+export function recordLocal(rec: Uint8Array): LocalBlock | null {
+  const dv = new DataView(rec.buffer, rec.byteOffset, rec.byteLength);
+  if (dv.getUint8(HEADER_AT.version) !== LOCAL_VERSION) return null;
+  const ck = dv.getUint16(HEADER_AT.curves, true) * dv.getUint16(HEADER_AT.harmonics, true);
+  return localBlock(rec.subarray(HEADER_BYTES + BYTES_PER_HARMONIC * ck * dv.getUint32(HEADER_AT.frames, true)));
+}
+
+/** A local block's bytes (its head first) -> its keypoints. */
+export function localBlock(b: Uint8Array): LocalBlock {
+  const dv = new DataView(b.buffer, b.byteOffset, b.byteLength);
+  const n = dv.getUint32(4, true);
+  const o = LOCAL_HEAD_BYTES;
+  const az = new Uint16Array(n);
+  const el = new Int16Array(n);
+  for (let i = 0; i < n; i++) {
+    az[i] = dv.getUint16(o + 2 * i, true);
+    el[i] = dv.getInt16(o + 2 * n + 2 * i, true);
+  }
+  return { az, el, desc: b.slice(o + 4 * n, o + 4 * n + 32 * n) };
 }
 
 /** One frame's spectrum out of a binary record (the checks are the server's; this trusts the record). */

@@ -13,6 +13,12 @@ export interface FeatureSettings {
   band_channels?: string[][] | null;
   /** passes of levelling (the lens's tilt from the picture's upright edges, worker/level.ts); absent, null or 0: off */
   level_iters?: number | null;
+  /**
+   * ORB keypoints a modelled frame keeps (the `verified` preset's 900): the venue verifies clips
+   * that bring their last frame's (worker/local.ts); absent or null: it does not. Not a feature
+   * key: the curves do not depend on it.
+   */
+  local_features?: number | null;
 }
 
 /**

@@ -7,6 +7,7 @@
 import cvModule from '@techstark/opencv-js';
 import { Extractor, readyCv, type Cv } from './extract';
 import { findRingFrame, fitLens, lookOf, medianRing, type RingCv } from './ring';
+import { LocalDetector, type LocalCv } from './local';
 import type { Lens } from '../shared/lens';
 import type { FeatureSettings } from '../shared/settings';
 import type { FromWorker, LensCheck, ToWorker } from '../shared/protocol';
@@ -22,6 +23,16 @@ let ext: Extractor | null = null;
 let base: { lens: Lens; settings: FeatureSettings } | null = null;
 let canvas: OffscreenCanvas | null = null;
 let ctx: OffscreenCanvasRenderingContext2D | null = null;
+/**
+ * Local features (worker/local.ts), once the page asked for them (`prepare`): the ORB keypoints
+ * wanted (0: none, and no frame is kept), the detector for the profile in use, and the pixels of
+ * the last KEPT_FRAMES frames extracted by their request's id: the standby ring's last frame may be
+ * followed by the frames still in flight when it was taken (standby.ts's IN_FLIGHT, 2).
+ */
+let wanted = 0;
+let detector: LocalDetector | null = null;
+const recent = new Map<number, Uint8ClampedArray>();
+const KEPT_FRAMES = 3;
 
 /** How far profile `b` is from `a`, in pixels: the centre or a radius, whichever moved most (Infinity: another model). */
 function profileMoved(a: Lens, b: Lens): number {
@@ -40,6 +51,8 @@ async function init(m: Extract<ToWorker, { type: 'init' }>): Promise<void> {
   ext?.delete();
   ext = new Extractor(cv, m.lens, m.settings);
   base = { lens: m.lens, settings: m.settings };
+  recent.clear();
+  if (wanted) tryDetector(); // keypoints through the new profile too
   const [w, h] = m.lens.image_size;
   canvas = new OffscreenCanvas(w, h);
   // willReadFrequently keeps the canvas in CPU memory: getImageData every frame is then cheap
@@ -60,6 +73,10 @@ function frame(m: Extract<ToWorker, { type: 'frame' }>): void {
   try {
     const px = pixels(m.bitmap);
     const out = ext!.extract(px, m.keep);
+    if (wanted) {
+      recent.set(m.id, px); // the canvas's fresh copy: nothing is copied to keep it
+      if (recent.size > KEPT_FRAMES) recent.delete(recent.keys().next().value!);
+    }
     const look = lookOf(px, canvas!.width, canvas!.height, ext!.lens);
     const { mag, phase } = out.spectrum;
     const transfer: Transferable[] = [mag.buffer, phase.buffer];
@@ -115,6 +132,7 @@ function lens(m: Extract<ToWorker, { type: 'lens' }>): void {
         changed_px = profileMoved(ext!.lens, want);
         ext!.delete();
         ext = new Extractor(cv!, want, base!.settings);
+        if (wanted) tryDetector(); // keypoints through the corrected profile too
       }
       check = { ...fit, ring, ms, changed_px };
     }
@@ -127,10 +145,65 @@ function lens(m: Extract<ToWorker, { type: 'lens' }>): void {
   }
 }
 
+/** The detector for the extractor's profile (a lens check may have corrected it) and `wanted` keypoints, made ready. */
+function localDetector(): LocalDetector {
+  if (!detector || detector.lens !== ext!.lens || detector.nFeatures !== wanted) {
+    detector?.delete();
+    detector = null;
+    detector = new LocalDetector(cv as unknown as LocalCv, ext!.lens, wanted);
+    detector.prepare();
+  }
+  return detector;
+}
+
+/** localDetector() where a failure must not stop the curves (an init, a lens check): the next `local` says it. */
+function tryDetector(): void {
+  try {
+    localDetector();
+  } catch {
+    // the curves go on; the page's `local` request gets the error and sends the curves alone
+  }
+}
+
+/** Keypoints wanted from now on (0: none): the detector made ready now, off a press's path. */
+function prepare(m: Extract<ToWorker, { type: 'prepare' }>): void {
+  const start = performance.now();
+  try {
+    wanted = m.n;
+    if (!wanted) {
+      detector?.delete();
+      detector = null;
+      recent.clear();
+    } else if (ext && cv) localDetector();
+    post({ type: 'prepared', id: m.id, ms: performance.now() - start });
+  } catch (e) {
+    post({ type: 'error', id: m.id, message: e instanceof Error ? e.message : String(e) });
+  }
+}
+
+/**
+ * The local features of frame `m.frame` (the id of its extraction request) if it is one of the last
+ * KEPT_FRAMES extracted, through the profile in use; asked for with `wanted` set by `prepare`.
+ */
+function local(m: Extract<ToWorker, { type: 'local' }>): void {
+  try {
+    const px = recent.get(m.frame);
+    if (!ext || !cv || !wanted) throw new Error('local features were not asked for (prepare) before this frame');
+    if (!px) throw new Error(`frame ${m.frame} is not one of the last ${KEPT_FRAMES} extracted`);
+    const start = performance.now();
+    const { az, el, desc } = localDetector().detect(px);
+    post({ type: 'local', id: m.id, az, el, desc, ms: performance.now() - start }, [az.buffer, el.buffer, desc.buffer]);
+  } catch (e) {
+    post({ type: 'error', id: m.id, message: e instanceof Error ? e.message : String(e) });
+  }
+}
+
 self.onmessage = (ev: MessageEvent<ToWorker>) => {
   const m = ev.data;
   if (m.type === 'init')
     init(m).catch((e) => post({ type: 'error', id: m.id, message: `the feature extractor did not start: ${e}` }));
   else if (m.type === 'frame') frame(m);
   else if (m.type === 'lens') lens(m);
+  else if (m.type === 'local') local(m);
+  else if (m.type === 'prepare') prepare(m);
 };

@@ -5,7 +5,7 @@
 import type { Venue } from '../api';
 import type { Answer } from '../directions';
 import { byId, facts } from '../dom';
-import { HEADER_BYTES } from '../../shared/record';
+import { HEADER_BYTES, LOCAL_BYTES_PER_KEYPOINT, LOCAL_HEAD_BYTES, MAX_LOCAL_KEYPOINTS } from '../../shared/record';
 import type { Session } from '../session';
 import type { Speaker } from '../speech';
 import { PlanView } from '../views/plan';
@@ -66,9 +66,17 @@ export function locateScreen(session: Session, speaker: Speaker): void {
     const c = r.lensCheck;
     // what the phone's lens check found (the ring in the camera's frames against the profile)
     const lensRow: [string, string][] = c ? [['Lens check', `${c.message} (${c.ms.toFixed(0)} ms per frame)`]] : [];
+    // the keypoints of the last frame, where sent (record.ts's local block), are not the curves'
+    const k = Math.min(r.keypoints ?? 0, MAX_LOCAL_KEYPOINTS);
+    const localBytes = r.keypoints != null ? LOCAL_HEAD_BYTES + LOCAL_BYTES_PER_KEYPOINT * k : 0;
+    const keypointRow: [string, string][] =
+      r.keypoints != null
+        ? [['Keypoints', `${k} of the last frame, ${localBytes} bytes, ${(r.keypointMs ?? 0).toFixed(0)} ms`]]
+        : [];
     facts(debugFacts, [
       ['Sent', `features only: ${r.recordBytes} bytes for ${r.frames} frames`],
-      ['Bytes per frame', String((r.recordBytes - HEADER_BYTES) / r.frames)],
+      ['Bytes per frame', String((r.recordBytes - HEADER_BYTES - localBytes) / r.frames)],
+      ...keypointRow,
       ['Camera', `${r.camera[0]} x ${r.camera[1]}, lens ${r.lens}, ${r.fps.toFixed(1)} frames/s`],
       ['Extraction', `${r.medianMs.toFixed(1)} ms per frame (median)`],
       ['Server round trip', `${r.rttMs.toFixed(0)} ms`],

@@ -1,7 +1,7 @@
 /**
  * The settings screen: venue, lens profile (or the user's own), direction style, who reads the
  * answers aloud (the app or the user's screen reader), the app's speech rate and voice, vibration,
- * interval. Each control edits one preference through one table; the session keeps them and
+ * interval, the last second kept ready, and whether keypoints may be sent. Each control edits one preference through one table; the session keeps them and
  * tells every screen.
  */
 import { byId, fillSelect } from '../dom';
@@ -49,7 +49,7 @@ const radios = <K extends 'style' | 'readBy'>(name: string, key: K) =>
   });
 
 /** A checkbox: checked is the preference. */
-const checkbox = <K extends 'vibrate' | 'ready'>(selector: string, key: K) =>
+const checkbox = <K extends 'vibrate' | 'ready' | 'keypoints'>(selector: string, key: K) =>
   setting<K>({
     selector,
     key,
@@ -69,6 +69,7 @@ export const SETTINGS: Setting<keyof Prefs>[] = [
   checkbox('#vibrate', 'vibrate'),
   setting({ selector: '#interval', key: 'interval', event: 'change', read: num, show: showNum }),
   checkbox('#ready', 'ready'),
+  checkbox('#keypoints', 'keypoints'),
 ];
 
 /** The controls that tune only the app's own voice: off while the screen reader reads instead. */
