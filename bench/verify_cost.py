@@ -65,8 +65,8 @@ def run(pack: Path, venue: str, clips: int) -> None:
             # the phone's record of the clip: version 1 for the default venue, 2 for `verified`
             spec, c = clip_spectra(lens, frames, extractors.spectrum, clip=name)
             for preset, loc in locs.items():
-                local = loc.local_features(frames[-1], c.lens) if loc.verifies else None
-                rec = encode_binary(spec, loc.conf, local)
+                keypoints = loc.local_features(frames[-1], c.lens) if loc.verifies else None
+                rec = encode_binary(spec, loc.conf, keypoints)
                 rec_bytes[preset].append(len(rec))
                 t = time.perf_counter()
                 got, lq = decode_binary_local(rec, loc.conf)

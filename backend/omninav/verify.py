@@ -313,8 +313,9 @@ def place_of_rows(frames: np.ndarray, local: LocalFeatures) -> np.ndarray:
 
 @dataclass
 class Verdict:
-    """What verification made of a clip: its candidate rows, their inliers, and the row the answer
-    moves to (None: the global answer stands)."""
+    """What verification made of a clip: its candidate rows, their inliers (0 for a place with too
+    few matches to change the verdict: not fitted), and the row the answer moves to (None: the
+    global answer stands)."""
 
     rows: list[int]
     inliers: list[int]
@@ -335,7 +336,7 @@ def verify(
     candidate places (the global answer's row's first; `wide`: a wider search's matches)."""
     rows = candidate_rows(m, xy, global_row, wide)
     qb, qd = query
-    inl = []
+    inl: list[int] = []
     for i, r in enumerate(rows):
         p = int(place_of[r])
         if p < 0:
@@ -343,10 +344,13 @@ def verify(
             continue
         vb, vd = local.of(p)
         mt = ratio_matches(qd, vd)
-        # fewer matches than MIN_INLIERS cannot move the answer there; the global answer's place
-        # (the first, and the only one within PLACE_M of it) is counted all the same: it sets the bar
-        enough = len(mt) >= (8 if i == 0 else MIN_INLIERS)
-        inl.append(essential_inliers(qb[mt[:, 0]], vb[mt[:, 1]]) if enough else 0)
+        # the global answer's place (the first, and the only one within PLACE_M of it) is counted
+        # whenever RANSAC can run: it sets the bar. Another place has no more inliers than matches,
+        # so one with fewer matches than the bar (MIN_INLIERS, more than the global place's and
+        # `margin` times it) or than the best place so far cannot move the answer, nor be the best:
+        # it is not fitted (the verdict is the same; it is counted 0)
+        bar = 8 if i == 0 else max(MIN_INLIERS, inl[0] + 1, int(np.ceil(margin * inl[0])), max(inl[1:], default=0) + 1)
+        inl.append(essential_inliers(qb[mt[:, 0]], vb[mt[:, 1]]) if len(mt) >= bar else 0)
     if not rows:
         return Verdict(rows, inl, None)
     best = int(np.argmax(inl))
