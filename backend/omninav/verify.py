@@ -349,8 +349,12 @@ def verify(
         # so one with fewer matches than the bar (MIN_INLIERS, more than the global place's and
         # `margin` times it) or than the best place so far cannot move the answer, nor be the best:
         # it is not fitted (the verdict is the same; it is counted 0)
-        bar = 8 if i == 0 else max(MIN_INLIERS, inl[0] + 1, int(np.ceil(margin * inl[0])), max(inl[1:], default=0) + 1)
-        inl.append(essential_inliers(qb[mt[:, 0]], vb[mt[:, 1]]) if len(mt) >= bar else 0)
+        n = len(mt)
+        if i == 0:
+            fit = n >= 8
+        else:
+            fit = n >= max(MIN_INLIERS, inl[0] + 1, max(inl[1:], default=0) + 1) and n >= margin * inl[0]
+        inl.append(essential_inliers(qb[mt[:, 0]], vb[mt[:, 1]]) if fit else 0)
     if not rows:
         return Verdict(rows, inl, None)
     best = int(np.argmax(inl))

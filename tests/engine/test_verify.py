@@ -70,6 +70,47 @@ def test_local_features_keep_their_places_slices_when_places_go():
     assert len(lf.keep(np.zeros(3, bool)).places) == 0
 
 
+def test_places_that_cannot_change_the_verdict_are_not_fitted_and_the_verdict_is_the_same(monkeypatch):
+    """verify() fits a place only where its ratio-test matches could clear the bar (inliers never
+    exceed matches): on 3,000 random candidate lists (matches, inliers at most the matches, places
+    without local features, margins from 1 to huge), its verdict is that of fitting every place,
+    and it fits fewer."""
+    import omninav.verify as vf
+
+    local = _places(*[(0, p, 1) for p in range(vf.PLACES)])
+    rng = np.random.default_rng(7)
+    state: dict = {}
+    monkeypatch.setattr(vf, "candidate_rows", lambda *a, **k: state["rows"])
+    monkeypatch.setattr(vf, "ratio_matches", lambda qd, vd: np.zeros((state["matches"][int(vd[0, 0])], 2), np.int64))
+
+    def fit(b1, b2):  # the stand-in count of the place whose matches these are (none under 8 pairs)
+        state["fits"] += 1
+        return int(state["inliers"][len(b1)]) if len(b1) >= 8 else 0
+
+    monkeypatch.setattr(vf, "essential_inliers", fit)
+    query = (np.zeros((1, 3), np.float32), np.zeros((1, 32), np.uint8))
+    fewer = 0
+    for _ in range(3000):
+        k = int(rng.integers(1, vf.PLACES + 1))
+        # each place a distinct match count, so that a count names its place's inliers
+        matches = rng.permutation(np.arange(0, 160))[: vf.PLACES]
+        inliers = {int(n): int(rng.integers(0, n + 1)) for n in matches}
+        margin = float(rng.choice([1.0, 1.5, 2.0, 3.7, 1e308]))
+        place_of = np.where(rng.random(vf.PLACES) < 0.1, -1, np.arange(vf.PLACES))
+        state.update(rows=list(range(k)), matches=matches, inliers=inliers, fits=0)
+        got = verify(query, None, None, local, place_of, 0, margin)
+        # every place fitted, by the rule as it reads
+        inl = [
+            0 if place_of[i] < 0 or matches[i] < (8 if i == 0 else MIN_INLIERS) else inliers[int(matches[i])]
+            for i in range(k)
+        ]
+        best = int(np.argmax(inl))
+        moves = inl[best] >= MIN_INLIERS and inl[best] > inl[0] and inl[best] >= margin * inl[0]
+        assert got.moved_to == (best if moves else None)
+        fewer += state["fits"] < sum(1 for i in range(k) if place_of[i] >= 0 and matches[i] >= 8)
+    assert fewer > 300
+
+
 def test_each_venue_frame_finds_the_place_of_its_own_video_at_or_before_it():
     lf = _places((1, 4, 1), (0, 0, 1), (0, 10, 1))  # (stored in any order)
     frames = np.zeros(6, [("frame", "<i4"), ("video", "<i4")])

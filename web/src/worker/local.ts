@@ -176,37 +176,52 @@ export class LocalDetector {
     if (!this.mats.length && this.map) {
       const { cv, map } = this;
       const [w, h] = this.lens.image_size;
-      const mx = cv.matFromArray(map.rows, map.cols, cv.CV_32FC1, map.mapX);
-      const my = cv.matFromArray(map.rows, map.cols, cv.CV_32FC1, map.mapY);
-      const [m1, m2] = [new cv.Mat(), new cv.Mat()];
-      cv.convertMaps(mx, my, m1, m2, cv.CV_16SC2, false);
-      mx.delete();
-      my.delete();
-      this.mats.push(new cv.Mat(h, w, cv.CV_8UC4), new cv.Mat(), new cv.Mat(), m1, m2, new cv.Mat(), new cv.Mat());
+      const made: LMat[] = [];
+      const mat = (m: LMat): LMat => (made.push(m), m);
+      try {
+        const mx = mat(cv.matFromArray(map.rows, map.cols, cv.CV_32FC1, map.mapX));
+        const my = mat(cv.matFromArray(map.rows, map.cols, cv.CV_32FC1, map.mapY));
+        const [m1, m2] = [mat(new cv.Mat()), mat(new cv.Mat())];
+        cv.convertMaps(mx, my, m1, m2, cv.CV_16SC2, false);
+        const src = mat(new cv.Mat(h, w, cv.CV_8UC4));
+        const [grey, pano, mask, desc] = [0, 0, 0, 0].map(() => mat(new cv.Mat()));
+        this.mats.push(src, grey, pano, m1, m2, mask, desc);
+        mx.delete();
+        my.delete();
+      } catch (e) {
+        for (const m of made) m.delete(); // a failure part way leaves nothing behind
+        this.mats.length = 0;
+        throw e;
+      }
     }
     return this.mats;
   }
 
   /**
-   * Make everything a frame needs now, off a press's path: the OpenCV objects, and one detection
-   * on a textured stand-in panorama, so that the browser has compiled ORB's WebAssembly in its
-   * optimising tier before the first real frame (the first detection otherwise took ~70 ms in
-   * Chromium, the next ~40 ms, on this machine with a server beside it).
+   * Make everything a frame needs now, off a press's path: the OpenCV objects, and (once a worker)
+   * one detection on a textured stand-in panorama, so that the browser has compiled ORB's
+   * WebAssembly in its optimising tier before the first real frame (by hand the first press's
+   * keypoints took 69 ms in Chromium, later ones ~40 ms, with a server beside it).
    */
   prepare(): void {
     const mats = this.work();
-    if (!mats.length) return;
+    if (!mats.length || LocalDetector.warm) return;
     const [, , , , , mask, desc] = mats;
     const { rows, cols } = this.map!;
     const stand = new this.cv.Mat(rows, cols, this.cv.CV_8UC1);
     try {
-      let x = 12345; // a fixed pseudo-random texture (a linear congruential sequence), blurred by ORB itself
-      for (let i = 0; i < stand.data.length; i++) stand.data[i] = (x = (Math.imul(x, 1103515245) + 12345) >>> 0) >>> 24;
+      const d = stand.data; // (a getter that makes a new view at each read)
+      let x = 12345; // a fixed pseudo-random texture (a linear congruential sequence)
+      for (let i = 0; i < d.length; i++) d[i] = (x = (Math.imul(x, 1103515245) + 12345) >>> 0) >>> 24;
       this.orb.detectAndCompute(stand, mask, this.kp, desc);
+      LocalDetector.warm = true;
     } finally {
       stand.delete();
     }
   }
+
+  /** ORB has run once in this worker (WebAssembly is optimised per function: once covers all detectors). */
+  private static warm = false;
 
   /** The grey local panorama of an RGBA frame (the lens's image size), rows x cols bytes. */
   grey(rgba: Uint8Array | Uint8ClampedArray): Uint8Array {

@@ -132,12 +132,14 @@ function lens(m: Extract<ToWorker, { type: 'lens' }>): void {
         changed_px = profileMoved(ext!.lens, want);
         ext!.delete();
         ext = new Extractor(cv!, want, base!.settings);
-        if (wanted) tryDetector(); // keypoints through the corrected profile too
       }
       check = { ...fit, ring, ms, changed_px };
     }
     const look = px ? lookOf(px, canvas!.width, canvas!.height, ext!.lens) : { mean: NaN, edge: NaN };
     post({ type: 'lens', id: m.id, check: { ...check, look } });
+    // keypoints through the corrected profile too, after the page has its answer (the frames
+    // kept are pixels: the same through either profile)
+    if (wanted && changed_px) tryDetector();
   } catch (e) {
     post({ type: 'error', id: m.id, message: e instanceof Error ? e.message : String(e) });
   } finally {
