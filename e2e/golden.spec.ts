@@ -4,7 +4,7 @@ import { readFileSync } from 'node:fs';
 import { resolve } from 'node:path';
 import { expect, test } from '@playwright/test';
 import type { SelfTestResult } from '../web/src/client/selftest';
-import { localBlock, recordFrame, relativeError } from '../web/src/shared/record';
+import { keypointsAlike, localBlock, recordFrame, relativeError } from '../web/src/shared/record';
 import { GOLDEN, base } from './env';
 
 test("the browser extracts the engine's records (relative error <= 1e-3) and its curves", async ({ page }) => {
@@ -49,17 +49,8 @@ test("the browser extracts the engine's records (relative error <= 1e-3) and its
   ]);
   for (const f of r.local.frames) {
     const w = localBlock(new Uint8Array(readFileSync(resolve(GOLDEN, `${f.stem}.local`))));
-    let same = 0;
-    for (let i = 0; i < w.az.length; i++) {
-      let hit = false;
-      for (let j = 0; j < f.az.length && !hit; j++)
-        hit =
-          Math.abs(f.az[j] - w.az[i]) <= 1 &&
-          Math.abs(f.el[j] - w.el[i]) <= 1 &&
-          w.desc.subarray(32 * i, 32 * i + 32).every((b, k) => b === f.desc[32 * j + k]);
-      same += hit ? 1 : 0;
-    }
-    expect(same / w.az.length, `${f.stem}: the engine's keypoints found alike`).toBeGreaterThan(0.95);
+    const got = { az: Uint16Array.from(f.az), el: Int16Array.from(f.el), desc: Uint8Array.from(f.desc) };
+    expect(keypointsAlike(got, w), `${f.stem}: the engine's keypoints found alike`).toBeGreaterThan(0.95);
   }
   test.info().annotations.push({
     type: 'local features',

@@ -128,7 +128,7 @@ class PanoramaMap:
     remap: UnwarpMap
     el: np.ndarray
     az: np.ndarray
-    fixed: tuple[np.ndarray, np.ndarray] | None = None
+    fixed: tuple[np.ndarray, np.ndarray]
 
 
 COARSE = 4  # the local panorama's remap is computed every COARSE pixels and interpolated
@@ -149,7 +149,10 @@ def panorama_map(lens: Lens) -> PanoramaMap:
     az = (np.arange(width) + 0.5) * STEP_DEG
     if seen.sum() < 2:
         empty = np.zeros((0, width), np.float32)
-        return PanoramaMap(UnwarpMap(empty, empty, np.zeros(0, np.float32), empty.astype(bool), 0), np.zeros(0), az)
+        none = (np.zeros((0, width, 2), np.int16), np.zeros((0, width), np.uint16))
+        return PanoramaMap(
+            UnwarpMap(empty, empty, np.zeros(0, np.float32), empty.astype(bool), 0), np.zeros(0), az, none
+        )
     el_c = el_c[seen]
     # one coarse column beyond each end, the azimuth wrapping round: column j + 1 looks at (j + 0.5) * step_c
     x, y = (np.concatenate([m[seen][:, -1:], m[seen], m[seen][:, :1]], 1) for m in (coarse.map_x, coarse.map_y))
@@ -171,7 +174,6 @@ def grey_panorama(frame: np.ndarray, pm: PanoramaMap) -> np.ndarray:
     """A BGR frame -> its grey local panorama: the frame made grey, then remapped through the
     fixed-point tables (a third of the colour remap's work, and a third of float tables' time; the
     phone's worker, web/src/worker/local.ts, takes the same steps)."""
-    assert pm.fixed is not None
     grey = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
     return cv2.remap(grey, *pm.fixed, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
 

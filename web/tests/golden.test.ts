@@ -14,6 +14,7 @@ import {
   encodeRecord,
   fromHalf,
   MAX_LOCAL_KEYPOINTS,
+  keypointsAlike,
   localBlock,
   recordFrame,
   recordLocal,
@@ -118,19 +119,11 @@ describe('local features: parity with the engine (verify.py)', () => {
           const spectrum = recordFrame(read('donut-default-0.rec'));
           const sentNow = recordLocal(encodeRecord([spectrum], cases()[0].settings, 0, got))!;
           expect(sentNow.az.length).toBe(w.az.length);
-          const alike = (i: number, j: number) =>
-            Math.abs(sentNow.az[j] - w.az[i]) <= 1 &&
-            Math.abs(sentNow.el[j] - w.el[i]) <= 1 &&
-            sentNow.desc.subarray(32 * j, 32 * j + 32).every((b, k) => b === w.desc[32 * i + k]);
           // each of the engine's keypoints sent by the phone too: the same bearing (within a unit,
           // a rounding tie) and descriptor (in another order: ORB keeps its best by a partial sort)
-          let same = 0;
-          for (let i = 0; i < w.az.length; i++) {
-            let hit = false;
-            for (let j = 0; j < sentNow.az.length && !hit; j++) hit = alike(i, j);
-            same += hit ? 1 : 0;
-          }
-          expect(same / w.az.length, `${stem}: the engine's keypoints the phone sends alike`).toBeGreaterThan(0.95);
+          expect(keypointsAlike(sentNow, w), `${stem}: the engine's keypoints the phone sends alike`).toBeGreaterThan(
+            0.95,
+          );
         }
       } finally {
         det.delete();

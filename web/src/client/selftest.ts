@@ -76,24 +76,27 @@ async function run(base: string, repeats: number): Promise<SelfTestResult> {
   const c = cases[0];
   await ext.configure(c.lens, c.settings);
   const bms = await Promise.all(c.frames.map((f) => bitmap(`${base}/${f.stem}.png`)));
+  const ms: number[] = [];
+  for await (const bm of camera(bms, repeats)) ms.push((await ext.extract(bm)).ms);
+  out.local = await local(ext, base, golden.local ?? [], cases, repeats);
+  out.timing = { ...spread(ms), width: bms[0].width, height: bms[0].height };
+  return out;
+}
+
+/** `bms` in turn, `repeats` frames, each a fresh bitmap (extract() takes and closes its own), as a camera gives them. */
+async function* camera(bms: ImageBitmap[], repeats: number): AsyncGenerator<ImageBitmap> {
   const canvas = new OffscreenCanvas(bms[0].width, bms[0].height);
   const cx = canvas.getContext('2d')!;
-  const ms: number[] = [];
   for (let i = 0; i < repeats; i++) {
     cx.drawImage(bms[i % bms.length], 0, 0);
-    const r = await ext.extract(await createImageBitmap(canvas));
-    ms.push(r.ms);
+    yield await createImageBitmap(canvas);
   }
-  ms.sort((a, b) => a - b);
-  out.local = await local(ext, base, golden.local ?? [], cases, repeats);
-  out.timing = {
-    frames: ms.length,
-    medianMs: ms[ms.length >> 1],
-    p90Ms: ms[Math.floor(ms.length * 0.9)],
-    width: bms[0].width,
-    height: bms[0].height,
-  };
-  return out;
+}
+
+/** Times in ms -> their count, median and 90th percentile. */
+function spread(ms: number[]): { frames: number; medianMs: number; p90Ms: number } {
+  const s = ms.slice().sort((a, b) => a - b);
+  return { frames: s.length, medianMs: s[s.length >> 1] ?? 0, p90Ms: s[Math.floor(s.length * 0.9)] ?? 0 };
 }
 
 /**
@@ -123,19 +126,9 @@ async function local(
     await ext.configure(lc.lens, cases[0].settings);
     await ext.prepareLocal(lc.n_features); // the detector made here, not in the first timed frame
     const bms = await Promise.all(lc.frames.map((f) => bitmap(`${base}/${f.rgba}.png`)));
-    const canvas = new OffscreenCanvas(bms[0].width, bms[0].height);
-    const cx = canvas.getContext('2d')!;
-    for (let i = 0; i < repeats; i++) {
-      cx.drawImage(bms[i % bms.length], 0, 0); // extract() takes its bitmap: a fresh one each time
-      const fr = await ext.extract(await createImageBitmap(canvas));
-      ms.push((await ext.local(fr.id!)).ms);
-    }
+    for await (const bm of camera(bms, repeats)) ms.push((await ext.local((await ext.extract(bm)).id!)).ms);
   }
-  ms.sort((a, b) => a - b);
-  return {
-    frames,
-    timing: { frames: ms.length, medianMs: ms[ms.length >> 1] ?? 0, p90Ms: ms[Math.floor(ms.length * 0.9)] ?? 0 },
-  };
+  return { frames, timing: spread(ms) };
 }
 
 const params = new URLSearchParams(location.search);

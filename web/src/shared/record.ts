@@ -17,6 +17,12 @@ export const LOCAL_BYTES_PER_KEYPOINT = 2 + 2 + 32;
 /** 8 + 36 x 880 = 31,688 bytes: a request's local features within 32 KB (the server refuses more). */
 export const MAX_LOCAL_KEYPOINTS = 880;
 
+/** How many of `n` keypoints a record carries: the first MAX_LOCAL_KEYPOINTS. */
+export const keptKeypoints = (n: number): number => Math.min(n, MAX_LOCAL_KEYPOINTS);
+
+/** The bytes of a local block that carries `n` keypoints (keptKeypoints of them), its head included. */
+export const localBlockBytes = (n: number): number => LOCAL_HEAD_BYTES + LOCAL_BYTES_PER_KEYPOINT * keptKeypoints(n);
+
 /** One frame's local features, in the record's units (worker/local.ts makes them). */
 export interface LocalBlock {
   az: Uint16Array;
@@ -150,9 +156,9 @@ export function encodeRecord(
 ): Uint8Array {
   if (!frames.length) throw new Error('a record needs at least one frame');
   const ck = frames[0].mag.length;
-  const n = local ? Math.min(local.az.length, MAX_LOCAL_KEYPOINTS) : 0;
+  const n = local ? keptKeypoints(local.az.length) : 0;
   const curves = HEADER_BYTES + BYTES_PER_HARMONIC * ck * frames.length;
-  const out = new Uint8Array(curves + (local ? LOCAL_HEAD_BYTES + LOCAL_BYTES_PER_KEYPOINT * n : 0));
+  const out = new Uint8Array(curves + (local ? localBlockBytes(n) : 0));
   const dv = new DataView(out.buffer);
   out.set([0x4f, 0x4e, 0x56], HEADER_AT.magic); // "ONV"
   dv.setUint8(HEADER_AT.version, local ? LOCAL_VERSION : RECORD_VERSION);
@@ -181,6 +187,25 @@ export function recordLocal(rec: Uint8Array): LocalBlock | null {
   if (dv.getUint8(HEADER_AT.version) !== LOCAL_VERSION) return null;
   const ck = dv.getUint16(HEADER_AT.curves, true) * dv.getUint16(HEADER_AT.harmonics, true);
   return localBlock(rec.subarray(HEADER_BYTES + BYTES_PER_HARMONIC * ck * dv.getUint32(HEADER_AT.frames, true)));
+}
+
+/**
+ * The share of `want`'s keypoints that `got` holds alike: within a unit of bearing (a rounding
+ * tie) and with the same descriptor, in any order. How the phone's keypoints are held to the
+ * engine's (the golden tests, in Node and in Chromium).
+ */
+export function keypointsAlike(got: LocalBlock, want: LocalBlock): number {
+  let same = 0;
+  for (let i = 0; i < want.az.length; i++) {
+    let hit = false;
+    for (let j = 0; j < got.az.length && !hit; j++)
+      hit =
+        Math.abs(got.az[j] - want.az[i]) <= 1 &&
+        Math.abs(got.el[j] - want.el[i]) <= 1 &&
+        want.desc.subarray(32 * i, 32 * i + 32).every((b, k) => b === got.desc[32 * j + k]);
+    same += hit ? 1 : 0;
+  }
+  return want.az.length ? same / want.az.length : 1;
 }
 
 /** A local block's bytes (its head first) -> its keypoints. */

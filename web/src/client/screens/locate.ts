@@ -5,7 +5,7 @@
 import type { Venue } from '../api';
 import type { Answer } from '../directions';
 import { byId, facts } from '../dom';
-import { HEADER_BYTES, LOCAL_BYTES_PER_KEYPOINT, LOCAL_HEAD_BYTES, MAX_LOCAL_KEYPOINTS } from '../../shared/record';
+import { HEADER_BYTES, keptKeypoints, localBlockBytes } from '../../shared/record';
 import type { Session } from '../session';
 import type { Speaker } from '../speech';
 import { PlanView } from '../views/plan';
@@ -67,8 +67,8 @@ export function locateScreen(session: Session, speaker: Speaker): void {
     // what the phone's lens check found (the ring in the camera's frames against the profile)
     const lensRow: [string, string][] = c ? [['Lens check', `${c.message} (${c.ms.toFixed(0)} ms per frame)`]] : [];
     // the keypoints of the last frame, where sent (record.ts's local block), are not the curves'
-    const k = Math.min(r.keypoints ?? 0, MAX_LOCAL_KEYPOINTS);
-    const localBytes = r.keypoints != null ? LOCAL_HEAD_BYTES + LOCAL_BYTES_PER_KEYPOINT * k : 0;
+    const k = keptKeypoints(r.keypoints ?? 0);
+    const localBytes = r.keypoints != null ? localBlockBytes(k) : 0;
     const keypointRow: [string, string][] =
       r.keypoints != null
         ? [['Keypoints', `${k} of the last frame, ${localBytes} bytes, ${(r.keypointMs ?? 0).toFixed(0)} ms`]]
