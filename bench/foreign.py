@@ -34,6 +34,7 @@ from omninav.calib.correct import FIRST
 from omninav.heading import wrap_deg
 from omninav.lens import load_lens
 from omninav.locate import Locator, clip_frames
+from omninav.verify import checked_confidence
 
 PACK = Path(__file__).resolve().parents[1].parent / "shared" / "foreign"
 DATA = Path("data") / "foreign"
@@ -98,7 +99,7 @@ def rows_for(pack: Path, venue: str, tag: str, conf: dict[str, Any], elev: float
             c = loc.clip_lens(elevation_off(load_lens(pack / venue / "lens.json"), elev))
             list(c.spectra(frames[:FIRST]))  # (the clip's lens is decided on its first frames)
             local = loc.local_features(frames[-1], c.lens)
-        e, moved = loc.estimate_local(spec, np.arange(len(spec)) / fps, None, local)
+        e, outcome = loc.estimate_local(spec, np.arange(len(spec)) / fps, None, local)
         rows.append(
             {
                 "clip": truth["clip"],
@@ -106,11 +107,11 @@ def rows_for(pack: Path, venue: str, tag: str, conf: dict[str, Any], elev: float
                 "y": e.y,
                 "err_m": float(np.hypot(e.x - truth["x"], e.y - truth["y"])),
                 "heading_err_deg": float(wrap_deg(e.heading - truth["heading_deg"])),
-                "confidence": confidence(e, loc.conf),
+                "confidence": checked_confidence(outcome, confidence(e, loc.conf)),
                 "support": e.support,
                 "rival": e.rival,
                 "agree": e.agree,
-                **({"moved": True, "confidence": moved} if moved is not None else {}),
+                **({"verified": outcome} if outcome is not None else {}),
             }
         )
     cache.write_text(json.dumps(rows))

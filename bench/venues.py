@@ -27,7 +27,7 @@ from omninav.presets import resolve
 from omninav.store import Store
 from omninav.synth import upgrade_names
 from omninav.synth.families import FAMILIES, make_family_dataset
-from omninav.verify import MOVED_CONFIDENCE
+from omninav.verify import checked_confidence
 from omninav.walk_path import load_walk_path
 
 DATA = Path("data") / "families"
@@ -169,7 +169,7 @@ def search_tag(conf: dict[str, Any]) -> str:
 def rescore(rows: list[dict[str, Any]], conf: dict[str, Any]) -> np.ndarray:
     """The confidence each answer gets from the confidence model in `conf` (not the one stored
     when the rows were made: a recalibration is judged without running anything again)."""
-    return np.array([MOVED_CONFIDENCE if r.get("moved") else confidence(r, conf) for r in rows])
+    return np.array([checked_confidence(r.get("verified"), confidence(r, conf)) for r in rows])
 
 
 def summarise(rows: list[dict[str, Any]], conf: dict[str, Any]) -> dict[str, Any]:

@@ -48,7 +48,9 @@ test('keypoints: off until the user allows them, then sent with the last frame a
   // off by default: the curves alone (version 1)
   let answered = page.waitForResponse((r) => r.url().includes('/locate') && r.request().method() === 'POST');
   await page.getByRole('button', { name: 'Where am I?' }).click();
-  expect((await answered).status()).toBe(200);
+  const first = await answered;
+  expect(first.status()).toBe(200);
+  expect((await first.json()).verified).toBeUndefined(); // nothing to check it with
   let body = posts.at(-1)!.postDataBuffer()!;
   expect(body.subarray(0, 3).toString()).toBe('ONV');
   expect(body[3]).toBe(1);
@@ -83,8 +85,13 @@ test('keypoints: off until the user allows them, then sent with the last frame a
   expect(n).toBeLessThanOrEqual(880);
   expect(body.length).toBe(at + 8 + 36 * n);
   expect(body.length - at).toBeLessThanOrEqual(32 * 1024);
-  expectAnswerAtClip(await res.json());
+  // the server checked the answer by them (it stands where the clip was filmed: confirmed), and
+  // the details say so
+  const answer = await res.json();
+  expectAnswerAtClip(answer);
+  expect(answer.verified).toBe('confirmed');
   await expect(page.locator('#debug-facts')).toContainText(`${n} of the last frame`);
+  await expect(page.locator('#debug-facts')).toContainText('confirmed: the keypoints fit the answer');
   // the preference stays on the phone: after a reload the box is still ticked and a press still
   // sends keypoints
   await page.reload();

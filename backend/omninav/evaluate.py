@@ -26,6 +26,7 @@ from .motion import Imu
 from .quality import AMBIGUOUS_MARGIN, RADIUS_M
 from .spectrum import LocalQuery
 from .tracking_state import TrackPose, TrackState
+from .verify import checked_confidence
 from .video import IMAGE_EXT, VideoInfo, iter_video
 from .walk_path import WalkPath
 
@@ -191,14 +192,14 @@ def evaluate_spectra(
     a clip ending at the walk's last frame (it overlaps the one before): every second of an
     admin's evaluation walk is scored (the benchmarks' clips stay as they were measured). `ends`:
     the local features of the clips' last frames (walk_local), with which a venue that has its own
-    verifies each clip as `locate` does (a moved answer's row says `moved`)."""
+    verifies each clip as `locate` does (its row's `verified` says what that made of it)."""
     n = clip_frames_of(loc, clip_s)
     ev = Evaluation()
     for s in clip_starts(len(t), n, tail):
         w = slice(s, s + n)
-        conf = None
+        outcome = None
         if ends is not None and int(idx[s + n - 1]) in ends:
-            e, conf = loc.estimate_local(spec[w], t[w], aggregate, ends[int(idx[s + n - 1])])
+            e, outcome = loc.estimate_local(spec[w], t[w], aggregate, ends[int(idx[s + n - 1])])
         else:
             e = loc.estimate(spec[w], t[w], aggregate)
         tx, ty = xy[s + n - 1]
@@ -215,12 +216,12 @@ def evaluate_spectra(
                 "err_m": float(np.hypot(e.x - tx, e.y - ty)),
                 "heading_err_deg": float(wrap_deg(e.heading - hd[s + n - 1])),
                 "venue_row": e.venue_row,
-                "confidence": confidence(e, loc.conf) if conf is None else conf,
+                "confidence": checked_confidence(outcome, confidence(e, loc.conf)),
                 "support": e.support,
                 "rival": e.rival,
                 "agree": e.agree,
                 "frames": n,
-                **({"moved": True} if conf is not None else {}),
+                **({"verified": outcome} if outcome is not None else {}),
             }
         )
     return ev

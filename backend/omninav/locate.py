@@ -28,6 +28,7 @@ if TYPE_CHECKING:
     from .motion import Motion
     from .tracking import Tracker
     from .tracking_state import ClipAnswer, TrackPose, TrackState
+    from .verify import PlaceIndex
     from .walkgraph import WalkGraph
 
 EXTRACTORS = 8  # lenses whose remaps a Locator keeps
@@ -104,7 +105,7 @@ class Locator:
         self._frame_lock = threading.Lock()
         self._frame_k = 0
         self._frame_m: dict[int, tuple[np.ndarray, ...]] = {}  # frame_matches, by venue frame row
-        self._place_of: np.ndarray | None = None  # verify.place_of_rows, made at the first verification
+        self._places: tuple[np.ndarray, PlaceIndex] | None = None  # verify.place_of_rows, place_index
 
     def extractor(self, lens: Lens | None) -> Extractor:
         """The extractor of a lens (default: the venue's), from a small shared cache."""
@@ -312,17 +313,21 @@ class Locator:
         )
         return out
 
-    def answer(self, e: Estimate, clip: str, conf: float | None = None) -> dict[str, Any]:
-        """The docs/formats.md answer of an estimate (its confidence: `conf`, else the model's)."""
+    def answer(self, e: Estimate, clip: str, outcome: str | None = None) -> dict[str, Any]:
+        """The docs/formats.md answer of an estimate; `outcome`: what verification made of it
+        (verify.Verdict.outcome; None: not verified), which sets its confidence with the model's."""
+        from .verify import checked_confidence
+
         return {
             "clip": clip,
             "x": round(e.x, 3),
             "y": round(e.y, 3),
             "heading_deg": answer_heading(e.heading),
-            "confidence": round(confidence(e, self.conf) if conf is None else conf, 3),
+            "confidence": round(checked_confidence(outcome, confidence(e, self.conf)), 3),
             "floor": self.floor,
             "place": self.nearest_place(e.x, e.y),
             "frame": int(self.gen.frames["frame"][e.venue_row]),
+            **({"verified": outcome} if outcome is not None else {}),
         }
 
     def nearest_place(self, x: float, y: float, floor: str | None = None) -> str | None:
@@ -346,8 +351,8 @@ class Locator:
         """A clip's decoded feature record -> the answer (what the phone's request becomes);
         verified where the record brings its last frame's local features and the venue has some."""
         times = np.arange(len(spec)) / (fps or DEFAULT_CLIP_FPS)
-        e, conf = self.estimate_local(spec, times, aggregate, local)
-        return self.answer(e, clip, conf)
+        e, outcome = self.estimate_local(spec, times, aggregate, local)
+        return self.answer(e, clip, outcome)
 
     def locate_frames(
         self,
@@ -364,8 +369,8 @@ class Locator:
         spec, c = clip_spectra(lens or self.gen.lens, frames, self._extractors.spectrum, clip=clip)
         times = np.arange(len(frames)) / (fps or DEFAULT_CLIP_FPS)
         local = self.local_features(frames[-1], c.lens) if self.verifies else None
-        e, conf = self.estimate_local(spec, times, aggregate, local)
-        return self.answer(e, clip, conf)
+        e, outcome = self.estimate_local(spec, times, aggregate, local)
+        return self.answer(e, clip, outcome)
 
     @property
     def verifies(self) -> bool:
@@ -386,10 +391,10 @@ class Locator:
 
     def estimate_local(
         self, q_spec: np.ndarray, times: np.ndarray, aggregate: str | None, local: LocalQuery | None
-    ) -> tuple[Estimate, float | None]:
+    ) -> tuple[Estimate, str | None]:
         """estimate(), then verified by the clip's last frame's `local` features where there are
-        some and the venue has its own: (the estimate, None: the model's confidence) or the answer
-        moved (verified)."""
+        some and the venue has its own: (the estimate, what verification made of it: None where
+        the clip was not verified; verify.Verdict.outcome)."""
         m, times = self.search_clip(q_spec, times)
         e = self.aggregated(m, times, aggregate)
         if local is None or not self.verifies:
@@ -398,24 +403,26 @@ class Locator:
 
     def verified(
         self, local: LocalQuery, m: Matches, e: Estimate, last_specs: np.ndarray
-    ) -> tuple[Estimate, float | None]:
+    ) -> tuple[Estimate, str | None]:
         """A clip's global answer checked by its last frame's local features against its candidate
-        places: the answer moved to another place, with verify.MOVED_CONFIDENCE and the heading of
-        the last frame's spectrum (of the clip's `last_specs`, (F, C, K)) at that place (stage 2's
-        phase correlation),
-        or as it was (None: the model's confidence). Verification only ever adds to the answer: an
-        error in it is logged and the global answer stands."""
+        places: (the answer, "moved") moved to another place with the heading of the last frame's
+        spectrum (of the clip's `last_specs`, (F, C, K)) at that place (stage 2's phase
+        correlation), or (as it was, "confirmed" or "unconfirmed"). Verification only ever adds to
+        the answer: an error in it is logged and the global answer stands, not verified (None)."""
         from . import verify as vfy
 
-        assert self.gen.local is not None
+        stored = self.gen.local
+        assert stored is not None
         try:
-            if self._place_of is None:
-                self._place_of = vfy.place_of_rows(self.gen.frames, self.gen.local)
+            if self._places is None:  # (made at the venue's first verification)
+                rows = self.gen.frames
+                self._places = vfy.place_of_rows(rows, stored), vfy.place_index(rows, stored, self.xy)
+            place_of, index = self._places
             wide = self.index.search(last_specs[-vfy.WIDE_FRAMES :], vfy.WIDE_K) if vfy.WIDE_K else None
             margin = float(self.conf["local_margin"])
-            v = vfy.verify(local, m, self.xy, self.gen.local, self._place_of, e.venue_row, margin, wide)
+            v = vfy.verify(local, m, self.xy, stored, place_of, e.venue_row, margin, wide, index)
             if v.moved_to is None:
-                return e, None
+                return e, v.outcome
             r = v.moved_to
             _, heading = self.index.verify(np.asarray(last_specs[-1])[None], np.array([[r]]))
             h = float(to_numpy(heading).ravel()[0])
@@ -423,7 +430,7 @@ class Locator:
             log.warning("verification failed, the global answer stands: %s", err)
             return e, None
         x, y = self.xy[r]
-        return Estimate(float(x), float(y), h, r, e.support, e.rival, e.agree), vfy.MOVED_CONFIDENCE
+        return Estimate(float(x), float(y), h, r, e.support, e.rival, e.agree), v.outcome
 
 
 def read_record(path: Path, conf: dict[str, Any]) -> tuple[np.ndarray, LocalQuery | None]:

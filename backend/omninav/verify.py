@@ -16,9 +16,18 @@ global answer's, then the global search's (the last frame's shared best, then th
 frames' and the last WIDE_FRAMES frames' own WIDE_K best, one a PLACE_M, at most PLACES), each
 scored by its inliers with the clip's last frame; the answer moves
 to the place with the most, where it has at least MIN_INLIERS and at least `local_margin` times
-the global answer's place's.
+the global answer's place's. Where none of these moves the answer and the global answer's own
+place is not confirmed (fewer than MIN_INLIERS), the venue votes: each of the clip's keypoints
+votes for the places that hold one of its VOTE_K nearest stored descriptors (Hamming, brute
+force over every place: ~0.5 ms a place here), and the VOTE_PLACES best-voted not yet scored are scored too.
+An answer that moves is then refined: the places within PLACE_M of it not yet scored are
+scored, and the one with the most inliers is the answer (the candidates are one a PLACE_M, so a
+moved answer could otherwise sit up to PLACE_M from a better-seen place).
 A moved answer is said with MOVED_CONFIDENCE: below "sure" until a calibration has enough moved
-answers to fit (the tuning families moved one answer in 344 clips; docs/decisions.md).
+answers to fit (the tuning families moved 4 answers in 532 clips; docs/decisions.md). An answer
+that stands is "confirmed" where its own place has MIN_INLIERS or more, else "unconfirmed": said
+with at most UNCONFIRMED_CONFIDENCE (below "sure": the keypoints looked and found nothing there).
+The answer says which (`verified`, docs/formats.md).
 
 The essential-matrix RANSAC is our own (batched 8-point, NumPy): OpenCV's `findEssentialMat`
 takes pinhole image points, and a panorama's bearings cover the sphere (half of them behind any
@@ -46,6 +55,9 @@ PLACES = 20  # candidate places verified a clip
 WIDE_K = 64  # the last WIDE_FRAMES frames' own search, this many candidates each (0: none)
 WIDE_FRAMES = 3
 RATIO = 0.8  # Lowe's ratio test on Hamming distances
+VOTE_K = 4  # each keypoint's nearest stored descriptors over the venue, for the vote
+VOTE_HAMMING = 64  # a nearest descriptor votes only this close (of 256 bits)
+VOTE_PLACES = 8  # the venue's best-voted places scored where the global search's are not confirmed
 MIN_INLIERS = 20  # fewer prove nothing (two unrelated panoramas' 900 keypoints share up to ~19)
 RANSAC_ITERS = 500  # at most; drawn RANSAC_BATCH at a time until one clean sample is RANSAC_SURE
 RANSAC_BATCH = 100
@@ -53,6 +65,7 @@ RANSAC_SURE = 0.99
 REFITS = 3  # LO-RANSAC's refits of the best hypothesis on its inliers
 INLIER_DEG = 0.5  # a match's angular distance from its epipolar plane, to count as an inlier
 MOVED_CONFIDENCE = 0.75  # a moved answer's confidence: below aggregate.SURE (not yet calibrated)
+UNCONFIRMED_CONFIDENCE = 0.75  # at most this for an answer its own place's keypoints do not confirm
 DESCRIPTOR_BYTES = 32  # ORB's
 
 LOCAL_DTYPE = np.dtype([("video", "<i4"), ("frame", "<i4"), ("start", "<i8"), ("count", "<i4")])
@@ -313,6 +326,48 @@ def place_of_rows(frames: np.ndarray, local: LocalFeatures) -> np.ndarray:
     return out
 
 
+@dataclass(frozen=True)
+class PlaceIndex:
+    """A venue's places as the vote and the refinement need them (made once a generation):
+    `owner` (T,) the place of each stored keypoint, `rows` (P,) each place's venue row (-1: none),
+    `xy` (P, 2) its position (NaN where it has no row)."""
+
+    owner: np.ndarray
+    rows: np.ndarray
+    xy: np.ndarray
+
+
+def place_index(frames: np.ndarray, local: LocalFeatures, xy: np.ndarray) -> PlaceIndex:
+    """Each stored keypoint's place, and each place's venue row (its video's frame) and position."""
+    places = np.asarray(local.places)
+    owner = np.full(len(local.descriptors), -1, np.int64)
+    for p, (s, n) in enumerate(zip(places["start"], places["count"], strict=True)):
+        owner[int(s) : int(s) + int(n)] = p
+    rkey = (np.asarray(frames["video"], np.int64) << 32) + np.asarray(frames["frame"], np.int64)
+    order = np.argsort(rkey, kind="stable")
+    pkey = (places["video"].astype(np.int64) << 32) + places["frame"].astype(np.int64)
+    at = np.minimum(np.searchsorted(rkey[order], pkey), max(len(rkey) - 1, 0))
+    found = (at < len(rkey)) & (rkey[order][at] == pkey) if len(rkey) else np.zeros(len(pkey), bool)
+    rows = np.where(found, order[at] if len(rkey) else -1, -1).astype(np.int64)
+    pxy = np.where(found[:, None], np.asarray(xy, np.float64)[np.maximum(rows, 0)], np.nan)
+    return PlaceIndex(owner, rows, pxy)
+
+
+def place_votes(descriptors: np.ndarray, local: LocalFeatures, owner: np.ndarray) -> np.ndarray:
+    """(P,) each place's votes: the query keypoints (`descriptors`) one of whose VOTE_K nearest
+    stored descriptors, within VOTE_HAMMING bits, is that place's (a keypoint votes once a place)."""
+    votes = np.zeros(len(local.places), np.int64)
+    stored = np.ascontiguousarray(local.descriptors)
+    if len(descriptors) == 0 or len(stored) == 0:
+        return votes
+    knn = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(np.ascontiguousarray(descriptors), stored, k=VOTE_K)
+    for near in knn:
+        for p in {int(owner[d.trainIdx]) for d in near if d.distance <= VOTE_HAMMING}:
+            if p >= 0:
+                votes[p] += 1
+    return votes
+
+
 @dataclass
 class Verdict:
     """What verification made of a clip: its candidate rows, their inliers (0 for a place with too
@@ -322,6 +377,46 @@ class Verdict:
     rows: list[int]
     inliers: list[int]
     moved_to: int | None
+
+    @property
+    def outcome(self) -> str:
+        """ "moved", "confirmed" (the global answer's place has MIN_INLIERS) or "unconfirmed"."""
+        if self.moved_to is not None:
+            return "moved"
+        return "confirmed" if self.inliers and self.inliers[0] >= MIN_INLIERS else "unconfirmed"
+
+
+OUTCOMES = ("moved", "confirmed", "unconfirmed")
+
+
+def checked_confidence(outcome: str | None, model: float) -> float:
+    """An answer's confidence, given what verification made of it (None: not verified) and the
+    venue's model's confidence for it."""
+    if outcome == "moved":
+        return MOVED_CONFIDENCE
+    if outcome == "unconfirmed":
+        return min(model, UNCONFIRMED_CONFIDENCE)
+    return model
+
+
+def _fitted(query: LocalQuery, local: LocalFeatures, place: int, bar: float) -> int:
+    """A place's inliers with the query, or 0 where its ratio-test matches number fewer than `bar`
+    (inliers never exceed matches: such a place cannot clear the bar, so it is not fitted)."""
+    qb, qd = query
+    vb, vd = local.of(place)
+    mt = ratio_matches(qd, vd)
+    return essential_inliers(qb[mt[:, 0]], vb[mt[:, 1]]) if len(mt) >= max(bar, 8) else 0
+
+
+def _bar(inl: list[int], margin: float) -> float:
+    """The matches another place needs to be worth fitting: MIN_INLIERS, more than the global
+    answer's place's inliers (inl[0]) and `margin` times them, more than the best so far."""
+    return max(MIN_INLIERS, inl[0] + 1, max(inl[1:], default=0) + 1, margin * inl[0])
+
+
+def _moves(inl: list[int], margin: float) -> bool:
+    best = max(inl)
+    return best >= MIN_INLIERS and best > inl[0] and best >= margin * inl[0]
 
 
 def verify(
@@ -333,33 +428,36 @@ def verify(
     global_row: int,
     margin: float,
     wide: Matches | None = None,
+    index: PlaceIndex | None = None,
 ) -> Verdict:
     """The clip's last frame's local features (`query`: bearings, descriptors) against its
-    candidate places (the global answer's row's first; `wide`: a wider search's matches)."""
+    candidate places (the global answer's row's first; `wide`: a wider search's matches); with the
+    venue's `index`, the vote where these confirm nothing and the refinement of a moved answer."""
     rows = candidate_rows(m, xy, global_row, wide)
-    qb, qd = query
     inl: list[int] = []
     for i, r in enumerate(rows):
-        p = int(place_of[r])
-        if p < 0:
-            inl.append(0)
-            continue
-        vb, vd = local.of(p)
-        mt = ratio_matches(qd, vd)
         # the global answer's place (the first, and the only one within PLACE_M of it) is counted
-        # whenever RANSAC can run: it sets the bar. Another place has no more inliers than matches,
-        # so one with fewer matches than the bar (MIN_INLIERS, more than the global place's and
-        # `margin` times it) or than the best place so far cannot move the answer, nor be the best:
-        # it is not fitted (the verdict is the same; it is counted 0)
-        n = len(mt)
-        if i == 0:
-            fit = n >= 8
-        else:
-            fit = n >= max(MIN_INLIERS, inl[0] + 1, max(inl[1:], default=0) + 1) and n >= margin * inl[0]
-        inl.append(essential_inliers(qb[mt[:, 0]], vb[mt[:, 1]]) if fit else 0)
+        # whenever RANSAC can run: it sets the bar; another is fitted only where it could clear it
+        p = int(place_of[r])
+        inl.append(0 if p < 0 else _fitted(query, local, p, 8 if i == 0 else _bar(inl, margin)))
     if not rows:
         return Verdict(rows, inl, None)
-    best = int(np.argmax(inl))
-    at_global = inl[0]  # (the global answer's place: the first, the others PLACE_M or more from it)
-    moves = inl[best] >= MIN_INLIERS and inl[best] > at_global and inl[best] >= margin * at_global
-    return Verdict(rows, inl, rows[best] if moves else None)
+    seen = {int(place_of[r]) for r in rows}
+    if index is not None and not _moves(inl, margin) and inl[0] < MIN_INLIERS:
+        votes = place_votes(query[1], local, index.owner)
+        voted = [int(p) for p in np.argsort(-votes, kind="stable") if votes[p] > 0 and index.rows[p] >= 0]
+        for p in [p for p in voted if p not in seen][:VOTE_PLACES]:
+            rows.append(int(index.rows[p]))
+            inl.append(_fitted(query, local, p, _bar(inl, margin)))
+            seen.add(p)
+    if not _moves(inl, margin):
+        return Verdict(rows, inl, None)
+    if index is not None:  # refined: the places beside the moved answer, each fitted only to beat it
+        at = xy[rows[int(np.argmax(inl))]]
+        near = np.flatnonzero(np.hypot(*(index.xy - at).T) < PLACE_M)
+        for p in sorted((int(p) for p in near), key=lambda p: float(np.hypot(*(index.xy[p] - at)))):
+            if p not in seen:
+                rows.append(int(index.rows[p]))
+                inl.append(_fitted(query, local, p, max(inl) + 1))
+                seen.add(p)
+    return Verdict(rows, inl, rows[int(np.argmax(inl))])

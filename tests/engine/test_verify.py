@@ -22,6 +22,7 @@ from omninav.verify import (
     LocalFeatures,
     essential_inliers,
     one_place,
+    place_index,
     place_of_rows,
     verify,
 )
@@ -111,6 +112,99 @@ def test_places_that_cannot_change_the_verdict_are_not_fitted_and_the_verdict_is
     assert fewer > 300
 
 
+def _corridor(seen: dict[int, np.ndarray], n: int = 10, seed: int = 3):
+    """A corridor of `n` places a metre apart along x (row i: video 0, frame i, at (i, 0)), each
+    seeing its own random scene points, except where `seen` gives the indices of the shared scene's
+    points it sees instead; and a query 0.3 m past place 6, turned 25 degrees, seeing the whole
+    shared scene. -> (local features, frames, xy, the query)."""
+    rng = np.random.default_rng(seed)
+    shared = rng.uniform(-8, 8, (120, 3)) * [1, 1, 0.3] + [6, 0, 0]
+    shared_d = rng.integers(0, 256, (len(shared), 32), dtype=np.uint8)
+    local = LocalFeatures.empty()
+    for i in range(n):
+        pts = shared[seen[i]] if i in seen else rng.uniform(-8, 8, (100, 3)) * [1, 1, 0.3] + [i, 0, 0]
+        d = shared_d[seen[i]] if i in seen else rng.integers(0, 256, (len(pts), 32), dtype=np.uint8)
+        local = local + one_place(0, i, _unit(pts - [i, 0, 0]), d)
+    frames = np.zeros(n, [("video", "<i4"), ("frame", "<i4")])
+    frames["frame"] = np.arange(n)
+    xy = np.stack([np.arange(n, dtype=float), np.zeros(n)], axis=1)
+    query = (_unit((shared - [6.3, 0, 0]) @ _rot_z(25.0)).astype(np.float32), shared_d)
+    return local, frames, xy, query
+
+
+def _candidates(*rows: int) -> Matches:
+    k = len(rows)
+    return Matches(np.array([rows]), np.linspace(0.9, 0.5, k)[None], np.full((1, k), 0.9), np.zeros((1, k)))
+
+
+def test_a_place_the_global_search_missed_is_found_by_the_venues_vote(monkeypatch):
+    """Where no candidate confirms the global answer, the clip's keypoints vote over every place,
+    and the best-voted are verified: the answer moves to the one place that saw the scene."""
+    import omninav.verify as vf
+
+    local, frames, xy, q = _corridor({6: np.arange(120)})
+    place_of, index = place_of_rows(frames, local), place_index(frames, local, xy)
+    m = _candidates(0, 2, 4)  # the global search's places: none of them saw the scene
+    assert verify(q, m, xy, local, place_of, 0, 2.0).moved_to is None  # (without the vote)
+    v = verify(q, m, xy, local, place_of, 0, 2.0, index=index)
+    assert v.moved_to == 6 and max(v.inliers) >= 100 and v.rows[:3] == [0, 2, 4]
+    # a global answer its own place confirms is not put to the vote
+    votes = []
+    monkeypatch.setattr(vf, "place_votes", lambda *a: votes.append(1) or np.zeros(len(local.places)))
+    assert verify(q, _candidates(6, 2), xy, local, place_of, 6, 2.0, index=index).moved_to is None
+    assert votes == []
+
+
+def test_a_moved_answer_goes_to_the_neighbouring_place_that_saw_more():
+    """The candidates are one every PLACE_M: a moved answer is refined among the places beside it
+    (here the place a metre on saw the whole scene, the candidate half of it)."""
+    local, frames, xy, q = _corridor({6: np.arange(0, 120, 2), 7: np.arange(120)})
+    place_of, index = place_of_rows(frames, local), place_index(frames, local, xy)
+    m = _candidates(0, 6, 9)
+    assert verify(q, m, xy, local, place_of, 0, 2.0).moved_to == 6
+    v = verify(q, m, xy, local, place_of, 0, 2.0, index=index)
+    assert v.moved_to == 7 and v.inliers[v.rows.index(7)] > v.inliers[v.rows.index(6)]
+    assert 8 not in v.rows[3:]  # only places within PLACE_M of the moved answer are refined
+
+
+def test_an_answer_says_what_its_keypoints_made_of_it_and_an_unconfirmed_one_is_never_sure(
+    verified, small_ds, monkeypatch
+):
+    import omninav.verify as vf
+
+    local, frames, xy, q = _corridor({6: np.arange(120)})
+    place_of = place_of_rows(frames, local)
+    assert verify(q, _candidates(6, 2), xy, local, place_of, 6, 2.0).outcome == "confirmed"
+    assert verify(q, _candidates(0, 2), xy, local, place_of, 0, 2.0).outcome == "unconfirmed"
+    assert verify(q, _candidates(0, 6), xy, local, place_of, 0, 2.0).outcome == "moved"
+    assert vf.checked_confidence("unconfirmed", 0.97) == vf.UNCONFIRMED_CONFIDENCE < 0.8
+    assert vf.checked_confidence("unconfirmed", 0.3) == 0.3
+    assert vf.checked_confidence("confirmed", 0.97) == 0.97 and vf.checked_confidence(None, 0.97) == 0.97
+    assert vf.checked_confidence("moved", 0.97) == MOVED_CONFIDENCE
+    # through the Locator: a right, sure answer whose own place the keypoints do not confirm
+    loc = Locator(*verified)
+    frames_, (tx, ty, _) = query_clip(small_ds, 60)
+    lens = load_lens(small_ds.lens)
+    sure = loc.locate_frames(frames_, "c", lens, 10.0)
+    assert sure["verified"] == "confirmed" and sure["confidence"] >= 0.8
+    monkeypatch.setattr(vf, "verify", lambda *a, **k: vf.Verdict([0], [5], None))
+    a = loc.locate_frames(frames_, "c", lens, 10.0)
+    assert a["verified"] == "unconfirmed" and a["confidence"] == vf.UNCONFIRMED_CONFIDENCE
+    assert (a["x"], a["y"]) == (sure["x"], sure["y"])
+
+
+def test_each_place_knows_its_venue_row_and_each_keypoint_its_place():
+    local = _places((0, 3, 2), (1, 5, 3), (0, 9, 1))
+    frames = np.zeros(4, [("video", "<i4"), ("frame", "<i4")])
+    frames["video"], frames["frame"] = [1, 0, 0, 1], [5, 9, 3, 7]
+    xy = np.arange(8, dtype=float).reshape(4, 2)
+    ix = place_index(frames, local, xy)
+    assert list(ix.rows) == [2, 0, 1] and list(ix.owner) == [0, 0, 1, 1, 1, 2]
+    assert np.array_equal(ix.xy, xy[[2, 0, 1]])
+    gone = place_index(frames[:2], local, xy[:2])  # a place whose frame is not a venue row
+    assert list(gone.rows) == [-1, 0, 1] and np.isnan(gone.xy[0]).all()
+
+
 def test_each_venue_frame_finds_the_place_of_its_own_video_at_or_before_it():
     lf = _places((1, 4, 1), (0, 0, 1), (0, 10, 1))  # (stored in any order)
     frames = np.zeros(6, [("frame", "<i4"), ("video", "<i4")])
@@ -173,8 +267,8 @@ def test_a_wrong_global_answer_moves_to_the_place_the_geometry_confirms(verified
     # and the Locator says a moved answer with its own confidence, at the true place, facing the
     # way the last frame's curves say there (not the far match's heading)
     e = loc.aggregated(m, np.zeros(1))
-    moved, conf = loc.verified(q, m, e, clip_spectra(small_ds, frames, loc.conf))
-    assert conf == MOVED_CONFIDENCE and moved.venue_row == truth
+    moved, outcome = loc.verified(q, m, e, clip_spectra(small_ds, frames, loc.conf))
+    assert outcome == "moved" and moved.venue_row == truth
     assert heading_error(moved.heading, th) < 5.0
 
 
@@ -204,7 +298,7 @@ def test_an_evaluation_walk_is_verified_clip_by_clip(wrong_global, verified, sma
     ev = evaluate(loc, small_ds.query_video, load_walk_path(small_ds.query_walk_path), load_lens(small_ds.lens))
     # every clip's global answer is the far place; the clip that ends at frame 69 is moved home
     [row] = [r for r in ev.rows if r["frame"] == 69]
-    assert row.get("moved") and row["err_m"] < 1.0 and row["confidence"] == MOVED_CONFIDENCE
+    assert row["verified"] == "moved" and row["err_m"] < 1.0 and row["confidence"] == MOVED_CONFIDENCE
 
 
 def test_verification_leaves_right_answers_where_they_are(verified, small_ds):

@@ -94,8 +94,8 @@ def test_a_verified_venue_checks_clips_sent_as_video_frames_or_a_record_with_loc
 ):
     """A venue with the `verified` preset, every clip's global answer made wrong: a video, frames,
     and a version-2 record (binary and JSON: the last frame's local features) are moved to where
-    the clip was filmed, said at 0.75; a version-1 record, which carries none, keeps the global
-    (wrong) answer."""
+    the clip was filmed, said at 0.75, and say so (`verified`); a version-1 record, which carries
+    none, keeps the global (wrong) answer, not verified."""
     from omninav.lens import load_lens
     from omninav.spectrum import encode_binary, encode_json
     from omninav.synth.walks import write_video
@@ -113,7 +113,7 @@ def test_a_verified_venue_checks_clips_sent_as_video_frames_or_a_record_with_loc
     def moved(r) -> bool:
         assert r.status_code == 200, r.json
         near = np.hypot(r.json["x"] - tx, r.json["y"] - ty) < 1.0
-        return bool(near and r.json["confidence"] == MOVED_CONFIDENCE)
+        return bool(near and r.json["confidence"] == MOVED_CONFIDENCE and r.json["verified"] == "moved")
 
     path = tmp_path / "clip.mp4"
     write_video(path, frames, 10.0, (frames[0].shape[1], frames[0].shape[0]))
@@ -131,4 +131,5 @@ def test_a_verified_venue_checks_clips_sent_as_video_frames_or_a_record_with_loc
     )
     assert moved(r)
     plain = api.post("/api/venues/lab/locate", data=encode_binary(spec, conf), content_type="application/octet-stream")
-    assert plain.status_code == 200 and not moved(plain)
+    assert plain.status_code == 200 and "verified" not in plain.json
+    assert np.hypot(plain.json["x"] - tx, plain.json["y"] - ty) > 5.0

@@ -363,8 +363,8 @@ def locate(venue_id: str) -> Any:
     clip = request.args.get("clip", "clip")[:200]
     loc = rt.locator
     if track is None:
-        e, conf = loc.estimate_local(spec, np.arange(len(spec)) / fps, None, sent.local_features(loc))
-        ans = loc.answer(e, clip, conf)
+        e, outcome = loc.estimate_local(spec, np.arange(len(spec)) / fps, None, sent.local_features(loc))
+        ans = loc.answer(e, clip, outcome)
         floor = rt.video_floor[int(loc.gen.frames["video"][e.venue_row])]
         ambiguous = False
     else:

@@ -66,6 +66,8 @@ export interface Answer {
   accuracy_m: number | null;
   frames: number;
   sent: 'features' | 'frames';
+  /** Only where the venue checked the clip by its keypoints: what that made of the answer. */
+  verified?: 'moved' | 'confirmed' | 'unconfirmed';
   plan_png?: string | null;
   /** With ?session=: the filter's state (the pose fields above are then the filtered pose's). */
   tracking?: Tracking;

@@ -10,6 +10,14 @@ import type { Session } from '../session';
 import type { Speaker } from '../speech';
 import { PlanView } from '../views/plan';
 
+/** What the server's check by keypoints made of the answer (Answer.verified), in words. */
+const CHECKED: Record<NonNullable<Answer['verified']> | 'none', string> = {
+  moved: 'moved: the keypoints fit another place better, and the answer is there',
+  confirmed: 'confirmed: the keypoints fit the answer',
+  unconfirmed: 'not confirmed: the keypoints fit no place well, so the answer is not sure',
+  none: 'not used by the server',
+};
+
 export function locateScreen(session: Session, speaker: Speaker): void {
   const where = byId<HTMLButtonElement>('where');
   const repeat = byId<HTMLButtonElement>('repeat');
@@ -71,7 +79,10 @@ export function locateScreen(session: Session, speaker: Speaker): void {
     const localBytes = r.keypoints != null ? localBlockBytes(k) : 0;
     const keypointRow: [string, string][] =
       r.keypoints != null
-        ? [['Keypoints', `${k} of the last frame, ${localBytes} bytes, ${(r.keypointMs ?? 0).toFixed(0)} ms`]]
+        ? [
+            ['Keypoints', `${k} of the last frame, ${localBytes} bytes, ${(r.keypointMs ?? 0).toFixed(0)} ms`],
+            ['Checked by keypoints', CHECKED[a.verified ?? 'none']],
+          ]
         : [];
     facts(debugFacts, [
       ['Sent', `features only: ${r.recordBytes} bytes for ${r.frames} frames`],
