@@ -169,7 +169,9 @@ def search_tag(conf: dict[str, Any]) -> str:
 def rescore(rows: list[dict[str, Any]], conf: dict[str, Any]) -> np.ndarray:
     """The confidence each answer gets from the confidence model in `conf` (not the one stored
     when the rows were made: a recalibration is judged without running anything again)."""
-    return np.array([checked_confidence(r.get("verified"), confidence(r, conf)) for r in rows])
+    # (rows cached before answers said `verified` carry `moved` on a moved answer)
+    said = [r.get("verified") or ("moved" if r.get("moved") else None) for r in rows]
+    return np.array([checked_confidence(v, confidence(r, conf)) for v, r in zip(said, rows, strict=True)])
 
 
 def summarise(rows: list[dict[str, Any]], conf: dict[str, Any]) -> dict[str, Any]:

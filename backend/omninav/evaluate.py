@@ -26,7 +26,7 @@ from .motion import Imu
 from .quality import AMBIGUOUS_MARGIN, RADIUS_M
 from .spectrum import LocalQuery
 from .tracking_state import TrackPose, TrackState
-from .verify import checked_confidence
+from .verify import Outcome, checked_confidence
 from .video import IMAGE_EXT, VideoInfo, iter_video
 from .walk_path import WalkPath
 
@@ -197,7 +197,7 @@ def evaluate_spectra(
     ev = Evaluation()
     for s in clip_starts(len(t), n, tail):
         w = slice(s, s + n)
-        outcome = None
+        outcome: Outcome | None = None
         if ends is not None and int(idx[s + n - 1]) in ends:
             e, outcome = loc.estimate_local(spec[w], t[w], aggregate, ends[int(idx[s + n - 1])])
         else:

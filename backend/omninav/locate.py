@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from .motion import Motion
     from .tracking import Tracker
     from .tracking_state import ClipAnswer, TrackPose, TrackState
-    from .verify import PlaceIndex
+    from .verify import Outcome, PlaceIndex
     from .walkgraph import WalkGraph
 
 EXTRACTORS = 8  # lenses whose remaps a Locator keeps
@@ -313,7 +313,7 @@ class Locator:
         )
         return out
 
-    def answer(self, e: Estimate, clip: str, outcome: str | None = None) -> dict[str, Any]:
+    def answer(self, e: Estimate, clip: str, outcome: Outcome | None = None) -> dict[str, Any]:
         """The docs/formats.md answer of an estimate; `outcome`: what verification made of it
         (verify.Verdict.outcome; None: not verified), which sets its confidence with the model's."""
         from .verify import checked_confidence
@@ -391,7 +391,7 @@ class Locator:
 
     def estimate_local(
         self, q_spec: np.ndarray, times: np.ndarray, aggregate: str | None, local: LocalQuery | None
-    ) -> tuple[Estimate, str | None]:
+    ) -> tuple[Estimate, Outcome | None]:
         """estimate(), then verified by the clip's last frame's `local` features where there are
         some and the venue has its own: (the estimate, what verification made of it: None where
         the clip was not verified; verify.Verdict.outcome)."""
@@ -403,12 +403,13 @@ class Locator:
 
     def verified(
         self, local: LocalQuery, m: Matches, e: Estimate, last_specs: np.ndarray
-    ) -> tuple[Estimate, str | None]:
+    ) -> tuple[Estimate, Outcome | None]:
         """A clip's global answer checked by its last frame's local features against its candidate
         places: (the answer, "moved") moved to another place with the heading of the last frame's
         spectrum (of the clip's `last_specs`, (F, C, K)) at that place (stage 2's phase
-        correlation), or (as it was, "confirmed" or "unconfirmed"). Verification only ever adds to
-        the answer: an error in it is logged and the global answer stands, not verified (None)."""
+        correlation), or (as it was, "confirmed" or "unconfirmed"; None where nothing could be
+        compared). Verification only ever adds to the answer: an error in it is logged and the
+        global answer stands, not verified (None)."""
         from . import verify as vfy
 
         stored = self.gen.local

@@ -19,15 +19,17 @@ to the place with the most, where it has at least MIN_INLIERS and at least `loca
 the global answer's place's. Where none of these moves the answer and the global answer's own
 place is not confirmed (fewer than MIN_INLIERS), the venue votes: each of the clip's keypoints
 votes for the places that hold one of its VOTE_K nearest stored descriptors (Hamming, brute
-force over every place: ~0.5 ms a place here), and the VOTE_PLACES best-voted not yet scored are scored too.
-An answer that moves is then refined: the places within PLACE_M of it not yet scored are
-scored, and the one with the most inliers is the answer (the candidates are one a PLACE_M, so a
-moved answer could otherwise sit up to PLACE_M from a better-seen place).
+force over every place: ~0.5 ms a place here, so a venue of more than VOTE_MAX_PLACES has no
+vote), and the VOTE_PLACES best-voted not yet scored are scored too. An answer that moves is
+then refined: the REFINE_PLACES nearest places within PLACE_M of it not yet scored are scored,
+and the one with the most inliers is the answer (the candidates are one a PLACE_M, so a moved
+answer could otherwise sit up to PLACE_M from a better-seen place).
 A moved answer is said with MOVED_CONFIDENCE: below "sure" until a calibration has enough moved
 answers to fit (the tuning families moved 4 answers in 532 clips; docs/decisions.md). An answer
 that stands is "confirmed" where its own place has MIN_INLIERS or more, else "unconfirmed": said
 with at most UNCONFIRMED_CONFIDENCE (below "sure": the keypoints looked and found nothing there).
-The answer says which (`verified`, docs/formats.md).
+The answer says which (`verified`, docs/formats.md); a clip with under 8 keypoints, or whose
+answer's video has no stored places, is not verified (nothing was compared).
 
 The essential-matrix RANSAC is our own (batched 8-point, NumPy): OpenCV's `findEssentialMat`
 takes pinhole image points, and a panorama's bearings cover the sphere (half of them behind any
@@ -38,6 +40,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import Literal
 
 import cv2
 import numpy as np
@@ -58,6 +61,8 @@ RATIO = 0.8  # Lowe's ratio test on Hamming distances
 VOTE_K = 4  # each keypoint's nearest stored descriptors over the venue, for the vote
 VOTE_HAMMING = 64  # a nearest descriptor votes only this close (of 256 bits)
 VOTE_PLACES = 8  # the venue's best-voted places scored where the global search's are not confirmed
+VOTE_MAX_PLACES = 1000  # a venue with more places has no vote (~0.5 ms a place: a request's cost bounded)
+REFINE_PLACES = 8  # at most this many places beside a moved answer refine it (the nearest first)
 MIN_INLIERS = 20  # fewer prove nothing (two unrelated panoramas' 900 keypoints share up to ~19)
 RANSAC_ITERS = 500  # at most; drawn RANSAC_BATCH at a time until one clean sample is RANSAC_SURE
 RANSAC_BATCH = 100
@@ -67,6 +72,8 @@ INLIER_DEG = 0.5  # a match's angular distance from its epipolar plane, to count
 MOVED_CONFIDENCE = 0.75  # a moved answer's confidence: below aggregate.SURE (not yet calibrated)
 UNCONFIRMED_CONFIDENCE = 0.75  # at most this for an answer its own place's keypoints do not confirm
 DESCRIPTOR_BYTES = 32  # ORB's
+
+Outcome = Literal["moved", "confirmed", "unconfirmed"]  # what verification made of an answer
 
 LOCAL_DTYPE = np.dtype([("video", "<i4"), ("frame", "<i4"), ("start", "<i8"), ("count", "<i4")])
 
@@ -340,7 +347,7 @@ class PlaceIndex:
 def place_index(frames: np.ndarray, local: LocalFeatures, xy: np.ndarray) -> PlaceIndex:
     """Each stored keypoint's place, and each place's venue row (its video's frame) and position."""
     places = np.asarray(local.places)
-    owner = np.full(len(local.descriptors), -1, np.int64)
+    owner = np.full(len(local.descriptors), -1, np.int32)
     for p, (s, n) in enumerate(zip(places["start"], places["count"], strict=True)):
         owner[int(s) : int(s) + int(n)] = p
     rkey = (np.asarray(frames["video"], np.int64) << 32) + np.asarray(frames["frame"], np.int64)
@@ -377,19 +384,21 @@ class Verdict:
     rows: list[int]
     inliers: list[int]
     moved_to: int | None
+    scored: bool = True  # whether the global answer's own place was compared with the clip
 
     @property
-    def outcome(self) -> str:
-        """ "moved", "confirmed" (the global answer's place has MIN_INLIERS) or "unconfirmed"."""
+    def outcome(self) -> Outcome | None:
+        """What verification made of the answer: "moved", "confirmed" (the global answer's place
+        has MIN_INLIERS), "unconfirmed", or None where its place could not be compared and
+        nothing moved (not verified)."""
         if self.moved_to is not None:
             return "moved"
-        return "confirmed" if self.inliers and self.inliers[0] >= MIN_INLIERS else "unconfirmed"
+        if not self.scored:
+            return None
+        return "confirmed" if self.inliers[0] >= MIN_INLIERS else "unconfirmed"
 
 
-OUTCOMES = ("moved", "confirmed", "unconfirmed")
-
-
-def checked_confidence(outcome: str | None, model: float) -> float:
+def checked_confidence(outcome: Outcome | None, model: float) -> float:
     """An answer's confidence, given what verification made of it (None: not verified) and the
     venue's model's confidence for it."""
     if outcome == "moved":
@@ -436,14 +445,16 @@ def verify(
     rows = candidate_rows(m, xy, global_row, wide)
     inl: list[int] = []
     for i, r in enumerate(rows):
-        # the global answer's place (the first, and the only one within PLACE_M of it) is counted
+        # the global answer's place (the first; the only candidate within PLACE_M of it) is counted
         # whenever RANSAC can run: it sets the bar; another is fitted only where it could clear it
         p = int(place_of[r])
         inl.append(0 if p < 0 else _fitted(query, local, p, 8 if i == 0 else _bar(inl, margin)))
-    if not rows:
-        return Verdict(rows, inl, None)
+    if not rows or len(query[0]) < 8:
+        return Verdict(rows, inl, None, scored=False)
+    scored = int(place_of[rows[0]]) >= 0
     seen = {int(place_of[r]) for r in rows}
-    if index is not None and not _moves(inl, margin) and inl[0] < MIN_INLIERS:
+    vote = len(local.places) <= VOTE_MAX_PLACES and not _moves(inl, margin) and inl[0] < MIN_INLIERS
+    if index is not None and vote:
         votes = place_votes(query[1], local, index.owner)
         voted = [int(p) for p in np.argsort(-votes, kind="stable") if votes[p] > 0 and index.rows[p] >= 0]
         for p in [p for p in voted if p not in seen][:VOTE_PLACES]:
@@ -451,13 +462,13 @@ def verify(
             inl.append(_fitted(query, local, p, _bar(inl, margin)))
             seen.add(p)
     if not _moves(inl, margin):
-        return Verdict(rows, inl, None)
+        return Verdict(rows, inl, None, scored)
     if index is not None:  # refined: the places beside the moved answer, each fitted only to beat it
         at = xy[rows[int(np.argmax(inl))]]
         near = np.flatnonzero(np.hypot(*(index.xy - at).T) < PLACE_M)
-        for p in sorted((int(p) for p in near), key=lambda p: float(np.hypot(*(index.xy[p] - at)))):
-            if p not in seen:
-                rows.append(int(index.rows[p]))
-                inl.append(_fitted(query, local, p, max(inl) + 1))
-                seen.add(p)
-    return Verdict(rows, inl, rows[int(np.argmax(inl))])
+        near = near[np.argsort(np.hypot(*(index.xy[near] - at).T), kind="stable")]
+        for p in [int(p) for p in near if int(p) not in seen][:REFINE_PLACES]:
+            rows.append(int(index.rows[p]))
+            inl.append(_fitted(query, local, p, max(inl) + 1))
+            seen.add(p)
+    return Verdict(rows, inl, rows[int(np.argmax(inl))], scored)

@@ -89,7 +89,7 @@ def test_places_that_cannot_change_the_verdict_are_not_fitted_and_the_verdict_is
         return int(state["inliers"][len(b1)]) if len(b1) >= 8 else 0
 
     monkeypatch.setattr(vf, "essential_inliers", fit)
-    query = (np.zeros((1, 3), np.float32), np.zeros((1, 32), np.uint8))
+    query = (np.zeros((8, 3), np.float32), np.zeros((8, 32), np.uint8))
     fewer = 0
     for _ in range(3000):
         k = int(rng.integers(1, vf.PLACES + 1))
@@ -153,6 +153,10 @@ def test_a_place_the_global_search_missed_is_found_by_the_venues_vote(monkeypatc
     monkeypatch.setattr(vf, "place_votes", lambda *a: votes.append(1) or np.zeros(len(local.places)))
     assert verify(q, _candidates(6, 2), xy, local, place_of, 6, 2.0, index=index).moved_to is None
     assert votes == []
+    # nor is a venue too big to vote over within a request's time
+    monkeypatch.setattr(vf, "VOTE_MAX_PLACES", len(local.places) - 1)
+    assert verify(q, m, xy, local, place_of, 0, 2.0, index=index).outcome == "unconfirmed"
+    assert votes == []
 
 
 def test_a_moved_answer_goes_to_the_neighbouring_place_that_saw_more():
@@ -177,6 +181,10 @@ def test_an_answer_says_what_its_keypoints_made_of_it_and_an_unconfirmed_one_is_
     assert verify(q, _candidates(6, 2), xy, local, place_of, 6, 2.0).outcome == "confirmed"
     assert verify(q, _candidates(0, 2), xy, local, place_of, 0, 2.0).outcome == "unconfirmed"
     assert verify(q, _candidates(0, 6), xy, local, place_of, 0, 2.0).outcome == "moved"
+    # nothing compared: not verified (a clip without keypoints; an answer whose place has none)
+    assert verify((q[0][:7], q[1][:7]), _candidates(6, 2), xy, local, place_of, 6, 2.0).outcome is None
+    no_place = np.where(np.arange(len(place_of)) == 0, -1, place_of)
+    assert verify(q, _candidates(0, 2), xy, local, no_place, 0, 2.0).outcome is None
     assert vf.checked_confidence("unconfirmed", 0.97) == vf.UNCONFIRMED_CONFIDENCE < 0.8
     assert vf.checked_confidence("unconfirmed", 0.3) == 0.3
     assert vf.checked_confidence("confirmed", 0.97) == 0.97 and vf.checked_confidence(None, 0.97) == 0.97

@@ -14,7 +14,7 @@ import { PlanView } from '../views/plan';
 const CHECKED: Record<NonNullable<Answer['verified']> | 'none', string> = {
   moved: 'moved: the keypoints fit another place better, and the answer is there',
   confirmed: 'confirmed: the keypoints fit the answer',
-  unconfirmed: 'not confirmed: the keypoints fit no place well, so the answer is not sure',
+  unconfirmed: 'not confirmed: the keypoints did not confirm this place, so the answer is not sure',
   none: 'not used by the server',
 };
 
