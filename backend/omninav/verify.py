@@ -303,9 +303,14 @@ def candidate_rows(m: Matches, xy: np.ndarray, first: int | None = None, wide: M
         more_score.append(np.asarray(wide.score).ravel())
     idx, score = np.concatenate(more_idx), np.concatenate(more_score)
     rest = idx[np.argsort(-score, kind="stable")]
+    ranked = np.concatenate([[] if first is None else [first], last, rest]).astype(np.int64)
+    _, at = np.unique(ranked, return_index=True)  # each row once, where it ranks first
     kept: list[int] = []
-    for r in np.concatenate([[] if first is None else [first], last, rest]).astype(np.int64):
-        if all(np.hypot(*(xy[r] - xy[k])) >= PLACE_M for k in kept):
+    kept_xy = np.empty((PLACES, 2))
+    for r in ranked[np.sort(at)]:
+        p = xy[r]
+        if not kept or (np.hypot(*(kept_xy[: len(kept)] - p).T) >= PLACE_M).all():
+            kept_xy[len(kept)] = p
             kept.append(int(r))
             if len(kept) == PLACES:
                 break
