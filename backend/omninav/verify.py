@@ -448,14 +448,14 @@ def verify(
     candidate places (the global answer's row's first; `wide`: a wider search's matches); with the
     venue's `index`, the vote where these confirm nothing and the refinement of a moved answer."""
     rows = candidate_rows(m, xy, global_row, wide)
+    if not rows or len(query[0]) < 8:  # nothing to compare
+        return Verdict(rows, [0] * len(rows), None, scored=False)
     inl: list[int] = []
     for i, r in enumerate(rows):
         # the global answer's place (the first; the only candidate within PLACE_M of it) is counted
         # whenever RANSAC can run: it sets the bar; another is fitted only where it could clear it
         p = int(place_of[r])
         inl.append(0 if p < 0 else _fitted(query, local, p, 8 if i == 0 else _bar(inl, margin)))
-    if not rows or len(query[0]) < 8:
-        return Verdict(rows, inl, None, scored=False)
     scored = int(place_of[rows[0]]) >= 0
     seen = {int(place_of[r]) for r in rows}
     vote = len(local.places) <= VOTE_MAX_PLACES and not _moves(inl, margin) and inl[0] < MIN_INLIERS
