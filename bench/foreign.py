@@ -128,10 +128,17 @@ def line(venue: str, config: str, s: dict[str, Any]) -> str:
     )
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def pack_parser(doc: str, venues: str = "all") -> argparse.ArgumentParser:
+    """A pack benchmark's command line: its docstring's first line, --pack and --venues (default
+    `venues`: "all" or names, chosen_venues)."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--pack", type=Path, default=PACK)
-    ap.add_argument("--venues", default="all")
+    ap.add_argument("--venues", default=venues)
+    return ap
+
+
+def main() -> None:
+    ap = pack_parser(__doc__)
     ap.add_argument("--configs", default="default,paper", help=f"of: {', '.join(CONFIGS)}")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=JSON", help="a setting over every configuration")
     ap.add_argument("--elev", default="0", help="the phone's lens profile off by these degrees (comma-separated)")

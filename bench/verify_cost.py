@@ -15,7 +15,6 @@ time's median and p90.
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 import time
 from pathlib import Path
@@ -23,16 +22,29 @@ from pathlib import Path
 import numpy as np
 
 from bench.common import machine
-from bench.foreign import PACK, chosen_venues
+from bench.foreign import chosen_venues, pack_parser
 from omninav.calib.correct import clip_spectra
 from omninav.extract import Extractors
-from omninav.lens import load_lens
+from omninav.lens import Lens, load_lens
 from omninav.locate import Locator, clip_frames
 from omninav.model_venue import model_video
 from omninav.presets import resolve
 from omninav.spectrum import decode_binary_local, encode_binary
 from omninav.store import Store
 from omninav.walk_path import load_walk_path
+
+
+def phone_records(
+    locs: dict[str, Locator], extractors: Extractors, lens: Lens, frames: list[np.ndarray], name: str
+) -> dict[str, bytes]:
+    """A clip's record as the phone sends it to each venue: version 1 (the curves) to one without
+    local features, 2 (and the last frame's keypoints, through the clip's ring-corrected lens) to
+    a `verified` one; `extractors` make the curves (both presets' are the default's)."""
+    spec, c = clip_spectra(lens, frames, extractors.spectrum, clip=name)
+    return {
+        p: encode_binary(spec, loc.conf, loc.local_features(frames[-1], c.lens) if loc.verifies else None)
+        for p, loc in locs.items()
+    }
 
 
 def run(pack: Path, venue: str, clips: int) -> None:
@@ -62,11 +74,9 @@ def run(pack: Path, venue: str, clips: int) -> None:
                 t = time.perf_counter()
                 loc.locate_frames(frames, name, lens, fps)
                 ms[preset].append(1e3 * (time.perf_counter() - t))
-            # the phone's record of the clip: version 1 for the default venue, 2 for `verified`
-            spec, c = clip_spectra(lens, frames, extractors.spectrum, clip=name)
+            recs = phone_records(locs, extractors, lens, frames, name)
             for preset, loc in locs.items():
-                keypoints = loc.local_features(frames[-1], c.lens) if loc.verifies else None
-                rec = encode_binary(spec, loc.conf, keypoints)
+                rec = recs[preset]
                 rec_bytes[preset].append(len(rec))
                 t = time.perf_counter()
                 got, lq = decode_binary_local(rec, loc.conf)
@@ -90,9 +100,7 @@ def run(pack: Path, venue: str, clips: int) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--pack", type=Path, default=PACK)
-    ap.add_argument("--venues", default="inst21")
+    ap = pack_parser(__doc__, venues="inst21")
     ap.add_argument("--clips", type=int, default=30)
     a = ap.parse_args()
     print(f"machine: {machine()}")

@@ -14,19 +14,19 @@ median and p90 and their ratio (the issue's bar: within 2x).
 
 from __future__ import annotations
 
-import argparse
 import http.client
 import json
 import tempfile
 import time
+from collections import Counter
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from bench.common import machine
-from bench.foreign import PACK, chosen_venues
-from omninav.calib.correct import clip_spectra
+from bench.foreign import chosen_venues, pack_parser
+from bench.verify_cost import phone_records
 from omninav.catalog import Catalog
 from omninav.config import load_config
 from omninav.demo import model_now
@@ -56,22 +56,14 @@ def set_up(cat: Catalog, src: Path, venue: str) -> None:
 
 
 def records(cat: Catalog, src: Path, venue: str, clips: int) -> list[dict[str, bytes]]:
-    """Each query clip's phone record for each venue: version 1 for the default, 2 for verified."""
-    from omninav.spectrum import encode_binary
-
+    """Each query clip's phone record for each venue (verify_cost.phone_records)."""
     lens = load_lens(src / "lens.json")
     locs = {p: Locator(cat.store, f"{venue}-{p}", device="cpu") for p in PRESETS}
-    extractors = Extractors(locs["default"].conf)  # both presets' curves are the default's
+    extractors = Extractors(locs["default"].conf)
     out = []
     for name in sorted(p.name for p in (src / "queries").iterdir())[:clips]:
         frames, _ = clip_frames(src / "queries" / name, locs["default"].conf["model_fps"])
-        spec, c = clip_spectra(lens, frames, extractors.spectrum, clip=name)
-        out.append(
-            {
-                p: encode_binary(spec, loc.conf, loc.local_features(frames[-1], c.lens) if loc.verifies else None)
-                for p, loc in locs.items()
-            }
-        )
+        out.append(phone_records(locs, extractors, lens, frames, name))
     return out
 
 
@@ -88,9 +80,7 @@ def post(conn: http.client.HTTPConnection, venue_id: str, body: bytes) -> tuple[
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--pack", type=Path, default=PACK)
-    ap.add_argument("--venues", default="all")
+    ap = pack_parser(__doc__)
     ap.add_argument("--clips", type=int, default=30)
     a = ap.parse_args()
     print(f"machine: {machine()}")
@@ -108,13 +98,12 @@ def main() -> None:
                     for p in PRESETS:
                         post(conn, f"{venue}-{p}", rec[p])
                 ms: dict[str, list[float]] = {p: [] for p in PRESETS}
-                said: dict[str, int] = {}
+                said: Counter[str] = Counter()
                 for rec in bodies[venue]:
                     for p in PRESETS:
                         t, ans = post(conn, f"{venue}-{p}", rec[p])
                         ms[p].append(t)
-                        if p == "verified":
-                            said[ans.get("verified", "none")] = said.get(ans.get("verified", "none"), 0) + 1
+                    said[ans.get("verified", "not verified")] += 1  # (the verified venue's answer)
                 med = {p: float(np.median(ms[p])) for p in PRESETS}
                 for p in PRESETS:
                     kb = np.median([len(r[p]) for r in bodies[venue]]) / 1024
@@ -122,7 +111,7 @@ def main() -> None:
                         f"{venue:<8} {p:<9} ({kb:4.1f} KB) median {med[p]:6.1f} ms, "
                         f"p90 {np.percentile(ms[p], 90):6.1f} ms ({len(ms[p])} clips)"
                     )
-                print(f"{venue:<8} verified / default, median: {med['verified'] / med['default']:.1f}x; {said}")
+                print(f"{venue:<8} verified / default, median: {med['verified'] / med['default']:.1f}x; {dict(said)}")
             conn.close()
 
 
