@@ -62,6 +62,9 @@ VOTE_K = 4  # each keypoint's nearest stored descriptors over the venue, for the
 VOTE_HAMMING = 64  # a nearest descriptor votes only this close (of 256 bits)
 VOTE_PLACES = 8  # the venue's best-voted places scored where the global search's are not confirmed
 VOTE_MAX_PLACES = 1000  # a venue with more places has no vote (~0.5 ms a place: a request's cost bounded)
+# the vote's stored descriptors, matched in blocks of this many rows: OpenCV's matcher refuses a
+# block of 2**18 or more (a venue of ~300 well-lit places, 880 keypoints each, has that many)
+VOTE_BLOCK = 1 << 17
 REFINE_PLACES = 8  # at most this many places beside a moved answer refine it (the nearest first)
 MIN_INLIERS = 20  # fewer prove nothing (two unrelated panoramas' 900 keypoints share up to ~19)
 RANSAC_ITERS = 500  # at most; drawn RANSAC_BATCH at a time until one clean sample is RANSAC_SURE
@@ -372,9 +375,11 @@ def place_votes(descriptors: np.ndarray, local: LocalFeatures, owner: np.ndarray
     stored = np.ascontiguousarray(local.descriptors)
     if len(descriptors) == 0 or len(stored) == 0:
         return votes
-    knn = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(np.ascontiguousarray(descriptors), stored, k=VOTE_K)
+    matcher = cv2.BFMatcher(cv2.NORM_HAMMING)
+    matcher.add([stored[i : i + VOTE_BLOCK] for i in range(0, len(stored), VOTE_BLOCK)])
+    knn = matcher.knnMatch(np.ascontiguousarray(descriptors), k=VOTE_K)  # the nearest over all blocks
     for near in knn:
-        for p in {int(owner[d.trainIdx]) for d in near if d.distance <= VOTE_HAMMING}:
+        for p in {int(owner[d.imgIdx * VOTE_BLOCK + d.trainIdx]) for d in near if d.distance <= VOTE_HAMMING}:
             if p >= 0:
                 votes[p] += 1
     return votes

@@ -16,14 +16,17 @@ from omninav.settings_upgrade import upgrade
 from omninav.spectrum import decode_binary_local, encode_binary
 from omninav.store import Store
 from omninav.verify import (
+    LOCAL_DTYPE,
     MIN_INLIERS,
     MOVED_CONFIDENCE,
     SPACING_M,
+    VOTE_BLOCK,
     LocalFeatures,
     essential_inliers,
     one_place,
     place_index,
     place_of_rows,
+    place_votes,
     verify,
 )
 from omninav.walk_path import load_walk_path
@@ -211,6 +214,23 @@ def test_each_place_knows_its_venue_row_and_each_keypoint_its_place():
     assert np.array_equal(ix.xy, xy[[2, 0, 1]])
     gone = place_index(frames[:2], local, xy[:2])  # a place whose frame is not a venue row
     assert list(gone.rows) == [-1, 0, 1] and np.isnan(gone.xy[0]).all()
+
+
+def test_the_vote_counts_over_a_venue_with_more_descriptors_than_one_matcher_block():
+    # 300 places of 900 keypoints: 270,000 stored descriptors, more than OpenCV's matcher takes at once
+    n_places, per = 300, 900
+    rng = np.random.default_rng(5)
+    places = np.zeros(n_places, LOCAL_DTYPE)
+    places["frame"], places["start"], places["count"] = np.arange(n_places), np.arange(n_places) * per, per
+    desc = rng.integers(0, 256, (n_places * per, 32), dtype=np.uint8)
+    local = LocalFeatures(places, np.zeros((len(desc), 3), np.float16), desc)
+    assert len(desc) > 2 * VOTE_BLOCK
+    owner = np.repeat(np.arange(n_places, dtype=np.int32), per)
+    for p in (3, 160, 299):  # in the first block, across the first boundary, in the last block
+        q = local.of(p)[1][:120].copy()
+        q[:, 0] ^= 1  # one bit off: still each keypoint's nearest
+        votes = place_votes(q, local, owner)
+        assert int(np.argmax(votes)) == p and votes[p] == 120
 
 
 def test_each_venue_frame_finds_the_place_of_its_own_video_at_or_before_it():
