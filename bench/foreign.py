@@ -29,12 +29,10 @@ from bench.ablation import CONFIGS, elevation_off
 from bench.common import machine
 from bench.scoring import conf_of, scores, summary
 from bench.venues import cached_venue, search_tag, settings
-from omninav.aggregate import confidence
 from omninav.calib.correct import FIRST
 from omninav.heading import wrap_deg
 from omninav.lens import load_lens
 from omninav.locate import Locator, clip_frames
-from omninav.verify import checked_confidence
 
 PACK = Path(__file__).resolve().parents[1].parent / "shared" / "foreign"
 DATA = Path("data") / "foreign"
@@ -107,7 +105,7 @@ def rows_for(pack: Path, venue: str, tag: str, conf: dict[str, Any], elev: float
                 "y": e.y,
                 "err_m": float(np.hypot(e.x - truth["x"], e.y - truth["y"])),
                 "heading_err_deg": float(wrap_deg(e.heading - truth["heading_deg"])),
-                "confidence": checked_confidence(outcome, confidence(e, loc.conf)),
+                "confidence": loc.confidence(e, outcome),
                 "support": e.support,
                 "rival": e.rival,
                 "agree": e.agree,

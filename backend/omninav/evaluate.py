@@ -26,7 +26,7 @@ from .motion import Imu
 from .quality import AMBIGUOUS_MARGIN, RADIUS_M
 from .spectrum import LocalQuery
 from .tracking_state import TrackPose, TrackState
-from .verify import Outcome, checked_confidence
+from .verify import Outcome
 from .video import IMAGE_EXT, VideoInfo, iter_video
 from .walk_path import WalkPath
 
@@ -216,7 +216,7 @@ def evaluate_spectra(
                 "err_m": float(np.hypot(e.x - tx, e.y - ty)),
                 "heading_err_deg": float(wrap_deg(e.heading - hd[s + n - 1])),
                 "venue_row": e.venue_row,
-                "confidence": checked_confidence(outcome, confidence(e, loc.conf)),
+                "confidence": loc.confidence(e, outcome),
                 "support": e.support,
                 "rival": e.rival,
                 "agree": e.agree,

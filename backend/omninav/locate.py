@@ -313,17 +313,22 @@ class Locator:
         )
         return out
 
+    def confidence(self, e: Estimate, outcome: Outcome | None = None) -> float:
+        """An estimate's confidence: the venue's model's, as verification's `outcome` leaves it
+        (verify.checked_confidence; None: not verified). The answer's, evaluate's and the benches'."""
+        from .verify import checked_confidence
+
+        return checked_confidence(outcome, confidence(e, self.conf))
+
     def answer(self, e: Estimate, clip: str, outcome: Outcome | None = None) -> dict[str, Any]:
         """The docs/formats.md answer of an estimate; `outcome`: what verification made of it
         (verify.Verdict.outcome; None: not verified), which sets its confidence with the model's."""
-        from .verify import checked_confidence
-
         return {
             "clip": clip,
             "x": round(e.x, 3),
             "y": round(e.y, 3),
             "heading_deg": answer_heading(e.heading),
-            "confidence": round(checked_confidence(outcome, confidence(e, self.conf)), 3),
+            "confidence": round(self.confidence(e, outcome), 3),
             "floor": self.floor,
             "place": self.nearest_place(e.x, e.y),
             "frame": int(self.gen.frames["frame"][e.venue_row]),
@@ -414,6 +419,8 @@ class Locator:
 
         stored = self.gen.local
         assert stored is not None
+        if len(local[0]) < 8:  # too few keypoints to compare (verify's own rule): no wider search for them
+            return e, None
         try:
             if self._places is None:  # (made at the venue's first verification)
                 rows = self.gen.frames

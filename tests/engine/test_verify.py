@@ -355,6 +355,29 @@ def test_an_error_in_verification_leaves_the_global_answer(verified, small_ds, m
     assert "verification failed" in caplog.text
 
 
+def test_a_clip_with_too_few_keypoints_is_answered_by_its_curves_without_a_wider_search(verified, small_ds):
+    loc = Locator(*verified)
+    frames, _ = query_clip(small_ds, 60)
+    spec = clip_spectra(small_ds, frames, loc.conf)
+    bearings, desc = loc.local_features(frames[-1], load_lens(small_ds.lens))
+    searches: list[int] = []
+    search = loc.index.search
+    loc.index.search = lambda *a, **k: searches.append(1) or search(*a, **k)  # type: ignore[method-assign]
+
+    def located(local=None):
+        searches.clear()
+        return loc.locate_spectra(spec, "c", 10.0, local=local), len(searches)
+
+    (plain, n), (few, n_few), (full, n_full) = located(), located((bearings[:5], desc[:5])), located((bearings, desc))
+    assert "verified" not in few and (few["x"], few["y"], few["confidence"]) == (
+        plain["x"],
+        plain["y"],
+        plain["confidence"],
+    )
+    assert n_few == n  # the clip's own search only
+    assert full["verified"] == "confirmed" and n_full > n  # and the last frames' wider one
+
+
 def test_local_features_are_fixed_when_modelled_and_absent_from_older_venues(verified):
     loc = Locator(*verified)
     with pytest.raises(OmninavError, match="local_features"):
