@@ -27,7 +27,7 @@ from omninav.presets import resolve
 from omninav.store import Store
 from omninav.synth import upgrade_names
 from omninav.synth.families import FAMILIES, make_family_dataset
-from omninav.verify import checked_confidence
+from omninav.verify import FAST_DIM, FAST_THRESHOLD, checked_confidence
 from omninav.walk_path import load_walk_path
 
 DATA = Path("data") / "families"
@@ -90,7 +90,8 @@ def venue_key(tag: str, settings: dict[str, Any]) -> str:
     The confidence model is not part of what is modelled (a recalibration reuses the venue), nor
     is tracking (tracking.py's track_* keys: a venue modelled before them is the same venue), nor
     how a clip is searched (SEARCH_KEYS: the answers' cache is named by them, rows_for), nor the
-    settings' format version, nor verification's margin (or its absence: local_features null)."""
+    settings' format version, nor verification's margin (or its absence: local_features null).
+    A venue with local features is also keyed by their detector's FAST thresholds (verify.py)."""
     kept = {
         k: v
         for k, v in settings.items()
@@ -101,6 +102,8 @@ def venue_key(tag: str, settings: dict[str, Any]) -> str:
         and k != "local_margin"
         and not (k == "local_features" and v is None)  # (venues modelled before them)
     }
+    if kept.get("local_features"):  # the keypoints' detector too: another threshold is another venue
+        kept["fast_thresholds"] = [FAST_THRESHOLD, FAST_DIM]
     return f"{tag}-{hashlib.sha1(json.dumps(kept, sort_keys=True).encode()).hexdigest()[:10]}"
 
 

@@ -42,7 +42,7 @@ from omninav.synth.clipon import REAL_MIRROR_SENSOR
 from omninav.synth.scene import build_scene
 from omninav.synth.walks import Perturb, Pose, render_frames
 from omninav.unwarp import unwarp
-from omninav.verify import detect, grey_panorama, panorama_map
+from omninav.verify import FAST_THRESHOLD, detect, grey_panorama, panorama_map
 
 # poses in the small synthetic layout (scene.py): corridor points, headings all round
 POSES = [Pose(0.0, 6.0, 2.0, 30.0), Pose(0.1, 14.5, 2.2, 200.0), Pose(0.2, 20.0, 8.0, 300.0)]
@@ -94,8 +94,9 @@ def _local_case(out: Path, name: str, lens, frames: list[np.ndarray], rgba: str)
     for i, bgr in enumerate(frames):
         stem = f"{name}-{i}"
         (out / f"{stem}.lgrey").write_bytes(grey_panorama(bgr, pm).tobytes())
-        (out / f"{stem}.local").write_bytes(encode_local(detect(bgr, lens, LOCAL_FEATURES)))
-        stems.append({"stem": stem, "rgba": f"{rgba}-{i}"})
+        q = detect(bgr, lens, LOCAL_FEATURES)
+        (out / f"{stem}.local").write_bytes(encode_local(q))
+        stems.append({"stem": stem, "rgba": f"{rgba}-{i}", "n": len(q[0])})
     rows, cols = pm.remap.map_x.shape
     return {
         "name": name,
@@ -136,10 +137,18 @@ def golden(out: Path) -> None:
         # decentring, lens.json's `sensor`), read on the same frames: the phone's sums are the engine's
         _case(out, "donut-sensor", replace(donut, sensor=REAL_MIRROR_SENSOR), "default", [dframes[0], tilted[0]]),
     ]
+    # a dim frame (a quarter of the light): under half its keypoints at ORB's FAST_THRESHOLD, so
+    # both detect it again at FAST_DIM
+    dim = (dframes[0] * 0.25).astype(np.uint8)
+    _rgba(out, "local-dim-0", dim)
     local = [
         _local_case(out, "local-donut", donut, dframes, "donut-default"),
         _local_case(out, "local-equirect", eq, eframes, "equirect-default"),
+        _local_case(out, "local-dim", donut, [dim], "local-dim"),
     ]
+    pano = grey_panorama(dim, panorama_map(donut))
+    at_first = len(cv2.ORB.create(nfeatures=LOCAL_FEATURES, fastThreshold=FAST_THRESHOLD).detect(pano, None))
+    assert at_first < LOCAL_FEATURES / 2, f"the dim golden frame keeps {at_first} keypoints at FAST_THRESHOLD"
     (out / "golden.json").write_text(json.dumps({"cases": cases, "local": local}, indent=1))
     ring_golden(out, dframes)
 

@@ -75,6 +75,13 @@ INLIER_DEG = 0.5  # a match's angular distance from its epipolar plane, to count
 MOVED_CONFIDENCE = 0.75  # a moved answer's confidence: below aggregate.SURE (not yet calibrated)
 UNCONFIRMED_CONFIDENCE = 0.75  # at most this for an answer its own place's keypoints do not confirm
 DESCRIPTOR_BYTES = 32  # ORB's
+FAST_THRESHOLD = 20  # ORB's FAST corner threshold (OpenCV's default)
+# A frame with fewer than half its keypoints at FAST_THRESHOLD (a dim or bare one: at a quarter of
+# the light it keeps a tenth, and its own place seldom reaches MIN_INLIERS) is detected again at
+# this threshold, which keeps about half (chosen on the tuning families with their queries dimmed;
+# a lower threshold on every frame lost on the held-out families' bare corridors, decisions.md).
+# The phone's worker follows the same rule (web/src/worker/local.ts).
+FAST_DIM = 10
 
 Outcome = Literal["moved", "confirmed", "unconfirmed"]  # what verification made of an answer
 
@@ -207,7 +214,9 @@ def detect(frame: np.ndarray, lens: Lens, n_features: int) -> LocalQuery:
     if len(pm.el) < 32:  # a lens that sees no band of elevations all round
         return _none()
     pano = grey_panorama(frame, pm)
-    kp, des = cv2.ORB.create(nfeatures=n_features).detectAndCompute(pano, None)
+    kp, des = cv2.ORB.create(nfeatures=n_features, fastThreshold=FAST_THRESHOLD).detectAndCompute(pano, None)
+    if len(kp) < n_features / 2:  # a dim frame: its weaker corners too
+        kp, des = cv2.ORB.create(nfeatures=n_features, fastThreshold=FAST_DIM).detectAndCompute(pano, None)
     if des is None or not kp:
         return _none()
     pt = np.array([k.pt for k in kp])

@@ -22,6 +22,7 @@ from omninav.verify import (
     SPACING_M,
     VOTE_BLOCK,
     LocalFeatures,
+    detect,
     essential_inliers,
     one_place,
     place_index,
@@ -376,6 +377,16 @@ def test_a_clip_with_too_few_keypoints_is_answered_by_its_curves_without_a_wider
     )
     assert n_few == n  # the clip's own search only
     assert full["verified"] == "confirmed" and n_full > n  # and the last frames' wider one
+
+
+def test_a_dim_frame_keeps_a_third_of_its_keypoints(small_ds):
+    # light at a quarter (a dim corridor): ORB's default FAST threshold keeps a tenth of the corners
+    # on our renders, too few for its own place to reach MIN_INLIERS; FAST_THRESHOLD keeps about half
+    frames, _ = query_clip(small_ds, 60)
+    lens = load_lens(small_ds.lens)
+    bright = len(detect(frames[-1], lens, 900)[0])
+    dim = len(detect((frames[-1] * 0.25).astype(np.uint8), lens, 900)[0])
+    assert bright > 600 and dim > bright / 3
 
 
 def test_local_features_are_fixed_when_modelled_and_absent_from_older_venues(verified):

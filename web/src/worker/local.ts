@@ -19,6 +19,10 @@ export const STEP_DEG = 0.25;
 export const EL_TOP = 60;
 export const EL_BOTTOM = -80;
 export const COARSE = 4;
+/** ORB's FAST corner thresholds: a frame with under half its keypoints at the first (OpenCV's
+ * default) is detected again at the second, a dim frame's weaker corners too (verify.py's rule). */
+export const FAST_THRESHOLD = 20;
+export const FAST_DIM = 10;
 /** A lens that sees fewer rows than this all round gives no keypoints (verify.detect's rule). */
 export const MIN_ROWS = 32;
 
@@ -131,6 +135,7 @@ export interface LocalCv {
   KeyPointVector: new () => { size(): number; get(i: number): LKeyPoint; delete(): void };
   ORB: new (n: number) => {
     detectAndCompute(img: LMat, mask: LMat, kp: unknown, desc: LMat): void;
+    setFastThreshold(t: number): void;
     delete(): void;
   };
   CV_8UC1: number;
@@ -240,7 +245,12 @@ export class LocalDetector {
     if (!this.map) return { az: new Uint16Array(0), el: new Int16Array(0), desc: new Uint8Array(0) };
     this.grey(rgba);
     const [, , pano, , , mask, desc] = this.work();
+    this.orb.setFastThreshold(FAST_THRESHOLD);
     this.orb.detectAndCompute(pano, mask, this.kp, desc);
+    if (this.kp.size() < this.nFeatures / 2) {
+      this.orb.setFastThreshold(FAST_DIM); // a dim frame: its weaker corners too
+      this.orb.detectAndCompute(pano, mask, this.kp, desc);
+    }
     const n = desc.rows ? this.kp.size() : 0;
     const az = new Uint16Array(n);
     const el = new Int16Array(n);
