@@ -46,6 +46,7 @@ test("the browser extracts the engine's records (relative error <= 1e-3) and its
     'local-donut-1',
     'local-donut-2',
     'local-equirect-0',
+    'local-dim-0', // a dim frame: detected again at the lower FAST threshold, in both
   ]);
   for (const f of r.local.frames) {
     const w = localBlock(new Uint8Array(readFileSync(resolve(GOLDEN, `${f.stem}.local`))));
