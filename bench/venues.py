@@ -27,7 +27,7 @@ from omninav.presets import resolve
 from omninav.store import Store
 from omninav.synth import upgrade_names
 from omninav.synth.families import FAMILIES, make_family_dataset
-from omninav.verify import FAST_DIM, FAST_THRESHOLD, checked_confidence
+from omninav.verify import DIM_SHARE, FAST_DIM, FAST_THRESHOLD, checked_confidence
 from omninav.walk_path import load_walk_path
 
 DATA = Path("data") / "families"
@@ -91,7 +91,7 @@ def venue_key(tag: str, settings: dict[str, Any]) -> str:
     is tracking (tracking.py's track_* keys: a venue modelled before them is the same venue), nor
     how a clip is searched (SEARCH_KEYS: the answers' cache is named by them, rows_for), nor the
     settings' format version, nor verification's margin (or its absence: local_features null).
-    A venue with local features is also keyed by their detector's FAST thresholds (verify.py)."""
+    A venue with local features is also keyed by their detector's FAST thresholds and dim share (verify.py)."""
     kept = {
         k: v
         for k, v in settings.items()
@@ -103,7 +103,7 @@ def venue_key(tag: str, settings: dict[str, Any]) -> str:
         and not (k == "local_features" and v is None)  # (venues modelled before them)
     }
     if kept.get("local_features"):  # the keypoints' detector too: another threshold is another venue
-        kept["fast_thresholds"] = [FAST_THRESHOLD, FAST_DIM]
+        kept["fast_thresholds"] = [FAST_THRESHOLD, FAST_DIM, DIM_SHARE]
     return f"{tag}-{hashlib.sha1(json.dumps(kept, sort_keys=True).encode()).hexdigest()[:10]}"
 
 

@@ -419,7 +419,7 @@ class Locator:
 
         stored = self.gen.local
         assert stored is not None
-        if len(local[0]) < 8:  # too few keypoints to compare (verify's own rule): no wider search for them
+        if len(local[0]) < vfy.MIN_KEYPOINTS:  # nothing to compare: no wider search for it
             return e, None
         try:
             if self._places is None:  # (made at the venue's first verification)

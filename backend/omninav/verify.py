@@ -63,9 +63,10 @@ VOTE_HAMMING = 64  # a nearest descriptor votes only this close (of 256 bits)
 VOTE_PLACES = 8  # the venue's best-voted places scored where the global search's are not confirmed
 VOTE_MAX_PLACES = 1000  # a venue with more places has no vote (~0.5 ms a place: a request's cost bounded)
 # the vote's stored descriptors, matched in blocks of this many rows: OpenCV's matcher refuses a
-# block of 2**18 or more (a venue of ~300 well-lit places, 880 keypoints each, has that many)
+# block of 2**18 or more (a venue of ~300 well-lit places, 900 keypoints each, has that many)
 VOTE_BLOCK = 1 << 17
 REFINE_PLACES = 8  # at most this many places beside a moved answer refine it (the nearest first)
+MIN_KEYPOINTS = 8  # a clip with fewer keypoints is not compared (the essential matrix's 8-point sample)
 MIN_INLIERS = 20  # fewer prove nothing (two unrelated panoramas' 900 keypoints share up to ~19)
 RANSAC_ITERS = 500  # at most; drawn RANSAC_BATCH at a time until one clean sample is RANSAC_SURE
 RANSAC_BATCH = 100
@@ -76,7 +77,8 @@ MOVED_CONFIDENCE = 0.75  # a moved answer's confidence: below aggregate.SURE (no
 UNCONFIRMED_CONFIDENCE = 0.75  # at most this for an answer its own place's keypoints do not confirm
 DESCRIPTOR_BYTES = 32  # ORB's
 FAST_THRESHOLD = 20  # ORB's FAST corner threshold (OpenCV's default)
-# A frame with fewer than half its keypoints at FAST_THRESHOLD (a dim or bare one: at a quarter of
+DIM_SHARE = 0.5
+# A frame with fewer than DIM_SHARE of the keypoints asked for at FAST_THRESHOLD (a dim or bare one: at a quarter of
 # the light it keeps a tenth, and its own place seldom reaches MIN_INLIERS) is detected again at
 # this threshold, which keeps about half (chosen on the tuning families with their queries dimmed;
 # a lower threshold on every frame lost on the held-out families' bare corridors, decisions.md).
@@ -215,7 +217,7 @@ def detect(frame: np.ndarray, lens: Lens, n_features: int) -> LocalQuery:
         return _none()
     pano = grey_panorama(frame, pm)
     kp, des = cv2.ORB.create(nfeatures=n_features, fastThreshold=FAST_THRESHOLD).detectAndCompute(pano, None)
-    if len(kp) < n_features / 2:  # a dim frame: its weaker corners too
+    if len(kp) < DIM_SHARE * n_features:  # a dim frame: its weaker corners too
         kp, des = cv2.ORB.create(nfeatures=n_features, fastThreshold=FAST_DIM).detectAndCompute(pano, None)
     if des is None or not kp:
         return _none()
@@ -462,7 +464,7 @@ def verify(
     candidate places (the global answer's row's first; `wide`: a wider search's matches); with the
     venue's `index`, the vote where these confirm nothing and the refinement of a moved answer."""
     rows = candidate_rows(m, xy, global_row, wide)
-    if not rows or len(query[0]) < 8:  # nothing to compare
+    if not rows or len(query[0]) < MIN_KEYPOINTS:  # nothing to compare
         return Verdict(rows, [0] * len(rows), None, scored=False)
     inl: list[int] = []
     for i, r in enumerate(rows):

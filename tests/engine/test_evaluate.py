@@ -9,6 +9,7 @@ import numpy as np
 from omninav.aggregate import Estimate, confidence
 from omninav.evaluate import evaluate_spectra
 from omninav.presets import resolve
+from omninav.verify import checked_confidence
 
 
 def test_every_second_of_an_admins_walk_is_scored_its_last_part_second_too() -> None:
@@ -22,7 +23,11 @@ def test_every_second_of_an_admins_walk_is_scored_its_last_part_second_too() -> 
         seen.append(t)
         return Estimate(1.0, 2.0, 90.0, 0, 0.9, 0.1, 1.0)
 
-    loc = SimpleNamespace(conf=conf, estimate=estimate, confidence=lambda e, outcome=None: confidence(e, conf))
+    loc = SimpleNamespace(
+        conf=conf,
+        estimate=estimate,
+        confidence=lambda e, outcome=None: checked_confidence(outcome, confidence(e, conf)),
+    )
     n = 25
     t = np.arange(n) / 10.0
     xy = np.stack([t, np.zeros(n)], axis=1)

@@ -227,8 +227,9 @@ def test_the_vote_counts_over_a_venue_with_more_descriptors_than_one_matcher_blo
     local = LocalFeatures(places, np.zeros((len(desc), 3), np.float16), desc)
     assert len(desc) > 2 * VOTE_BLOCK
     owner = np.repeat(np.arange(n_places, dtype=np.int32), per)
-    for p in (3, 160, 299):  # in the first block, across the first boundary, in the last block
-        q = local.of(p)[1][:120].copy()
+    # in the first block, across the first boundary, in the last block
+    for p, at in ((3, 0), (145, VOTE_BLOCK - 145 * per - 60), (299, 0)):
+        q = local.of(p)[1][at : at + 120].copy()
         q[:, 0] ^= 1  # one bit off: still each keypoint's nearest
         votes = place_votes(q, local, owner)
         assert int(np.argmax(votes)) == p and votes[p] == 120
@@ -381,7 +382,7 @@ def test_a_clip_with_too_few_keypoints_is_answered_by_its_curves_without_a_wider
 
 def test_a_dim_frame_keeps_a_third_of_its_keypoints(small_ds):
     # light at a quarter (a dim corridor): ORB's default FAST threshold keeps a tenth of the corners
-    # on our renders, too few for its own place to reach MIN_INLIERS; FAST_THRESHOLD keeps about half
+    # on our renders, too few for its own place to reach MIN_INLIERS; FAST_DIM keeps about half
     frames, _ = query_clip(small_ds, 60)
     lens = load_lens(small_ds.lens)
     bright = len(detect(frames[-1], lens, 900)[0])

@@ -19,10 +19,11 @@ export const STEP_DEG = 0.25;
 export const EL_TOP = 60;
 export const EL_BOTTOM = -80;
 export const COARSE = 4;
-/** ORB's FAST corner thresholds: a frame with under half its keypoints at the first (OpenCV's
- * default) is detected again at the second, a dim frame's weaker corners too (verify.py's rule). */
+/** ORB's FAST corner thresholds: a frame with under DIM_SHARE of its keypoints at the first
+ * (OpenCV's default) is detected again at the second, a dim frame's weaker corners too (verify.py's rule). */
 export const FAST_THRESHOLD = 20;
 export const FAST_DIM = 10;
+export const DIM_SHARE = 0.5;
 /** A lens that sees fewer rows than this all round gives no keypoints (verify.detect's rule). */
 export const MIN_ROWS = 32;
 
@@ -247,7 +248,7 @@ export class LocalDetector {
     const [, , pano, , , mask, desc] = this.work();
     this.orb.setFastThreshold(FAST_THRESHOLD);
     this.orb.detectAndCompute(pano, mask, this.kp, desc);
-    if (this.kp.size() < this.nFeatures / 2) {
+    if (this.kp.size() < DIM_SHARE * this.nFeatures) {
       this.orb.setFastThreshold(FAST_DIM); // a dim frame: its weaker corners too
       this.orb.detectAndCompute(pano, mask, this.kp, desc);
     }
