@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import fields
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -429,16 +429,32 @@ class Locator:
             wide = self.index.search(last_specs[-vfy.WIDE_FRAMES :], vfy.WIDE_K) if vfy.WIDE_K else None
             margin = float(self.conf["local_margin"])
             v = vfy.verify(local, m, self.xy, stored, place_of, e.venue_row, margin, wide, index)
-            if v.moved_to is None:
+            if v.outcome not in ("moved", "confirmed"):
                 return e, v.outcome
+            if v.moved_to is None:  # confirmed: where it was, its heading checked
+                h = self._keypoints_heading(local, int(place_of[e.venue_row]), e.heading, index)
+                return replace(e, heading=h), v.outcome
             r = v.moved_to
-            _, heading = self.index.verify(np.asarray(last_specs[-1])[None], np.array([[r]]))
-            h = float(to_numpy(heading).ravel()[0])
+            _, heading = self.index.verify(np.asarray(last_specs[-1])[None], np.array([[r]]))  # the curves' there
+            h = self._keypoints_heading(local, int(place_of[r]), float(to_numpy(heading).ravel()[0]), index)
         except (cv2.error, np.linalg.LinAlgError, ValueError) as err:
             log.warning("verification failed, the global answer stands: %s", err)
             return e, None
         x, y = self.xy[r]
         return Estimate(float(x), float(y), h, r, e.support, e.rival, e.agree), v.outcome
+
+    def _keypoints_heading(self, local: LocalQuery, place: int, curves: float, index: PlaceIndex) -> float:
+        """A verified answer's heading: the curves' (`curves`), unless the keypoints' turn from
+        `place`'s modelled frame (verify.place_turn) puts it more than HEADING_AGREE_DEG away."""
+        from . import verify as vfy
+
+        stored = self.gen.local
+        turn = vfy.place_turn(local, stored, place) if place >= 0 and stored is not None else None
+        if turn is None or index.rows[place] < 0:
+            return curves
+        keyed = float(self.gen.frames["heading"][index.rows[place]]) + turn
+        off = (keyed - curves + 180.0) % 360.0 - 180.0
+        return curves if abs(off) <= vfy.HEADING_AGREE_DEG else keyed % 360.0
 
 
 def read_record(path: Path, conf: dict[str, Any]) -> tuple[np.ndarray, LocalQuery | None]:

@@ -75,6 +75,12 @@ REFITS = 3  # LO-RANSAC's refits of the best hypothesis on its inliers
 INLIER_DEG = 0.5  # a match's angular distance from its epipolar plane, to count as an inlier
 MOVED_CONFIDENCE = 0.75  # a moved answer's confidence: below aggregate.SURE (not yet calibrated)
 UNCONFIRMED_CONFIDENCE = 0.75  # at most this for an answer its own place's keypoints do not confirm
+# A verified answer's heading is the curves' (stage 2's phase correlation, to a degree or two)
+# unless the keypoints' turn from the place's modelled frame says otherwise by more than this:
+# then theirs. The curves fail whole, by a crossing corridor or the corridor's other end (90 or
+# 180 deg); the keypoints' turn is only as good as the place's modelled heading, which at a corner
+# is its walk leg's, up to 45 deg from where the camera looked (decisions.md)
+HEADING_AGREE_DEG = 60.0
 DESCRIPTOR_BYTES = 32  # ORB's
 FAST_THRESHOLD = 20  # ORB's FAST corner threshold (OpenCV's default)
 DIM_SHARE = 0.5
@@ -279,12 +285,19 @@ def essential_inliers(b1: np.ndarray, b2: np.ndarray, seed: int = 0) -> int:
     an inlier within INLIER_DEG of its epipolar plane. Seeded: the same pairs give the same count.
     Where fewer than about 40 % of the matches are inliers, RANSAC_ITERS samples of 8 seldom hold a clean
     one and the count comes out low (a minimal solver for upright cameras would not)."""
+    return int(essential_fit(b1, b2, seed)[0].sum())
+
+
+def essential_fit(b1: np.ndarray, b2: np.ndarray, seed: int = 0) -> tuple[np.ndarray, np.ndarray | None]:
+    """essential_inliers' pairs: (n,) whether each is an inlier, and the essential matrix fitted
+    to them by least squares (None under 8 inliers)."""
     n = len(b1)
+    none = np.zeros(n, bool), None
     if n < 8:
-        return 0
+        return none
     b1, b2 = np.asarray(b1, np.float64), np.asarray(b2, np.float64)
     if not (np.isfinite(b1).all() and np.isfinite(b2).all()):
-        return 0
+        return none
     a = np.einsum("ni,nj->nij", b2, b1).reshape(n, 9)
     rng = np.random.default_rng(seed)
     best = np.zeros(n, bool)
@@ -303,7 +316,32 @@ def essential_inliers(b1: np.ndarray, b2: np.ndarray, seed: int = 0) -> int:
         if again.sum() <= best.sum():
             break
         best = again
-    return int(best.sum())
+    return (best, _essential(a[best])) if best.sum() >= 8 else (best, None)
+
+
+def turn_deg(e: np.ndarray) -> float:
+    """An essential matrix (b2^T E b1 = 0) -> how far camera 1 is turned clockwise from camera 2,
+    degrees in (-180, 180]: the azimuth in camera 2 of camera 1's forward direction, through the
+    upright one of E's two rotations (the other turns the world upside down: the cameras here
+    are held within tilts of a few degrees)."""
+    u, _, vt = np.linalg.svd(e)
+    u, vt = u * np.sign(np.linalg.det(u)), vt * np.sign(np.linalg.det(vt))
+    w = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    r = max((u @ w @ vt, u @ w.T @ vt), key=lambda m: float(m[2, 2]))
+    fwd = r @ np.array([0.0, 1.0, 0.0])  # the bearing convention: azimuth 0 along +y, clockwise to +x
+    deg = float(np.degrees(np.arctan2(fwd[0], fwd[1])))
+    return 180.0 if deg == -180.0 else deg
+
+
+def place_turn(query: LocalQuery, local: LocalFeatures, place: int) -> float | None:
+    """How far the clip's last frame is turned clockwise from `place`'s modelled frame (turn_deg),
+    where their keypoints hold MIN_INLIERS; else None."""
+    vb, vd = local.of(place)
+    mt = ratio_matches(query[1], vd)
+    if len(mt) < MIN_INLIERS:
+        return None
+    ok, e = essential_fit(query[0][mt[:, 0]], vb[mt[:, 1]])
+    return turn_deg(e) if e is not None and ok.sum() >= MIN_INLIERS else None
 
 
 def candidate_rows(m: Matches, xy: np.ndarray, first: int | None = None, wide: Matches | None = None) -> list[int]:

@@ -3,6 +3,8 @@ videos come and go, and a clip whose global answer is wrong moved to where it wa
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -23,11 +25,13 @@ from omninav.verify import (
     VOTE_BLOCK,
     LocalFeatures,
     detect,
+    essential_fit,
     essential_inliers,
     one_place,
     place_index,
     place_of_rows,
     place_votes,
+    turn_deg,
     verify,
 )
 from omninav.walk_path import load_walk_path
@@ -388,6 +392,44 @@ def test_a_dim_frame_keeps_a_third_of_its_keypoints(small_ds):
     bright = len(detect(frames[-1], lens, 900)[0])
     dim = len(detect((frames[-1] * 0.25).astype(np.uint8), lens, 900)[0])
     assert bright > 600 and dim > bright / 3
+
+
+@pytest.mark.parametrize("turn", [-150.0, -30.0, 10.0, 100.0, 179.0])
+def test_the_keypoints_say_how_far_the_clip_is_turned_from_the_place(turn):
+    # points around a corridor; the place's camera faces azimuth 0, the clip's 0.8 m along and
+    # turned `turn` degrees clockwise (a bearing's azimuth is clockwise from +y)
+    rng = np.random.default_rng(1)
+    pts = np.c_[rng.uniform(-6, 6, 300), rng.uniform(-10, 10, 300), rng.uniform(-1.2, 1.5, 300)]
+    pts = pts[np.hypot(pts[:, 0], pts[:, 1]) > 1.5]
+    at = np.array([0.3, 0.8, 0.05])
+    c, s = np.cos(np.radians(turn)), np.sin(np.radians(turn))
+    seen = pts - at
+    clip = np.c_[seen[:, 0] * c - seen[:, 1] * s, seen[:, 1] * c + seen[:, 0] * s, seen[:, 2]]
+    ok, e = essential_fit(_unit(clip), _unit(pts))
+    assert ok.mean() > 0.95 and e is not None
+    assert abs((turn_deg(e) - turn + 180.0) % 360.0 - 180.0) < 0.5
+
+
+def test_a_verified_answer_takes_the_keypoints_heading_where_the_curves_turned_it_round(
+    verified, small_ds, monkeypatch
+):
+    loc = Locator(*verified)
+    frames, (_, _, th) = query_clip(small_ds, 60)
+    spec = clip_spectra(small_ds, frames, loc.conf)
+    local = loc.local_features(frames[-1], load_lens(small_ds.lens))
+    right = loc.locate_spectra(spec, "c", 10.0, local=local)
+    assert right["verified"] == "confirmed" and heading_error(right["heading_deg"], th) < 5.0
+    aggregated = loc.aggregated
+
+    # the curves' heading turned round (a corridor's two ends alike): the keypoints turn it back
+    def flip(*a):
+        e = aggregated(*a)
+        return dataclasses.replace(e, heading=(e.heading + 180.0) % 360.0)
+
+    monkeypatch.setattr(loc, "aggregated", flip)
+    turned = loc.locate_spectra(spec, "c", 10.0, local=local)
+    assert heading_error(turned["heading_deg"], th) < 10.0  # (the keypoints' turn: within a few degrees)
+    assert heading_error(loc.locate_spectra(spec, "c", 10.0)["heading_deg"], th) > 170.0  # not verified
 
 
 def test_local_features_are_fixed_when_modelled_and_absent_from_older_venues(verified):
