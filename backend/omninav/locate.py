@@ -412,7 +412,8 @@ class Locator:
         """A clip's global answer checked by its last frame's local features against its candidate
         places: (the answer, "moved") moved to another place with the heading of the last frame's
         spectrum (of the clip's `last_specs`, (F, C, K)) at that place (stage 2's phase
-        correlation), or (as it was, "confirmed" or "unconfirmed"; None where nothing could be
+        correlation), (the answer where it was, "confirmed"), the heading of either checked by the
+        keypoints (_keypoints_heading); or (as it was, "unconfirmed"; None where nothing could be
         compared). Verification only ever adds to the answer: an error in it is logged and the
         global answer stands, not verified (None)."""
         from . import verify as vfy
@@ -445,12 +446,19 @@ class Locator:
 
     def _keypoints_heading(self, local: LocalQuery, place: int, curves: float, index: PlaceIndex) -> float:
         """A verified answer's heading: the curves' (`curves`), unless the keypoints' turn from
-        `place`'s modelled frame (verify.place_turn) puts it more than HEADING_AGREE_DEG away."""
+        `place`'s modelled frame (verify.place_turn) puts it more than HEADING_AGREE_DEG away. An
+        error in it leaves the curves' (logged): the answer stays verified."""
         from . import verify as vfy
 
         stored = self.gen.local
-        turn = vfy.place_turn(local, stored, place) if place >= 0 and stored is not None else None
-        if turn is None or index.rows[place] < 0:
+        if place < 0 or stored is None or index.rows[place] < 0:
+            return curves
+        try:
+            turn = vfy.place_turn(local, stored, place)
+        except (cv2.error, np.linalg.LinAlgError, ValueError) as err:
+            log.warning("the keypoints' heading failed, the curves' stands: %s", err)
+            return curves
+        if turn is None:
             return curves
         keyed = float(self.gen.frames["heading"][index.rows[place]]) + turn
         off = (keyed - curves + 180.0) % 360.0 - 180.0

@@ -323,7 +323,8 @@ def turn_deg(e: np.ndarray) -> float:
     """An essential matrix (b2^T E b1 = 0) -> how far camera 1 is turned clockwise from camera 2,
     degrees in (-180, 180]: the azimuth in camera 2 of camera 1's forward direction, through the
     upright one of E's two rotations (the other turns the world upside down: the cameras here
-    are held within tilts of a few degrees)."""
+    are held within tilts of a few degrees; only a baseline near vertical, which a held camera
+    does not make, leaves the two alike)."""
     u, _, vt = np.linalg.svd(e)
     u, vt = u * np.sign(np.linalg.det(u)), vt * np.sign(np.linalg.det(vt))
     w = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])

@@ -430,6 +430,20 @@ def test_a_verified_answer_takes_the_keypoints_heading_where_the_curves_turned_i
     turned = loc.locate_spectra(spec, "c", 10.0, local=local)
     assert heading_error(turned["heading_deg"], th) < 10.0  # (the keypoints' turn: within a few degrees)
     assert heading_error(loc.locate_spectra(spec, "c", 10.0)["heading_deg"], th) > 170.0  # not verified
+    # turned by less than HEADING_AGREE_DEG (a corner's modelled heading is that far off): the curves' stands
+
+    def turned_by(deg):
+        def turned(*a):
+            e = aggregated(*a)
+            return dataclasses.replace(e, heading=(e.heading + deg) % 360.0)
+
+        return turned
+
+    monkeypatch.setattr(loc, "aggregated", turned_by(30.0))
+    assert (
+        heading_error(loc.locate_spectra(spec, "c", 10.0, local=local)["heading_deg"], right["heading_deg"] + 30.0)
+        < 0.01
+    )
 
 
 def test_local_features_are_fixed_when_modelled_and_absent_from_older_venues(verified):
