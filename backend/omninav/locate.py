@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from .motion import Motion
     from .tracking import Tracker
     from .tracking_state import ClipAnswer, TrackPose, TrackState
-    from .verify import Outcome, PlaceIndex
+    from .verify import Outcome, PlaceIndex, Verdict
     from .walkgraph import WalkGraph
 
 EXTRACTORS = 8  # lenses whose remaps a Locator keeps
@@ -433,32 +433,30 @@ class Locator:
             if v.outcome not in ("moved", "confirmed"):
                 return e, v.outcome
             if v.moved_to is None:  # confirmed: where it was, its heading checked
-                h = self._keypoints_heading(local, int(place_of[e.venue_row]), e.heading, index)
+                h = self._keypoints_heading(v, int(place_of[e.venue_row]), e.heading, index)
                 return replace(e, heading=h), v.outcome
             r = v.moved_to
             _, heading = self.index.verify(np.asarray(last_specs[-1])[None], np.array([[r]]))  # the curves' there
-            h = self._keypoints_heading(local, int(place_of[r]), float(to_numpy(heading).ravel()[0]), index)
+            h = self._keypoints_heading(v, int(place_of[r]), float(to_numpy(heading).ravel()[0]), index)
         except (cv2.error, np.linalg.LinAlgError, ValueError) as err:
             log.warning("verification failed, the global answer stands: %s", err)
             return e, None
         x, y = self.xy[r]
         return Estimate(float(x), float(y), h, r, e.support, e.rival, e.agree), v.outcome
 
-    def _keypoints_heading(self, local: LocalQuery, place: int, curves: float, index: PlaceIndex) -> float:
+    def _keypoints_heading(self, v: Verdict, place: int, curves: float, index: PlaceIndex) -> float:
         """A verified answer's heading: the curves' (`curves`), unless the keypoints' turn from
-        `place`'s modelled frame (verify.place_turn) puts it more than HEADING_AGREE_DEG away. An
-        error in it leaves the curves' (logged): the answer stays verified."""
+        `place`'s modelled frame (verify.turn_deg of the verdict's essential matrix, fitted to
+        that place) puts it more than HEADING_AGREE_DEG away. An error in it leaves the curves'
+        (logged): the answer stays verified."""
         from . import verify as vfy
 
-        stored = self.gen.local
-        if place < 0 or stored is None or index.rows[place] < 0:
+        if v.essential is None or place < 0 or index.rows[place] < 0:
             return curves
         try:
-            turn = vfy.place_turn(local, stored, place)
-        except (cv2.error, np.linalg.LinAlgError, ValueError) as err:
+            turn = vfy.turn_deg(v.essential)
+        except (np.linalg.LinAlgError, ValueError) as err:
             log.warning("the keypoints' heading failed, the curves' stands: %s", err)
-            return curves
-        if turn is None:
             return curves
         keyed = float(self.gen.frames["heading"][index.rows[place]]) + turn
         off = (keyed - curves + 180.0) % 360.0 - 180.0

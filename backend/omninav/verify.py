@@ -276,21 +276,16 @@ def _samples_needed(inlier_share: float) -> int:
     return int(np.ceil(np.log(1.0 - RANSAC_SURE) / np.log(1.0 - clean)))
 
 
-def essential_inliers(b1: np.ndarray, b2: np.ndarray, seed: int = 0) -> int:
-    """The most matched bearing pairs (b1[i], b2[i]) consistent with one essential matrix
-    (b2^T E b1 = 0): 8-point hypotheses RANSAC_BATCH at a time (at most RANSAC_ITERS, fewer where
-    the best so far makes a clean sample already RANSAC_SURE), then the best one refit on its
-    inliers while that finds more (LO-RANSAC: with a third of the matches inliers, few 8-point
-    samples are clean, and the refit recovers what a near-clean sample's matrix misses). A pair is
-    an inlier within INLIER_DEG of its epipolar plane. Seeded: the same pairs give the same count.
-    Where fewer than about 40 % of the matches are inliers, RANSAC_ITERS samples of 8 seldom hold a clean
-    one and the count comes out low (a minimal solver for upright cameras would not)."""
-    return int(essential_fit(b1, b2, seed)[0].sum())
-
-
 def essential_fit(b1: np.ndarray, b2: np.ndarray, seed: int = 0) -> tuple[np.ndarray, np.ndarray | None]:
-    """essential_inliers' pairs: (n,) whether each is an inlier, and the essential matrix fitted
-    to them by least squares (None under 8 inliers)."""
+    """Which matched bearing pairs (b1[i], b2[i]) are consistent with one essential matrix
+    (b2^T E b1 = 0), and that matrix fitted to them by least squares (None under 8 inliers):
+    8-point hypotheses RANSAC_BATCH at a time (at most RANSAC_ITERS, fewer where the best so far
+    makes a clean sample already RANSAC_SURE), then the best one refit on its inliers while that
+    finds more (LO-RANSAC: with a third of the matches inliers, few 8-point samples are clean, and
+    the refit recovers what a near-clean sample's matrix misses). A pair is an inlier within
+    INLIER_DEG of its epipolar plane. Seeded: the same pairs give the same inliers. Where fewer
+    than about 40 % of the matches are inliers, RANSAC_ITERS samples of 8 seldom hold a clean one
+    and the count comes out low (a minimal solver for upright cameras would not)."""
     n = len(b1)
     none = np.zeros(n, bool), None
     if n < 8:
@@ -332,17 +327,6 @@ def turn_deg(e: np.ndarray) -> float:
     fwd = r @ np.array([0.0, 1.0, 0.0])  # the bearing convention: azimuth 0 along +y, clockwise to +x
     deg = float(np.degrees(np.arctan2(fwd[0], fwd[1])))
     return 180.0 if deg == -180.0 else deg
-
-
-def place_turn(query: LocalQuery, local: LocalFeatures, place: int) -> float | None:
-    """How far the clip's last frame is turned clockwise from `place`'s modelled frame (turn_deg),
-    where their keypoints hold MIN_INLIERS; else None."""
-    vb, vd = local.of(place)
-    mt = ratio_matches(query[1], vd)
-    if len(mt) < MIN_INLIERS:
-        return None
-    ok, e = essential_fit(query[0][mt[:, 0]], vb[mt[:, 1]])
-    return turn_deg(e) if e is not None and ok.sum() >= MIN_INLIERS else None
 
 
 def candidate_rows(m: Matches, xy: np.ndarray, first: int | None = None, wide: Matches | None = None) -> list[int]:
@@ -445,6 +429,9 @@ class Verdict:
     inliers: list[int]
     moved_to: int | None
     scored: bool = True  # whether the global answer's own place was compared with the clip
+    # the essential matrix of the answer's place (the moved-to one's, else the global one's) where
+    # it is moved or confirmed: how far the clip is turned from that place (turn_deg)
+    essential: np.ndarray | None = None
 
     @property
     def outcome(self) -> Outcome | None:
@@ -468,13 +455,17 @@ def checked_confidence(outcome: Outcome | None, model: float) -> float:
     return model
 
 
-def _fitted(query: LocalQuery, local: LocalFeatures, place: int, bar: float) -> int:
-    """A place's inliers with the query, or 0 where its ratio-test matches number fewer than `bar`
-    (inliers never exceed matches: such a place cannot clear the bar, so it is not fitted)."""
+def _fitted(query: LocalQuery, local: LocalFeatures, place: int, bar: float) -> tuple[int, np.ndarray | None]:
+    """A place's inliers with the query and their essential matrix, or (0, None) where its
+    ratio-test matches number fewer than `bar` (inliers never exceed matches: such a place cannot
+    clear the bar, so it is not fitted)."""
     qb, qd = query
     vb, vd = local.of(place)
     mt = ratio_matches(qd, vd)
-    return essential_inliers(qb[mt[:, 0]], vb[mt[:, 1]]) if len(mt) >= max(bar, 8) else 0
+    if len(mt) < max(bar, 8):
+        return 0, None
+    ok, e = essential_fit(qb[mt[:, 0]], vb[mt[:, 1]])
+    return int(ok.sum()), e
 
 
 def _bar(inl: list[int], margin: float) -> float:
@@ -506,11 +497,17 @@ def verify(
     if not rows or len(query[0]) < MIN_KEYPOINTS:  # nothing to compare
         return Verdict(rows, [0] * len(rows), None, scored=False)
     inl: list[int] = []
+    ess: list[np.ndarray | None] = []  # each fitted place's essential matrix
+
+    def fit(p: int, bar: float) -> None:
+        n, e = (0, None) if p < 0 else _fitted(query, local, p, bar)
+        inl.append(n)
+        ess.append(e)
+
     for i, r in enumerate(rows):
         # the global answer's place (the first; the only candidate within PLACE_M of it) is counted
         # whenever RANSAC can run: it sets the bar; another is fitted only where it could clear it
-        p = int(place_of[r])
-        inl.append(0 if p < 0 else _fitted(query, local, p, 8 if i == 0 else _bar(inl, margin)))
+        fit(int(place_of[r]), 8 if i == 0 else _bar(inl, margin))
     scored = int(place_of[rows[0]]) >= 0
     seen = {int(place_of[r]) for r in rows}
     vote = len(local.places) <= VOTE_MAX_PLACES and not _moves(inl, margin) and inl[0] < MIN_INLIERS
@@ -519,16 +516,17 @@ def verify(
         voted = [int(p) for p in np.argsort(-votes, kind="stable") if votes[p] > 0 and index.rows[p] >= 0]
         for p in [p for p in voted if p not in seen][:VOTE_PLACES]:
             rows.append(int(index.rows[p]))
-            inl.append(_fitted(query, local, p, _bar(inl, margin)))
+            fit(p, _bar(inl, margin))
             seen.add(p)
     if not _moves(inl, margin):
-        return Verdict(rows, inl, None, scored)
+        return Verdict(rows, inl, None, scored, ess[0] if inl[0] >= MIN_INLIERS else None)
     if index is not None:  # refined: the places beside the moved answer, each fitted only to beat it
         at = xy[rows[int(np.argmax(inl))]]
         near = np.flatnonzero(np.hypot(*(index.xy - at).T) < PLACE_M)
         near = near[np.argsort(np.hypot(*(index.xy[near] - at).T), kind="stable")]
         for p in [int(p) for p in near if int(p) not in seen][:REFINE_PLACES]:
             rows.append(int(index.rows[p]))
-            inl.append(_fitted(query, local, p, max(inl) + 1))
+            fit(p, max(inl) + 1)
             seen.add(p)
-    return Verdict(rows, inl, rows[int(np.argmax(inl))], scored)
+    best = int(np.argmax(inl))
+    return Verdict(rows, inl, rows[best], scored, ess[best])
