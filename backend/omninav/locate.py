@@ -427,7 +427,7 @@ class Locator:
                 rows = self.gen.frames
                 self._places = vfy.place_of_rows(rows, stored), vfy.place_index(rows, stored, self.xy)
             place_of, index = self._places
-            wide = self.index.search(last_specs[-vfy.WIDE_FRAMES :], vfy.WIDE_K) if vfy.WIDE_K else None
+            wide = (lambda: self.index.search(last_specs[-vfy.WIDE_FRAMES :], vfy.WIDE_K)) if vfy.WIDE_K else None
             margin = float(self.conf["local_margin"])
             v = vfy.verify(local, m, self.xy, stored, place_of, e.venue_row, margin, wide, index)
             if v.outcome not in ("moved", "confirmed"):

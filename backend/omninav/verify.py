@@ -11,15 +11,17 @@ A venue modelled with `local_features` set (the `verified` preset) stores, for o
 every SPACING_M of each walk, its keypoints' bearings and descriptors (`LocalFeatures`, in the
 generation beside the spectra: docs/formats.md). A single clip that brings its last frame's
 local features (found in its frames: the CLI, a video or frames sent to the server, an
-evaluation walk; or carried by a version-2 record) is then verified: its candidate places are the
-global answer's, then the global search's (the last frame's shared best, then the clip's other
-frames' and the last WIDE_FRAMES frames' own WIDE_K best, one a PLACE_M, at most PLACES), each
-scored by its inliers with the clip's last frame; the answer moves
+evaluation walk; or carried by a version-2 record) is then verified. The global answer's place
+is scored first, by its inliers with the clip's last frame; with SETTLED_INLIERS it stands, and
+nothing else is compared (most answers: a request then costs one place, not up to PLACES).
+Otherwise the candidate places are the global answer's, then the global search's (the last
+frame's shared best, then the clip's other frames' and the last WIDE_FRAMES frames' own WIDE_K
+best, a search run only then; one a PLACE_M, at most PLACES), each scored; the answer moves
 to the place with the most, where it has at least MIN_INLIERS and at least `local_margin` times
 the global answer's place's. Where none of these moves the answer and the global answer's own
 place is not confirmed (fewer than MIN_INLIERS), the venue votes: each of the clip's keypoints
 votes for the places that hold one of its VOTE_K nearest stored descriptors (Hamming, brute
-force over every place: ~0.5 ms a place here, so a venue of more than VOTE_MAX_PLACES has no
+force over every place: ~0.7-1.2 ms a place here, so a venue of more than VOTE_MAX_PLACES has no
 vote), and the VOTE_PLACES best-voted not yet scored are scored too. An answer that moves is
 then refined: the REFINE_PLACES nearest places within PLACE_M of it not yet scored are scored,
 and the one with the most inliers is the answer (the candidates are one a PLACE_M, so a moved
@@ -31,14 +33,16 @@ with at most UNCONFIRMED_CONFIDENCE (below "sure": the keypoints looked and foun
 The answer says which (`verified`, docs/formats.md); a clip with under 8 keypoints, or whose
 answer's video has no stored places, is not verified (nothing was compared).
 
-The essential-matrix RANSAC is our own (batched 8-point, NumPy): OpenCV's `findEssentialMat`
-takes pinhole image points, and a panorama's bearings cover the sphere (half of them behind any
-pinhole); the libraries that take bearing vectors (OpenGV) have no maintained Python wheels.
+Descriptors are matched by faiss's exact Hamming scan (`nearest`). The essential-matrix RANSAC
+is our own (batched 8-point, NumPy): OpenCV's `findEssentialMat` takes pinhole image points, and
+a panorama's bearings cover the sphere (half of them behind any pinhole); the libraries that take
+bearing vectors (OpenGV) have no maintained Python wheels.
 """
 
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
@@ -61,13 +65,15 @@ RATIO = 0.8  # Lowe's ratio test on Hamming distances
 VOTE_K = 4  # each keypoint's nearest stored descriptors over the venue, for the vote
 VOTE_HAMMING = 64  # a nearest descriptor votes only this close (of 256 bits)
 VOTE_PLACES = 8  # the venue's best-voted places scored where the global search's are not confirmed
-VOTE_MAX_PLACES = 1000  # a venue with more places has no vote (~0.5 ms a place: a request's cost bounded)
-# the vote's stored descriptors, matched in blocks of this many rows: OpenCV's matcher refuses a
-# block of 2**18 or more (a venue of ~300 well-lit places, 900 keypoints each, has that many)
-VOTE_BLOCK = 1 << 17
+VOTE_MAX_PLACES = 1000  # a venue with more places has no vote (~1 ms a place: a request's cost bounded)
 REFINE_PLACES = 8  # at most this many places beside a moved answer refine it (the nearest first)
 MIN_KEYPOINTS = 8  # a clip with fewer keypoints is not compared (the essential matrix's 8-point sample)
 MIN_INLIERS = 20  # fewer prove nothing (two unrelated panoramas' 900 keypoints share up to ~19)
+# The global answer's place with this many inliers settles it: it stands without the other
+# candidates compared (most answers cost one place, not up to PLACES). Chosen on the tuning families: the most a moved
+# answer's own place had there was 52 (a bare ring corridor's look-alike 4.3 m off; the right
+# place 187), and at 40 that move is lost (decisions.md)
+SETTLED_INLIERS = 60
 RANSAC_ITERS = 500  # at most; drawn RANSAC_BATCH at a time until one clean sample is RANSAC_SURE
 RANSAC_BATCH = 100
 RANSAC_SURE = 0.99
@@ -233,13 +239,29 @@ def detect(frame: np.ndarray, lens: Lens, n_features: int) -> LocalQuery:
     return bearing_vectors(az, el), des
 
 
+def nearest(query: np.ndarray, stored: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each query descriptor's k nearest stored descriptors, exactly (Hamming, brute force):
+    ((n, k) bit distances, ascending; (n, k) their rows in `stored`; past its end -1, at distance
+    2**31 - 1). faiss's popcount scan: OpenCV's brute-force matcher takes 4-5x as long here and
+    refuses 2**18 rows. One OpenMP thread, set in the calling thread (OpenMP's count is per
+    thread, and each of the server's request threads calls): requests are the server's
+    parallelism (as its BLAS pool, server/serve.py), and a 900 x 900 scan gains a tenth from two."""
+    import faiss
+
+    faiss.omp_set_num_threads(1)
+    out: tuple[np.ndarray, np.ndarray] = faiss.knn_hamming(
+        np.ascontiguousarray(query, np.uint8), np.ascontiguousarray(stored, np.uint8), k
+    )
+    return out
+
+
 def ratio_matches(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
     """(m, 2) index pairs (into d1, d2) passing Lowe's ratio test (Hamming, brute force)."""
     if len(d1) < 2 or len(d2) < 2:
         return np.zeros((0, 2), np.int64)
-    pairs = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(np.ascontiguousarray(d1), np.ascontiguousarray(d2), k=2)
-    out = [(p[0].queryIdx, p[0].trainIdx) for p in pairs if len(p) == 2 and p[0].distance < RATIO * p[1].distance]
-    return np.array(out, np.int64).reshape(-1, 2)
+    dist, idx = nearest(d1, d2, 2)
+    ok = np.flatnonzero(dist[:, 0] < RATIO * dist[:, 1])
+    return np.stack([ok, idx[ok, 0]], axis=1).astype(np.int64)
 
 
 def _essential(a: np.ndarray) -> np.ndarray:
@@ -259,9 +281,10 @@ def _essential(a: np.ndarray) -> np.ndarray:
 def _inliers(e: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
     """(..., 3, 3) essential matrices -> (..., n) whether each pair lies within INLIER_DEG of its
     epipolar plane."""
-    eb1 = e @ b1.T  # (..., 3, n): the epipolar planes' normals in camera 2
-    dist = np.abs((eb1 * b2.T).sum(axis=-2)) / np.maximum(np.linalg.norm(eb1, axis=-2), 1e-12)
-    out: np.ndarray = dist < np.sin(np.radians(INLIER_DEG))
+    # the epipolar planes' normals in camera 2, one component at a time (contiguous: 2x the speed)
+    x, y, z = np.ascontiguousarray(np.moveaxis(e @ b1.T, -2, 0))
+    dot = x * b2[:, 0] + y * b2[:, 1] + z * b2[:, 2]  # (the sine of the angle, times the normal's length)
+    out: np.ndarray = dot * dot < np.sin(np.radians(INLIER_DEG)) ** 2 * (x * x + y * y + z * z)
     return out
 
 
@@ -406,17 +429,15 @@ def place_votes(descriptors: np.ndarray, local: LocalFeatures, owner: np.ndarray
     """(P,) each place's votes: the query keypoints (`descriptors`) one of whose VOTE_K nearest
     stored descriptors, within VOTE_HAMMING bits, is that place's (a keypoint votes once a place)."""
     votes = np.zeros(len(local.places), np.int64)
-    stored = np.ascontiguousarray(local.descriptors)
-    if len(descriptors) == 0 or len(stored) == 0:
+    if len(descriptors) == 0 or len(local.descriptors) == 0:
         return votes
-    matcher = cv2.BFMatcher(cv2.NORM_HAMMING)
-    matcher.add([stored[i : i + VOTE_BLOCK] for i in range(0, len(stored), VOTE_BLOCK)])
-    knn = matcher.knnMatch(np.ascontiguousarray(descriptors), k=VOTE_K)  # the nearest over all blocks
-    for near in knn:
-        for p in {int(owner[d.imgIdx * VOTE_BLOCK + d.trainIdx]) for d in near if d.distance <= VOTE_HAMMING}:
-            if p >= 0:
-                votes[p] += 1
-    return votes
+    dist, idx = nearest(descriptors, local.descriptors, VOTE_K)
+    place = np.sort(np.where((dist <= VOTE_HAMMING) & (idx >= 0), owner[np.maximum(idx, 0)], -1), axis=1)
+    once = np.ones(place.shape, bool)  # a keypoint votes once a place
+    once[:, 1:] = place[:, 1:] != place[:, :-1]
+    voted = place[once & (place >= 0)]
+    out: np.ndarray = votes + np.bincount(voted, minlength=len(votes))
+    return out
 
 
 @dataclass
@@ -487,15 +508,15 @@ def verify(
     place_of: np.ndarray,
     global_row: int,
     margin: float,
-    wide: Matches | None = None,
+    wide: Callable[[], Matches | None] | None = None,
     index: PlaceIndex | None = None,
 ) -> Verdict:
-    """The clip's last frame's local features (`query`: bearings, descriptors) against its
-    candidate places (the global answer's row's first; `wide`: a wider search's matches); with the
-    venue's `index`, the vote where these confirm nothing and the refinement of a moved answer."""
-    rows = candidate_rows(m, xy, global_row, wide)
-    if not rows or len(query[0]) < MIN_KEYPOINTS:  # nothing to compare
-        return Verdict(rows, [0] * len(rows), None, scored=False)
+    """The clip's last frame's local features (`query`: bearings, descriptors) against the global
+    answer's place, which stands where it has SETTLED_INLIERS; else against every candidate place
+    (the global answer's first; `wide`: a wider search, run only then); with the venue's `index`,
+    the vote where these confirm nothing and the refinement of a moved answer."""
+    if len(query[0]) < MIN_KEYPOINTS:  # nothing to compare
+        return Verdict([global_row], [0], None, scored=False)
     inl: list[int] = []
     ess: list[np.ndarray | None] = []  # each fitted place's essential matrix
 
@@ -504,11 +525,15 @@ def verify(
         inl.append(n)
         ess.append(e)
 
-    for i, r in enumerate(rows):
-        # the global answer's place (the first; the only candidate within PLACE_M of it) is counted
-        # whenever RANSAC can run: it sets the bar; another is fitted only where it could clear it
-        fit(int(place_of[r]), 8 if i == 0 else _bar(inl, margin))
-    scored = int(place_of[rows[0]]) >= 0
+    # the global answer's place (the only candidate within PLACE_M of it) is counted whenever
+    # RANSAC can run: it sets the bar; another is fitted only where it could clear it
+    fit(int(place_of[global_row]), 8)
+    scored = int(place_of[global_row]) >= 0
+    if inl[0] >= SETTLED_INLIERS:
+        return Verdict([global_row], inl, None, scored, ess[0])
+    rows = candidate_rows(m, xy, global_row, None if wide is None else wide())
+    for r in rows[1:]:
+        fit(int(place_of[r]), _bar(inl, margin))
     seen = {int(place_of[r]) for r in rows}
     vote = len(local.places) <= VOTE_MAX_PLACES and not _moves(inl, margin) and inl[0] < MIN_INLIERS
     if index is not None and vote:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import cv2
 import numpy as np
 import pytest
 
@@ -21,8 +22,10 @@ from omninav.verify import (
     LOCAL_DTYPE,
     MIN_INLIERS,
     MOVED_CONFIDENCE,
+    RATIO,
     SPACING_M,
-    VOTE_BLOCK,
+    VOTE_HAMMING,
+    VOTE_K,
     LocalFeatures,
     detect,
     essential_fit,
@@ -30,6 +33,7 @@ from omninav.verify import (
     place_index,
     place_of_rows,
     place_votes,
+    ratio_matches,
     turn_deg,
     verify,
 )
@@ -101,7 +105,7 @@ def test_places_that_cannot_change_the_verdict_are_not_fitted_and_the_verdict_is
     for _ in range(3000):
         k = int(rng.integers(1, vf.PLACES + 1))
         # each place a distinct match count, so that a count names its place's inliers
-        matches = rng.permutation(np.arange(0, 160))[: vf.PLACES]
+        matches = rng.permutation(np.arange(0, 160))[: vf.PLACES]  # (the first's inliers across SETTLED_INLIERS)
         inliers = {int(n): int(rng.integers(0, n + 1)) for n in matches}
         margin = float(rng.choice([1.0, 1.5, 2.0, 3.7, 1e308]))
         place_of = np.where(rng.random(vf.PLACES) < 0.1, -1, np.arange(vf.PLACES))
@@ -114,6 +118,9 @@ def test_places_that_cannot_change_the_verdict_are_not_fitted_and_the_verdict_is
         ]
         best = int(np.argmax(inl))
         moves = inl[best] >= MIN_INLIERS and inl[best] > inl[0] and inl[best] >= margin * inl[0]
+        if inl[0] >= vf.SETTLED_INLIERS:  # the answer's place settles it: nothing else is asked
+            assert got.moved_to is None and got.rows == [0] and state["fits"] == 1
+            continue
         assert got.moved_to == (best if moves else None)
         fewer += state["fits"] < sum(1 for i in range(k) if place_of[i] >= 0 and matches[i] >= 8)
     assert fewer > 300
@@ -155,8 +162,9 @@ def test_a_place_the_global_search_missed_is_found_by_the_venues_vote(monkeypatc
     assert verify(q, m, xy, local, place_of, 0, 2.0).moved_to is None  # (without the vote)
     v = verify(q, m, xy, local, place_of, 0, 2.0, index=index)
     assert v.moved_to == 6 and max(v.inliers) >= 100 and v.rows[:3] == [0, 2, 4]
-    # a global answer its own place confirms is not put to the vote
+    # a global answer its own place confirms is not put to the vote (though it does not settle it)
     votes = []
+    monkeypatch.setattr(vf, "SETTLED_INLIERS", 10**9)
     monkeypatch.setattr(vf, "place_votes", lambda *a: votes.append(1) or np.zeros(len(local.places)))
     assert verify(q, _candidates(6, 2), xy, local, place_of, 6, 2.0, index=index).moved_to is None
     assert votes == []
@@ -176,6 +184,28 @@ def test_a_moved_answer_goes_to_the_neighbouring_place_that_saw_more():
     v = verify(q, m, xy, local, place_of, 0, 2.0, index=index)
     assert v.moved_to == 7 and v.inliers[v.rows.index(7)] > v.inliers[v.rows.index(6)]
     assert 8 not in v.rows[3:]  # only places within PLACE_M of the moved answer are refined
+
+
+def test_a_place_that_confirms_the_answer_stands_without_the_other_candidates_or_a_wider_search(monkeypatch):
+    """The global answer's place with SETTLED_INLIERS stands: the other candidates are not
+    compared and the wider search does not run, though a place it finds saw more (here place 9 all
+    of the scene, the answer's place 6 two thirds of it); with fewer, they are, and the answer moves."""
+    import omninav.verify as vf
+
+    local, frames, xy, q = _corridor({6: np.flatnonzero(np.arange(120) % 3), 9: np.arange(120)})
+    place_of = place_of_rows(frames, local)
+    asked: list[int] = []
+
+    def wide() -> Matches:
+        asked.append(1)
+        return _candidates(9)
+
+    v = verify(q, _candidates(6, 0), xy, local, place_of, 6, 1.4, wide)
+    assert v.outcome == "confirmed" and v.rows == [6] and v.inliers[0] >= vf.SETTLED_INLIERS
+    assert asked == [] and v.essential is not None
+    monkeypatch.setattr(vf, "SETTLED_INLIERS", 10**9)
+    v = verify(q, _candidates(6, 0), xy, local, place_of, 6, 1.4, wide)
+    assert asked == [1] and v.moved_to == 9 and v.inliers[v.rows.index(9)] >= 1.4 * v.inliers[0]
 
 
 def test_an_answer_says_what_its_keypoints_made_of_it_and_an_unconfirmed_one_is_never_sure(
@@ -220,22 +250,55 @@ def test_each_place_knows_its_venue_row_and_each_keypoint_its_place():
     assert list(gone.rows) == [-1, 0, 1] and np.isnan(gone.xy[0]).all()
 
 
-def test_the_vote_counts_over_a_venue_with_more_descriptors_than_one_matcher_block():
-    # 300 places of 900 keypoints: 270,000 stored descriptors, more than OpenCV's matcher takes at once
+def test_the_vote_counts_over_a_venue_of_more_than_two_to_the_eighteen_descriptors():
+    # 300 places of 900 keypoints: 270,000 stored descriptors (OpenCV's matcher refuses 2**18 at once)
     n_places, per = 300, 900
     rng = np.random.default_rng(5)
     places = np.zeros(n_places, LOCAL_DTYPE)
     places["frame"], places["start"], places["count"] = np.arange(n_places), np.arange(n_places) * per, per
     desc = rng.integers(0, 256, (n_places * per, 32), dtype=np.uint8)
     local = LocalFeatures(places, np.zeros((len(desc), 3), np.float16), desc)
-    assert len(desc) > 2 * VOTE_BLOCK
+    assert len(desc) > 1 << 18
     owner = np.repeat(np.arange(n_places, dtype=np.int32), per)
-    # in the first block, across the first boundary, in the last block
-    for p, at in ((3, 0), (145, VOTE_BLOCK - 145 * per - 60), (299, 0)):
+    # the first place, one whose keypoints straddle row 2**17, the last
+    for p, at in ((3, 0), (145, (1 << 17) - 145 * per - 60), (299, 0)):
         q = local.of(p)[1][at : at + 120].copy()
         q[:, 0] ^= 1  # one bit off: still each keypoint's nearest
         votes = place_votes(q, local, owner)
         assert int(np.argmax(votes)) == p and votes[p] == 120
+
+
+def test_a_keypoint_votes_once_for_each_place_among_its_near_stored_descriptors():
+    places = np.zeros(3, LOCAL_DTYPE)
+    places["frame"], places["start"], places["count"] = [0, 1, 2], [0, 2, 4], [2, 2, 2]
+    q = np.zeros((1, 32), np.uint8)
+    far = np.full(32, 0xFF, np.uint8)  # 256 bits off
+    near = q[0].copy()
+    near[:4] = 0xFF  # 32 bits off: within VOTE_HAMMING
+    edge = q[0].copy()
+    edge[: VOTE_HAMMING // 8 + 1] = 0xFF  # just past it
+    desc = np.stack([q[0], near, far, edge, near, q[0]])  # place 0 twice near, 1 past the edge, 2 near
+    assert VOTE_K >= 4
+    local = LocalFeatures(places, np.zeros((6, 3), np.float16), desc)
+    votes = place_votes(q, local, np.array([0, 0, 1, 1, 2, 2], np.int32))
+    assert list(votes) == [1, 0, 1]
+    assert list(place_votes(q[:0], local, np.array([0, 0, 1, 1, 2, 2], np.int32))) == [0, 0, 0]
+    # fewer stored than VOTE_K (the rest: no neighbour), one of them past VOTE_HAMMING
+    two = LocalFeatures(places[:2].copy(), np.zeros((2, 3), np.float16), np.stack([q[0], edge]))
+    two.places["start"], two.places["count"] = [0, 1], [1, 1]
+    assert list(place_votes(q, two, np.array([0, 1], np.int32))) == [1, 0]
+
+
+def test_ratio_matches_are_the_brute_force_matchers():
+    rng = np.random.default_rng(3)
+    d2 = rng.integers(0, 256, (700, 32), dtype=np.uint8)
+    d1 = np.concatenate([d2[rng.permutation(700)[:300]], rng.integers(0, 256, (400, 32), dtype=np.uint8)])
+    d1[:300, :2] ^= rng.integers(0, 256, (300, 2), dtype=np.uint8)  # up to 16 bits off
+    pairs = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(d1, d2, k=2)
+    want = [(p[0].queryIdx, p[0].trainIdx) for p in pairs if p[0].distance < RATIO * p[1].distance]
+    got = ratio_matches(d1, d2)
+    assert 250 <= len(got) < 400 and [tuple(r) for r in got] == want
+    assert ratio_matches(d1[:1], d2).shape == (0, 2) and ratio_matches(d1, d2[:1]).shape == (0, 2)
 
 
 def test_each_venue_frame_finds_the_place_of_its_own_video_at_or_before_it():
@@ -279,7 +342,9 @@ def test_local_features_follow_the_venues_videos(verified, small_ds, tmp_path):
     assert np.array_equal(left.local.descriptors, both.descriptors[len(first.descriptors) :])
 
 
-def test_a_wrong_global_answer_moves_to_the_place_the_geometry_confirms(verified, small_ds):
+def test_a_wrong_global_answer_moves_to_the_place_the_geometry_confirms(verified, small_ds, monkeypatch):
+    import omninav.verify as vf
+
     st, vid = verified
     loc = Locator(st, vid)
     frames, (tx, ty, th) = query_clip(small_ds, 60)
@@ -296,7 +361,9 @@ def test_a_wrong_global_answer_moves_to_the_place_the_geometry_confirms(verified
     # frame's matches hold it
     assert verify(q, m, loc.xy, loc.gen.local, place_of, truth, 2.0).moved_to is None
     only_far = Matches(np.array([[far]]), np.array([[0.9]]), np.array([[0.9]]), np.array([[10.0]]))
-    assert verify(q, only_far, loc.xy, loc.gen.local, place_of, truth, 2.0).rows[0] == truth
+    with monkeypatch.context() as mp:
+        mp.setattr(vf, "SETTLED_INLIERS", 10**9)  # (not settled by its place: the candidates are listed)
+        assert verify(q, only_far, loc.xy, loc.gen.local, place_of, truth, 2.0).rows == [truth, far]
     # and the Locator says a moved answer with its own confidence, at the true place, facing the
     # way the last frame's curves say there (not the far match's heading)
     e = loc.aggregated(m, np.zeros(1))
@@ -344,8 +411,6 @@ def test_verification_leaves_right_answers_where_they_are(verified, small_ds):
 
 
 def test_an_error_in_verification_leaves_the_global_answer(verified, small_ds, monkeypatch, caplog):
-    import cv2
-
     from omninav import verify as verify_mod
 
     loc = Locator(*verified)
@@ -360,7 +425,11 @@ def test_an_error_in_verification_leaves_the_global_answer(verified, small_ds, m
     assert "verification failed" in caplog.text
 
 
-def test_a_clip_with_too_few_keypoints_is_answered_by_its_curves_without_a_wider_search(verified, small_ds):
+def test_a_clip_with_too_few_keypoints_is_answered_by_its_curves_without_a_wider_search(
+    verified, small_ds, monkeypatch
+):
+    import omninav.verify as vf
+
     loc = Locator(*verified)
     frames, _ = query_clip(small_ds, 60)
     spec = clip_spectra(small_ds, frames, loc.conf)
@@ -380,7 +449,10 @@ def test_a_clip_with_too_few_keypoints_is_answered_by_its_curves_without_a_wider
         plain["confidence"],
     )
     assert n_few == n  # the clip's own search only
-    assert full["verified"] == "confirmed" and n_full > n  # and the last frames' wider one
+    assert full["verified"] == "confirmed" and n_full == n  # its place confirmed it: no wider one
+    monkeypatch.setattr(vf, "SETTLED_INLIERS", 10**9)
+    again, n_again = located((bearings, desc))
+    assert again["verified"] == "confirmed" and n_again > n  # the last frames' wider one
 
 
 def test_a_dim_frame_keeps_a_third_of_its_keypoints(small_ds):
