@@ -420,8 +420,6 @@ class Locator:
 
         stored = self.gen.local
         assert stored is not None
-        if len(local[0]) < vfy.MIN_KEYPOINTS:  # nothing to compare: no wider search for it
-            return e, None
         try:
             if self._places is None:  # (made at the venue's first verification)
                 rows = self.gen.frames

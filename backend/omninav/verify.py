@@ -428,15 +428,13 @@ def place_index(frames: np.ndarray, local: LocalFeatures, xy: np.ndarray) -> Pla
 def place_votes(descriptors: np.ndarray, local: LocalFeatures, owner: np.ndarray) -> np.ndarray:
     """(P,) each place's votes: the query keypoints (`descriptors`) one of whose VOTE_K nearest
     stored descriptors, within VOTE_HAMMING bits, is that place's (a keypoint votes once a place)."""
-    votes = np.zeros(len(local.places), np.int64)
     if len(descriptors) == 0 or len(local.descriptors) == 0:
-        return votes
+        return np.zeros(len(local.places), np.int64)
     dist, idx = nearest(descriptors, local.descriptors, VOTE_K)
     place = np.sort(np.where((dist <= VOTE_HAMMING) & (idx >= 0), owner[np.maximum(idx, 0)], -1), axis=1)
     once = np.ones(place.shape, bool)  # a keypoint votes once a place
     once[:, 1:] = place[:, 1:] != place[:, :-1]
-    voted = place[once & (place >= 0)]
-    out: np.ndarray = votes + np.bincount(voted, minlength=len(votes))
+    out: np.ndarray = np.bincount(place[once & (place >= 0)], minlength=len(local.places))
     return out
 
 
