@@ -8,6 +8,8 @@ import dataclasses
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from omninav.errors import OmninavError
 from omninav.index import Matches
@@ -22,11 +24,14 @@ from omninav.verify import (
     LOCAL_DTYPE,
     MIN_INLIERS,
     MOVED_CONFIDENCE,
+    PLACE_M,
+    PLACES,
     RATIO,
     SPACING_M,
     VOTE_HAMMING,
     VOTE_K,
     LocalFeatures,
+    candidate_rows,
     detect,
     essential_fit,
     one_place,
@@ -206,6 +211,61 @@ def test_a_place_that_confirms_the_answer_stands_without_the_other_candidates_or
     monkeypatch.setattr(vf, "SETTLED_INLIERS", 10**9)
     v = verify(q, _candidates(6, 0), xy, local, place_of, 6, 1.4, wide)
     assert asked == [1] and v.moved_to == 9 and v.inliers[v.rows.index(9)] >= 1.4 * v.inliers[0]
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    n=st.integers(1, 300),
+    k=st.integers(1, 30),
+    span=st.sampled_from([1.0, 4.0, 20.0, 100.0]),
+    decimals=st.integers(0, 2),
+    first=st.booleans(),
+    wide=st.booleans(),
+    seed=st.integers(0, 2**31),
+)
+def test_the_candidates_are_the_best_ranked_row_of_each_place(n, k, span, decimals, first, wide, seed):
+    """candidate_rows keeps, in rank order (the global answer's row first, then the last frame's
+    matches by score, then the other frames' and the wider search's), each row PLACE_M or more
+    from every row kept before it, and nothing else, up to PLACES (positions and scores rounded,
+    so that ties and places exactly PLACE_M apart occur)."""
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(0, span, (n, 2)).round(decimals)
+    f = int(rng.integers(1, 6))
+    score = rng.random((f, k)).round(1)
+    m = Matches(rng.integers(0, n, (f, k)), score, score, score)
+    w = Matches(rng.integers(0, n, (3, 8)), rng.random((3, 8)).round(1), score[:1, :1], score[:1, :1]) if wide else None
+    top = int(rng.integers(0, n)) if first else None
+    got = candidate_rows(m, xy, top, w)
+    # the rule, row by row in rank order
+    last = list(m.index[-1][np.argsort(-m.score[-1])])
+    idx = [m.index[:-1].ravel()] + ([w.index.ravel()] if w else [])
+    sc = [m.score[:-1].ravel()] + ([w.score.ravel()] if w else [])
+    rest = list(np.concatenate(idx)[np.argsort(-np.concatenate(sc), kind="stable")])
+    want: list[int] = []
+    for r in ([top] if first else []) + last + rest:
+        if len(want) < PLACES and r not in want and all(np.hypot(*(xy[r] - xy[q])) >= PLACE_M for q in want):
+            want.append(int(r))
+    assert got == want
+
+
+def test_a_candidate_far_short_of_the_bar_costs_a_third_of_a_scan_and_one_near_it_is_counted_in_full(monkeypatch):
+    """A candidate that must clear MIN_INLIERS is first counted over every SCREEN-th query
+    keypoint: place 2 (6 of the 120 scene points: 2 over the third) is left there; place 4 (15:
+    5 over the third, so possibly the bar) is counted in full and, short of the bar, not fitted;
+    place 6, which saw the whole scene, is fitted and the answer moves to it."""
+    import omninav.verify as vf
+
+    local, frames, xy, q = _corridor({2: np.arange(6), 4: np.arange(15), 6: np.arange(120)})
+    place_of = place_of_rows(frames, local)
+    scanned: list[tuple[int, int]] = []  # (query keypoints, the place's) of each ratio test
+    fitted: list[int] = []
+    ratio, fit = vf.ratio_matches, vf.essential_fit
+    monkeypatch.setattr(vf, "ratio_matches", lambda qd, vd: scanned.append((len(qd), len(vd))) or ratio(qd, vd))
+    monkeypatch.setattr(vf, "essential_fit", lambda b1, b2: fitted.append(len(b1)) or fit(b1, b2))
+    v = verify(q, _candidates(0, 2, 4, 6), xy, local, place_of, 0, 2.0)
+    assert vf.SCREEN == 3 and len(q[1]) == 120
+    assert scanned == [(120, 100), (40, 6), (40, 15), (120, 15), (40, 120), (120, 120)]
+    assert fitted == [120] and v.moved_to == 6 and v.inliers == [0, 0, 0, v.inliers[3]] and v.inliers[3] >= 100
 
 
 def test_an_answer_says_what_its_keypoints_made_of_it_and_an_unconfirmed_one_is_never_sure(
