@@ -17,8 +17,9 @@ nothing else is compared (most answers: a request then costs one place, not up t
 Otherwise the candidate places are the global answer's, then the global search's (the last
 frame's shared best, then the clip's other frames' and the last WIDE_FRAMES frames' own WIDE_K
 best, a search run only then; one a PLACE_M, at most PLACES), each scored where it could
-change the verdict (its ratio-test matches, first over every SCREEN-th keypoint, reach the bar
-its inliers must clear: most fall far short, at a third of a scan); the answer moves
+change the verdict by its ratio-test matches (counted first over every SCREEN-th keypoint,
+where one far short is left at a third of a scan; a place with the matches of those that
+cleared a bar on the tuning families is left so 1 time in 500 or fewer); the answer moves
 to the place with the most, where it has at least MIN_INLIERS and at least `local_margin` times
 the global answer's place's. Where none of these moves the answer and the global answer's own
 place is not confirmed (fewer than MIN_INLIERS), the venue votes: each of the clip's keypoints
@@ -83,7 +84,7 @@ SETTLED_INLIERS = 60
 # (median 3.7x; 45 % of them inliers), their third 1.5x or more: at 1.6x a bar of MIN_INLIERS, a
 # third of the keypoints count under a sixth of it with probability 0.002 (binomial), at 2x
 # 1e-4, at a bar of 60 under 1e-7. Those that fall that short (a fifth of the tuning families'
-# candidates, half of the foreign pack's) cost a third of a scan (~0.5 ms over 900 x 900)
+# candidates, half of the foreign pack's) cost a third of a scan (a scan: ~0.5 ms, 900 x 900)
 SCREEN = 3
 SCREEN_SHARE = 0.5
 RANSAC_ITERS = 500  # at most; drawn RANSAC_BATCH at a time until one clean sample is RANSAC_SURE

@@ -233,7 +233,8 @@ def test_the_candidates_are_the_best_ranked_row_of_each_place(n, k, span, decima
     f = int(rng.integers(1, 6))
     score = rng.random((f, k)).round(1)
     m = Matches(rng.integers(0, n, (f, k)), score, score, score)
-    w = Matches(rng.integers(0, n, (3, 8)), rng.random((3, 8)).round(1), score[:1, :1], score[:1, :1]) if wide else None
+    ws = rng.random((3, 8)).round(1)
+    w = Matches(rng.integers(0, n, (3, 8)), ws, ws, ws) if wide else None
     top = int(rng.integers(0, n)) if first else None
     got = candidate_rows(m, xy, top, w)
     # the rule, row by row in rank order
