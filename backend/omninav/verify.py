@@ -24,11 +24,11 @@ to the place with the most, where it has at least MIN_INLIERS and at least `loca
 the global answer's place's. Where none of these moves the answer and the global answer's own
 place is not confirmed (fewer than MIN_INLIERS), the venue votes: each of the clip's keypoints
 votes for the places that hold one of its VOTE_K nearest stored descriptors (Hamming, brute
-force over every place: ~0.7-1.2 ms a place here, so a venue of more than VOTE_MAX_PLACES has no
-vote), and the VOTE_PLACES best-voted not yet scored are scored too. An answer that moves is
-then refined: the REFINE_PLACES nearest places within PLACE_M of it not yet scored are scored,
-and the one with the most inliers is the answer (the candidates are one a PLACE_M, so a moved
-answer could otherwise sit up to PLACE_M from a better-seen place).
+force over every place: 0.35-1.2 ms a place on the 2-core machines measured, so a venue of more
+than VOTE_MAX_PLACES has no vote), and the VOTE_PLACES best-voted not yet scored are scored
+too. An answer that moves is then refined: the REFINE_PLACES nearest places within PLACE_M of
+it not yet scored are scored, and the one with the most inliers is the answer (the candidates
+are one a PLACE_M, so a moved answer could otherwise sit up to PLACE_M from a better-seen place).
 A moved answer is said with MOVED_CONFIDENCE: below "sure" until a calibration has enough moved
 answers to fit (the tuning families moved 4 answers in 532 clips; docs/decisions.md). An answer
 that stands is "confirmed" where its own place has MIN_INLIERS or more, else "unconfirmed": said
@@ -68,7 +68,7 @@ RATIO = 0.8  # Lowe's ratio test on Hamming distances
 VOTE_K = 4  # each keypoint's nearest stored descriptors over the venue, for the vote
 VOTE_HAMMING = 64  # a nearest descriptor votes only this close (of 256 bits)
 VOTE_PLACES = 8  # the venue's best-voted places scored where the global search's are not confirmed
-VOTE_MAX_PLACES = 1000  # a venue with more places has no vote (~1 ms a place: a request's cost bounded)
+VOTE_MAX_PLACES = 1000  # a venue with more places has no vote (up to ~1 ms a place: a request's cost bounded)
 REFINE_PLACES = 8  # at most this many places beside a moved answer refine it (the nearest first)
 MIN_KEYPOINTS = 8  # a clip with fewer keypoints is not compared (the essential matrix's 8-point sample)
 MIN_INLIERS = 20  # fewer prove nothing (two unrelated panoramas' 900 keypoints share up to ~19)
