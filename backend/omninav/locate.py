@@ -421,10 +421,7 @@ class Locator:
         stored = self.gen.local
         assert stored is not None
         try:
-            if self._places is None:  # (made at the venue's first verification)
-                rows = self.gen.frames
-                self._places = vfy.place_of_rows(rows, stored), vfy.place_index(rows, stored, self.xy)
-            place_of, index = self._places
+            place_of, index = self.verification_places()
             wide = (lambda: self.index.search(last_specs[-vfy.WIDE_FRAMES :], vfy.WIDE_K)) if vfy.WIDE_K else None
             margin = float(self.conf["local_margin"])
             v = vfy.verify(local, m, self.xy, stored, place_of, e.venue_row, margin, wide, index)
@@ -441,6 +438,21 @@ class Locator:
             return e, None
         x, y = self.xy[r]
         return Estimate(float(x), float(y), h, r, e.support, e.rival, e.agree), v.outcome
+
+    def verification_places(self) -> tuple[np.ndarray, PlaceIndex]:
+        """The venue's stored places as verification finds them (verify.place_of_rows and
+        place_index), made at its first verification or warm-up; and the RANSAC's compiled loops
+        loaded (essential.py: ~0.5 s a process from numba's cache, seconds the first time)."""
+        from . import verify as vfy
+        from .essential import sample_counts
+
+        if self._places is None:
+            stored = self.gen.local
+            assert stored is not None
+            rows = self.gen.frames
+            self._places = vfy.place_of_rows(rows, stored), vfy.place_index(rows, stored, self.xy)
+            sample_counts(np.zeros((8, 9)), np.zeros((8, 3)), np.zeros((8, 3)), np.zeros((1, 8), np.int64), 1.0)
+        return self._places
 
     def _keypoints_heading(self, v: Verdict, place: int, curves: float, index: PlaceIndex) -> float:
         """A verified answer's heading: the curves' (`curves`), unless the keypoints' turn from

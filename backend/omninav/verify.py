@@ -36,10 +36,12 @@ with at most UNCONFIRMED_CONFIDENCE (below "sure": the keypoints looked and foun
 The answer says which (`verified`, docs/formats.md); a clip with under 8 keypoints, or whose
 answer's video has no stored places, is not verified (nothing was compared).
 
-Descriptors are matched by faiss's exact Hamming scan (`nearest`). The essential-matrix RANSAC
-is our own (batched 8-point, NumPy): OpenCV's `findEssentialMat` takes pinhole image points, and
-a panorama's bearings cover the sphere (half of them behind any pinhole); the libraries that take
-bearing vectors (OpenGV) have no maintained Python wheels.
+A place's descriptors are matched by a compiled exact Hamming scan (hamming.py: vector popcounts,
+half faiss's time for a place), the whole venue's for the vote by faiss's (`nearest`). The
+essential-matrix RANSAC is our own (8-point samples, their matrices and inliers counted in
+compiled loops: essential.py; the refits in NumPy): OpenCV's `findEssentialMat` takes pinhole
+image points, and a panorama's bearings cover the sphere (half of them behind any pinhole); the
+libraries that take bearing vectors (OpenGV) have no maintained Python wheels.
 """
 
 from __future__ import annotations
@@ -269,12 +271,15 @@ def nearest(query: np.ndarray, stored: np.ndarray, k: int) -> tuple[np.ndarray, 
 
 
 def ratio_matches(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
-    """(m, 2) index pairs (into d1, d2) passing Lowe's ratio test (Hamming, brute force)."""
-    if len(d1) < 2 or len(d2) < 2:
+    """(m, 2) index pairs (into d1, d2) passing Lowe's ratio test (Hamming, brute force:
+    hamming.two_nearest)."""
+    from .hamming import two_nearest
+
+    if len(d1) == 0 or len(d2) < 2:  # (a keypoint's test needs two stored descriptors)
         return np.zeros((0, 2), np.int64)
-    dist, idx = nearest(d1, d2, 2)
-    ok = np.flatnonzero(dist[:, 0] < RATIO * dist[:, 1])
-    return np.stack([ok, idx[ok, 0]], axis=1).astype(np.int64)
+    two = two_nearest(d1, d2)
+    ok = np.flatnonzero(two[:, 0] < RATIO * two[:, 1])
+    return np.stack([ok, two[ok, 2]], axis=1)
 
 
 def _essential(a: np.ndarray) -> np.ndarray:
@@ -329,14 +334,16 @@ def essential_fit(b1: np.ndarray, b2: np.ndarray, seed: int = 0) -> tuple[np.nda
     b1, b2 = np.asarray(b1, np.float64), np.asarray(b2, np.float64)
     if not (np.isfinite(b1).all() and np.isfinite(b2).all()):
         return none
+    from .essential import sample_counts
+
     a = np.einsum("ni,nj->nij", b2, b1).reshape(n, 9)
     rng = np.random.default_rng(seed)
     best = np.zeros(n, bool)
     done = 0
     while done < min(RANSAC_ITERS, _samples_needed(best.sum() / n)):
-        pick = rng.integers(0, n, (RANSAC_BATCH, 8))  # (a repeated pair makes one useless hypothesis)
-        ok = _inliers(_essential(a[pick]), b1, b2)
-        top = ok[int(ok.sum(axis=1).argmax())]
+        pick = rng.integers(0, n, (RANSAC_BATCH, 8))  # (a repeated pair makes one arbitrary hypothesis)
+        counts, es = sample_counts(a, b1, b2, pick, INLIER_DEG)
+        top = _inliers(es[int(counts.argmax())], b1, b2)
         if top.sum() > best.sum():
             best = top
         done += RANSAC_BATCH
@@ -495,13 +502,28 @@ def _fitted(query: LocalQuery, local: LocalFeatures, place: int, bar: float) -> 
     of every SCREEN-th query keypoint fall far short of it (SCREEN_SHARE)."""
     qb, qd = query
     vb, vd = local.of(place)
-    if bar >= MIN_INLIERS and SCREEN * len(ratio_matches(qd[::SCREEN], vd)) < SCREEN_SHARE * bar:
-        return 0, None
-    mt = ratio_matches(qd, vd)
+    if bar >= MIN_INLIERS:
+        third = ratio_matches(qd[::SCREEN], vd)
+        if SCREEN * len(third) < SCREEN_SHARE * bar:
+            return 0, None
+        mt = _with_the_rest(third, qd, vd)
+    else:
+        mt = ratio_matches(qd, vd)
     if len(mt) < max(bar, 8):
         return 0, None
     ok, e = essential_fit(qb[mt[:, 0]], vb[mt[:, 1]])
     return int(ok.sum()), e
+
+
+def _with_the_rest(third: np.ndarray, qd: np.ndarray, vd: np.ndarray) -> np.ndarray:
+    """The ratio-test matches of every query keypoint, given `third`, those of every SCREEN-th:
+    the others' scanned and merged in query order (a keypoint's test looks at no other keypoint,
+    so these are ratio_matches(qd, vd), for two thirds of its scan)."""
+    others = np.flatnonzero(np.arange(len(qd)) % SCREEN != 0)
+    rest = ratio_matches(qd[others], vd)
+    both = np.concatenate([third * [SCREEN, 1], np.stack([others[rest[:, 0]], rest[:, 1]], axis=1)])
+    out: np.ndarray = both[np.argsort(both[:, 0], kind="stable")]
+    return out
 
 
 def _bar(inl: list[int], margin: float) -> float:

@@ -70,6 +70,58 @@ def test_bearings_of_one_scene_from_two_places_are_inliers_and_shuffled_ones_are
     assert np.array_equal(essential_fit(b1, b2, seed=3)[0], essential_fit(b1, b2, seed=3)[0])
 
 
+@settings(max_examples=60, deadline=None)
+@given(
+    n=st.integers(8, 400),
+    outliers=st.floats(0.0, 0.9),
+    turn=st.floats(-180.0, 180.0),
+    noise=st.sampled_from([0.0, 0.002, 0.01]),
+    seed=st.integers(0, 2**31),
+)
+def test_the_compiled_samples_give_the_matrices_and_inliers_of_lapacks_arithmetic(n, outliers, turn, noise, seed):
+    """essential.sample_counts: for every sample of 8 distinct pairs, the essential matrix of
+    verify._essential (QR's null vector, then two equal singular values by SVD: NumPy's LAPACK),
+    to 1e-9 and up to its sign, and the same inliers (a pair within INLIER_DEG of its plane)."""
+    import omninav.verify as vf
+    from omninav.essential import sample_counts
+
+    rng = np.random.default_rng(seed)
+    pts = rng.uniform(-8, 8, (n, 3)) * [1, 1, 0.3] + [0.0, 0.0, 0.2]
+    b1 = _unit(pts)
+    b2 = _unit((pts - [0.7, 0.4, 0.05]) @ _rot_z(turn) + rng.normal(0.0, noise, (n, 3)))
+    bad = rng.random(n) < outliers
+    b2[bad] = _unit(rng.normal(size=(int(bad.sum()), 3)))
+    a = np.einsum("ni,nj->nij", b2, b1).reshape(n, 9)
+    picks = np.array([rng.choice(n, 8, replace=False) for _ in range(40)])
+    counts, es = sample_counts(a, b1, b2, picks, vf.INLIER_DEG)
+    want = vf._essential(a[picks])
+    sign = np.sign(np.einsum("sij,sij->s", es, want))[:, None, None]
+    assert np.abs(es * sign - want).max() < 1e-9
+    # a pair within 1e-9 of the threshold could fall either side; none does here
+    assert np.array_equal(counts, vf._inliers(want, b1, b2).sum(axis=1))
+
+
+@settings(max_examples=100, deadline=None)
+@given(q=st.integers(2, 200), v=st.integers(0, 120), bits=st.integers(0, 40), seed=st.integers(0, 2**31))
+def test_a_screened_place_counted_in_full_has_the_matches_of_one_scan(q, v, bits, seed):
+    """A place that passes the screen is scanned for its other query keypoints only; merged with
+    the screen's, its matches are one scan's, in the same order (descriptors near copies of
+    each other up to `bits` flipped, so that some pass the ratio test and some tie)."""
+    import omninav.verify as vf
+
+    rng = np.random.default_rng(seed)
+    vd = rng.integers(0, 256, (v, 32), dtype=np.uint8)
+    qd = rng.integers(0, 256, (q, 32), dtype=np.uint8)
+    if v:
+        near = rng.random(q) < 0.5
+        qd[near] = vd[rng.integers(0, v, int(near.sum()))]
+        flip = rng.integers(0, 256, (q, bits), dtype=np.uint8) if bits else np.zeros((q, 0), np.uint8)
+        for j in range(flip.shape[1]):
+            qd[near, j % 32] ^= flip[near, j]
+    third = ratio_matches(qd[:: vf.SCREEN], vd)
+    assert np.array_equal(vf._with_the_rest(third, qd, vd), ratio_matches(qd, vd))
+
+
 def _places(*spec: tuple[int, int, int]) -> LocalFeatures:
     out = LocalFeatures.empty()
     for video, frame, n in spec:
@@ -98,7 +150,13 @@ def test_places_that_cannot_change_the_verdict_are_not_fitted_and_the_verdict_is
     rng = np.random.default_rng(7)
     state: dict = {}
     monkeypatch.setattr(vf, "candidate_rows", lambda *a, **k: state["rows"])
-    monkeypatch.setattr(vf, "ratio_matches", lambda qd, vd: np.zeros((state["matches"][int(vd[0, 0])], 2), np.int64))
+
+    def ratio(qd, vd):  # the place's matches, query keypoint j % 8 the j-th's, of those asked (the screen asks a third)
+        asked = list(qd[:, 1])
+        js = [j for j in range(state["matches"][int(vd[0, 0])]) if j % 8 in asked]
+        return np.array([[asked.index(j % 8), 0] for j in js], np.int64).reshape(-1, 2)
+
+    monkeypatch.setattr(vf, "ratio_matches", ratio)
 
     def fit(b1, b2):  # the stand-in inliers of the place whose matches these are (none under 8 pairs)
         state["fits"] += 1
@@ -106,6 +164,7 @@ def test_places_that_cannot_change_the_verdict_are_not_fitted_and_the_verdict_is
 
     monkeypatch.setattr(vf, "essential_fit", fit)
     query = (np.zeros((8, 3), np.float32), np.zeros((8, 32), np.uint8))
+    query[1][:, 1] = np.arange(8)  # (each keypoint's number, for the stand-in matches)
     fewer = 0
     for _ in range(3000):
         k = int(rng.integers(1, vf.PLACES + 1))
@@ -252,7 +311,8 @@ def test_the_candidates_are_the_best_ranked_row_of_each_place(n, k, span, decima
 def test_a_candidate_far_short_of_the_bar_costs_a_third_of_a_scan_and_one_near_it_is_counted_in_full(monkeypatch):
     """A candidate that must clear MIN_INLIERS is first counted over every SCREEN-th query
     keypoint: place 2 (6 of the 120 scene points: 2 over the third) is left there; place 4 (15:
-    5 over the third, so possibly the bar) is counted in full and, short of the bar, not fitted;
+    5 over the third, so possibly the bar) is counted in full (its other two thirds scanned)
+    and, short of the bar, not fitted;
     place 6, which saw the whole scene, is fitted and the answer moves to it."""
     import omninav.verify as vf
 
@@ -265,7 +325,7 @@ def test_a_candidate_far_short_of_the_bar_costs_a_third_of_a_scan_and_one_near_i
     monkeypatch.setattr(vf, "essential_fit", lambda b1, b2: fitted.append(len(b1)) or fit(b1, b2))
     v = verify(q, _candidates(0, 2, 4, 6), xy, local, place_of, 0, 2.0)
     assert vf.SCREEN == 3 and len(q[1]) == 120
-    assert scanned == [(120, 100), (40, 6), (40, 15), (120, 15), (40, 120), (120, 120)]
+    assert scanned == [(120, 100), (40, 6), (40, 15), (80, 15), (40, 120), (80, 120)]
     assert fitted == [120] and v.moved_to == 6 and v.inliers == [0, 0, 0, v.inliers[3]] and v.inliers[3] >= 100
 
 
@@ -359,7 +419,31 @@ def test_ratio_matches_are_the_brute_force_matchers():
     want = [(p[0].queryIdx, p[0].trainIdx) for p in pairs if p[0].distance < RATIO * p[1].distance]
     got = ratio_matches(d1, d2)
     assert 250 <= len(got) < 400 and [tuple(r) for r in got] == want
-    assert ratio_matches(d1[:1], d2).shape == (0, 2) and ratio_matches(d1, d2[:1]).shape == (0, 2)
+    # one keypoint is tested as in the many (the screen's split scan relies on it); one stored
+    # descriptor, or no keypoint, tests nothing
+    assert [tuple(r) for r in ratio_matches(d1[:1], d2)] == [p for p in want if p[0] == 0] != []
+    assert ratio_matches(d1, d2[:1]).shape == (0, 2) and ratio_matches(d1[:0], d2).shape == (0, 2)
+
+
+@settings(max_examples=100, deadline=None)
+@given(n=st.integers(1, 50), m=st.integers(2, 1200), bits=st.integers(0, 3), seed=st.integers(0, 2**31))
+def test_the_compiled_scan_finds_faiss_nearest_two(n, m, bits, seed):
+    """hamming.two_nearest: each query descriptor's least and second least distance are faiss's,
+    and where the least is strictly least (the ratio test's only matches), the same stored row
+    (descriptors of few random bytes, so that distances tie often)."""
+    from omninav.hamming import two_nearest
+    from omninav.verify import nearest
+
+    rng = np.random.default_rng(seed)
+    stored = (rng.integers(0, 256, (m, 32)) & (2 ** (bits * 2 + 2) - 1)).astype(np.uint8)
+    query = (rng.integers(0, 256, (n, 32)) & (2 ** (bits * 2 + 2) - 1)).astype(np.uint8)
+    got = two_nearest(query, stored)
+    dist, idx = nearest(query, stored, 2)
+    assert np.array_equal(got[:, :2], dist)
+    strict = dist[:, 0] < dist[:, 1]
+    assert np.array_equal(got[strict, 2], idx[strict, 0])
+    with pytest.raises(ValueError):
+        two_nearest(query, stored[:1])
 
 
 def test_each_venue_frame_finds_the_place_of_its_own_video_at_or_before_it():
@@ -384,6 +468,17 @@ def test_a_verified_venue_stores_a_place_every_half_metre_of_its_walk(verified):
     assert gaps.min() >= SPACING_M and gaps.max() <= SPACING_M + step + 1e-6
     assert 300 <= np.median(g.local.places["count"]) <= 900
     assert np.allclose(np.linalg.norm(np.asarray(g.local.bearings, np.float32), axis=1), 1, atol=2e-3)
+
+
+def test_a_venues_places_for_verification_are_made_once_with_the_compiled_loops_loaded(verified):
+    from omninav import essential
+
+    st, vid = verified
+    loc = Locator(st, vid)
+    place_of, index = loc.verification_places()
+    assert loc.verification_places()[0] is place_of and len(place_of) == len(loc.gen.frames)
+    assert (index.rows[place_of[place_of >= 0]] >= 0).all()
+    assert essential._sample_counts.signatures  # (loaded: the first request does not compile)
 
 
 def test_local_features_follow_the_venues_videos(verified, small_ds, tmp_path):

@@ -119,6 +119,19 @@ def test_the_app_warms_every_modelled_venue_at_start_without_a_request(
     assert r.json["tracking"]["reason"] == "new" and runtime(app) is rt and rt._walk is walk
 
 
+def test_a_venue_that_verifies_is_warmed_with_its_places_for_verification(
+    data: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A `verified` venue's warm-up also makes its places for verification and loads the RANSAC's
+    compiled loops (Locator.verification_places), so that its first request does not pay for them."""
+    warmed: list[str] = []
+    monkeypatch.setattr(Locator, "verifies", property(lambda self: self.venue_id == "lab"))
+    monkeypatch.setattr(Locator, "verification_places", lambda self: warmed.append(self.venue_id))
+    app = make_app(data, WARM_VENUES=True)
+    assert app.extensions["omninav"].runtimes.warm_idle(WAIT_S)
+    assert warmed == ["lab"]  # (lab2 does not verify; empty has nothing modelled)
+
+
 def test_a_venue_a_request_loads_is_warmed_in_a_daemon_thread(
     data: Path, record: bytes, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -141,11 +141,14 @@ class Runtimes:
             return []
 
     def _warm_one(self, venue_id: str) -> None:
-        """The venue's current runtime (loaded if need be) and its walk. A failure is only logged:
-        the request that needs the walk then builds it itself and answers with its own error."""
+        """The venue's current runtime (loaded if need be), its walk and, where it verifies, its
+        places for verification. A failure is only logged: the request that needs the walk then
+        builds it itself and answers with its own error."""
         try:
             rt, _ = self._get(venue_id)  # not get(): it would queue this venue again
             rt.walk()
+            if rt.locator.verifies:  # its places for verification, and the RANSAC's compiled loops
+                rt.locator.verification_places()
         except (Conflict, NotFound):  # no modelled frames yet, or deleted meanwhile
             pass
         except Exception:  # the venue's own requests will report it; the others still warm
