@@ -73,7 +73,10 @@ def _null_vector(a: np.ndarray, rows: np.ndarray, m: np.ndarray, v: np.ndarray, 
 @compiled
 def _two_equal(e: np.ndarray, s: np.ndarray, w: np.ndarray, out: np.ndarray) -> bool:
     """out <- U diag(1, 1, 0) V^T of e's SVD (the nearest essential matrix), from the eigenvectors
-    of e^T e by cyclic Jacobi rotations (s, w scratch); False where e has rank under 2."""
+    of e^T e by cyclic Jacobi rotations (s, w scratch); False, out zero, where e has rank under 2.
+    Squaring e squares its conditioning: the SVD's matrix to ~1e-12 where the second singular
+    value is over 1e-3 of the first, to ~1e-8 at 1e-4 (a sample's matrix that near rank 1
+    explains few pairs either way)."""
     for i in range(3):
         for j in range(3):
             t = 0.0
@@ -114,6 +117,9 @@ def _two_equal(e: np.ndarray, s: np.ndarray, w: np.ndarray, out: np.ndarray) -> 
         if col == least:
             continue
         if s[col, col] <= 0.0:
+            for i in range(3):
+                for j in range(3):
+                    out[i, j] = 0.0
             return False
         sigma = math.sqrt(s[col, col])
         for i in range(3):  # u = e v / sigma, and out += u v^T
@@ -154,7 +160,15 @@ def sample_counts(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(n, 9) rows b2 (x) b1 of n matched unit bearings (n, 3) each, (S, 8) samples of row numbers
     -> ((S,) each sample's essential matrix's inliers: pairs within `inlier_deg` of their epipolar
-    plane; (S, 3, 3) those matrices, zero where a sample's rows leave no matrix of rank 2)."""
+    plane; (S, 3, 3) those matrices, zero where a sample's rows leave no matrix of rank 2).
+    ValueError on shapes that do not fit or a row number outside the pairs."""
     a, b1, b2 = (np.ascontiguousarray(x, np.float64) for x in (a, b1, b2))
+    picks = np.ascontiguousarray(picks, np.int64)
+    n = len(b1)
+    # (the compiled loops do not check their indices)
+    if a.shape != (n, 9) or b1.shape != (n, 3) or b2.shape != (n, 3) or picks.ndim != 2 or picks.shape[1] != 8:
+        raise ValueError(f"sample_counts: rows {a.shape}, bearings {b1.shape} {b2.shape}, samples {picks.shape}")
+    if picks.size and (picks.min() < 0 or picks.max() >= n):
+        raise ValueError(f"sample_counts: a sample's row outside 0..{n - 1}")
     sin2 = math.sin(math.radians(inlier_deg)) ** 2
-    return _sample_counts(a, b1, b2, np.ascontiguousarray(picks, np.int64), sin2)
+    return _sample_counts(a, b1, b2, picks, sin2)

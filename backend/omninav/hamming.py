@@ -66,9 +66,14 @@ def two_nearest(query: np.ndarray, stored: np.ndarray) -> np.ndarray:
     """(n, 32) and (m, 32) uint8 descriptors, m >= 2 -> (n, 3) int64: each query descriptor's
     least and second least Hamming distance to the stored ones, and the first stored row at the
     least."""
-    q = np.ascontiguousarray(query, np.uint8).view(np.uint64)
+    query, stored = np.asarray(query), np.asarray(stored)
+    if query.ndim != 2 or stored.ndim != 2 or query.shape[1] != 8 * WORDS or stored.shape[1] != 8 * WORDS:
+        raise ValueError(f"two_nearest wants (n, 32) descriptors, got {query.shape} and {stored.shape}")
+    if len(stored) < 2:
+        raise ValueError(f"two_nearest wants two or more stored descriptors, got {len(stored)}")
+    # writable, aligned and contiguous (a record's descriptors are read-only views of its bytes):
+    # one compiled version serves every caller, the one the server's warm-up loads
+    q = np.require(np.require(query, np.uint8, ["C", "W"]).view(np.uint64), None, ["A"])
     st = np.ascontiguousarray(np.ascontiguousarray(stored, np.uint8).view(np.uint64).T)
-    if q.shape[1] != WORDS or st.shape[0] != WORDS or st.shape[1] < 2:
-        raise ValueError(f"two_nearest wants 32-byte descriptors and two or more stored, got {stored.shape}")
     out: np.ndarray = _two_nearest(q, st)
     return out

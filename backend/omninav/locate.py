@@ -433,7 +433,7 @@ class Locator:
             r = v.moved_to
             _, heading = self.index.verify(np.asarray(last_specs[-1])[None], np.array([[r]]))  # the curves' there
             h = self._keypoints_heading(v, int(place_of[r]), float(to_numpy(heading).ravel()[0]), index)
-        except (cv2.error, np.linalg.LinAlgError, ValueError) as err:
+        except (cv2.error, np.linalg.LinAlgError, ValueError, RuntimeError) as err:  # (RuntimeError: numba's cache)
             log.warning("verification failed, the global answer stands: %s", err)
             return e, None
         x, y = self.xy[r]
@@ -445,6 +445,7 @@ class Locator:
         loaded (essential.py: ~0.5 s a process from numba's cache, seconds the first time)."""
         from . import verify as vfy
         from .essential import sample_counts
+        from .hamming import two_nearest
 
         if self._places is None:
             stored = self.gen.local
@@ -452,6 +453,7 @@ class Locator:
             rows = self.gen.frames
             self._places = vfy.place_of_rows(rows, stored), vfy.place_index(rows, stored, self.xy)
             sample_counts(np.zeros((8, 9)), np.zeros((8, 3)), np.zeros((8, 3)), np.zeros((1, 8), np.int64), 1.0)
+            two_nearest(np.zeros((1, vfy.DESCRIPTOR_BYTES), np.uint8), np.zeros((2, vfy.DESCRIPTOR_BYTES), np.uint8))
         return self._places
 
     def _keypoints_heading(self, v: Verdict, place: int, curves: float, index: PlaceIndex) -> float:

@@ -94,6 +94,9 @@ def test_the_compiled_samples_give_the_matrices_and_inliers_of_lapacks_arithmeti
     a = np.einsum("ni,nj->nij", b2, b1).reshape(n, 9)
     picks = np.array([rng.choice(n, 8, replace=False) for _ in range(40)])
     counts, es = sample_counts(a, b1, b2, picks, vf.INLIER_DEG)
+    for bad in (picks[:, :7], picks + n, picks - n):  # (the compiled loops check no index)
+        with pytest.raises(ValueError):
+            sample_counts(a, b1, b2, bad, vf.INLIER_DEG)
     want = vf._essential(a[picks])
     sign = np.sign(np.einsum("sij,sij->s", es, want))[:, None, None]
     assert np.abs(es * sign - want).max() < 1e-9
@@ -101,8 +104,19 @@ def test_the_compiled_samples_give_the_matrices_and_inliers_of_lapacks_arithmeti
     assert np.array_equal(counts, vf._inliers(want, b1, b2).sum(axis=1))
 
 
+def test_a_matrix_of_rank_under_two_leaves_no_essential_matrix():
+    from omninav.essential import _two_equal
+
+    out = np.ones((3, 3))
+    assert not _two_equal(np.diag([1.0, 0.0, 0.0]), np.zeros((3, 3)), np.zeros((3, 3)), out)
+    assert not out.any()  # (zero: it explains no pair)
+    assert not _two_equal(np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), out) and not out.any()
+    e = np.diag([2.0, 1.0, 0.0])
+    assert _two_equal(e, np.zeros((3, 3)), np.zeros((3, 3)), out) and np.allclose(out, np.diag([1.0, 1.0, 0.0]))
+
+
 @settings(max_examples=100, deadline=None)
-@given(q=st.integers(2, 200), v=st.integers(0, 120), bits=st.integers(0, 40), seed=st.integers(0, 2**31))
+@given(q=st.integers(0, 200), v=st.integers(0, 120), bits=st.integers(0, 40), seed=st.integers(0, 2**31))
 def test_a_screened_place_counted_in_full_has_the_matches_of_one_scan(q, v, bits, seed):
     """A place that passes the screen is scanned for its other query keypoints only; merged with
     the screen's, its matches are one scan's, in the same order (descriptors near copies of
@@ -442,8 +456,15 @@ def test_the_compiled_scan_finds_faiss_nearest_two(n, m, bits, seed):
     assert np.array_equal(got[:, :2], dist)
     strict = dist[:, 0] < dist[:, 1]
     assert np.array_equal(got[strict, 2], idx[strict, 0])
-    with pytest.raises(ValueError):
-        two_nearest(query, stored[:1])
+    # a record's descriptors (read-only, unaligned bytes) take the same compiled code
+    raw = np.frombuffer(b"x" + query.tobytes(), np.uint8, offset=1).reshape(n, 32)
+    assert np.array_equal(two_nearest(raw, stored), got)
+    from omninav import hamming
+
+    assert len(hamming._two_nearest.signatures) == 1
+    for bad in (stored[:1], stored[:, :16], stored.ravel()):
+        with pytest.raises(ValueError):
+            two_nearest(query, bad)
 
 
 def test_each_venue_frame_finds_the_place_of_its_own_video_at_or_before_it():
@@ -470,15 +491,19 @@ def test_a_verified_venue_stores_a_place_every_half_metre_of_its_walk(verified):
     assert np.allclose(np.linalg.norm(np.asarray(g.local.bearings, np.float32), axis=1), 1, atol=2e-3)
 
 
-def test_a_venues_places_for_verification_are_made_once_with_the_compiled_loops_loaded(verified):
-    from omninav import essential
+def test_a_venues_places_for_verification_are_made_once_with_the_compiled_loops_loaded(verified, monkeypatch):
+    from omninav import essential, hamming
 
+    called: list[str] = []
+    counts, scan = essential.sample_counts, hamming.two_nearest
+    monkeypatch.setattr(essential, "sample_counts", lambda *a: called.append("ransac") or counts(*a))
+    monkeypatch.setattr(hamming, "two_nearest", lambda *a: called.append("scan") or scan(*a))
     st, vid = verified
     loc = Locator(st, vid)
     place_of, index = loc.verification_places()
-    assert loc.verification_places()[0] is place_of and len(place_of) == len(loc.gen.frames)
-    assert (index.rows[place_of[place_of >= 0]] >= 0).all()
-    assert essential._sample_counts.signatures  # (loaded: the first request does not compile)
+    assert called == ["ransac", "scan"]  # (run once, so loaded: the first request does not compile)
+    assert loc.verification_places()[0] is place_of and called == ["ransac", "scan"]
+    assert len(place_of) == len(loc.gen.frames) and (index.rows[place_of[place_of >= 0]] >= 0).all()
 
 
 def test_local_features_follow_the_venues_videos(verified, small_ds, tmp_path):
@@ -566,14 +591,16 @@ def test_verification_leaves_right_answers_where_they_are(verified, small_ds):
         assert np.hypot(a["x"] - tx, a["y"] - ty) < 1.0
 
 
-def test_an_error_in_verification_leaves_the_global_answer(verified, small_ds, monkeypatch, caplog):
+@pytest.mark.parametrize("error", [cv2.error("broken"), RuntimeError("cannot cache function: no locator available")])
+def test_an_error_in_verification_leaves_the_global_answer(verified, small_ds, monkeypatch, caplog, error):
+    """OpenCV's, or numba's where it can write no cache (RuntimeError), among others."""
     from omninav import verify as verify_mod
 
     loc = Locator(*verified)
     frames, (tx, ty, _) = query_clip(small_ds, 60)
 
     def broken(*a, **k):
-        raise cv2.error("broken")
+        raise error
 
     monkeypatch.setattr(verify_mod, "verify", broken)
     a = loc.locate_frames(frames, "c", load_lens(small_ds.lens), 10.0)

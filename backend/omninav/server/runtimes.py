@@ -152,7 +152,7 @@ class Runtimes:
         except (Conflict, NotFound):  # no modelled frames yet, or deleted meanwhile
             pass
         except Exception:  # the venue's own requests will report it; the others still warm
-            log.exception("warming venue %r: its runtime, walk graph and tracker", venue_id)
+            log.exception("warming venue %r: its runtime, walk graph, tracker and places for verification", venue_id)
 
     def _get(self, venue_id: str) -> tuple[Runtime, bool]:
         """The venue's runtime, and whether this call loaded it."""
