@@ -138,19 +138,23 @@ def _sample_counts(
     es = np.zeros((samples, 3, 3))
     m, v, y = np.zeros((9, 8)), np.zeros((8, 9)), np.zeros(9)
     s, w = np.zeros((3, 3)), np.zeros((3, 3))
+    t1, t2 = np.ascontiguousarray(b1.T), np.ascontiguousarray(b2.T)  # each component contiguous
     for h in range(samples):
         _null_vector(a, picks[h], m, v, y)
         e = es[h]
         if not _two_equal(y.reshape(3, 3), s, w, e):
             continue
+        e00, e01, e02 = e[0, 0], e[0, 1], e[0, 2]
+        e10, e11, e12 = e[1, 0], e[1, 1], e[1, 2]
+        e20, e21, e22 = e[2, 0], e[2, 1], e[2, 2]
         c = 0
-        for i in range(n):
-            x = e[0, 0] * b1[i, 0] + e[0, 1] * b1[i, 1] + e[0, 2] * b1[i, 2]
-            yy = e[1, 0] * b1[i, 0] + e[1, 1] * b1[i, 1] + e[1, 2] * b1[i, 2]
-            z = e[2, 0] * b1[i, 0] + e[2, 1] * b1[i, 1] + e[2, 2] * b1[i, 2]
-            d = x * b2[i, 0] + yy * b2[i, 1] + z * b2[i, 2]
-            if d * d < sin2 * (x * x + yy * yy + z * z):
-                c += 1
+        for i in range(n):  # (branch-free over the bearings' components: the compiler vectorises it)
+            p, q, r = t1[0, i], t1[1, i], t1[2, i]
+            x = e00 * p + e01 * q + e02 * r
+            yy = e10 * p + e11 * q + e12 * r
+            z = e20 * p + e21 * q + e22 * r
+            d = x * t2[0, i] + yy * t2[1, i] + z * t2[2, i]
+            c += 1 if d * d < sin2 * (x * x + yy * yy + z * z) else 0
         counts[h] = c
     return counts, es
 
