@@ -441,13 +441,14 @@ class Locator:
 
     def verification_places(self) -> tuple[np.ndarray, PlaceIndex]:
         """The venue's stored places as verification finds them (verify.place_of_rows and
-        place_index), made at its first verification or warm-up; and the RANSAC's compiled loops
-        loaded (essential.py: ~0.5 s a process from numba's cache, seconds the first time)."""
-        from . import verify as vfy
-        from .essential import sample_counts
-        from .hamming import two_nearest
-
+        place_index), made at its first verification or warm-up; and verification's compiled
+        loops loaded (essential.py, hamming.py: ~0.5 s a process from numba's cache, seconds the
+        first time)."""
         if self._places is None:
+            from . import verify as vfy
+            from .essential import sample_counts
+            from .hamming import two_nearest
+
             stored = self.gen.local
             assert stored is not None
             rows = self.gen.frames

@@ -133,10 +133,14 @@ class LocalFeatures:
             np.zeros(0, LOCAL_DTYPE), np.zeros((0, 3), np.float16), np.zeros((0, DESCRIPTOR_BYTES), np.uint8)
         )
 
+    def span(self, place: int) -> slice:
+        """A place's rows of `bearings` and `descriptors`."""
+        p = self.places[place]
+        return slice(int(p["start"]), int(p["start"]) + int(p["count"]))
+
     def of(self, place: int) -> LocalQuery:
         """A place's (bearings float32, descriptors)."""
-        p = self.places[place]
-        s = slice(int(p["start"]), int(p["start"]) + int(p["count"]))
+        s = self.span(place)
         return np.asarray(self.bearings[s], np.float32), np.asarray(self.descriptors[s])
 
     def keep(self, mask: np.ndarray) -> LocalFeatures:
@@ -501,7 +505,8 @@ def _fitted(query: LocalQuery, local: LocalFeatures, place: int, bar: float) -> 
     clear the bar, so it is not fitted), or, for a bar of MIN_INLIERS or more, where the matches
     of every SCREEN-th query keypoint fall far short of it (SCREEN_SHARE)."""
     qb, qd = query
-    vb, vd = local.of(place)
+    s = local.span(place)
+    vd = np.asarray(local.descriptors[s])  # (the bearings only where it is fitted)
     if bar >= MIN_INLIERS:
         third = ratio_matches(qd[::SCREEN], vd)
         if SCREEN * len(third) < SCREEN_SHARE * bar:
@@ -511,6 +516,7 @@ def _fitted(query: LocalQuery, local: LocalFeatures, place: int, bar: float) -> 
         mt = ratio_matches(qd, vd)
     if len(mt) < max(bar, 8):
         return 0, None
+    vb = np.asarray(local.bearings[s], np.float32)
     ok, e = essential_fit(qb[mt[:, 0]], vb[mt[:, 1]])
     return int(ok.sum()), e
 
